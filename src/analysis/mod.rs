@@ -1,0 +1,4 @@
+//! Analysis of runs and methods: energy monitors now; stability maps and normal modes
+//! join them.
+
+pub mod monitor;

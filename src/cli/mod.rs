@@ -1,0 +1,120 @@
+//! The `longstep` command line.
+//!
+//! Exit codes: 0 success, 1 bad input or I/O error (the message names what and where),
+//! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
+//! outputs up to that point are written, and the summary says when).
+
+mod run;
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+pub const EXIT_ERROR: i32 = 1;
+pub const EXIT_UNSTABLE: i32 = 3;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "longstep",
+    version,
+    about = "Multiple-time-step molecular dynamics: r-RESPA, mollified impulse and \
+             pseudo-energy methods, and the maps of where they fail",
+    long_about = "Multiple-time-step molecular dynamics.\n\n\
+        longstep integrates scenes (TOML files in systems/) with single- and \
+        multiple-time-step methods. Forces are split into levels: bonded terms are fast \
+        (sampled every inner step dt), non-bonded terms slow (sampled every outer step h). \
+        Every run prints its level table, writes energy.csv and a summary.\n\n\
+        Start with:  longstep run systems/three-spring.toml --method verlet --h 0.05 --t-end 100",
+    arg_required_else_help = true
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Integrate a scene and report energy conservation and force-evaluation counts.
+    Run(RunArgs),
+    /// Print a scene's level table, particle classes and fast components without running.
+    Check(CheckArgs),
+    /// List the integration methods.
+    Methods,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Scene file (TOML), for example systems/three-spring.toml.
+    pub scene: PathBuf,
+    /// Integration method (see `longstep methods`); default: the scene's [run] method, else verlet.
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Outer step h: the step at which the slowest forces are sampled.
+    #[arg(long, allow_negative_numbers = true)]
+    pub h: Option<f64>,
+    /// Inner steps per outer step (inner step dt = h / K), for multiple-time-step methods.
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// Inner step dt instead of --inner; h / dt must be a whole number.
+    #[arg(long, allow_negative_numbers = true)]
+    pub dt: Option<f64>,
+    /// End time of the run.
+    #[arg(long, allow_negative_numbers = true)]
+    pub t_end: Option<f64>,
+    /// Set a scene parameter, e.g. --set omega1=12.3 (repeatable; values may be expressions).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Output directory for energy.csv (default: the scene's [output] dir, else out/<scene>-<method>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the summary as one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a row of energy.csv every N steps.
+    #[arg(long, value_name = "N")]
+    pub energy_every: Option<usize>,
+    /// Stop as unstable when |E - E0| exceeds this many times the initial energy scale.
+    #[arg(long, value_name = "FACTOR")]
+    pub blowup: Option<f64>,
+    /// Print no level table or notices on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+}
+
+/// Run the command line; returns the process exit code.
+pub fn main() -> i32 {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let code = e.exit_code();
+            let _ = e.print();
+            return code;
+        }
+    };
+    let result = match cli.command {
+        Command::Run(args) => run::run_command(&args),
+        Command::Check(args) => run::check_command(&args).map(|()| 0),
+        Command::Methods => {
+            for (name, help) in crate::integrators::METHODS {
+                println!("{name:<18} {help}");
+            }
+            Ok(0)
+        }
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            EXIT_ERROR
+        }
+    }
+}

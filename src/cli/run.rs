@@ -1,0 +1,149 @@
+//! `longstep run` and `longstep check`.
+
+use std::path::PathBuf;
+
+use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
+use crate::error::{Error, Result};
+use crate::integrators::{self, MethodSettings};
+use crate::io::scene::load_scene;
+use crate::io::summary::Status;
+use crate::run::{RunOptions, run};
+use crate::split::ParticleClass;
+
+fn positive(value: f64, what: &str) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::input(format!(
+            "{what} must be positive and finite, got {value}"
+        )))
+    }
+}
+
+pub fn run_command(args: &RunArgs) -> Result<i32> {
+    let mut scene = load_scene(&args.scene, &args.set)?;
+    let settings = &scene.run;
+    let method = args
+        .method
+        .clone()
+        .or_else(|| settings.method.clone())
+        .unwrap_or_else(|| "verlet".into());
+    let h = args.h.or(settings.h).ok_or_else(|| {
+        Error::input("no outer step h: give --h or set h in the scene's [run] table")
+    })?;
+    let h = positive(h, "outer step h")?;
+    let t_end = args.t_end.or(settings.t_end).ok_or_else(|| {
+        Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
+    })?;
+    let t_end = positive(t_end, "end time t_end")?;
+    // An inner step given on the command line replaces the scene's, in either form.
+    let (inner_steps, dt) = if args.inner_steps.is_some() || args.dt.is_some() {
+        (args.inner_steps, args.dt)
+    } else {
+        (settings.inner_steps, settings.dt)
+    };
+    let energy_every = args.energy_every.or(settings.energy_every).unwrap_or(1);
+    if energy_every == 0 {
+        return Err(Error::input("--energy-every must be at least 1"));
+    }
+    let blowup = positive(
+        args.blowup.or(settings.blowup).unwrap_or(10.0),
+        "blow-up factor",
+    )?;
+
+    let mut notices = Vec::new();
+    let mut integrator = integrators::build(
+        &MethodSettings {
+            method: method.clone(),
+            h,
+            inner_steps,
+            dt,
+        },
+        &mut notices,
+    )?;
+
+    let out_dir = args
+        .out
+        .clone()
+        .or_else(|| settings.output_dir.clone())
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("{}-{method}", scene.name)));
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+
+    if !args.quiet {
+        eprintln!("{}", scene.system.forces.level_table());
+        for notice in &notices {
+            eprintln!("notice: {notice}");
+        }
+    }
+    let options = RunOptions {
+        t_end,
+        energy_every,
+        blowup,
+        energy_csv: Some(out_dir.join("energy.csv")),
+    };
+    let summary = run(&scene.name, &mut scene.system, integrator.as_mut(), &options)?;
+    if args.json {
+        let json = serde_json::to_string_pretty(&summary)
+            .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;
+        println!("{json}");
+    } else {
+        println!("{}", summary.to_text());
+    }
+    if summary.status != Status::Ok {
+        if args.json && !args.quiet {
+            eprintln!(
+                "{} at t = {}: {}",
+                if summary.status == Status::Unstable { "unstable" } else { "failed" },
+                summary.t_end,
+                summary.message.as_deref().unwrap_or("")
+            );
+        }
+        return Ok(EXIT_UNSTABLE);
+    }
+    Ok(0)
+}
+
+pub fn check_command(args: &CheckArgs) -> Result<()> {
+    let scene = load_scene(&args.scene, &args.set)?;
+    let system = &scene.system;
+    println!("scene      {} — {}", scene.name, scene.description);
+    println!(
+        "particles  {} in {} D{}",
+        system.n_particles(),
+        system.dim,
+        match &system.periodic_box {
+            Some(b) => format!(", periodic box {:?}", &b.lengths[..system.dim]),
+            None => String::new(),
+        }
+    );
+    if !scene.parameters.is_empty() {
+        let parameters: Vec<String> = scene
+            .parameters
+            .iter()
+            .map(|(name, value)| format!("{name} = {value}"))
+            .collect();
+        println!("parameters {}", parameters.join(", "));
+    }
+    println!("{}", system.forces.level_table());
+    let classes = system.forces.classify_particles(system.n_particles());
+    let count = |class| classes.iter().filter(|&&c| c == class).count();
+    println!(
+        "classes    {} fast, {} mixed, {} slow (MEMM18 section 4.1)",
+        count(ParticleClass::Fast),
+        count(ParticleClass::Mixed),
+        count(ParticleClass::Slow)
+    );
+    let components = system.forces.fast_components(system.n_particles());
+    let largest = components.iter().map(Vec::len).max().unwrap_or(0);
+    println!(
+        "fast graph {} connected components, the largest with {largest} particles",
+        components.len()
+    );
+    println!(
+        "energy     E0 = {} (kinetic {}, potential per level {:?})",
+        system.total_energy(),
+        system.kinetic_energy(),
+        system.potential_energies()
+    );
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! Force terms: one file per kind of interaction.
+//!
+//! Every term gives its energy, adds its gradient, and adds a Hessian-vector product
+//! `W_qq(q)·v` — the mollified impulse methods propagate Jacobians with it (GSS98
+//! section 2). Every term also reports which particles each of its interactions couples:
+//! the splitter builds the fast-force graph, its connected components (the blocks of the
+//! averaging Jacobian) and the fast/mixed/slow particle classes of MEMM18 section 4.1 from
+//! that list.
+//!
+//! Central pair interactions (springs, FPU springs, Lennard-Jones, gravity) share one
+//! chain-rule kernel, [`pair`]: each is written as `χ(s)` with `s = |r_b − r_a|²`, the
+//! form GSS98 section 2 recommends for Hessian products, and its file gives only
+//! `χ`, `χ′` and `χ″`.
+
+pub mod angle;
+pub mod dual;
+pub mod gravity;
+pub mod lennard_jones;
+pub mod pair;
+pub mod pendulum;
+pub mod quartic;
+pub mod spring;
+
+/// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Site {
+    Particle(usize),
+    /// A fixed anchor; only the first `dim` coordinates are used.
+    Fixed([f64; 3]),
+}
+
+impl Site {
+    pub fn particle(&self) -> Option<usize> {
+        match *self {
+            Site::Particle(i) => Some(i),
+            Site::Fixed(_) => None,
+        }
+    }
+}
+
+/// How the splitter treats a term by default: bonded terms are fast, non-bonded slow.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TermClass {
+    Bonded,
+    Nonbonded,
+}
+
+/// A potential-energy term `V(q)` over the flat coordinate array `q` (`n × dim`).
+pub trait ForceTerm: Send + Sync {
+    /// Short kind name for tables and messages (`"spring"`, `"lennard-jones"`).
+    fn kind(&self) -> &'static str;
+
+    fn class(&self) -> TermClass;
+
+    fn energy(&self, q: &[f64]) -> f64;
+
+    /// `gradient += ∇V(q)` (the force is minus this).
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]);
+
+    /// `out += ∇²V(q) · v`.
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]);
+
+    /// The particles each interaction of this term couples (anchors left out).
+    fn couplings(&self) -> Vec<Vec<usize>>;
+
+    /// How many elementary interactions (one spring, one pair, one angle) the term holds.
+    fn interaction_count(&self) -> usize;
+}
+
+/// Run `$body` with `$d` bound to the const dimension `1`, `2` or `3`, so inner loops are
+/// compiled once per dimension and a 1-D chain never touches a second coordinate.
+macro_rules! with_dim {
+    ($dim:expr, $d:ident => $body:expr) => {
+        match $dim {
+            1 => {
+                const $d: usize = 1;
+                $body
+            }
+            2 => {
+                const $d: usize = 2;
+                $body
+            }
+            3 => {
+                const $d: usize = 3;
+                $body
+            }
+            other => unreachable!("dimension {other} was validated to be 1, 2 or 3"),
+        }
+    };
+}
+pub(crate) use with_dim;
+
+/// Coordinates of a site as a `D`-vector.
+#[inline(always)]
+pub(crate) fn site_position<const D: usize>(site: &Site, q: &[f64]) -> [f64; D] {
+    match *site {
+        Site::Particle(i) => std::array::from_fn(|a| q[i * D + a]),
+        Site::Fixed(x) => std::array::from_fn(|a| x[a]),
+    }
+}
+
+/// Components of `v` on a site (zero for a fixed site, which does not move).
+#[inline(always)]
+pub(crate) fn site_vector<const D: usize>(site: &Site, v: &[f64]) -> [f64; D] {
+    match *site {
+        Site::Particle(i) => std::array::from_fn(|a| v[i * D + a]),
+        Site::Fixed(_) => [0.0; D],
+    }
+}
+
+/// `out[site] += value` (nothing for a fixed site).
+#[inline(always)]
+pub(crate) fn add_to_site<const D: usize>(site: &Site, out: &mut [f64], value: &[f64; D]) {
+    if let Site::Particle(i) = *site {
+        for a in 0..D {
+            out[i * D + a] += value[a];
+        }
+    }
+}
+
+#[inline(always)]
+pub(crate) fn dot<const D: usize>(x: &[f64; D], y: &[f64; D]) -> f64 {
+    let mut sum = 0.0;
+    for a in 0..D {
+        sum += x[a] * y[a];
+    }
+    sum
+}

@@ -1,0 +1,148 @@
+//! The chain rule shared by all central pair interactions.
+//!
+//! A pair potential is `V = χ(s)` with `s = |d|²`, `d = r_b − r_a` (minimum image in a
+//! periodic box). Then
+//!
+//! * `∇_b V = 2χ′(s) d`, `∇_a V = −∇_b V`;
+//! * the Hessian block is `H = 2χ′(s) I + 4χ″(s) d dᵀ`, with `∂²V/∂r_b² = ∂²V/∂r_a² = H`
+//!   and `∂²V/∂r_a∂r_b = −H`, so `(∇²V v)_b = H (v_b − v_a) = −(∇²V v)_a`.
+//!
+//! Each kind of pair term (spring, FPU spring, Lennard-Jones, gravity) only supplies
+//! `χ`, `χ′`, `χ″` through [`PairPotential`].
+
+use super::{
+    ForceTerm, Site, TermClass, add_to_site, dot, site_position, site_vector, with_dim,
+};
+use crate::system::PeriodicBox;
+
+/// A radial potential written in the squared distance `s`.
+pub trait PairPotential: Copy + Send + Sync {
+    /// `χ(s)`.
+    fn value(&self, s: f64) -> f64;
+    /// `χ′(s)`.
+    fn d1(&self, s: f64) -> f64;
+    /// `(χ′(s), χ″(s))`.
+    fn d1_d2(&self, s: f64) -> (f64, f64);
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Pair<P> {
+    pub a: Site,
+    pub b: Site,
+    pub potential: P,
+}
+
+/// A list of pair interactions of one kind.
+#[derive(Clone, Debug)]
+pub struct PairTerm<P> {
+    kind: &'static str,
+    class: TermClass,
+    dim: usize,
+    pairs: Vec<Pair<P>>,
+    periodic_box: Option<PeriodicBox>,
+}
+
+impl<P: PairPotential> PairTerm<P> {
+    pub fn new(
+        kind: &'static str,
+        class: TermClass,
+        dim: usize,
+        pairs: Vec<Pair<P>>,
+        periodic_box: Option<PeriodicBox>,
+    ) -> Self {
+        assert!((1..=3).contains(&dim), "dimension must be 1, 2 or 3");
+        PairTerm {
+            kind,
+            class,
+            dim,
+            pairs,
+            periodic_box,
+        }
+    }
+
+    pub fn pairs(&self) -> &[Pair<P>] {
+        &self.pairs
+    }
+
+    #[inline(always)]
+    fn displacement<const D: usize>(&self, pair: &Pair<P>, q: &[f64]) -> [f64; D] {
+        let ra = site_position::<D>(&pair.a, q);
+        let rb = site_position::<D>(&pair.b, q);
+        let mut d: [f64; D] = std::array::from_fn(|k| rb[k] - ra[k]);
+        if let Some(periodic_box) = &self.periodic_box {
+            for (axis, component) in d.iter_mut().enumerate() {
+                *component = periodic_box.wrap(axis, *component);
+            }
+        }
+        d
+    }
+
+    fn energy_d<const D: usize>(&self, q: &[f64]) -> f64 {
+        self.pairs
+            .iter()
+            .map(|pair| {
+                let d = self.displacement::<D>(pair, q);
+                pair.potential.value(dot(&d, &d))
+            })
+            .sum()
+    }
+
+    fn gradient_d<const D: usize>(&self, q: &[f64], gradient: &mut [f64]) {
+        for pair in &self.pairs {
+            let d = self.displacement::<D>(pair, q);
+            let scale = 2.0 * pair.potential.d1(dot(&d, &d));
+            let on_b: [f64; D] = std::array::from_fn(|k| scale * d[k]);
+            let on_a: [f64; D] = std::array::from_fn(|k| -on_b[k]);
+            add_to_site(&pair.b, gradient, &on_b);
+            add_to_site(&pair.a, gradient, &on_a);
+        }
+    }
+
+    fn hessian_vector_d<const D: usize>(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        for pair in &self.pairs {
+            let d = self.displacement::<D>(pair, q);
+            let (chi1, chi2) = pair.potential.d1_d2(dot(&d, &d));
+            let va = site_vector::<D>(&pair.a, v);
+            let vb = site_vector::<D>(&pair.b, v);
+            let dv: [f64; D] = std::array::from_fn(|k| vb[k] - va[k]);
+            let along = 4.0 * chi2 * dot(&d, &dv);
+            let on_b: [f64; D] = std::array::from_fn(|k| 2.0 * chi1 * dv[k] + along * d[k]);
+            let on_a: [f64; D] = std::array::from_fn(|k| -on_b[k]);
+            add_to_site(&pair.b, out, &on_b);
+            add_to_site(&pair.a, out, &on_a);
+        }
+    }
+}
+
+impl<P: PairPotential> ForceTerm for PairTerm<P> {
+    fn kind(&self) -> &'static str {
+        self.kind
+    }
+
+    fn class(&self) -> TermClass {
+        self.class
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        with_dim!(self.dim, D => self.energy_d::<D>(q))
+    }
+
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+        with_dim!(self.dim, D => self.gradient_d::<D>(q, gradient))
+    }
+
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        with_dim!(self.dim, D => self.hessian_vector_d::<D>(q, v, out))
+    }
+
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        self.pairs
+            .iter()
+            .map(|pair| [pair.a, pair.b].iter().filter_map(Site::particle).collect())
+            .collect()
+    }
+
+    fn interaction_count(&self) -> usize {
+        self.pairs.len()
+    }
+}

@@ -1,0 +1,7 @@
+//! Input and output: scene files, structure files through chemfiles, CSV and JSON.
+
+pub mod csv;
+pub mod expr;
+pub mod scene;
+pub mod structure;
+pub mod summary;

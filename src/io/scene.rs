@@ -1,0 +1,1030 @@
+//! Scene files: TOML, schema version 1, documented in `docs/scenes.md`.
+//!
+//! A scene names its dimension, parameters, particles (listed, or read from a structure
+//! file through chemfiles), fixed anchors, force terms with their level, and the run.
+//! Parsing is strict: an unknown key, a missing particle, a non-positive mass or a vector
+//! of the wrong length is an error naming the file, the line and the key.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::expr;
+use super::structure::{Structure, read_structure};
+use crate::error::{Error, Result};
+use crate::forces::angle::{AngleBend, HarmonicAngles};
+use crate::forces::gravity::{CentralMass, gravity};
+use crate::forces::lennard_jones::{LennardJones, lennard_jones_pairs};
+use crate::forces::pendulum::Pendulum;
+use crate::forces::quartic::{QuarticBond, quartic_springs};
+use crate::forces::spring::{HarmonicBond, harmonic_springs};
+use crate::forces::{ForceTerm, Site};
+use crate::split::{Assignment, ForceSplit};
+use crate::system::{Particles, PeriodicBox, State, System};
+
+/// The scene-file format version this build reads.
+pub const SCENE_VERSION: u32 = 1;
+
+// ---------------------------------------------------------------------------------------
+// The file as written
+// ---------------------------------------------------------------------------------------
+
+/// A number, or an expression in the scene's parameters (`"omega1^2"`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Value {
+    Number(f64),
+    Expression(String),
+}
+
+/// A particle by 0-based index or by name; a name may also be an anchor's.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Reference {
+    Index(usize),
+    Name(String),
+}
+
+impl std::fmt::Display for Reference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Reference::Index(i) => write!(f, "particle {i}"),
+            Reference::Name(name) => write!(f, "\"{name}\""),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Group {
+    Fast,
+    Slow,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub version: u32,
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub dim: usize,
+    #[serde(default)]
+    pub parameters: BTreeMap<String, Value>,
+    #[serde(default)]
+    pub anchors: BTreeMap<String, Vec<Value>>,
+    #[serde(default)]
+    pub particles: Vec<Spanned<ParticleSpec>>,
+    pub structure: Option<Spanned<StructureSpec>>,
+    #[serde(rename = "box")]
+    pub periodic_box: Option<Spanned<Vec<Value>>>,
+    #[serde(default)]
+    pub terms: Vec<Spanned<TermSpec>>,
+    #[serde(default)]
+    pub run: RunSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    pub name: Option<String>,
+    pub mass: Value,
+    pub position: Vec<Value>,
+    pub momentum: Option<Vec<Value>>,
+    pub velocity: Option<Vec<Value>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StructureSpec {
+    /// Path relative to the scene file.
+    pub file: String,
+    /// One mass for every particle; by default each atom's element gives its mass.
+    pub mass: Option<Value>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum TermSpec {
+    /// Harmonic springs `(k/2)(r − L)²`.
+    Spring {
+        name: Option<String>,
+        between: Option<[Reference; 2]>,
+        pairs: Option<Vec<[Reference; 2]>>,
+        stiffness: Value,
+        rest_length: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// Harmonic springs between consecutive particles of a list (default: all).
+    Chain {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        stiffness: Value,
+        rest_length: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// FPU springs `c (r − L)⁴`.
+    QuarticSpring {
+        name: Option<String>,
+        between: Option<[Reference; 2]>,
+        pairs: Option<Vec<[Reference; 2]>>,
+        coefficient: Value,
+        rest_length: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// Harmonic angles `(k/2)(θ − θ₀)²` at the middle particle of each triple.
+    Angle {
+        name: Option<String>,
+        between: Option<[Reference; 3]>,
+        triples: Option<Vec<[Reference; 3]>>,
+        stiffness: Value,
+        rest_angle: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// Lennard-Jones 12-6 between all pairs of a particle list (default: all).
+    LennardJones {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        epsilon: Value,
+        sigma: Value,
+        cutoff: Option<Value>,
+        shift: Option<bool>,
+        #[serde(default)]
+        exclude: Vec<[Reference; 2]>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// Newtonian gravity among particles and towards an optional fixed central mass.
+    Gravity {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        constant: Option<Value>,
+        center: Option<String>,
+        center_mass: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// `k(1 − cos x)` on one coordinate of each particle.
+    Pendulum {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        strength: Value,
+        axis: Option<usize>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSpec {
+    pub method: Option<String>,
+    /// Outer step.
+    pub h: Option<Value>,
+    /// Inner steps per outer step (multiple-time-step methods).
+    pub inner_steps: Option<usize>,
+    /// Inner step; `h / dt` must be a whole number.
+    pub dt: Option<Value>,
+    pub t_end: Option<Value>,
+    /// Stop as unstable when `|E − E₀|` exceeds this many times the initial energy scale.
+    pub blowup: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output directory, relative to the working directory.
+    pub dir: Option<String>,
+    /// Write a row of `energy.csv` every this many steps.
+    pub energy_every: Option<usize>,
+}
+
+// ---------------------------------------------------------------------------------------
+// The built scene
+// ---------------------------------------------------------------------------------------
+
+/// Run settings after the scene and the command line are combined.
+#[derive(Clone, Debug, Default)]
+pub struct RunSettings {
+    pub method: Option<String>,
+    pub h: Option<f64>,
+    pub inner_steps: Option<usize>,
+    pub dt: Option<f64>,
+    pub t_end: Option<f64>,
+    pub blowup: Option<f64>,
+    pub output_dir: Option<PathBuf>,
+    pub energy_every: Option<usize>,
+}
+
+pub struct Scene {
+    pub name: String,
+    pub description: String,
+    pub path: PathBuf,
+    pub parameters: BTreeMap<String, f64>,
+    pub system: System,
+    pub run: RunSettings,
+}
+
+/// Read and build a scene; `overrides` are `name=value` settings of its parameters.
+pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    build_scene(&text, path, overrides)
+}
+
+/// Build a scene from its text (`path` names it in messages and anchors relative files).
+pub fn build_scene(text: &str, path: &Path, overrides: &[String]) -> Result<Scene> {
+    let builder = Builder { text, path };
+    let file: SceneFile = toml::from_str(text).map_err(|e| {
+        let location = match e.span() {
+            Some(span) => builder.location(span.start),
+            None => path.display().to_string(),
+        };
+        Error::Scene {
+            location,
+            message: e.message().to_string(),
+        }
+    })?;
+    builder.build(file, overrides)
+}
+
+struct Builder<'a> {
+    text: &'a str,
+    path: &'a Path,
+}
+
+/// A particle or anchor name resolved to a site.
+struct Names {
+    sites: BTreeMap<String, Site>,
+    n_particles: usize,
+}
+
+impl Builder<'_> {
+    fn location(&self, offset: usize) -> String {
+        let line = self.text[..offset.min(self.text.len())]
+            .bytes()
+            .filter(|&b| b == b'\n')
+            .count()
+            + 1;
+        format!("{}:{line}", self.path.display())
+    }
+
+    fn error_at(&self, offset: usize, message: impl Into<String>) -> Error {
+        Error::Scene {
+            location: self.location(offset),
+            message: message.into(),
+        }
+    }
+
+    fn error(&self, message: impl Into<String>) -> Error {
+        Error::Scene {
+            location: self.path.display().to_string(),
+            message: message.into(),
+        }
+    }
+
+    fn build(&self, file: SceneFile, overrides: &[String]) -> Result<Scene> {
+        if file.version != SCENE_VERSION {
+            return Err(self.error(format!(
+                "scene version {} is not supported; this longstep reads version {SCENE_VERSION}",
+                file.version
+            )));
+        }
+        let dim = file.dim;
+        if !(1..=3).contains(&dim) {
+            return Err(self.error(format!("dim must be 1, 2 or 3, got {dim}")));
+        }
+        let parameters = self.resolve_parameters(&file.parameters, overrides)?;
+        let value = |v: &Value, what: &str, offset: usize| -> Result<f64> {
+            self.evaluate(v, &parameters, what, offset)
+        };
+
+        // Particles: listed, or read from a structure file.
+        let mut names = Vec::new();
+        let mut masses = Vec::new();
+        let mut q = Vec::new();
+        let mut p = Vec::new();
+        let mut structure_positions: Option<Structure> = None;
+        match (&file.structure, file.particles.is_empty()) {
+            (Some(_), false) => {
+                return Err(self.error(
+                    "give particles either as [[particles]] or through [structure], not both",
+                ));
+            }
+            (None, true) => return Err(self.error("the scene has no particles")),
+            (None, false) => {
+                for (index, spanned) in file.particles.iter().enumerate() {
+                    let offset = spanned.span().start;
+                    let spec = spanned.get_ref();
+                    let label = match &spec.name {
+                        Some(name) => format!("particle {index} (\"{name}\")"),
+                        None => format!("particle {index}"),
+                    };
+                    let mass = value(&spec.mass, &format!("mass of {label}"), offset)?;
+                    if mass <= 0.0 {
+                        return Err(self.error_at(
+                            offset,
+                            format!("mass of {label} must be positive, got {mass}"),
+                        ));
+                    }
+                    let position =
+                        self.vector(&spec.position, dim, &parameters, &format!("position of {label}"), offset)?;
+                    let momentum = match (&spec.momentum, &spec.velocity) {
+                        (Some(_), Some(_)) => {
+                            return Err(self.error_at(
+                                offset,
+                                format!("{label} gives both momentum and velocity; give one"),
+                            ));
+                        }
+                        (Some(momentum), None) => self.vector(
+                            momentum,
+                            dim,
+                            &parameters,
+                            &format!("momentum of {label}"),
+                            offset,
+                        )?,
+                        (None, Some(velocity)) => self
+                            .vector(velocity, dim, &parameters, &format!("velocity of {label}"), offset)?
+                            .iter()
+                            .map(|v| v * mass)
+                            .collect(),
+                        (None, None) => vec![0.0; dim],
+                    };
+                    names.push(spec.name.clone().unwrap_or_else(|| format!("p{index}")));
+                    masses.push(mass);
+                    q.extend(position);
+                    p.extend(momentum);
+                }
+            }
+            (Some(spanned), true) => {
+                let offset = spanned.span().start;
+                let spec = spanned.get_ref();
+                let structure_path = self
+                    .path
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(&spec.file);
+                let structure = read_structure(&structure_path)?;
+                let uniform_mass = match &spec.mass {
+                    Some(mass) => {
+                        let mass = value(mass, "structure mass", offset)?;
+                        if mass <= 0.0 {
+                            return Err(self.error_at(
+                                offset,
+                                format!("structure mass must be positive, got {mass}"),
+                            ));
+                        }
+                        Some(mass)
+                    }
+                    None => None,
+                };
+                for (i, atom) in structure.atoms.iter().enumerate() {
+                    let mass = match uniform_mass {
+                        Some(mass) => mass,
+                        None if atom.mass > 0.0 => atom.mass,
+                        None => {
+                            return Err(Error::Structure {
+                                path: structure_path.clone(),
+                                message: format!(
+                                    "atom {i} has unknown element \"{}\" (no mass): give \
+                                     `mass` in the scene's [structure] section",
+                                    atom.name
+                                ),
+                            });
+                        }
+                    };
+                    for (axis, &x) in atom.position.iter().enumerate() {
+                        if axis < dim {
+                            q.push(x);
+                        } else if x != 0.0 {
+                            return Err(Error::Structure {
+                                path: structure_path.clone(),
+                                message: format!(
+                                    "atom {i} has coordinate {axis} = {x}, but the scene has \
+                                     dim = {dim}: use dim = 3 or a file in the first {dim} \
+                                     coordinates"
+                                ),
+                            });
+                        }
+                    }
+                    names.push(atom.name.clone());
+                    masses.push(mass);
+                    p.extend(std::iter::repeat_n(0.0, dim));
+                }
+                structure_positions = Some(structure);
+            }
+        }
+        let n_particles = masses.len();
+
+        // Names of particles and anchors share one namespace.
+        let mut sites = BTreeMap::new();
+        if structure_positions.is_none() {
+            for (i, name) in names.iter().enumerate() {
+                if sites.insert(name.clone(), Site::Particle(i)).is_some() {
+                    return Err(self.error(format!("two particles are named \"{name}\"")));
+                }
+            }
+        }
+        for (name, coordinates) in &file.anchors {
+            let position = self.vector(coordinates, dim, &parameters, &format!("anchor \"{name}\""), 0)?;
+            let mut fixed = [0.0; 3];
+            fixed[..dim].copy_from_slice(&position);
+            if sites.insert(name.clone(), Site::Fixed(fixed)).is_some() {
+                return Err(self.error(format!(
+                    "anchor \"{name}\" has the name of a particle; names must be unique"
+                )));
+            }
+        }
+        let names_table = Names { sites, n_particles };
+
+        let periodic_box = match &file.periodic_box {
+            Some(spanned) => {
+                let lengths = self.vector(spanned.get_ref(), dim, &parameters, "box", spanned.span().start)?;
+                if lengths.iter().any(|&l| l <= 0.0) {
+                    return Err(self.error_at(spanned.span().start, "box lengths must be positive"));
+                }
+                let mut all = [f64::INFINITY; 3];
+                all[..dim].copy_from_slice(&lengths);
+                Some(PeriodicBox { lengths: all })
+            }
+            None => None,
+        };
+
+        // Terms.
+        let mut terms: Vec<(String, Box<dyn ForceTerm>, Assignment)> = Vec::new();
+        for (index, spanned) in file.terms.iter().enumerate() {
+            let term = self.build_term(
+                spanned,
+                index,
+                dim,
+                &parameters,
+                &names_table,
+                &q,
+                &masses,
+                periodic_box,
+            )?;
+            terms.push(term);
+        }
+        let forces = ForceSplit::new(terms).map_err(|e| self.error(e.to_string()))?;
+
+        let state = State { t: 0.0, q, p };
+        let system = System::new(
+            dim,
+            Particles { names, masses },
+            state,
+            forces,
+            periodic_box,
+        );
+        self.check_finite_start(&system)?;
+
+        let run_value = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+            v.as_ref().map(|v| value(v, what, 0)).transpose()
+        };
+        let run = RunSettings {
+            method: file.run.method.clone(),
+            h: run_value(&file.run.h, "run.h")?,
+            inner_steps: file.run.inner_steps,
+            dt: run_value(&file.run.dt, "run.dt")?,
+            t_end: run_value(&file.run.t_end, "run.t_end")?,
+            blowup: file.run.blowup,
+            output_dir: file.output.dir.as_ref().map(PathBuf::from),
+            energy_every: file.output.energy_every,
+        };
+
+        Ok(Scene {
+            name: file.name,
+            description: file.description,
+            path: self.path.to_path_buf(),
+            parameters,
+            system,
+            run,
+        })
+    }
+
+    /// `[parameters]` with the `--set` overrides applied, each evaluated once (they may
+    /// refer to one another, without cycles).
+    fn resolve_parameters(
+        &self,
+        raw: &BTreeMap<String, Value>,
+        overrides: &[String],
+    ) -> Result<BTreeMap<String, f64>> {
+        let mut raw = raw.clone();
+        for setting in overrides {
+            let Some((name, text)) = setting.split_once('=') else {
+                return Err(Error::input(format!(
+                    "--set expects name=value, got \"{setting}\""
+                )));
+            };
+            let name = name.trim();
+            if !raw.contains_key(name) {
+                let known: Vec<&str> = raw.keys().map(String::as_str).collect();
+                return Err(Error::input(format!(
+                    "--set {name}: the scene {} has no parameter \"{name}\" (it has: {})",
+                    self.path.display(),
+                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                )));
+            }
+            let text = text.trim();
+            let value = match text.parse::<f64>() {
+                Ok(number) => Value::Number(number),
+                Err(_) => Value::Expression(text.to_string()),
+            };
+            raw.insert(name.to_string(), value);
+        }
+        let mut resolved = BTreeMap::new();
+        for name in raw.keys() {
+            self.resolve_parameter(name, &raw, &mut resolved, &mut Vec::new())?;
+        }
+        Ok(resolved)
+    }
+
+    fn resolve_parameter(
+        &self,
+        name: &str,
+        raw: &BTreeMap<String, Value>,
+        resolved: &mut BTreeMap<String, f64>,
+        stack: &mut Vec<String>,
+    ) -> Result<f64> {
+        if let Some(&value) = resolved.get(name) {
+            return Ok(value);
+        }
+        if stack.iter().any(|n| n == name) {
+            stack.push(name.to_string());
+            return Err(self.error(format!(
+                "parameters refer to each other in a cycle: {}",
+                stack.join(" -> ")
+            )));
+        }
+        let value = match &raw[name] {
+            Value::Number(x) => *x,
+            Value::Expression(text) => {
+                stack.push(name.to_string());
+                let dependencies = expr::referenced_names(text)
+                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")))?;
+                for dependency in dependencies {
+                    if raw.contains_key(&dependency) {
+                        self.resolve_parameter(&dependency, raw, resolved, stack)?;
+                    }
+                }
+                stack.pop();
+                expr::evaluate(text, resolved)
+                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")))?
+            }
+        };
+        if !value.is_finite() {
+            return Err(self.error(format!("parameter \"{name}\" is not finite ({value})")));
+        }
+        resolved.insert(name.to_string(), value);
+        Ok(value)
+    }
+
+    fn evaluate(
+        &self,
+        v: &Value,
+        parameters: &BTreeMap<String, f64>,
+        what: &str,
+        offset: usize,
+    ) -> Result<f64> {
+        let value = match v {
+            Value::Number(x) => *x,
+            Value::Expression(text) => expr::evaluate(text, parameters)
+                .map_err(|e| self.error_at(offset, format!("{what}: {e}")))?,
+        };
+        if !value.is_finite() {
+            return Err(self.error_at(offset, format!("{what} is not finite ({value})")));
+        }
+        Ok(value)
+    }
+
+    fn vector(
+        &self,
+        values: &[Value],
+        dim: usize,
+        parameters: &BTreeMap<String, f64>,
+        what: &str,
+        offset: usize,
+    ) -> Result<Vec<f64>> {
+        if values.len() != dim {
+            return Err(self.error_at(
+                offset,
+                format!(
+                    "{what} has {} components, but the scene has dim = {dim}",
+                    values.len()
+                ),
+            ));
+        }
+        values
+            .iter()
+            .map(|v| self.evaluate(v, parameters, what, offset))
+            .collect()
+    }
+
+    fn site(&self, reference: &Reference, names: &Names, what: &str, offset: usize) -> Result<Site> {
+        match reference {
+            Reference::Index(i) if *i < names.n_particles => Ok(Site::Particle(*i)),
+            Reference::Index(i) => Err(self.error_at(
+                offset,
+                format!(
+                    "{what} names particle {i}, but the scene has {} particles (0 to {})",
+                    names.n_particles,
+                    names.n_particles.saturating_sub(1)
+                ),
+            )),
+            Reference::Name(name) => names.sites.get(name).copied().ok_or_else(|| {
+                self.error_at(
+                    offset,
+                    format!("{what} names \"{name}\", which is no particle or anchor"),
+                )
+            }),
+        }
+    }
+
+    fn particle(
+        &self,
+        reference: &Reference,
+        names: &Names,
+        what: &str,
+        offset: usize,
+    ) -> Result<usize> {
+        match self.site(reference, names, what, offset)? {
+            Site::Particle(i) => Ok(i),
+            Site::Fixed(_) => Err(self.error_at(
+                offset,
+                format!("{what}: {reference} is an anchor, but a particle is needed here"),
+            )),
+        }
+    }
+
+    fn particle_list(
+        &self,
+        list: &Option<Vec<Reference>>,
+        names: &Names,
+        what: &str,
+        offset: usize,
+    ) -> Result<Vec<usize>> {
+        match list {
+            None => Ok((0..names.n_particles).collect()),
+            Some(list) => list
+                .iter()
+                .map(|r| self.particle(r, names, what, offset))
+                .collect(),
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn build_term(
+        &self,
+        spanned: &Spanned<TermSpec>,
+        index: usize,
+        dim: usize,
+        parameters: &BTreeMap<String, f64>,
+        names: &Names,
+        q: &[f64],
+        masses: &[f64],
+        periodic_box: Option<PeriodicBox>,
+    ) -> Result<(String, Box<dyn ForceTerm>, Assignment)> {
+        let offset = spanned.span().start;
+        let spec = spanned.get_ref();
+        let (name, group, level) = match spec {
+            TermSpec::Spring { name, group, level, .. }
+            | TermSpec::Chain { name, group, level, .. }
+            | TermSpec::QuarticSpring { name, group, level, .. }
+            | TermSpec::Angle { name, group, level, .. }
+            | TermSpec::LennardJones { name, group, level, .. }
+            | TermSpec::Gravity { name, group, level, .. }
+            | TermSpec::Pendulum { name, group, level, .. } => (name, *group, *level),
+        };
+        let label = name.clone().unwrap_or_else(|| format!("term {index}"));
+        let what = format!("term \"{label}\"");
+        let assignment = match (group, level) {
+            (Some(_), Some(_)) => {
+                return Err(self.error_at(
+                    offset,
+                    format!("{what} gives both group and level; give one"),
+                ));
+            }
+            (Some(Group::Fast), None) => Assignment::Fast,
+            (Some(Group::Slow), None) => Assignment::Slow,
+            (None, Some(level)) => Assignment::Level(level),
+            (None, None) => Assignment::Default,
+        };
+        let number = |v: &Value, key: &str| self.evaluate(v, parameters, &format!("{what}: {key}"), offset);
+        let non_negative = |v: &Value, key: &str| -> Result<f64> {
+            let x = number(v, key)?;
+            if x < 0.0 {
+                return Err(self.error_at(offset, format!("{what}: {key} must be ≥ 0, got {x}")));
+            }
+            Ok(x)
+        };
+        let position = |site: &Site| -> [f64; 3] {
+            match *site {
+                Site::Particle(i) => {
+                    let mut x = [0.0; 3];
+                    x[..dim].copy_from_slice(&q[i * dim..(i + 1) * dim]);
+                    x
+                }
+                Site::Fixed(x) => x,
+            }
+        };
+        let distance = |a: &Site, b: &Site| -> f64 {
+            let (xa, xb) = (position(a), position(b));
+            (0..dim)
+                .map(|k| {
+                    let mut d = xb[k] - xa[k];
+                    if let Some(pb) = &periodic_box {
+                        d = pb.wrap(k, d);
+                    }
+                    d * d
+                })
+                .sum::<f64>()
+                .sqrt()
+        };
+        // "geometry" (the default) takes a rest length from the starting positions.
+        let rest_length = |value: &Option<Value>, a: &Site, b: &Site, default_geometry: bool| -> Result<f64> {
+            match value {
+                Some(Value::Expression(text)) if text == "geometry" => Ok(distance(a, b)),
+                Some(v) => non_negative(v, "rest_length"),
+                None if default_geometry => Ok(distance(a, b)),
+                None => Ok(0.0),
+            }
+        };
+        let pairs_of = |between: &Option<[Reference; 2]>,
+                        pairs: &Option<Vec<[Reference; 2]>>|
+         -> Result<Vec<(Site, Site)>> {
+            let list: Vec<&[Reference; 2]> = match (between, pairs) {
+                (Some(one), None) => vec![one],
+                (None, Some(many)) => many.iter().collect(),
+                _ => {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what} needs exactly one of `between` or `pairs`"),
+                    ));
+                }
+            };
+            list.into_iter()
+                .map(|[a, b]| {
+                    let sa = self.site(a, names, &what, offset)?;
+                    let sb = self.site(b, names, &what, offset)?;
+                    if matches!((sa, sb), (Site::Fixed(_), Site::Fixed(_))) {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what} joins two anchors ({a} and {b}); one end must be a particle"),
+                        ));
+                    }
+                    if sa.particle().is_some() && sa == sb {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what} joins {a} to itself"),
+                        ));
+                    }
+                    Ok((sa, sb))
+                })
+                .collect()
+        };
+
+        let term: Box<dyn ForceTerm> = match spec {
+            TermSpec::Spring {
+                between,
+                pairs,
+                stiffness,
+                rest_length: rest,
+                ..
+            } => {
+                let stiffness = non_negative(stiffness, "stiffness")?;
+                let springs = pairs_of(between, pairs)?
+                    .into_iter()
+                    .map(|(a, b)| {
+                        let rest_length = rest_length(rest, &a, &b, false)?;
+                        Ok((a, b, HarmonicBond { stiffness, rest_length }))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Box::new(harmonic_springs(dim, springs, periodic_box))
+            }
+            TermSpec::Chain {
+                particles,
+                stiffness,
+                rest_length: rest,
+                ..
+            } => {
+                let stiffness = non_negative(stiffness, "stiffness")?;
+                let chain = self.particle_list(particles, names, &what, offset)?;
+                if chain.len() < 2 {
+                    return Err(self.error_at(offset, format!("{what}: a chain needs at least two particles")));
+                }
+                let springs = chain
+                    .windows(2)
+                    .map(|link| {
+                        let (a, b) = (Site::Particle(link[0]), Site::Particle(link[1]));
+                        let rest_length = rest_length(rest, &a, &b, true)?;
+                        Ok((a, b, HarmonicBond { stiffness, rest_length }))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Box::new(harmonic_springs(dim, springs, periodic_box))
+            }
+            TermSpec::QuarticSpring {
+                between,
+                pairs,
+                coefficient,
+                rest_length: rest,
+                ..
+            } => {
+                let coefficient = non_negative(coefficient, "coefficient")?;
+                let springs = pairs_of(between, pairs)?
+                    .into_iter()
+                    .map(|(a, b)| {
+                        let rest_length = rest_length(rest, &a, &b, false)?;
+                        Ok((a, b, QuarticBond { coefficient, rest_length }))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Box::new(quartic_springs(dim, springs, periodic_box))
+            }
+            TermSpec::Angle {
+                between,
+                triples,
+                stiffness,
+                rest_angle,
+                ..
+            } => {
+                if dim < 2 {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: angles need dim = 2 or 3 (in 1-D every angle is 0 or π)"),
+                    ));
+                }
+                let stiffness = non_negative(stiffness, "stiffness")?;
+                let list: Vec<&[Reference; 3]> = match (between, triples) {
+                    (Some(one), None) => vec![one],
+                    (None, Some(many)) => many.iter().collect(),
+                    _ => {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what} needs exactly one of `between` or `triples`"),
+                        ));
+                    }
+                };
+                let angles = list
+                    .into_iter()
+                    .map(|triple| {
+                        let sites = [
+                            self.site(&triple[0], names, &what, offset)?,
+                            self.site(&triple[1], names, &what, offset)?,
+                            self.site(&triple[2], names, &what, offset)?,
+                        ];
+                        let rest_angle = match rest_angle {
+                            Some(Value::Expression(text)) if text == "geometry" => {
+                                geometric_angle(position(&sites[0]), position(&sites[1]), position(&sites[2]))
+                            }
+                            Some(v) => number(v, "rest_angle")?,
+                            None => geometric_angle(position(&sites[0]), position(&sites[1]), position(&sites[2])),
+                        };
+                        Ok(AngleBend { sites, stiffness, rest_angle })
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Box::new(HarmonicAngles::new(dim, angles, periodic_box))
+            }
+            TermSpec::LennardJones {
+                particles,
+                epsilon,
+                sigma,
+                cutoff,
+                shift,
+                exclude,
+                ..
+            } => {
+                let epsilon = non_negative(epsilon, "epsilon")?;
+                let sigma = number(sigma, "sigma")?;
+                if sigma <= 0.0 {
+                    return Err(self.error_at(offset, format!("{what}: sigma must be positive, got {sigma}")));
+                }
+                let cutoff = match cutoff {
+                    Some(v) => {
+                        let c = number(v, "cutoff")?;
+                        if c <= 0.0 {
+                            return Err(self.error_at(offset, format!("{what}: cutoff must be positive, got {c}")));
+                        }
+                        c
+                    }
+                    None => f64::INFINITY,
+                };
+                let members = self.particle_list(particles, names, &what, offset)?;
+                let excluded = exclude
+                    .iter()
+                    .map(|[a, b]| {
+                        Ok((
+                            self.particle(a, names, &what, offset)?,
+                            self.particle(b, names, &what, offset)?,
+                        ))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                Box::new(lennard_jones_pairs(
+                    dim,
+                    &members,
+                    &excluded,
+                    LennardJones::new(epsilon, sigma, cutoff, shift.unwrap_or(true)),
+                    periodic_box,
+                ))
+            }
+            TermSpec::Gravity {
+                particles,
+                constant,
+                center,
+                center_mass,
+                ..
+            } => {
+                let g = match constant {
+                    Some(v) => non_negative(v, "constant")?,
+                    None => 1.0,
+                };
+                let members = self.particle_list(particles, names, &what, offset)?;
+                let center = match (center, center_mass) {
+                    (Some(anchor), mass) => {
+                        let position = match names.sites.get(anchor) {
+                            Some(Site::Fixed(x)) => *x,
+                            _ => {
+                                return Err(self.error_at(
+                                    offset,
+                                    format!("{what}: center \"{anchor}\" is not an anchor"),
+                                ));
+                            }
+                        };
+                        let mass = match mass {
+                            Some(v) => non_negative(v, "center_mass")?,
+                            None => 1.0,
+                        };
+                        Some(CentralMass { position, mass })
+                    }
+                    (None, Some(_)) => {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what}: center_mass needs a center anchor"),
+                        ));
+                    }
+                    (None, None) => None,
+                };
+                Box::new(gravity(dim, g, &members, masses, center))
+            }
+            TermSpec::Pendulum {
+                particles,
+                strength,
+                axis,
+                ..
+            } => {
+                let strength = number(strength, "strength")?;
+                let axis = axis.unwrap_or(0);
+                if axis >= dim {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: axis {axis} does not exist in dim = {dim}"),
+                    ));
+                }
+                let members = self.particle_list(particles, names, &what, offset)?;
+                Box::new(Pendulum::new(
+                    dim,
+                    members.into_iter().map(|i| (i, axis, strength)).collect(),
+                ))
+            }
+        };
+        Ok((label, term, assignment))
+    }
+
+    /// The initial energy and forces of every term must be finite (overlapping particles,
+    /// a zero-length spring with a rest length, a particle on a gravitating centre).
+    fn check_finite_start(&self, system: &System) -> Result<()> {
+        let q = &system.state.q;
+        let mut gradient = vec![0.0; q.len()];
+        for term in system.forces.terms() {
+            gradient.fill(0.0);
+            term.term.add_gradient(q, &mut gradient);
+            let energy = term.term.energy(q);
+            if !energy.is_finite() || gradient.iter().any(|g| !g.is_finite()) {
+                return Err(self.error(format!(
+                    "{} \"{}\" has a non-finite energy or force at the starting positions \
+                     (overlapping particles?)",
+                    term.term.kind(),
+                    term.name
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+fn geometric_angle(a: [f64; 3], vertex: [f64; 3], c: [f64; 3]) -> f64 {
+    let u: Vec<f64> = (0..3).map(|k| a[k] - vertex[k]).collect();
+    let w: Vec<f64> = (0..3).map(|k| c[k] - vertex[k]).collect();
+    let dot: f64 = u.iter().zip(&w).map(|(x, y)| x * y).sum();
+    let cross = [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ];
+    let cross_norm = cross.iter().map(|x| x * x).sum::<f64>().sqrt();
+    cross_norm.atan2(dot)
+}

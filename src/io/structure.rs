@@ -1,0 +1,100 @@
+//! Structure files (XYZ, PDB, extended XYZ, … — whatever chemfiles reads).
+
+use std::path::Path;
+use std::sync::Mutex;
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Debug)]
+pub struct Atom {
+    /// The atom's name as written in the file (usually its element symbol).
+    pub name: String,
+    /// Mass from the element table; 0 when chemfiles does not know the element.
+    pub mass: f64,
+    pub position: [f64; 3],
+}
+
+#[derive(Clone, Debug)]
+pub struct Structure {
+    pub atoms: Vec<Atom>,
+    /// Orthorhombic cell lengths, when the file gives a cell.
+    pub cell: Option<[f64; 3]>,
+    /// Bonds the file lists (none for plain XYZ).
+    pub bonds: Vec<[usize; 2]>,
+}
+
+/// Chemfiles warnings of the current read, attached to the error when the read fails.
+static WARNINGS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+fn collect_warnings() {
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(|| {
+        chemfiles::set_warning_callback(|message: &str| {
+            if let Ok(mut warnings) = WARNINGS.lock() {
+                warnings.push(message.to_string());
+            }
+        });
+    });
+    if let Ok(mut warnings) = WARNINGS.lock() {
+        warnings.clear();
+    }
+}
+
+fn structure_error(path: &Path, message: String) -> Error {
+    let warnings = WARNINGS.lock().map(|w| w.join("; ")).unwrap_or_default();
+    let message = if warnings.is_empty() {
+        message
+    } else {
+        format!("{message} ({warnings})")
+    };
+    Error::Structure {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// Read the first frame of a structure file.
+pub fn read_structure(path: &Path) -> Result<Structure> {
+    if !path.exists() {
+        return Err(Error::Structure {
+            path: path.to_path_buf(),
+            message: "no such file".into(),
+        });
+    }
+    collect_warnings();
+    let mut trajectory = chemfiles::Trajectory::open(path, 'r')
+        .map_err(|e| structure_error(path, format!("cannot open: {}", e.message)))?;
+    let mut frame = chemfiles::Frame::new();
+    trajectory
+        .read(&mut frame)
+        .map_err(|e| structure_error(path, format!("cannot read the first frame: {}", e.message)))?;
+    let positions = frame.positions();
+    let mut atoms = Vec::with_capacity(frame.size());
+    for (i, position) in positions.iter().enumerate() {
+        if position.iter().any(|x| !x.is_finite()) {
+            return Err(structure_error(
+                path,
+                format!("atom {i} has a non-finite coordinate {position:?}"),
+            ));
+        }
+        let atom = frame.atom(i);
+        atoms.push(Atom {
+            name: atom.name(),
+            mass: atom.mass(),
+            position: *position,
+        });
+    }
+    let cell = frame.cell();
+    let cell = match cell.shape() {
+        chemfiles::CellShape::Infinite => None,
+        chemfiles::CellShape::Orthorhombic => Some(cell.lengths()),
+        chemfiles::CellShape::Triclinic => {
+            return Err(structure_error(
+                path,
+                "triclinic cells are not supported; longstep handles orthorhombic boxes".into(),
+            ));
+        }
+    };
+    let bonds = frame.topology().bonds();
+    Ok(Structure { atoms, cell, bonds })
+}

@@ -1,0 +1,18 @@
+//! longstep: multiple-time-step molecular dynamics.
+//!
+//! Layout, in the order a run uses it: [`io::scene`] reads a scene into a
+//! [`system::System`] whose [`forces`] terms the [`split`] puts on levels; an
+//! [`integrators::Integrator`] advances it; [`run`] records energies and stops on a
+//! blow-up; [`analysis`] holds monitors and studies; [`cli`] is the command line.
+
+pub mod analysis;
+pub mod cli;
+pub mod error;
+pub mod forces;
+pub mod integrators;
+pub mod io;
+pub mod run;
+pub mod split;
+pub mod system;
+
+pub use error::{Error, Result};

@@ -1,0 +1,107 @@
+//! The mechanical system: particles, their state, and the split forces acting on them.
+//!
+//! Positions and momenta are flat `n_particles × dim` arrays (`q[i * dim + a]` is
+//! coordinate `a` of particle `i`), with `dim ∈ {1, 2, 3}` chosen by the scene, so a
+//! 1-D chain stores one number per particle. The mass matrix is diagonal; its inverse is
+//! kept per degree of freedom so drifts are one multiply per coordinate.
+
+mod periodic_box;
+
+pub use periodic_box::PeriodicBox;
+
+use crate::split::ForceSplit;
+
+/// Positions, momenta and time: everything an integrator advances.
+#[derive(Clone, Debug, PartialEq)]
+pub struct State {
+    pub t: f64,
+    pub q: Vec<f64>,
+    pub p: Vec<f64>,
+}
+
+/// Names and masses of the particles (the degrees of freedom; anchors are not particles).
+#[derive(Clone, Debug)]
+pub struct Particles {
+    pub names: Vec<String>,
+    pub masses: Vec<f64>,
+}
+
+impl Particles {
+    pub fn len(&self) -> usize {
+        self.masses.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.masses.is_empty()
+    }
+}
+
+pub struct System {
+    pub dim: usize,
+    pub particles: Particles,
+    /// `1 / m` repeated `dim` times per particle: the diagonal of `M⁻¹` over all coordinates.
+    pub inverse_mass: Vec<f64>,
+    pub state: State,
+    pub forces: ForceSplit,
+    pub periodic_box: Option<PeriodicBox>,
+}
+
+impl System {
+    /// Assemble a system; masses must already be validated positive and finite.
+    pub fn new(
+        dim: usize,
+        particles: Particles,
+        state: State,
+        forces: ForceSplit,
+        periodic_box: Option<PeriodicBox>,
+    ) -> Self {
+        let inverse_mass = particles
+            .masses
+            .iter()
+            .flat_map(|&m| std::iter::repeat_n(1.0 / m, dim))
+            .collect();
+        System {
+            dim,
+            particles,
+            inverse_mass,
+            state,
+            forces,
+            periodic_box,
+        }
+    }
+
+    pub fn n_particles(&self) -> usize {
+        self.particles.len()
+    }
+
+    /// Number of coordinates, `n_particles × dim`.
+    pub fn n_dofs(&self) -> usize {
+        self.state.q.len()
+    }
+
+    /// `pᵀ M⁻¹ p / 2`.
+    pub fn kinetic_energy(&self) -> f64 {
+        kinetic_energy(&self.state.p, &self.inverse_mass)
+    }
+
+    /// Potential energy of every level, innermost (fastest) first.
+    pub fn potential_energies(&self) -> Vec<f64> {
+        (0..self.forces.n_levels())
+            .map(|level| self.forces.energy(level, &self.state.q))
+            .collect()
+    }
+
+    /// Kinetic plus all potential energy.
+    pub fn total_energy(&self) -> f64 {
+        self.kinetic_energy() + self.potential_energies().iter().sum::<f64>()
+    }
+}
+
+/// `pᵀ M⁻¹ p / 2` for a flat momentum array and the per-coordinate inverse masses.
+pub fn kinetic_energy(p: &[f64], inverse_mass: &[f64]) -> f64 {
+    0.5 * p
+        .iter()
+        .zip(inverse_mass)
+        .map(|(pi, wi)| pi * pi * wi)
+        .sum::<f64>()
+}
