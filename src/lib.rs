@@ -12,6 +12,7 @@ pub mod forces;
 pub mod integrators;
 pub mod io;
 pub mod run;
+pub mod settings;
 pub mod split;
 pub mod system;
 

@@ -47,7 +47,12 @@ pub fn run(
 
     let n_levels = system.forces.n_levels();
     let level_columns: Vec<String> = (0..n_levels)
-        .map(|level| format!("potential_{}", system.forces.level_name(level).replace(' ', "_")))
+        .map(|level| {
+            format!(
+                "potential_{}",
+                system.forces.level_name(level).replace(' ', "_")
+            )
+        })
         .collect();
     let mut header = vec!["t", "kinetic", "potential", "total"];
     header.extend(level_columns.iter().map(String::as_str));
@@ -59,7 +64,10 @@ pub fn run(
     };
 
     let mut row = Vec::with_capacity(header.len());
-    let mut record = |system: &System, integrator: &dyn Integrator, csv: &mut Option<CsvWriter>| -> Result<f64> {
+    let mut record = |system: &System,
+                      integrator: &dyn Integrator,
+                      csv: &mut Option<CsvWriter>|
+     -> Result<f64> {
         let kinetic = system.kinetic_energy();
         let potentials = system.potential_energies();
         let potential: f64 = potentials.iter().sum();
@@ -101,7 +109,7 @@ pub fn run(
         // The kinetic energy is cheap: check it every step so a blow-up is caught when
         // it happens, not at the next recorded row.
         let kinetic_finite = system.kinetic_energy().is_finite();
-        if last || !kinetic_finite || steps % options.energy_every as u64 == 0 {
+        if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
             let total = record(system, integrator, &mut csv)?;
             if let Err(reason) = monitor.record(total) {
                 status = Status::Unstable;

@@ -10,6 +10,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
+use crate::settings::RunSpec;
+
 pub const EXIT_ERROR: i32 = 1;
 pub const EXIT_UNSTABLE: i32 = 3;
 
@@ -35,7 +37,7 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Integrate a scene and report energy conservation and force-evaluation counts.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Print a scene's level table, particle classes and fast components without running.
     Check(CheckArgs),
     /// List the integration methods.
@@ -46,21 +48,9 @@ enum Command {
 pub struct RunArgs {
     /// Scene file (TOML), for example systems/three-spring.toml.
     pub scene: PathBuf,
-    /// Integration method (see `longstep methods`); default: the scene's [run] method, else verlet.
-    #[arg(long)]
-    pub method: Option<String>,
-    /// Outer step h: the step at which the slowest forces are sampled.
-    #[arg(long, allow_negative_numbers = true)]
-    pub h: Option<f64>,
-    /// Inner steps per outer step (inner step dt = h / K), for multiple-time-step methods.
-    #[arg(long = "inner", value_name = "K")]
-    pub inner_steps: Option<usize>,
-    /// Inner step dt instead of --inner; h / dt must be a whole number.
-    #[arg(long, allow_negative_numbers = true)]
-    pub dt: Option<f64>,
-    /// End time of the run.
-    #[arg(long, allow_negative_numbers = true)]
-    pub t_end: Option<f64>,
+    /// Method and step settings; each overrides the scene's [run] table.
+    #[command(flatten)]
+    pub run: RunSpec,
     /// Set a scene parameter, e.g. --set omega1=12.3 (repeatable; values may be expressions).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -73,9 +63,6 @@ pub struct RunArgs {
     /// Write a row of energy.csv every N steps.
     #[arg(long, value_name = "N")]
     pub energy_every: Option<usize>,
-    /// Stop as unstable when |E - E0| exceeds this many times the initial energy scale.
-    #[arg(long, value_name = "FACTOR")]
-    pub blowup: Option<f64>,
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
@@ -104,8 +91,8 @@ pub fn main() -> i32 {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
         Command::Methods => {
-            for (name, help) in crate::integrators::METHODS {
-                println!("{name:<18} {help}");
+            for method in crate::integrators::METHODS {
+                println!("{:<22} {}", method.name, method.help);
             }
             Ok(0)
         }

@@ -4,69 +4,36 @@ use std::path::PathBuf;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
 use crate::error::{Error, Result};
-use crate::integrators::{self, MethodSettings};
+use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::Status;
 use crate::run::{RunOptions, run};
 use crate::split::ParticleClass;
 
-fn positive(value: f64, what: &str) -> Result<f64> {
-    if value.is_finite() && value > 0.0 {
-        Ok(value)
-    } else {
-        Err(Error::input(format!(
-            "{what} must be positive and finite, got {value}"
-        )))
-    }
-}
-
 pub fn run_command(args: &RunArgs) -> Result<i32> {
     let mut scene = load_scene(&args.scene, &args.set)?;
-    let settings = &scene.run;
-    let method = args
-        .method
-        .clone()
-        .or_else(|| settings.method.clone())
-        .unwrap_or_else(|| "verlet".into());
-    let h = args.h.or(settings.h).ok_or_else(|| {
-        Error::input("no outer step h: give --h or set h in the scene's [run] table")
-    })?;
-    let h = positive(h, "outer step h")?;
-    let t_end = args.t_end.or(settings.t_end).ok_or_else(|| {
+    let settings = scene
+        .run
+        .overridden_by(&args.run)
+        .resolve(&scene.parameters)?;
+    let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
-    let t_end = positive(t_end, "end time t_end")?;
-    // An inner step given on the command line replaces the scene's, in either form.
-    let (inner_steps, dt) = if args.inner_steps.is_some() || args.dt.is_some() {
-        (args.inner_steps, args.dt)
-    } else {
-        (settings.inner_steps, settings.dt)
-    };
-    let energy_every = args.energy_every.or(settings.energy_every).unwrap_or(1);
+    let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
     if energy_every == 0 {
         return Err(Error::input("--energy-every must be at least 1"));
     }
-    let blowup = positive(
-        args.blowup.or(settings.blowup).unwrap_or(10.0),
-        "blow-up factor",
-    )?;
 
     let mut notices = Vec::new();
-    let mut integrator = integrators::build(
-        &MethodSettings {
-            method: method.clone(),
-            h,
-            inner_steps,
-            dt,
-        },
-        &mut notices,
-    )?;
+    let mut integrator = integrators::build(&settings, &mut notices)?;
 
     let out_dir = args
         .out
         .clone()
-        .or_else(|| settings.output_dir.clone())
-        .unwrap_or_else(|| PathBuf::from("out").join(format!("{}-{method}", scene.name)));
+        .or_else(|| scene.output.dir.as_ref().map(PathBuf::from))
+        .unwrap_or_else(|| {
+            PathBuf::from("out").join(format!("{}-{}", scene.name, settings.method))
+        });
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
 
     if !args.quiet {
@@ -78,10 +45,15 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
     let options = RunOptions {
         t_end,
         energy_every,
-        blowup,
+        blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
     };
-    let summary = run(&scene.name, &mut scene.system, integrator.as_mut(), &options)?;
+    let summary = run(
+        &scene.name,
+        &mut scene.system,
+        integrator.as_mut(),
+        &options,
+    )?;
     if args.json {
         let json = serde_json::to_string_pretty(&summary)
             .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;
@@ -93,7 +65,11 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         if args.json && !args.quiet {
             eprintln!(
                 "{} at t = {}: {}",
-                if summary.status == Status::Unstable { "unstable" } else { "failed" },
+                if summary.status == Status::Unstable {
+                    "unstable"
+                } else {
+                    "failed"
+                },
                 summary.t_end,
                 summary.message.as_deref().unwrap_or("")
             );

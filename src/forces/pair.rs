@@ -10,9 +10,7 @@
 //! Each kind of pair term (spring, FPU spring, Lennard-Jones, gravity) only supplies
 //! `χ`, `χ′`, `χ″` through [`PairPotential`].
 
-use super::{
-    ForceTerm, Site, TermClass, add_to_site, dot, site_position, site_vector, with_dim,
-};
+use super::{ForceTerm, Site, TermClass, add_to_site, dot, site_position, site_vector, with_dim};
 use crate::system::PeriodicBox;
 
 /// A radial potential written in the squared distance `s`.

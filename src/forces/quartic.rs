@@ -63,5 +63,11 @@ pub fn quartic_springs(
         .into_iter()
         .map(|(a, b, potential)| Pair { a, b, potential })
         .collect();
-    PairTerm::new("quartic-spring", TermClass::Bonded, dim, pairs, periodic_box)
+    PairTerm::new(
+        "quartic-spring",
+        TermClass::Bonded,
+        dim,
+        pairs,
+        periodic_box,
+    )
 }

@@ -11,7 +11,8 @@ pub mod verlet;
 
 pub use verlet::VelocityVerlet;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::settings::MethodSettings;
 use crate::system::System;
 
 /// A step the method could not take (a solver that did not converge, a step-size floor
@@ -67,76 +68,41 @@ pub fn drift(q: &mut [f64], p: &[f64], inverse_mass: &[f64], dt: f64) {
     }
 }
 
-/// The methods `--method` accepts, with a line of help each.
-pub const METHODS: &[(&str, &str)] = &[(
-    "verlet",
-    "velocity Verlet: every force level at every step h (single time step)",
-)];
-
-/// A method's settings, from the scene's `[run]` table and the command line.
-#[derive(Clone, Debug, Default)]
-pub struct MethodSettings {
-    pub method: String,
-    /// Outer step.
-    pub h: f64,
-    /// Inner steps per outer step.
-    pub inner_steps: Option<usize>,
-    /// Inner step `h / inner_steps`, when given instead of `inner_steps`.
-    pub dt: Option<f64>,
+/// A method `--method` accepts: its name, a line of help, and the settings it uses
+/// (others given are reported as ignored, never silently dropped).
+pub struct MethodInfo {
+    pub name: &'static str,
+    pub help: &'static str,
+    pub uses: &'static [&'static str],
 }
 
-impl MethodSettings {
-    /// The number of inner steps, from `inner_steps` or from `dt`, which must divide `h`.
-    pub fn resolved_inner_steps(&self) -> Result<Option<usize>> {
-        match (self.inner_steps, self.dt) {
-            (Some(_), Some(_)) => Err(crate::error::Error::input(
-                "give the inner step either as inner steps (--inner) or as dt (--dt), not both",
-            )),
-            (Some(0), None) => Err(crate::error::Error::input(
-                "inner steps must be at least 1",
-            )),
-            (Some(k), None) => Ok(Some(k)),
-            (None, Some(dt)) => {
-                if !(dt.is_finite() && dt > 0.0) {
-                    return Err(crate::error::Error::input(format!(
-                        "inner step dt must be positive and finite, got {dt}"
-                    )));
-                }
-                let ratio = self.h / dt;
-                let k = ratio.round();
-                if k < 1.0 || (ratio - k).abs() > 1e-9 * ratio {
-                    return Err(crate::error::Error::input(format!(
-                        "inner step dt = {dt} does not divide the outer step h = {} \
-                         (h/dt = {ratio}); choose dt = h/k for a whole number k",
-                        self.h
-                    )));
-                }
-                Ok(Some(k as usize))
-            }
-            (None, None) => Ok(None),
+pub const METHODS: &[MethodInfo] = &[MethodInfo {
+    name: "verlet",
+    help: "velocity Verlet: every force level at every step h (single time step)",
+    uses: &[],
+}];
+
+/// Build the integrator the settings ask for. `notices` collects what the user should
+/// know, such as a setting the method does not use.
+pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box<dyn Integrator>> {
+    let Some(info) = METHODS.iter().find(|m| m.name == settings.method) else {
+        let known: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
+        return Err(Error::input(format!(
+            "unknown method \"{}\"; known methods: {}",
+            settings.method,
+            known.join(", ")
+        )));
+    };
+    for setting in settings.given() {
+        if !info.uses.contains(&setting) {
+            notices.push(format!(
+                "{} does not use the setting {setting}; it is ignored",
+                info.name
+            ));
         }
     }
-}
-
-/// Build the integrator a run asked for. `notices` collects what the user should know
-/// (an option the method ignores).
-pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box<dyn Integrator>> {
-    let inner_steps = settings.resolved_inner_steps()?;
-    match settings.method.as_str() {
-        "verlet" => {
-            if let Some(k) = inner_steps {
-                notices.push(format!(
-                    "verlet takes a single step h; the inner step setting ({k} inner steps) is ignored"
-                ));
-            }
-            Ok(Box::new(VelocityVerlet::new(settings.h)?))
-        }
-        other => {
-            let known: Vec<&str> = METHODS.iter().map(|(name, _)| *name).collect();
-            Err(crate::error::Error::input(format!(
-                "unknown method \"{other}\"; known methods: {}",
-                known.join(", ")
-            )))
-        }
+    match info.name {
+        "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
+        other => unreachable!("method {other} is listed but not built"),
     }
 }

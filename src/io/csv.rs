@@ -38,12 +38,16 @@ impl CsvWriter {
         let mut first = true;
         for value in values {
             if !first {
-                self.out.write_all(b",").map_err(|e| Error::io(&self.path, e))?;
+                self.out
+                    .write_all(b",")
+                    .map_err(|e| Error::io(&self.path, e))?;
             }
             first = false;
             write!(self.out, "{value}").map_err(|e| Error::io(&self.path, e))?;
         }
-        self.out.write_all(b"\n").map_err(|e| Error::io(&self.path, e))?;
+        self.out
+            .write_all(b"\n")
+            .map_err(|e| Error::io(&self.path, e))?;
         // A time-based flush keeps the file current without a syscall per row.
         if self.last_flush.elapsed() > Duration::from_millis(500) {
             self.flush()?;

@@ -32,8 +32,7 @@ pub fn referenced_names(text: &str) -> Result<Vec<String>, String> {
         .enumerate()
         .filter_map(|(i, token)| match token {
             Token::Name(name)
-                if !matches!(tokens.get(i + 1), Some(Token::Open))
-                    && constant(name).is_none() =>
+                if !matches!(tokens.get(i + 1), Some(Token::Open)) && constant(name).is_none() =>
             {
                 Some(name.clone())
             }
@@ -108,7 +107,11 @@ fn tokenize(text: &str) -> Result<Vec<Token>, String> {
                 '(' => Token::Open,
                 ')' => Token::Close,
                 ',' => Token::Comma,
-                _ => return Err(format!("unexpected character '{c}' in expression \"{text}\"")),
+                _ => {
+                    return Err(format!(
+                        "unexpected character '{c}' in expression \"{text}\""
+                    ));
+                }
             });
             i += 1;
         }
@@ -227,11 +230,17 @@ impl Parser<'_> {
 fn call(name: &str, arguments: &[f64]) -> Result<f64, String> {
     let one = |f: fn(f64) -> f64| match arguments {
         [x] => Ok(f(*x)),
-        _ => Err(format!("{name} takes one argument, got {}", arguments.len())),
+        _ => Err(format!(
+            "{name} takes one argument, got {}",
+            arguments.len()
+        )),
     };
     let two = |f: fn(f64, f64) -> f64| match arguments {
         [x, y] => Ok(f(*x, *y)),
-        _ => Err(format!("{name} takes two arguments, got {}", arguments.len())),
+        _ => Err(format!(
+            "{name} takes two arguments, got {}",
+            arguments.len()
+        )),
     };
     match name {
         "sqrt" => one(f64::sqrt),
@@ -269,7 +278,10 @@ mod tests {
         assert_eq!(eval("2^3^2"), 512.0);
         assert_eq!(eval("-2^2"), -4.0);
         assert_eq!(eval("omega^2/2"), 1250.0);
-        assert_eq!(eval("(1 - 1/omega)/sqrt(2)"), (1.0 - 1.0 / 50.0) / 2f64.sqrt());
+        assert_eq!(
+            eval("(1 - 1/omega)/sqrt(2)"),
+            (1.0 - 1.0 / 50.0) / 2f64.sqrt()
+        );
         assert_eq!(eval("1.5e-3 * 2"), 3e-3);
         assert_eq!(eval("max(1, 2) + pi"), 2.0 + std::f64::consts::PI);
     }
@@ -277,7 +289,11 @@ mod tests {
     #[test]
     fn errors_name_the_problem() {
         let empty = BTreeMap::new();
-        assert!(evaluate("omega2 * 2", &empty).unwrap_err().contains("omega2"));
+        assert!(
+            evaluate("omega2 * 2", &empty)
+                .unwrap_err()
+                .contains("omega2")
+        );
         assert!(evaluate("(1 + 2", &empty).unwrap_err().contains(')'));
         assert!(evaluate("1 + $", &empty).unwrap_err().contains('$'));
         assert!(evaluate("foo(1)", &empty).unwrap_err().contains("foo"));

@@ -21,6 +21,7 @@ use crate::forces::pendulum::Pendulum;
 use crate::forces::quartic::{QuarticBond, quartic_springs};
 use crate::forces::spring::{HarmonicBond, harmonic_springs};
 use crate::forces::{ForceTerm, Site};
+use crate::settings::{RunSpec, Value};
 use crate::split::{Assignment, ForceSplit};
 use crate::system::{Particles, PeriodicBox, State, System};
 
@@ -30,14 +31,6 @@ pub const SCENE_VERSION: u32 = 1;
 // ---------------------------------------------------------------------------------------
 // The file as written
 // ---------------------------------------------------------------------------------------
-
-/// A number, or an expression in the scene's parameters (`"omega1^2"`).
-#[derive(Clone, Debug, Deserialize)]
-#[serde(untagged)]
-pub enum Value {
-    Number(f64),
-    Expression(String),
-}
 
 /// A particle by 0-based index or by name; a name may also be an anchor's.
 #[derive(Clone, Debug, Deserialize)]
@@ -91,6 +84,9 @@ pub struct SceneFile {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleSpec {
+    /// Generate this many particles; their expressions see the index `i` = 0, 1, …
+    /// and `{i}` in the name is replaced by it.
+    pub count: Option<usize>,
     pub name: Option<String>,
     pub mass: Value,
     pub position: Vec<Value>,
@@ -183,22 +179,7 @@ pub enum TermSpec {
     },
 }
 
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RunSpec {
-    pub method: Option<String>,
-    /// Outer step.
-    pub h: Option<Value>,
-    /// Inner steps per outer step (multiple-time-step methods).
-    pub inner_steps: Option<usize>,
-    /// Inner step; `h / dt` must be a whole number.
-    pub dt: Option<Value>,
-    pub t_end: Option<Value>,
-    /// Stop as unstable when `|E − E₀|` exceeds this many times the initial energy scale.
-    pub blowup: Option<f64>,
-}
-
-#[derive(Debug, Default, Deserialize)]
+#[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
     /// Output directory, relative to the working directory.
@@ -211,26 +192,15 @@ pub struct OutputSpec {
 // The built scene
 // ---------------------------------------------------------------------------------------
 
-/// Run settings after the scene and the command line are combined.
-#[derive(Clone, Debug, Default)]
-pub struct RunSettings {
-    pub method: Option<String>,
-    pub h: Option<f64>,
-    pub inner_steps: Option<usize>,
-    pub dt: Option<f64>,
-    pub t_end: Option<f64>,
-    pub blowup: Option<f64>,
-    pub output_dir: Option<PathBuf>,
-    pub energy_every: Option<usize>,
-}
-
 pub struct Scene {
     pub name: String,
     pub description: String,
     pub path: PathBuf,
     pub parameters: BTreeMap<String, f64>,
     pub system: System,
-    pub run: RunSettings,
+    /// The scene's `[run]` table, unevaluated (the command line overrides it).
+    pub run: RunSpec,
+    pub output: OutputSpec,
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters.
@@ -320,47 +290,72 @@ impl Builder<'_> {
             }
             (None, true) => return Err(self.error("the scene has no particles")),
             (None, false) => {
-                for (index, spanned) in file.particles.iter().enumerate() {
+                for spanned in &file.particles {
                     let offset = spanned.span().start;
                     let spec = spanned.get_ref();
-                    let label = match &spec.name {
-                        Some(name) => format!("particle {index} (\"{name}\")"),
-                        None => format!("particle {index}"),
-                    };
-                    let mass = value(&spec.mass, &format!("mass of {label}"), offset)?;
-                    if mass <= 0.0 {
-                        return Err(self.error_at(
-                            offset,
-                            format!("mass of {label} must be positive, got {mass}"),
-                        ));
+                    let count = spec.count.unwrap_or(1);
+                    if count == 0 {
+                        return Err(self.error_at(offset, "particle count must be at least 1"));
                     }
-                    let position =
-                        self.vector(&spec.position, dim, &parameters, &format!("position of {label}"), offset)?;
-                    let momentum = match (&spec.momentum, &spec.velocity) {
-                        (Some(_), Some(_)) => {
+                    // A generated block evaluates its expressions with `i` = 0, 1, … count − 1.
+                    let mut local = parameters.clone();
+                    for i in 0..count {
+                        let index = masses.len();
+                        if spec.count.is_some() {
+                            local.insert("i".to_string(), i as f64);
+                        }
+                        let name = match &spec.name {
+                            Some(name) => name.replace("{i}", &i.to_string()),
+                            None => format!("p{index}"),
+                        };
+                        let label = format!("particle {index} (\"{name}\")");
+                        let mass =
+                            self.evaluate(&spec.mass, &local, &format!("mass of {label}"), offset)?;
+                        if mass <= 0.0 {
                             return Err(self.error_at(
                                 offset,
-                                format!("{label} gives both momentum and velocity; give one"),
+                                format!("mass of {label} must be positive, got {mass}"),
                             ));
                         }
-                        (Some(momentum), None) => self.vector(
-                            momentum,
+                        let position = self.vector(
+                            &spec.position,
                             dim,
-                            &parameters,
-                            &format!("momentum of {label}"),
+                            &local,
+                            &format!("position of {label}"),
                             offset,
-                        )?,
-                        (None, Some(velocity)) => self
-                            .vector(velocity, dim, &parameters, &format!("velocity of {label}"), offset)?
-                            .iter()
-                            .map(|v| v * mass)
-                            .collect(),
-                        (None, None) => vec![0.0; dim],
-                    };
-                    names.push(spec.name.clone().unwrap_or_else(|| format!("p{index}")));
-                    masses.push(mass);
-                    q.extend(position);
-                    p.extend(momentum);
+                        )?;
+                        let momentum = match (&spec.momentum, &spec.velocity) {
+                            (Some(_), Some(_)) => {
+                                return Err(self.error_at(
+                                    offset,
+                                    format!("{label} gives both momentum and velocity; give one"),
+                                ));
+                            }
+                            (Some(momentum), None) => self.vector(
+                                momentum,
+                                dim,
+                                &local,
+                                &format!("momentum of {label}"),
+                                offset,
+                            )?,
+                            (None, Some(velocity)) => self
+                                .vector(
+                                    velocity,
+                                    dim,
+                                    &local,
+                                    &format!("velocity of {label}"),
+                                    offset,
+                                )?
+                                .iter()
+                                .map(|v| v * mass)
+                                .collect(),
+                            (None, None) => vec![0.0; dim],
+                        };
+                        names.push(name);
+                        masses.push(mass);
+                        q.extend(position);
+                        p.extend(momentum);
+                    }
                 }
             }
             (Some(spanned), true) => {
@@ -433,7 +428,13 @@ impl Builder<'_> {
             }
         }
         for (name, coordinates) in &file.anchors {
-            let position = self.vector(coordinates, dim, &parameters, &format!("anchor \"{name}\""), 0)?;
+            let position = self.vector(
+                coordinates,
+                dim,
+                &parameters,
+                &format!("anchor \"{name}\""),
+                0,
+            )?;
             let mut fixed = [0.0; 3];
             fixed[..dim].copy_from_slice(&position);
             if sites.insert(name.clone(), Site::Fixed(fixed)).is_some() {
@@ -446,7 +447,13 @@ impl Builder<'_> {
 
         let periodic_box = match &file.periodic_box {
             Some(spanned) => {
-                let lengths = self.vector(spanned.get_ref(), dim, &parameters, "box", spanned.span().start)?;
+                let lengths = self.vector(
+                    spanned.get_ref(),
+                    dim,
+                    &parameters,
+                    "box",
+                    spanned.span().start,
+                )?;
                 if lengths.iter().any(|&l| l <= 0.0) {
                     return Err(self.error_at(spanned.span().start, "box lengths must be positive"));
                 }
@@ -484,27 +491,14 @@ impl Builder<'_> {
         );
         self.check_finite_start(&system)?;
 
-        let run_value = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
-            v.as_ref().map(|v| value(v, what, 0)).transpose()
-        };
-        let run = RunSettings {
-            method: file.run.method.clone(),
-            h: run_value(&file.run.h, "run.h")?,
-            inner_steps: file.run.inner_steps,
-            dt: run_value(&file.run.dt, "run.dt")?,
-            t_end: run_value(&file.run.t_end, "run.t_end")?,
-            blowup: file.run.blowup,
-            output_dir: file.output.dir.as_ref().map(PathBuf::from),
-            energy_every: file.output.energy_every,
-        };
-
         Ok(Scene {
             name: file.name,
             description: file.description,
             path: self.path.to_path_buf(),
             parameters,
             system,
-            run,
+            run: file.run,
+            output: file.output,
         })
     }
 
@@ -528,7 +522,11 @@ impl Builder<'_> {
                 return Err(Error::input(format!(
                     "--set {name}: the scene {} has no parameter \"{name}\" (it has: {})",
                     self.path.display(),
-                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                    if known.is_empty() {
+                        "none".to_string()
+                    } else {
+                        known.join(", ")
+                    }
                 )));
             }
             let text = text.trim();
@@ -626,7 +624,13 @@ impl Builder<'_> {
             .collect()
     }
 
-    fn site(&self, reference: &Reference, names: &Names, what: &str, offset: usize) -> Result<Site> {
+    fn site(
+        &self,
+        reference: &Reference,
+        names: &Names,
+        what: &str,
+        offset: usize,
+    ) -> Result<Site> {
         match reference {
             Reference::Index(i) if *i < names.n_particles => Ok(Site::Particle(*i)),
             Reference::Index(i) => Err(self.error_at(
@@ -693,13 +697,27 @@ impl Builder<'_> {
         let offset = spanned.span().start;
         let spec = spanned.get_ref();
         let (name, group, level) = match spec {
-            TermSpec::Spring { name, group, level, .. }
-            | TermSpec::Chain { name, group, level, .. }
-            | TermSpec::QuarticSpring { name, group, level, .. }
-            | TermSpec::Angle { name, group, level, .. }
-            | TermSpec::LennardJones { name, group, level, .. }
-            | TermSpec::Gravity { name, group, level, .. }
-            | TermSpec::Pendulum { name, group, level, .. } => (name, *group, *level),
+            TermSpec::Spring {
+                name, group, level, ..
+            }
+            | TermSpec::Chain {
+                name, group, level, ..
+            }
+            | TermSpec::QuarticSpring {
+                name, group, level, ..
+            }
+            | TermSpec::Angle {
+                name, group, level, ..
+            }
+            | TermSpec::LennardJones {
+                name, group, level, ..
+            }
+            | TermSpec::Gravity {
+                name, group, level, ..
+            }
+            | TermSpec::Pendulum {
+                name, group, level, ..
+            } => (name, *group, *level),
         };
         let label = name.clone().unwrap_or_else(|| format!("term {index}"));
         let what = format!("term \"{label}\"");
@@ -715,7 +733,8 @@ impl Builder<'_> {
             (None, Some(level)) => Assignment::Level(level),
             (None, None) => Assignment::Default,
         };
-        let number = |v: &Value, key: &str| self.evaluate(v, parameters, &format!("{what}: {key}"), offset);
+        let number =
+            |v: &Value, key: &str| self.evaluate(v, parameters, &format!("{what}: {key}"), offset);
         let non_negative = |v: &Value, key: &str| -> Result<f64> {
             let x = number(v, key)?;
             if x < 0.0 {
@@ -747,14 +766,15 @@ impl Builder<'_> {
                 .sqrt()
         };
         // "geometry" (the default) takes a rest length from the starting positions.
-        let rest_length = |value: &Option<Value>, a: &Site, b: &Site, default_geometry: bool| -> Result<f64> {
-            match value {
-                Some(Value::Expression(text)) if text == "geometry" => Ok(distance(a, b)),
-                Some(v) => non_negative(v, "rest_length"),
-                None if default_geometry => Ok(distance(a, b)),
-                None => Ok(0.0),
-            }
-        };
+        let rest_length =
+            |value: &Option<Value>, a: &Site, b: &Site, default_geometry: bool| -> Result<f64> {
+                match value {
+                    Some(Value::Expression(text)) if text == "geometry" => Ok(distance(a, b)),
+                    Some(v) => non_negative(v, "rest_length"),
+                    None if default_geometry => Ok(distance(a, b)),
+                    None => Ok(0.0),
+                }
+            };
         let pairs_of = |between: &Option<[Reference; 2]>,
                         pairs: &Option<Vec<[Reference; 2]>>|
          -> Result<Vec<(Site, Site)>> {
@@ -775,14 +795,13 @@ impl Builder<'_> {
                     if matches!((sa, sb), (Site::Fixed(_), Site::Fixed(_))) {
                         return Err(self.error_at(
                             offset,
-                            format!("{what} joins two anchors ({a} and {b}); one end must be a particle"),
+                            format!(
+                                "{what} joins two anchors ({a} and {b}); one end must be a particle"
+                            ),
                         ));
                     }
                     if sa.particle().is_some() && sa == sb {
-                        return Err(self.error_at(
-                            offset,
-                            format!("{what} joins {a} to itself"),
-                        ));
+                        return Err(self.error_at(offset, format!("{what} joins {a} to itself")));
                     }
                     Ok((sa, sb))
                 })
@@ -802,7 +821,14 @@ impl Builder<'_> {
                     .into_iter()
                     .map(|(a, b)| {
                         let rest_length = rest_length(rest, &a, &b, false)?;
-                        Ok((a, b, HarmonicBond { stiffness, rest_length }))
+                        Ok((
+                            a,
+                            b,
+                            HarmonicBond {
+                                stiffness,
+                                rest_length,
+                            },
+                        ))
                     })
                     .collect::<Result<Vec<_>>>()?;
                 Box::new(harmonic_springs(dim, springs, periodic_box))
@@ -813,17 +839,44 @@ impl Builder<'_> {
                 rest_length: rest,
                 ..
             } => {
-                let stiffness = non_negative(stiffness, "stiffness")?;
                 let chain = self.particle_list(particles, names, &what, offset)?;
                 if chain.len() < 2 {
-                    return Err(self.error_at(offset, format!("{what}: a chain needs at least two particles")));
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: a chain needs at least two particles"),
+                    ));
                 }
+                // The stiffness may vary along the chain: it sees the link index `i`.
+                let mut local = parameters.clone();
                 let springs = chain
                     .windows(2)
-                    .map(|link| {
+                    .enumerate()
+                    .map(|(i, link)| {
+                        local.insert("i".to_string(), i as f64);
+                        let stiffness = self.evaluate(
+                            stiffness,
+                            &local,
+                            &format!("{what}: stiffness"),
+                            offset,
+                        )?;
+                        if stiffness < 0.0 {
+                            return Err(self.error_at(
+                                offset,
+                                format!(
+                                    "{what}: stiffness of link {i} must be ≥ 0, got {stiffness}"
+                                ),
+                            ));
+                        }
                         let (a, b) = (Site::Particle(link[0]), Site::Particle(link[1]));
                         let rest_length = rest_length(rest, &a, &b, true)?;
-                        Ok((a, b, HarmonicBond { stiffness, rest_length }))
+                        Ok((
+                            a,
+                            b,
+                            HarmonicBond {
+                                stiffness,
+                                rest_length,
+                            },
+                        ))
                     })
                     .collect::<Result<Vec<_>>>()?;
                 Box::new(harmonic_springs(dim, springs, periodic_box))
@@ -840,7 +893,14 @@ impl Builder<'_> {
                     .into_iter()
                     .map(|(a, b)| {
                         let rest_length = rest_length(rest, &a, &b, false)?;
-                        Ok((a, b, QuarticBond { coefficient, rest_length }))
+                        Ok((
+                            a,
+                            b,
+                            QuarticBond {
+                                coefficient,
+                                rest_length,
+                            },
+                        ))
                     })
                     .collect::<Result<Vec<_>>>()?;
                 Box::new(quartic_springs(dim, springs, periodic_box))
@@ -878,13 +938,23 @@ impl Builder<'_> {
                             self.site(&triple[2], names, &what, offset)?,
                         ];
                         let rest_angle = match rest_angle {
-                            Some(Value::Expression(text)) if text == "geometry" => {
-                                geometric_angle(position(&sites[0]), position(&sites[1]), position(&sites[2]))
-                            }
+                            Some(Value::Expression(text)) if text == "geometry" => geometric_angle(
+                                position(&sites[0]),
+                                position(&sites[1]),
+                                position(&sites[2]),
+                            ),
                             Some(v) => number(v, "rest_angle")?,
-                            None => geometric_angle(position(&sites[0]), position(&sites[1]), position(&sites[2])),
+                            None => geometric_angle(
+                                position(&sites[0]),
+                                position(&sites[1]),
+                                position(&sites[2]),
+                            ),
                         };
-                        Ok(AngleBend { sites, stiffness, rest_angle })
+                        Ok(AngleBend {
+                            sites,
+                            stiffness,
+                            rest_angle,
+                        })
                     })
                     .collect::<Result<Vec<_>>>()?;
                 Box::new(HarmonicAngles::new(dim, angles, periodic_box))
@@ -901,13 +971,19 @@ impl Builder<'_> {
                 let epsilon = non_negative(epsilon, "epsilon")?;
                 let sigma = number(sigma, "sigma")?;
                 if sigma <= 0.0 {
-                    return Err(self.error_at(offset, format!("{what}: sigma must be positive, got {sigma}")));
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: sigma must be positive, got {sigma}"),
+                    ));
                 }
                 let cutoff = match cutoff {
                     Some(v) => {
                         let c = number(v, "cutoff")?;
                         if c <= 0.0 {
-                            return Err(self.error_at(offset, format!("{what}: cutoff must be positive, got {c}")));
+                            return Err(self.error_at(
+                                offset,
+                                format!("{what}: cutoff must be positive, got {c}"),
+                            ));
                         }
                         c
                     }

@@ -65,9 +65,9 @@ pub fn read_structure(path: &Path) -> Result<Structure> {
     let mut trajectory = chemfiles::Trajectory::open(path, 'r')
         .map_err(|e| structure_error(path, format!("cannot open: {}", e.message)))?;
     let mut frame = chemfiles::Frame::new();
-    trajectory
-        .read(&mut frame)
-        .map_err(|e| structure_error(path, format!("cannot read the first frame: {}", e.message)))?;
+    trajectory.read(&mut frame).map_err(|e| {
+        structure_error(path, format!("cannot read the first frame: {}", e.message))
+    })?;
     let positions = frame.positions();
     let mut atoms = Vec::with_capacity(frame.size());
     for (i, position) in positions.iter().enumerate() {

@@ -100,7 +100,11 @@ impl RunSummary {
             (Status::Ok, _) => "ok".to_string(),
             (status, Some(t)) => format!(
                 "{} at t = {t}: {}",
-                if *status == Status::Unstable { "UNSTABLE" } else { "FAILED" },
+                if *status == Status::Unstable {
+                    "UNSTABLE"
+                } else {
+                    "FAILED"
+                },
                 self.message.as_deref().unwrap_or("")
             ),
             (_, None) => "failed".to_string(),

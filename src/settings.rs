@@ -1,0 +1,278 @@
+//! Run and method settings: one definition for the scene's `[run]` table and the
+//! command-line flags of `longstep run`, so a key and its flag can never drift apart
+//! (`inner_steps` ↔ `--inner`, `t_end` ↔ `--t-end`, `h_slow` ↔ `--h-slow`, …).
+//!
+//! Steps are named as everywhere in longstep: `h` is the outer step (the slowest
+//! forces are sampled once per `h`), `inner_steps` the number of inner steps per outer
+//! step and `dt = h / inner_steps` the inner step.
+
+use std::collections::BTreeMap;
+
+use clap::Args;
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+use crate::io::expr;
+
+/// A number, or an expression in the scene's parameters (`"omega1^2"`, `"2*pi/omega1"`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum Value {
+    Number(f64),
+    Expression(String),
+}
+
+impl std::str::FromStr for Value {
+    type Err = std::convert::Infallible;
+
+    fn from_str(text: &str) -> std::result::Result<Self, Self::Err> {
+        Ok(match text.trim().parse::<f64>() {
+            Ok(number) => Value::Number(number),
+            Err(_) => Value::Expression(text.trim().to_string()),
+        })
+    }
+}
+
+impl Value {
+    /// The value with the given parameters; `what` names it in the error.
+    pub fn evaluate(&self, parameters: &BTreeMap<String, f64>, what: &str) -> Result<f64> {
+        let value = match self {
+            Value::Number(x) => *x,
+            Value::Expression(text) => expr::evaluate(text, parameters)
+                .map_err(|e| Error::input(format!("{what}: {e}")))?,
+        };
+        if !value.is_finite() {
+            return Err(Error::input(format!("{what} is not finite ({value})")));
+        }
+        Ok(value)
+    }
+}
+
+/// The `[run]` table of a scene, and the same settings as `longstep run` flags.
+/// Everything is optional: the command line overrides the scene, field by field.
+#[derive(Args, Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunSpec {
+    /// Integration method (see `longstep methods`); default verlet.
+    #[arg(long)]
+    pub method: Option<String>,
+    /// Outer step h: the step at which the slowest forces are sampled (number or expression).
+    #[arg(long, allow_negative_numbers = true)]
+    pub h: Option<Value>,
+    /// Inner steps K per outer step (inner step dt = h / K), for multiple-time-step methods.
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// Inner step dt instead of --inner; h / dt must be a whole number.
+    #[arg(long, allow_negative_numbers = true)]
+    pub dt: Option<Value>,
+    /// End time of the run.
+    #[arg(long, allow_negative_numbers = true)]
+    pub t_end: Option<Value>,
+    /// Stop as unstable when |E - E0| exceeds this many times the initial energy scale (default 10).
+    #[arg(long, value_name = "FACTOR", allow_negative_numbers = true)]
+    pub blowup: Option<f64>,
+    /// Jacobian of the mollified methods' averaging: forward, adjoint or auto (by component size).
+    #[arg(long)]
+    pub jacobian: Option<String>,
+    /// Quadrature of the pseudo-energy schemes: midpoint, gl3, gl5 (Gauss–Lobatto), gauss3, gauss5 (Gauss–Legendre).
+    #[arg(long)]
+    pub quadrature: Option<String>,
+    /// Coarse (slow-particle) step of the asynchronous pseudo-energy scheme.
+    #[arg(long, allow_negative_numbers = true)]
+    pub h_slow: Option<Value>,
+    /// Fine (fast-particle) step of the asynchronous pseudo-energy scheme.
+    #[arg(long, allow_negative_numbers = true)]
+    pub h_fast: Option<Value>,
+    /// Ratio K = h_slow / h_fast of the asynchronous pseudo-energy scheme.
+    #[arg(long)]
+    pub ratio: Option<usize>,
+    /// Adaptive step halving of the pseudo-energy scheme with tolerance EPS (MEMM18 Remark 8).
+    #[arg(long, value_name = "EPS", allow_negative_numbers = true)]
+    pub adaptive: Option<Value>,
+    /// Step control of adaptive Verlet: arclength or min-distance.
+    #[arg(long)]
+    pub control: Option<String>,
+    /// Smallest physical step an adaptive method may take.
+    #[arg(long, allow_negative_numbers = true)]
+    pub h_min: Option<Value>,
+    /// Largest physical step an adaptive method may take.
+    #[arg(long, allow_negative_numbers = true)]
+    pub h_max: Option<Value>,
+    /// Block size R of the structural schemes.
+    #[arg(long, value_name = "R")]
+    pub block: Option<usize>,
+    /// Tolerance of an implicit solver (structural schemes' fixed point).
+    #[arg(long, allow_negative_numbers = true)]
+    pub tol: Option<Value>,
+    /// Iteration cap of an implicit solver.
+    #[arg(long)]
+    pub max_iter: Option<usize>,
+}
+
+macro_rules! override_fields {
+    ($base:expr, $over:expr; $($field:ident),* $(,)?) => {
+        RunSpec { $($field: $over.$field.or($base.$field)),* }
+    };
+}
+
+impl RunSpec {
+    /// These settings with every field `other` gives replacing ours. An inner step given
+    /// in either form (`inner_steps` or `dt`) replaces both forms of ours.
+    pub fn overridden_by(&self, other: &RunSpec) -> RunSpec {
+        let base = self.clone();
+        let over = other.clone();
+        let mut merged = override_fields!(base, over;
+            method, h, inner_steps, dt, t_end, blowup, jacobian, quadrature, h_slow, h_fast,
+            ratio, adaptive, control, h_min, h_max, block, tol, max_iter);
+        if other.inner_steps.is_some() || other.dt.is_some() {
+            merged.inner_steps = other.inner_steps;
+            merged.dt = other.dt.clone();
+        }
+        merged
+    }
+
+    /// Evaluate into the numbers a method is built from.
+    pub fn resolve(&self, parameters: &BTreeMap<String, f64>) -> Result<MethodSettings> {
+        let number = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+            v.as_ref().map(|v| v.evaluate(parameters, what)).transpose()
+        };
+        let positive = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+            match number(v, what)? {
+                Some(x) if x <= 0.0 => Err(Error::input(format!(
+                    "{what} must be positive and finite, got {x}"
+                ))),
+                other => Ok(other),
+            }
+        };
+        let h = positive(&self.h, "outer step h")?.ok_or_else(|| {
+            Error::input("no outer step h: give --h or set h in the scene's [run] table")
+        })?;
+        let dt = positive(&self.dt, "inner step dt")?;
+        let inner_steps = match (self.inner_steps, dt) {
+            (Some(_), Some(_)) => {
+                return Err(Error::input(
+                    "give the inner step either as inner steps (--inner) or as dt (--dt), not both",
+                ));
+            }
+            (Some(0), None) => return Err(Error::input("inner steps must be at least 1")),
+            (Some(k), None) => Some(k),
+            (None, Some(dt)) => Some(whole_ratio(h, dt, "inner step dt", "outer step h")?),
+            (None, None) => None,
+        };
+        if let Some(blowup) = self.blowup
+            && !(blowup.is_finite() && blowup > 0.0)
+        {
+            return Err(Error::input(format!(
+                "blow-up factor must be positive, got {blowup}"
+            )));
+        }
+        if self.ratio == Some(0) {
+            return Err(Error::input("ratio must be at least 1"));
+        }
+        if self.block == Some(0) {
+            return Err(Error::input("block size R must be at least 1"));
+        }
+        if self.max_iter == Some(0) {
+            return Err(Error::input("max_iter must be at least 1"));
+        }
+        Ok(MethodSettings {
+            method: self.method.clone().unwrap_or_else(|| "verlet".into()),
+            h,
+            inner_steps,
+            t_end: positive(&self.t_end, "end time t_end")?,
+            blowup: self.blowup.unwrap_or(10.0),
+            jacobian: self.jacobian.clone(),
+            quadrature: self.quadrature.clone(),
+            h_slow: positive(&self.h_slow, "h_slow")?,
+            h_fast: positive(&self.h_fast, "h_fast")?,
+            ratio: self.ratio,
+            adaptive: positive(&self.adaptive, "adaptive tolerance")?,
+            control: self.control.clone(),
+            h_min: positive(&self.h_min, "h_min")?,
+            h_max: positive(&self.h_max, "h_max")?,
+            block: self.block,
+            tol: positive(&self.tol, "tol")?,
+            max_iter: self.max_iter,
+        })
+    }
+}
+
+/// `numerator / denominator` as a whole number, or an error saying it is not one.
+pub fn whole_ratio(numerator: f64, denominator: f64, small: &str, large: &str) -> Result<usize> {
+    let ratio = numerator / denominator;
+    let k = ratio.round();
+    if k < 1.0 || (ratio - k).abs() > 1e-9 * ratio {
+        return Err(Error::input(format!(
+            "{small} = {denominator} does not divide the {large} = {numerator} (ratio \
+             {ratio}); choose {small} = {large}/k for a whole number k"
+        )));
+    }
+    Ok(k as usize)
+}
+
+/// Settings after evaluation: what a method is built from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MethodSettings {
+    pub method: String,
+    /// Outer step.
+    pub h: f64,
+    /// Inner steps per outer step (from `inner_steps`, or `h / dt`).
+    pub inner_steps: Option<usize>,
+    pub t_end: Option<f64>,
+    pub blowup: f64,
+    pub jacobian: Option<String>,
+    pub quadrature: Option<String>,
+    pub h_slow: Option<f64>,
+    pub h_fast: Option<f64>,
+    pub ratio: Option<usize>,
+    pub adaptive: Option<f64>,
+    pub control: Option<String>,
+    pub h_min: Option<f64>,
+    pub h_max: Option<f64>,
+    pub block: Option<usize>,
+    pub tol: Option<f64>,
+    pub max_iter: Option<usize>,
+}
+
+impl MethodSettings {
+    /// A bare setting for tests and studies: `method` with outer step `h`.
+    pub fn new(method: &str, h: f64) -> Self {
+        MethodSettings {
+            method: method.to_string(),
+            h,
+            blowup: 10.0,
+            ..Default::default()
+        }
+    }
+
+    pub fn with_inner_steps(mut self, inner_steps: usize) -> Self {
+        self.inner_steps = Some(inner_steps);
+        self
+    }
+
+    /// The names of the settings that are given, for methods that reject what they do not use.
+    pub fn given(&self) -> Vec<&'static str> {
+        let mut given = Vec::new();
+        let flags: [(&'static str, bool); 13] = [
+            ("inner_steps", self.inner_steps.is_some()),
+            ("jacobian", self.jacobian.is_some()),
+            ("quadrature", self.quadrature.is_some()),
+            ("h_slow", self.h_slow.is_some()),
+            ("h_fast", self.h_fast.is_some()),
+            ("ratio", self.ratio.is_some()),
+            ("adaptive", self.adaptive.is_some()),
+            ("control", self.control.is_some()),
+            ("h_min", self.h_min.is_some()),
+            ("h_max", self.h_max.is_some()),
+            ("block", self.block.is_some()),
+            ("tol", self.tol.is_some()),
+            ("max_iter", self.max_iter.is_some()),
+        ];
+        for (name, is_given) in flags {
+            if is_given {
+                given.push(name);
+            }
+        }
+        given
+    }
+}
