@@ -41,7 +41,17 @@ fn collect_warnings() {
 }
 
 fn structure_error(path: &Path, message: String) -> Error {
-    let warnings = WARNINGS.lock().map(|w| w.join("; ")).unwrap_or_default();
+    // Chemfiles often also sends the error text as a warning: keep only new information.
+    let warnings = WARNINGS
+        .lock()
+        .map(|w| {
+            w.iter()
+                .filter(|warning| !message.contains(warning.as_str()))
+                .cloned()
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+        .unwrap_or_default();
     let message = if warnings.is_empty() {
         message
     } else {

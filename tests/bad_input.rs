@@ -1,0 +1,221 @@
+//! Bad input gets a clear message naming what and where, a non-zero exit, and no panic.
+//! Every scene in tests/input/bad/ states the message it must produce in `# expect:` lines.
+
+mod common;
+
+use std::path::Path;
+
+use common::{longstep, scratch_dir};
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let output = longstep().args(args).output().expect("longstep runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn every_bad_scene_fails_with_its_message() {
+    let mut checked = 0;
+    let mut entries: Vec<_> = std::fs::read_dir("tests/input/bad")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    entries.sort();
+    for path in entries {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let expected: Vec<&str> = text
+            .lines()
+            .filter_map(|l| l.strip_prefix("# expect: "))
+            .collect();
+        assert!(
+            !expected.is_empty(),
+            "{} states no expected message",
+            path.display()
+        );
+        let out = scratch_dir(&format!(
+            "bad-{}",
+            path.file_stem().unwrap().to_string_lossy()
+        ));
+        let (code, _, stderr) = run(&[
+            "run",
+            path.to_str().unwrap(),
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.1",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(
+            code,
+            1,
+            "{}: exit code {code}, stderr: {stderr}",
+            path.display()
+        );
+        assert!(
+            stderr.starts_with("error: "),
+            "{}: {stderr}",
+            path.display()
+        );
+        assert!(!stderr.contains("panicked"), "{}: {stderr}", path.display());
+        for fragment in expected {
+            assert!(
+                stderr.contains(fragment),
+                "{}: message lacks \"{fragment}\":\n{stderr}",
+                path.display()
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 20, "only {checked} bad scenes checked");
+}
+
+#[test]
+fn a_scene_error_names_the_line() {
+    // The error must point at the offending key's line, or at the particle table it is in.
+    for (file, needle) in [
+        ("unknown-key", "mas = 1.0"),
+        ("negative-mass", "[[particles]]"),
+    ] {
+        let path = format!("tests/input/bad/{file}.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let line = text.lines().position(|l| l == needle).unwrap() + 1;
+        let (_, _, stderr) = run(&["check", &path]);
+        assert!(stderr.contains(&format!("{file}.toml:{line}:")), "{stderr}");
+    }
+}
+
+#[test]
+fn bad_command_line_values_are_refused() {
+    let scene = "systems/three-spring.toml";
+    let cases: &[(&[&str], i32, &str)] = &[
+        (
+            &["--h", "0"],
+            1,
+            "outer step h must be positive and finite, got 0",
+        ),
+        (
+            &["--h", "-0.1"],
+            1,
+            "outer step h must be positive and finite, got -0.1",
+        ),
+        (&["--h", "nan"], 1, "outer step h is not finite"),
+        (&["--h", "inf"], 1, "outer step h is not finite"),
+        (&["--t-end", "0"], 1, "end time t_end must be positive"),
+        (
+            &["--dt", "0.03"],
+            1,
+            "inner step dt = 0.03 does not divide the outer step h = 0.05",
+        ),
+        (&["--inner", "0"], 1, "inner steps must be at least 1"),
+        (
+            &["--inner", "4", "--dt", "0.01"],
+            1,
+            "either as inner steps (--inner) or as dt",
+        ),
+        (
+            &["--set", "omega3=1"],
+            1,
+            "has no parameter \"omega3\" (it has: angle, omega1, omega2, p0)",
+        ),
+        (&["--set", "omega1"], 1, "--set expects name=value"),
+        (
+            &["--set", "omega1=sqrt(-1)"],
+            1,
+            "parameter \"omega1\" is not finite",
+        ),
+        (
+            &["--method", "leapfrog"],
+            1,
+            "unknown method \"leapfrog\"; known methods: verlet",
+        ),
+        (
+            &["--energy-every", "0"],
+            1,
+            "--energy-every must be at least 1",
+        ),
+        (&["--blowup", "-1"], 1, "blow-up factor must be positive"),
+        (&["--h", "abc"], 1, "outer step h: unknown parameter 'abc'"),
+        (&["--inner", "x"], 2, "invalid value 'x' for '--inner <K>'"),
+    ];
+    let out = scratch_dir("bad-cli");
+    for (extra, expected_code, fragment) in cases {
+        let mut args = vec!["run", scene, "--out", out.to_str().unwrap()];
+        if !extra.contains(&"--t-end") {
+            args.extend(["--t-end", "1"]);
+        }
+        args.extend_from_slice(extra);
+        let (code, _, stderr) = run(&args);
+        assert_eq!(code, *expected_code, "{extra:?}: {stderr}");
+        assert!(
+            stderr.contains(fragment),
+            "{extra:?}: message lacks \"{fragment}\":\n{stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{extra:?}: {stderr}");
+    }
+    let (code, _, stderr) = run(&["run", "systems/no-such-scene.toml"]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("systems/no-such-scene.toml: No such file"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_blow_up_says_when_and_which_method_and_keeps_the_output() {
+    // hΩ2 = 7 is far beyond Verlet's stability limit hω < 2.
+    let out = scratch_dir("blow-up");
+    let (code, stdout, stderr) = run(&[
+        "run",
+        "systems/three-spring.toml",
+        "--h",
+        "0.5",
+        "--t-end",
+        "1000",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 3, "{stderr}");
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(summary["status"], "unstable");
+    let at = summary["unstable_at"].as_f64().unwrap();
+    assert!(at > 0.0 && at < 1000.0);
+    let message = summary["message"].as_str().unwrap();
+    assert!(message.starts_with("verlet stopped: "), "{message}");
+    assert!(
+        stderr.contains(&format!("unstable at t = {at}")),
+        "{stderr}"
+    );
+
+    // energy.csv is complete up to the blow-up: a header, then full rows to t = `at`.
+    let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    let columns = rows[0].split(',').count();
+    assert!(rows.len() > 2);
+    for row in &rows[1..] {
+        assert_eq!(row.split(',').count(), columns, "incomplete row {row}");
+    }
+    let last_t: f64 = rows
+        .last()
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert_eq!(last_t, at);
+}
+
+#[test]
+fn no_argument_prints_help() {
+    let (code, stdout, stderr) = run(&[]);
+    assert_ne!(code, 0);
+    let text = stdout + &stderr;
+    assert!(text.contains("Usage: longstep <COMMAND>"), "{text}");
+    assert!(Path::new(env!("CARGO_BIN_EXE_longstep")).exists());
+}
