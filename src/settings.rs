@@ -71,6 +71,10 @@ pub struct RunSpec {
     /// Stop as unstable when |E - E0| exceeds this many times the initial energy scale (default 10).
     #[arg(long, value_name = "FACTOR", allow_negative_numbers = true)]
     pub blowup: Option<f64>,
+    /// Recursive r-RESPA with more than two levels: steps of each level per step of the
+    /// level above, outermost first (e.g. 2,4); default: --inner between every pair of levels.
+    #[arg(long, value_delimiter = ',', value_name = "N,N,…")]
+    pub level_steps: Option<Vec<usize>>,
     /// Jacobian of the mollified methods' averaging: forward, adjoint or auto (by component size).
     #[arg(long)]
     pub jacobian: Option<String>,
@@ -122,7 +126,7 @@ impl RunSpec {
         let base = self.clone();
         let over = other.clone();
         let mut merged = override_fields!(base, over;
-            method, h, inner_steps, dt, t_end, blowup, jacobian, quadrature, h_slow, h_fast,
+            method, h, inner_steps, dt, t_end, blowup, level_steps, jacobian, quadrature, h_slow, h_fast,
             ratio, adaptive, control, h_min, h_max, block, tol, max_iter);
         if other.inner_steps.is_some() || other.dt.is_some() {
             merged.inner_steps = other.inner_steps;
@@ -166,6 +170,11 @@ impl RunSpec {
                 "blow-up factor must be positive, got {blowup}"
             )));
         }
+        if let Some(steps) = &self.level_steps
+            && steps.contains(&0)
+        {
+            return Err(Error::input("level_steps must all be at least 1"));
+        }
         if self.ratio == Some(0) {
             return Err(Error::input("ratio must be at least 1"));
         }
@@ -181,6 +190,7 @@ impl RunSpec {
             inner_steps,
             t_end: positive(&self.t_end, "end time t_end")?,
             blowup: self.blowup.unwrap_or(10.0),
+            level_steps: self.level_steps.clone(),
             jacobian: self.jacobian.clone(),
             quadrature: self.quadrature.clone(),
             h_slow: positive(&self.h_slow, "h_slow")?,
@@ -220,6 +230,7 @@ pub struct MethodSettings {
     pub inner_steps: Option<usize>,
     pub t_end: Option<f64>,
     pub blowup: f64,
+    pub level_steps: Option<Vec<usize>>,
     pub jacobian: Option<String>,
     pub quadrature: Option<String>,
     pub h_slow: Option<f64>,
@@ -253,8 +264,9 @@ impl MethodSettings {
     /// The names of the settings that are given, for methods that reject what they do not use.
     pub fn given(&self) -> Vec<&'static str> {
         let mut given = Vec::new();
-        let flags: [(&'static str, bool); 13] = [
+        let flags: [(&'static str, bool); 14] = [
             ("inner_steps", self.inner_steps.is_some()),
+            ("level_steps", self.level_steps.is_some()),
             ("jacobian", self.jacobian.is_some()),
             ("quadrature", self.quadrature.is_some()),
             ("h_slow", self.h_slow.is_some()),

@@ -14,6 +14,7 @@
 
 pub mod angle;
 pub mod dual;
+pub mod field;
 pub mod gravity;
 pub mod lennard_jones;
 pub mod pair;

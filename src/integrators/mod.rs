@@ -7,8 +7,11 @@
 //! step, at which the slowest forces are sampled) and `inner_steps` / `dt` (the inner step
 //! `dt = h / inner_steps`) — never a bare "timestep".
 
+pub mod impulse;
+pub mod mollified;
 pub mod verlet;
 
+pub use impulse::Impulse;
 pub use verlet::VelocityVerlet;
 
 use crate::error::{Error, Result};
@@ -76,11 +79,41 @@ pub struct MethodInfo {
     pub uses: &'static [&'static str],
 }
 
-pub const METHODS: &[MethodInfo] = &[MethodInfo {
-    name: "verlet",
-    help: "velocity Verlet: every force level at every step h (single time step)",
-    uses: &[],
-}];
+const MTS: &[&str] = &["inner_steps", "level_steps"];
+const MOLLIFIED: &[&str] = &["inner_steps", "jacobian"];
+
+pub const METHODS: &[MethodInfo] = &[
+    MethodInfo {
+        name: "verlet",
+        help: "velocity Verlet: every force level at every step h (single time step)",
+        uses: &[],
+    },
+    MethodInfo {
+        name: "impulse",
+        help: "r-RESPA / Verlet-I impulse, endpoint version (kick, oscillate, kick); recursive over levels",
+        uses: MTS,
+    },
+    MethodInfo {
+        name: "impulse-midpoint",
+        help: "r-RESPA impulse, midpoint version (oscillate h/2, kick, oscillate h/2)",
+        uses: MTS,
+    },
+    MethodInfo {
+        name: "short-average",
+        help: "mollified impulse, ShortAverage: mean over [-h/2, h/2] (GSS98)",
+        uses: MOLLIFIED,
+    },
+    MethodInfo {
+        name: "long-average",
+        help: "mollified impulse, LongAverage: mean over [-h, h] (GSS98)",
+        uses: MOLLIFIED,
+    },
+    MethodInfo {
+        name: "linear-average",
+        help: "mollified impulse, LinearAverage: triangle over [-h, h] (GSS98)",
+        uses: MOLLIFIED,
+    },
+];
 
 /// Build the integrator the settings ask for. `notices` collects what the user should
 /// know, such as a setting the method does not use.
@@ -101,8 +134,23 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
             ));
         }
     }
+    use impulse::Variant;
+    use mollified::{Average, JacobianChoice};
+    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
+        let choice = JacobianChoice::parse(settings.jacobian.as_deref())?;
+        Ok(Box::new(Impulse::new(
+            settings,
+            Variant::Endpoint,
+            Some((average, choice)),
+        )?))
+    };
     match info.name {
         "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
+        "impulse" => Ok(Box::new(Impulse::new(settings, Variant::Endpoint, None)?)),
+        "impulse-midpoint" => Ok(Box::new(Impulse::new(settings, Variant::Midpoint, None)?)),
+        "short-average" => mollified(Average::Short),
+        "long-average" => mollified(Average::Long),
+        "linear-average" => mollified(Average::Linear),
         other => unreachable!("method {other} is listed but not built"),
     }
 }

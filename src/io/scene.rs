@@ -15,6 +15,7 @@ use super::expr;
 use super::structure::{Structure, read_structure};
 use crate::error::{Error, Result};
 use crate::forces::angle::{AngleBend, HarmonicAngles};
+use crate::forces::field::UniformField;
 use crate::forces::gravity::{CentralMass, gravity};
 use crate::forces::lennard_jones::{LennardJones, lennard_jones_pairs};
 use crate::forces::pendulum::Pendulum;
@@ -165,6 +166,14 @@ pub enum TermSpec {
         constant: Option<Value>,
         center: Option<String>,
         center_mass: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// A uniform force `f` on each listed particle (default: all): `V = −Σ f·q_i`.
+    Field {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        force: Vec<Value>,
         group: Option<Group>,
         level: Option<usize>,
     },
@@ -709,6 +718,9 @@ impl Builder<'_> {
             | TermSpec::Angle {
                 name, group, level, ..
             }
+            | TermSpec::Field {
+                name, group, level, ..
+            }
             | TermSpec::LennardJones {
                 name, group, level, ..
             }
@@ -1045,6 +1057,16 @@ impl Builder<'_> {
                     (None, None) => None,
                 };
                 Box::new(gravity(dim, g, &members, masses, center))
+            }
+            TermSpec::Field {
+                particles, force, ..
+            } => {
+                let members = self.particle_list(particles, names, &what, offset)?;
+                let vector =
+                    self.vector(force, dim, parameters, &format!("{what}: force"), offset)?;
+                let mut force = [0.0; 3];
+                force[..dim].copy_from_slice(&vector);
+                Box::new(UniformField::new(dim, members, force))
             }
             TermSpec::Pendulum {
                 particles,

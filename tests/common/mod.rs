@@ -49,3 +49,50 @@ pub fn scratch_dir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).expect("scratch directory");
     dir
 }
+
+use longstep::integrators::{self, Integrator};
+use longstep::io::scene::{Scene, build_scene};
+use longstep::settings::MethodSettings;
+
+/// A scene from TOML text.
+pub fn scene(text: &str) -> Scene {
+    build_scene(text, std::path::Path::new("test-scene.toml"), &[])
+        .unwrap_or_else(|e| panic!("test scene: {e}"))
+}
+
+/// A scene from a file with `--set` overrides.
+pub fn scene_file(path: &str, set: &[&str]) -> Scene {
+    let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
+    longstep::io::scene::load_scene(std::path::Path::new(path), &set)
+        .unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+/// An integrator for `method` with outer step `h` and `inner` inner steps.
+pub fn method(name: &str, h: f64, inner: Option<usize>) -> Box<dyn Integrator> {
+    let mut settings = MethodSettings::new(name, h);
+    settings.inner_steps = inner;
+    let mut notices = Vec::new();
+    integrators::build(&settings, &mut notices).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Set up `integrator` on `scene` and take `steps` steps; returns the final (q, p).
+pub fn integrate(
+    scene: &mut Scene,
+    integrator: &mut dyn Integrator,
+    steps: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    integrator.setup(&mut scene.system).unwrap();
+    for _ in 0..steps {
+        integrator.step(&mut scene.system).unwrap();
+    }
+    (scene.system.state.q.clone(), scene.system.state.p.clone())
+}
+
+/// The methods of the impulse family, with their names.
+pub const MTS_METHODS: [&str; 5] = [
+    "impulse",
+    "impulse-midpoint",
+    "short-average",
+    "long-average",
+    "linear-average",
+];

@@ -1,0 +1,268 @@
+//! The impulse method (Verlet-I / r-RESPA) and the mollified impulse methods.
+//!
+//! **Impulse, endpoint version** (GSS98 after eq. (1)): kick `(h/2)F(q_n)`; oscillate with the
+//! h-flow of the reduced problem `dp/dt = −W_q(q), dq/dt = M⁻¹p`, integrated by velocity
+//! Verlet with `inner_steps` steps of `dt = h/inner_steps`; kick `(h/2)F(q_{n+1})`. The second
+//! kick's force is the next step's first. With more than two force levels the scheme
+//! recurses (recursive r-RESPA, level 0 innermost, as LAMMPS `run_style respa` and OpenMM
+//! `MTSIntegrator`): each level kicks with its own force around `level_steps` steps of the
+//! level below, and level 0 is plain Verlet. Cost per outer step: one gradient of each level
+//! per step of that level (the slow level once per `h`, the fast level `inner_steps` times).
+//!
+//! **Impulse, midpoint version** (GSS98 section 2): oscillate `h/2`, kick `h F(q_{n+1/2})`,
+//! oscillate `h/2` (an even number of inner steps); same cost.
+//!
+//! **Mollified impulse** (GSS98 eq. (4)): the endpoint method with the impulse `F(q_n)`
+//! replaced by `A_q(h; q_n)ᵀ F(A(h; q_n))`, the average and its Jacobian from
+//! [`super::mollified`]. Two levels. Cost per outer step: `inner_steps` fast gradients for
+//! the oscillation, one averaging (⌈μ·inner_steps⌉ − 1 fast gradients and the Hessian-vector
+//! products of the chosen Jacobian mode) and one slow gradient, at `A(h; q)`.
+//!
+//! Averaging and mollification are a hook around the slow-force call; the rest of the
+//! integrator does not know about them.
+
+use super::mollified::{Average, JacobianChoice, Mollifier};
+use super::{Integrator, StepFailure, drift, kick};
+use crate::error::{Error, Result};
+use crate::settings::MethodSettings;
+use crate::system::System;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variant {
+    Endpoint,
+    Midpoint,
+}
+
+pub struct Impulse {
+    name: &'static str,
+    h: f64,
+    variant: Variant,
+    inner_steps: Option<usize>,
+    level_steps_setting: Option<Vec<usize>>,
+    /// `substeps[ℓ]`: steps of level ℓ − 1 per step of level ℓ (ℓ ≥ 1; `substeps[0]` unused).
+    substeps: Vec<usize>,
+    /// `∇V_ℓ` at the current positions (for the slow level of a mollified method,
+    /// `A_qᵀ ∇U(A)`), one buffer per level.
+    gradients: Vec<Vec<f64>>,
+    empty: Vec<bool>,
+    mollifier: Option<Mollifier>,
+}
+
+impl Impulse {
+    /// r-RESPA impulse (`mollify = None`) or a mollified impulse method.
+    pub fn new(
+        settings: &MethodSettings,
+        variant: Variant,
+        mollify: Option<(Average, JacobianChoice)>,
+    ) -> Result<Self> {
+        let h = settings.h;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::input(format!(
+                "outer step h must be positive and finite, got {h}"
+            )));
+        }
+        let name = match (&mollify, variant) {
+            (Some((average, _)), _) => average.name(),
+            (None, Variant::Endpoint) => "impulse",
+            (None, Variant::Midpoint) => "impulse-midpoint",
+        };
+        if settings.inner_steps.is_none() && settings.level_steps.is_none() {
+            return Err(Error::input(format!(
+                "{name} needs the inner step: give --inner K (dt = h/K) or --dt"
+            )));
+        }
+        let mollifier = match mollify {
+            Some((average, choice)) => {
+                let inner_steps = settings
+                    .inner_steps
+                    .ok_or_else(|| Error::input(format!("{name} needs --inner K (or --dt)")))?;
+                Some(Mollifier::new(average, choice, h, inner_steps))
+            }
+            None => None,
+        };
+        Ok(Impulse {
+            name,
+            h,
+            variant,
+            inner_steps: settings.inner_steps,
+            level_steps_setting: settings.level_steps.clone(),
+            substeps: Vec::new(),
+            gradients: Vec::new(),
+            empty: Vec::new(),
+            mollifier,
+        })
+    }
+
+    /// The mollifier of a mollified method (for tests and studies).
+    pub fn mollifier(&self) -> Option<&Mollifier> {
+        self.mollifier.as_ref()
+    }
+
+    fn top(&self) -> usize {
+        self.gradients.len() - 1
+    }
+
+    /// Recompute the force of `level` at the current positions.
+    fn refresh(&mut self, level: usize, system: &mut System) {
+        if self.empty[level] {
+            return;
+        }
+        let top = self.top();
+        let (lower, upper) = self.gradients.split_at_mut(level);
+        let gradient = &mut upper[0];
+        match (&mut self.mollifier, level == top) {
+            (Some(mollifier), true) => mollifier.mollified_gradient(
+                &mut system.forces,
+                &system.inverse_mass,
+                &system.state.q,
+                Some(&lower[0]),
+                level,
+                gradient,
+            ),
+            _ => system.forces.gradient(level, &system.state.q, gradient),
+        }
+    }
+
+    fn kick(&mut self, level: usize, system: &mut System, scale: f64) {
+        if !self.empty[level] {
+            kick(&mut system.state.p, &self.gradients[level], scale);
+        }
+    }
+
+    /// One step of length `h_level` of `level` (endpoint form).
+    fn advance(&mut self, level: usize, h_level: f64, system: &mut System) {
+        if level == 0 {
+            let half = 0.5 * h_level;
+            self.kick(0, system, half);
+            drift(
+                &mut system.state.q,
+                &system.state.p,
+                &system.inverse_mass,
+                h_level,
+            );
+            self.refresh(0, system);
+            self.kick(0, system, half);
+            return;
+        }
+        let n = self.substeps[level];
+        let h_sub = h_level / n as f64;
+        match self.variant {
+            Variant::Endpoint => {
+                self.kick(level, system, 0.5 * h_level);
+                for _ in 0..n {
+                    self.advance(level - 1, h_sub, system);
+                }
+                self.refresh(level, system);
+                self.kick(level, system, 0.5 * h_level);
+            }
+            Variant::Midpoint => {
+                for _ in 0..n / 2 {
+                    self.advance(level - 1, h_sub, system);
+                }
+                self.refresh(level, system);
+                self.kick(level, system, h_level);
+                for _ in 0..n / 2 {
+                    self.advance(level - 1, h_sub, system);
+                }
+            }
+        }
+    }
+}
+
+impl Integrator for Impulse {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn describe(&self) -> String {
+        let mut text = format!("h = {}", self.h);
+        if self.substeps.len() == 2 {
+            let k = self.substeps[1];
+            text += &format!(", inner_steps = {k}, dt = {}", self.h / k as f64);
+        } else if self.substeps.len() > 2 {
+            let outer_first: Vec<String> = self.substeps[1..]
+                .iter()
+                .rev()
+                .map(|s| s.to_string())
+                .collect();
+            text += &format!(", level_steps = {}", outer_first.join(","));
+        }
+        if let Some(mollifier) = &self.mollifier {
+            text += &format!(
+                ", jacobian = {}, {} auxiliary steps",
+                mollifier.mode().name(),
+                mollifier.auxiliary_steps()
+            );
+        }
+        text
+    }
+
+    fn outer_step(&self) -> f64 {
+        self.h
+    }
+
+    fn setup(&mut self, system: &mut System) -> Result<()> {
+        let levels = system.forces.n_levels();
+        self.substeps = vec![1; levels];
+        match (&self.level_steps_setting, self.inner_steps) {
+            (Some(steps), _) => {
+                if steps.len() != levels - 1 {
+                    return Err(Error::input(format!(
+                        "level_steps gives {} numbers, but the scene has {levels} force levels \
+                         and needs {} (steps of each level per step of the level above, \
+                         outermost first)",
+                        steps.len(),
+                        levels - 1
+                    )));
+                }
+                for (i, &s) in steps.iter().enumerate() {
+                    self.substeps[levels - 1 - i] = s;
+                }
+            }
+            (None, Some(k)) => self.substeps[1..].fill(k),
+            (None, None) => unreachable!("checked in new"),
+        }
+        if self.variant == Variant::Midpoint
+            && let Some(odd) = self.substeps[1..].iter().find(|&&s| s % 2 == 1)
+        {
+            return Err(Error::input(format!(
+                "{} oscillates h/2 on each side of the kick, so it needs an even number of \
+                 inner steps per level, got {odd}",
+                self.name
+            )));
+        }
+        if let Some(mollifier) = &mut self.mollifier {
+            if levels != 2 {
+                return Err(Error::input(format!(
+                    "{} averages with the fast forces and mollifies the slow ones: it needs \
+                     exactly two force levels, the scene has {levels} (use impulse for \
+                     recursive r-RESPA)",
+                    self.name
+                )));
+            }
+            let components = system.forces.fast_components(system.n_particles());
+            mollifier.setup(system.dim, &components);
+        }
+        let n = system.n_dofs();
+        self.gradients = vec![vec![0.0; n]; levels];
+        self.empty = (0..levels)
+            .map(|level| system.forces.level_is_empty(level))
+            .collect();
+        // Level 0 first: a mollified slow level reuses ∇W(q). The midpoint form evaluates
+        // the outer levels where it kicks, so only level 0 is needed at the start.
+        let needed = match self.variant {
+            Variant::Endpoint => levels,
+            Variant::Midpoint => 1,
+        };
+        for level in 0..needed {
+            self.refresh(level, system);
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, system: &mut System) -> Result<(), StepFailure> {
+        self.advance(self.top(), self.h, system);
+        system.state.t += self.h;
+        Ok(())
+    }
+}

@@ -1,0 +1,73 @@
+//! A step allocates nothing: integrators size their buffers in `setup`, force kernels write
+//! into the buffers they are given. A counting global allocator checks it for every method
+//! of the family, with both Jacobian modes of the mollified methods.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+struct Counting;
+
+thread_local! {
+    // Per thread, so tests running in parallel do not count each other.
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|c| c.get())
+}
+
+#[test]
+fn steps_allocate_nothing() {
+    // The counter sees allocations at all.
+    let before = allocations();
+    let probe = std::hint::black_box(vec![1.0f64; 16]);
+    assert!(allocations() > before && probe.len() == 16);
+    let chain = "systems/chain/scene.toml";
+    let mut cases: Vec<(String, Option<&str>)> = vec![("verlet".into(), None)];
+    for name in common::MTS_METHODS {
+        cases.push((name.into(), None));
+    }
+    for name in ["short-average", "long-average", "linear-average"] {
+        cases.push((name.into(), Some("forward")));
+        cases.push((name.into(), Some("adjoint")));
+    }
+    for (name, jacobian) in cases {
+        let mut scene = common::scene_file(chain, &[]);
+        let mut settings = longstep::settings::MethodSettings::new(&name, 0.02);
+        if name != "verlet" {
+            settings.inner_steps = Some(4);
+        }
+        settings.jacobian = jacobian.map(str::to_string);
+        let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+        integrator.setup(&mut scene.system).unwrap();
+        integrator.step(&mut scene.system).unwrap();
+        let before = allocations();
+        for _ in 0..5 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        let during = allocations() - before;
+        assert_eq!(
+            during, 0,
+            "{name} ({jacobian:?}): {during} allocations in 5 steps"
+        );
+    }
+}
