@@ -12,7 +12,7 @@ cmake:
 
 run: cmake
 	$(CARGO) build --release
-	$(BIN) run systems/three-spring.toml
+	$(BIN) run systems/three-spring.toml --method long-average --h 0.5 --inner 50 --t-end 1000
 
 test: cmake
 	$(CARGO) fmt --check

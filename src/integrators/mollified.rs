@@ -18,8 +18,9 @@
 //!   `A_qᵀ g` for the `g` at hand. Linear in the size of the molecule.
 //!
 //! Cost per call, with `N = ⌈μ K⌉` auxiliary steps (`K` inner steps per outer step):
-//! `N − 1` fast-force gradients (the first is the main loop's, reused), one slow-force
-//! gradient at `A`, and `N` Hessian-vector products (adjoint) or `N × block size` (forward).
+//! `N − 1` fast-force gradients (the one at q_n is the main loop's, reused; the one at the
+//! last point would only serve a momentum the average never reads), one slow-force gradient
+//! at `A`, and `N` Hessian-vector products (adjoint) or `N × block size` (forward).
 
 use nalgebra::DMatrix;
 
@@ -331,9 +332,12 @@ impl Mollifier {
             for ((x, p), w) in self.q.iter_mut().zip(&self.p).zip(inverse_mass) {
                 *x += dt * (w * p);
             }
-            forces.gradient(0, &self.q, &mut self.fast_gradient);
-            for (p, g) in self.p.iter_mut().zip(&self.fast_gradient) {
-                *p -= half * g;
+            // The last half-kick would only update p, which the average does not use.
+            if k + 1 < steps {
+                forces.gradient(0, &self.q, &mut self.fast_gradient);
+                for (p, g) in self.p.iter_mut().zip(&self.fast_gradient) {
+                    *p -= half * g;
+                }
             }
             let weight = if k + 1 == steps { half } else { dt } * self.weights[k + 1];
             for (b, x) in self.averaged.iter_mut().zip(&self.q) {
