@@ -19,6 +19,8 @@ pub struct RunOptions {
     pub blowup: f64,
     /// Where to write `energy.csv`; `None` writes nothing.
     pub energy_csv: Option<PathBuf>,
+    /// Keep `(t, kinetic, total)` of every recorded row in the summary (for drift fits).
+    pub keep_series: bool,
 }
 
 impl Default for RunOptions {
@@ -28,6 +30,7 @@ impl Default for RunOptions {
             energy_every: 1,
             blowup: 10.0,
             energy_csv: None,
+            keep_series: false,
         }
     }
 }
@@ -64,6 +67,7 @@ pub fn run(
     };
 
     let mut row = Vec::with_capacity(header.len());
+    let mut series = Vec::new();
     let mut record = |system: &System,
                       integrator: &dyn Integrator,
                       csv: &mut Option<CsvWriter>|
@@ -72,6 +76,9 @@ pub fn run(
         let potentials = system.potential_energies();
         let potential: f64 = potentials.iter().sum();
         let total = kinetic + potential;
+        if options.keep_series {
+            series.push([system.state.t, kinetic, total]);
+        }
         if let Some(csv) = csv {
             row.clear();
             row.extend([system.state.t, kinetic, potential, total]);
@@ -143,5 +150,6 @@ pub fn run(
         unstable_at: stopped_early.then_some(system.state.t),
         message: message.map(|m| format!("{} stopped: {m}", integrator.name())),
         energy_csv: csv.as_ref().map(|c| c.path().display().to_string()),
+        series,
     })
 }

@@ -1,4 +1,7 @@
-//! Analysis of runs and methods: energy monitors now; stability maps and normal modes
-//! join them.
+//! Analysis of runs and methods: energy monitors, normal modes and resonance prediction,
+//! minimisation, and step-size safety scans.
 
+pub mod minimize;
+pub mod modes;
 pub mod monitor;
+pub mod scan;

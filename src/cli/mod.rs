@@ -5,6 +5,7 @@
 //! outputs up to that point are written, and the summary says when).
 
 mod run;
+mod studies;
 
 use std::path::PathBuf;
 
@@ -42,6 +43,13 @@ enum Command {
     Check(CheckArgs),
     /// List the integration methods.
     Methods,
+    /// Normal modes of the fast forces and the outer steps where MTS methods resonate.
+    Modes(studies::ModesArgs),
+    /// Minimise a scene's potential energy (FIRE) and report it.
+    Minimize(studies::MinimizeArgs),
+    /// Scans over outer steps (and, for the three-spring maps, stiffness).
+    #[command(subcommand)]
+    Scan(studies::ScanCommand),
 }
 
 #[derive(Args, Debug)]
@@ -90,6 +98,11 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
+        Command::Modes(args) => studies::modes_command(&args).map(|()| 0),
+        Command::Minimize(args) => studies::minimize_command(&args).map(|()| 0),
+        Command::Scan(studies::ScanCommand::Steps(args)) => {
+            studies::scan_steps_command(&args).map(|()| 0)
+        }
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

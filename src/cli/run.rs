@@ -47,6 +47,7 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         energy_every,
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
+        ..Default::default()
     };
     let summary = run(
         &scene.name,

@@ -73,6 +73,9 @@ pub struct RunSummary {
     pub message: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub energy_csv: Option<String>,
+    /// `(t, kinetic, total)` per recorded row, when the run was asked to keep them.
+    #[serde(skip)]
+    pub series: Vec<[f64; 3]>,
 }
 
 impl RunSummary {
