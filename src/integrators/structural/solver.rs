@@ -15,9 +15,13 @@
 //!   `Zx_{n+R}` against an absolute tolerance (1e-30 in quadruple precision); relative
 //!   norms over the block keep the test meaningful for momenta of any scale (the solar
 //!   system's are 1e-8 of its positions). When `tol` is below what double precision can
-//!   resolve, the iteration stalls at round-off: an update no larger than
-//!   `ROUNDOFF_FACTOR · ε` relative that no longer shrinks by half is accepted as
-//!   converged. After `max_iter` iterations without convergence the block fails.
+//!   resolve, the iteration stalls at round-off, which a slowly contracting fixed point
+//!   (contraction ρ near 1) amplifies by about `1/(1 − ρ)`. Two rules accept such a
+//!   stall as convergence: an update no larger than `ROUNDOFF_FACTOR · ε` that no
+//!   longer shrinks by half, or an update that has not reached a new minimum for
+//!   `STALL_ITERATIONS` iterations after the minimum fell below `STALL_LEVEL` (far above
+//!   ε, far below any error a structural scheme is run for). After `max_iter`
+//!   iterations without either the block fails.
 //!
 //! One iteration costs `R` evaluations of PE[1] (`R` gradient evaluations of every force
 //! level) and, for ZDS, `R` of PE[2] (`R` Hessian-vector products); the initialisation
@@ -30,6 +34,10 @@ use crate::split::ForceSplit;
 
 /// Updates within this many ε (relative) that stop shrinking are round-off.
 pub const ROUNDOFF_FACTOR: f64 = 1e3;
+/// A smallest relative update below this that does not improve for
+/// [`STALL_ITERATIONS`] iterations is round-off amplified by a slow contraction.
+pub const STALL_LEVEL: f64 = 1e-10;
+pub const STALL_ITERATIONS: u32 = 4;
 
 /// The state at one node: position, momentum (canonical) and their derivatives.
 pub struct Node<'a> {
@@ -176,6 +184,8 @@ impl BlockSolver {
         }
 
         let mut previous_update = f64::INFINITY;
+        let mut smallest_update = f64::INFINITY;
+        let mut since_smallest = 0u32;
         for iteration in 1..=self.max_iterations {
             // Structural equations: the new block from the derivatives.
             for m in 0..block {
@@ -244,8 +254,15 @@ impl BlockSolver {
                 self.physical(physics, forces, r);
             }
             let converged = update <= self.tolerance;
-            let at_roundoff =
-                update <= ROUNDOFF_FACTOR * f64::EPSILON && update > 0.5 * previous_update;
+            if update < smallest_update {
+                smallest_update = update;
+                since_smallest = 0;
+            } else {
+                since_smallest += 1;
+            }
+            let at_roundoff = (update <= ROUNDOFF_FACTOR * f64::EPSILON
+                && update > 0.5 * previous_update)
+                || (smallest_update <= STALL_LEVEL && since_smallest >= STALL_ITERATIONS);
             if converged || at_roundoff {
                 return Ok(iteration);
             }
