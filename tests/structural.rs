@@ -778,3 +778,249 @@ fn charged_particle_as_printed_needs_a_finer_grid() {
     // energy's sensitivity to it, leaves far less than 1e-6 relative.
     assert!(summary.energy.max_relative_error < 1e-6);
 }
+
+// ---------------------------------------------------------------------------------------
+// Systems: CFM25 Tables 4, 9, 11 and 13
+// ---------------------------------------------------------------------------------------
+
+/// `(kind, R, [paper at the coarse grid, paper at the fine grid])`.
+type Pair = (StructuralKind, usize, [f64; 2]);
+
+/// Run `name` with `steps` nodes of step `h` and return the maximum over block-end
+/// nodes of `measure(t, system)` — ERRATA.md: Tables 4, 6 and 9 are maxima over block
+/// ends, and so is Table 11.
+fn max_over_block_ends(
+    name: &str,
+    set: &[&str],
+    kind: StructuralKind,
+    block: usize,
+    h: f64,
+    steps: usize,
+    mut measure: impl FnMut(f64, &System) -> f64,
+) -> f64 {
+    let mut system = scene(name, set);
+    let mut worst: f64 = 0.0;
+    integrate(&mut system, kind, block, h, steps, |n, s| {
+        if n % block == 0 {
+            worst = worst.max(measure(n as f64 * h, s));
+        }
+    })
+    .unwrap();
+    worst
+}
+
+/// Check a table against the paper: within `tolerance` relative plus the round-off floor
+/// where the entry is above the floor, below the floor otherwise. Prints the row.
+fn check_row(
+    table: &str,
+    kind: StructuralKind,
+    block: usize,
+    ours: [f64; 2],
+    paper: [f64; 2],
+    steps: [usize; 2],
+    tolerance: f64,
+) {
+    println!(
+        "{table} {kind:?} R = {block}: {:.3e} {:.3e} (CFM25 {:.2e} {:.2e})",
+        ours[0], ours[1], paper[0], paper[1]
+    );
+    for i in 0..2 {
+        let floor = double_floor(steps[i]);
+        if paper[i] > floor {
+            assert!(
+                (ours[i] - paper[i]).abs() <= tolerance * paper[i] + floor,
+                "{table} {kind:?} R = {block}: {:e} vs CFM25 {:e}",
+                ours[i],
+                paper[i]
+            );
+        } else {
+            assert!(
+                ours[i] <= floor,
+                "{table} {kind:?} R = {block}: {:e}",
+                ours[i]
+            );
+        }
+    }
+}
+
+/// CFM25 Table 4 (two masses, T = 100, N = 480 and 3840): the maximum over block ends of
+/// the position error of either mass, against CFM25's analytical solution. Reproduced to
+/// the printed digits (1%); ZDS R = 3 at N = 3840 (7.20e-12) is at our floor.
+#[test]
+fn two_masses_reproduce_cfm25_table_4() {
+    use StructuralKind::{Zd, Zds};
+    let (k1, k2, m1, m2) = (1.0f64, 5.0f64, 2.0f64, 1.0f64);
+    let w1 = ((8.0 - 3.0 * 6f64.sqrt()) / 2.0).sqrt();
+    let w2 = ((8.0 + 3.0 * 6f64.sqrt()) / 2.0).sqrt();
+    let (a, b) = (1.0, 2.0);
+    let (phase1, phase2) = (std::f64::consts::FRAC_PI_2, -std::f64::consts::FRAC_PI_4);
+    let ratio1 = (k1 + k2 - m1 * w1 * w1) / k2;
+    let ratio2 = k2 / (k2 - m2 * w2 * w2);
+    let position = |t: f64| {
+        let (c1, c2) = ((w1 * t + phase1).cos(), (w2 * t + phase2).cos());
+        [a * c1 + b * c2, a * ratio1 * c1 + b * ratio2 * c2]
+    };
+    let table: [Pair; 7] = [
+        (Zd, 2, [2.29e0, 6.19e-4]),
+        (Zd, 4, [3.70e-1, 1.83e-6]),
+        (Zd, 6, [5.91e-2, 6.42e-9]),
+        (Zd, 8, [8.94e-3, 2.41e-11]),
+        (Zds, 1, [1.53e-1, 3.88e-5]),
+        (Zds, 2, [3.66e-3, 1.53e-8]),
+        (Zds, 3, [9.38e-5, 7.20e-12]),
+    ];
+    let steps = [480, 3840];
+    for (kind, block, paper) in table {
+        let ours = steps.map(|n| {
+            max_over_block_ends(
+                "two-masses",
+                &[],
+                kind,
+                block,
+                100.0 / n as f64,
+                n,
+                |t, s| {
+                    let x = position(t);
+                    (s.state.q[0] - x[0]).abs().max((s.state.q[1] - x[1]).abs())
+                },
+            )
+        });
+        check_row("Table 4", kind, block, ours, paper, steps, 0.01);
+    }
+}
+
+fn angular_momentum_2d(s: &System) -> f64 {
+    let (q, p) = (&s.state.q, &s.state.p);
+    (0..s.n_particles())
+        .map(|i| q[2 * i] * p[2 * i + 1] - q[2 * i + 1] * p[2 * i])
+        .sum()
+}
+
+/// CFM25 Table 9 (Kepler, x(0) = (0.4, 0), p(0) = (0, 2): `systems/kepler.toml` with
+/// e = 0.6; T = 100, N = 24T and 96T): maxima over block ends of |H − H₀| and |L − L₀|.
+/// Reproduced to the printed digits (1%) above the floor (4nε times the invariants'
+/// scale, O(1)); ZDS R = 4 at N = 96T (2.73e-14, 6.02e-15) is below it.
+#[test]
+fn kepler_reproduces_cfm25_table_9() {
+    use StructuralKind::{Zd, Zds};
+    // (kind, R, eH, eL)
+    let table: [(StructuralKind, usize, [f64; 2], [f64; 2]); 8] = [
+        (Zd, 2, [4.15e-5, 1.81e-7], [3.25e-5, 1.28e-7]),
+        (Zd, 4, [2.01e-5, 3.83e-9], [6.40e-6, 1.36e-9]),
+        (Zd, 6, [1.52e-5, 1.06e-10], [1.41e-5, 3.89e-11]),
+        (Zd, 8, [2.52e-5, 4.58e-12], [1.14e-5, 2.45e-12]),
+        (Zds, 1, [4.83e-5, 1.88e-7], [1.27e-5, 4.93e-8]),
+        (Zds, 2, [1.97e-6, 4.47e-10], [4.62e-7, 1.06e-10]),
+        (Zds, 3, [3.08e-7, 2.47e-12], [6.02e-8, 5.62e-13]),
+        (Zds, 4, [5.96e-8, 2.73e-14], [1.04e-8, 6.02e-15]),
+    ];
+    let steps = [2400, 9600];
+    for (kind, block, paper_h, paper_l) in table {
+        let mut ours_h = [0.0; 2];
+        let mut ours_l = [0.0; 2];
+        for (i, &n) in steps.iter().enumerate() {
+            let reference = scene("kepler", &["eccentricity=0.6"]);
+            let (h0, l0) = (reference.total_energy(), angular_momentum_2d(&reference));
+            let mut worst_l: f64 = 0.0;
+            ours_h[i] = max_over_block_ends(
+                "kepler",
+                &["eccentricity=0.6"],
+                kind,
+                block,
+                100.0 / n as f64,
+                n,
+                |_, s| {
+                    worst_l = worst_l.max((angular_momentum_2d(s) - l0).abs());
+                    (s.total_energy() - h0).abs()
+                },
+            );
+            ours_l[i] = worst_l;
+        }
+        check_row("Table 9 eH", kind, block, ours_h, paper_h, steps, 0.01);
+        check_row("Table 9 eL", kind, block, ours_l, paper_l, steps, 0.01);
+    }
+}
+
+/// CFM25 Table 11 (figure-eight, T = 10, N = 12T and 48T): maximum over block ends of
+/// |H − H₀|. Reproduced to the printed digits (1%); ZDS R = 4 at 48T (8.55e-14) is at
+/// our floor.
+#[test]
+fn figure_eight_reproduces_cfm25_table_11() {
+    use StructuralKind::{Zd, Zds};
+    let table: [Pair; 8] = [
+        (Zd, 2, [5.05e-5, 1.60e-7]),
+        (Zd, 4, [6.88e-5, 9.82e-9]),
+        (Zd, 6, [4.20e-5, 4.10e-10]),
+        (Zd, 8, [9.16e-5, 3.52e-11]),
+        (Zds, 1, [7.67e-5, 2.98e-7]),
+        (Zds, 2, [3.62e-6, 8.14e-10]),
+        (Zds, 3, [1.10e-6, 5.41e-12]),
+        (Zds, 4, [8.74e-7, 8.55e-14]),
+    ];
+    let steps = [120, 480];
+    let h0 = scene("three-body-figure-eight", &[]).total_energy();
+    for (kind, block, paper) in table {
+        let ours = steps.map(|n| {
+            max_over_block_ends(
+                "three-body-figure-eight",
+                &[],
+                kind,
+                block,
+                10.0 / n as f64,
+                n,
+                |_, s| (s.total_energy() - h0).abs(),
+            )
+        });
+        check_row("Table 11", kind, block, ours, paper, steps, 0.01);
+    }
+}
+
+/// CFM25 Table 13 (outer solar system, T = 100 000 days, N = 480 and 1920): the maximum
+/// over block ends of |H − H₀|/|H₀|. Reproduced in magnitude only — ours are 1.0–1.6×
+/// CFM25's (the Table 12 data as printed, rounded to 8 digits, may differ from what was
+/// run; the cause is not found) — so this checks a factor 2, not digits, or both values
+/// below our floor (ZDS R = 4 at N = 1920: CFM25 1.03e-14).
+#[test]
+fn outer_solar_system_matches_cfm25_table_13_in_magnitude() {
+    use StructuralKind::{Zd, Zds};
+    let table: [Pair; 8] = [
+        (Zd, 2, [3.06e-4, 1.26e-6]),
+        (Zd, 4, [1.07e-4, 2.72e-8]),
+        (Zd, 6, [4.02e-5, 5.11e-10]),
+        (Zd, 8, [3.79e-5, 2.29e-11]),
+        (Zds, 1, [7.92e-5, 3.10e-7]),
+        (Zds, 2, [2.33e-6, 5.69e-10]),
+        (Zds, 3, [9.99e-8, 1.52e-12]),
+        (Zds, 4, [3.48e-8, 1.03e-14]),
+    ];
+    let steps = [480, 1920];
+    let h0 = scene("outer-solar-system", &[]).total_energy();
+    for (kind, block, paper) in table {
+        let ours = steps.map(|n| {
+            max_over_block_ends(
+                "outer-solar-system",
+                &[],
+                kind,
+                block,
+                100_000.0 / n as f64,
+                n,
+                |_, s| ((s.total_energy() - h0) / h0).abs(),
+            )
+        });
+        println!(
+            "Table 13 {kind:?} R = {block}: {:.3e} {:.3e} (CFM25 {:.2e} {:.2e})",
+            ours[0], ours[1], paper[0], paper[1]
+        );
+        for i in 0..2 {
+            let floor = double_floor(steps[i]);
+            let ratio = ours[i] / paper[i];
+            let at_floor = paper[i] <= floor && ours[i] <= floor;
+            assert!(
+                (0.5..2.0).contains(&ratio) || at_floor,
+                "{kind:?} R = {block}: {:e} vs CFM25 {:e}",
+                ours[i],
+                paper[i]
+            );
+        }
+    }
+}
