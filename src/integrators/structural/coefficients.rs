@@ -19,9 +19,10 @@
 //! **Conditioning.** With monomial rows `t^k` at the nodes `t = 0, 1, …, R` (CFM25's
 //! matrix `M`) the system is a confluent Vandermonde matrix whose condition number grows
 //! fast: about 5e3 (ZD, R = 4), 6e9 (ZD, R = 8), 3e8 (ZDS, R = 4), 3e14 (ZDS, R = 6). In
-//! f64 that costs about as many digits (measured against exact rationals: 7e-10 relative
-//! error in the ZDS R = 4 coefficients, 2e-8 for ZD R = 8, 8e-4 for ZDS R = 6), more than
-//! the schemes' errors at the finest steps of CFM25's tables. Two remedies, both used:
+//! f64 that costs about as many digits (relative error against the double-double result:
+//! 5e-10 for ZDS R = 4, 3e-8 for ZD R = 8, `tests/structural.rs`; 8e-4 for ZDS R = 6
+//! against exact fractions), more than the schemes' errors at the finest steps of
+//! CFM25's tables. Two remedies, both used:
 //! the rows are Chebyshev polynomials `T_k(2t/R − 1)` instead (they span the same
 //! polynomials, so the kernel is the same; condition numbers fall to 1e2 (ZD R = 8) and
 //! 2e3 (ZDS R = 4)), and the elimination runs in double-double arithmetic (~32 digits),

@@ -15,7 +15,8 @@
 //!
 //! `--h` is the step `Δt` between nodes; `--block R`; the fixed point stops at the
 //! relative update `--tol` (default [`DEFAULT_TOLERANCE`]) or fails after `--max-iter`
-//! iterations (default [`DEFAULT_MAX_ITERATIONS`]) with a [`StepFailure`] naming the time.
+//! iterations (default [`DEFAULT_MAX_ITERATIONS`]) with a
+//! [`StepFailure`](crate::integrators::StepFailure) naming the time.
 //! Each `step` advances one node; a block is solved when its first node is needed.
 //! Cost per step: `k + 1` gradient evaluations of every level for a block solved in `k`
 //! iterations (the `+1` is the predictor), and for ZDS as many Hessian-vector products

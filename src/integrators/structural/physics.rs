@@ -6,15 +6,15 @@
 //! ([`MagneticTerm`]), the vector potential that makes it non-separable (CFM25 5.7). With
 //! `v = M⁻¹(p − eA)` and `J_ij = ∂_j A_i` per charged particle:
 //!
-//! * PE[1]: `Dx = ∂H/∂p = v`, `Dp = −∂H/∂x = −∇V + e Jᵀ v`;
-//! * PE[2]: `Sx = d/dt(∂H/∂p) = M⁻¹(Dp − e J Dx)`,
+//! * `PE[1]`: `Dx = ∂H/∂p = v`, `Dp = −∂H/∂x = −∇V + e Jᵀ v`;
+//! * `PE[2]`: `Sx = d/dt(∂H/∂p) = M⁻¹(Dp − e J Dx)`,
 //!   `Sp = −d/dt(∂H/∂x) = −∇²V Dx + e (Jᵀ Sx + w)`, `w_j = Σ_ik ∂_k∂_j A_i Dx_k Dx_i`.
 //!
 //! Without a field these are CFM25's separable equations (`Dx = M⁻¹p`, `Dp = −∇V`,
 //! `Sx = M⁻¹Dp`, `Sp = −∇²V Dx`). CFM25 5.7.1 prints `[∂ₓA] Sx` in `Sp`; its own
 //! derivation two lines above gives the transpose, which is what is used here.
 //!
-//! Cost: PE[1] is one gradient evaluation of every force level; PE[2] one Hessian-vector
+//! Cost: `PE[1]` is one gradient evaluation of every force level; `PE[2]` one Hessian-vector
 //! product of every level (counted by the [`ForceSplit`]). The magnetic field is applied
 //! analytically on the level that holds it and is not counted separately.
 
@@ -68,7 +68,7 @@ impl PhysicalEquations {
         }
     }
 
-    /// PE[1]: `dx = ∂H/∂p`, `dp = −∂H/∂x` at `(x, p)`.
+    /// `PE[1]`: `dx = ∂H/∂p`, `dp = −∂H/∂x` at `(x, p)`.
     pub fn first(
         &mut self,
         forces: &mut ForceSplit,
@@ -98,8 +98,8 @@ impl PhysicalEquations {
         }
     }
 
-    /// PE[2]: `sx = d/dt ∂H/∂p`, `sp = −d/dt ∂H/∂x` at `(x, p)` with the first
-    /// derivatives `(dx, dp)` of PE[1].
+    /// `PE[2]`: `sx = d/dt ∂H/∂p`, `sp = −d/dt ∂H/∂x` at `(x, p)` with the first
+    /// derivatives `(dx, dp)` of `PE[1]`.
     #[allow(clippy::too_many_arguments)]
     pub fn second(
         &mut self,

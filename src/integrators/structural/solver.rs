@@ -23,8 +23,8 @@
 //!   ε, far below any error a structural scheme is run for). After `max_iter`
 //!   iterations without either the block fails.
 //!
-//! One iteration costs `R` evaluations of PE[1] (`R` gradient evaluations of every force
-//! level) and, for ZDS, `R` of PE[2] (`R` Hessian-vector products); the initialisation
+//! One iteration costs `R` evaluations of `PE[1]` (`R` gradient evaluations of every force
+//! level) and, for ZDS, `R` of `PE[2]` (`R` Hessian-vector products); the initialisation
 //! costs the same. A block of `R` steps with `k` iterations thus costs `R(k + 1)`
 //! gradient evaluations (and as many Hessian-vector products for ZDS): `k + 1` per step.
 
