@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::analysis::monitor::EnergyMonitor;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
 use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status};
@@ -44,6 +44,21 @@ pub fn run(
     integrator: &mut dyn Integrator,
     options: &RunOptions,
 ) -> Result<RunSummary> {
+    if !integrator.handles_magnetic()
+        && let Some(term) = system
+            .forces
+            .terms()
+            .iter()
+            .find(|t| t.term.magnetic().is_some())
+    {
+        return Err(Error::input(format!(
+            "{} \"{}\" is a velocity-dependent (magnetic) term, which {} cannot integrate; \
+             use structural-zd or structural-zds",
+            term.term.kind(),
+            term.name,
+            integrator.name()
+        )));
+    }
     system.forces.reset_counts();
     integrator.setup(system)?;
     let h = integrator.outer_step();

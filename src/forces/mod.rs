@@ -14,9 +14,12 @@
 
 pub mod angle;
 pub mod dual;
+pub mod external_field;
 pub mod field;
 pub mod gravity;
+pub mod inverse_power;
 pub mod lennard_jones;
+pub mod magnetic;
 pub mod pair;
 pub mod pendulum;
 pub mod quartic;
@@ -66,6 +69,21 @@ pub trait ForceTerm: Send + Sync {
 
     /// How many elementary interactions (one spring, one pair, one angle) the term holds.
     fn interaction_count(&self) -> usize;
+
+    /// The smallest distance between the two ends of any of its interactions, for step
+    /// controls based on particle separation (HL97 section 3, `R = r_min^{-α}`); `None`
+    /// for a term that is not made of pair interactions.
+    fn min_distance(&self, _q: &[f64]) -> Option<f64> {
+        None
+    }
+
+    /// The vector potential of a velocity-dependent (magnetic) term, CFM25 5.7; `None`
+    /// for a potential-energy term. Such a term has no potential energy and no gradient:
+    /// only integrators that say [`handles_magnetic`](crate::integrators::Integrator::handles_magnetic)
+    /// can integrate a system with one, and the run refuses the others.
+    fn magnetic(&self) -> Option<&magnetic::MagneticTerm> {
+        None
+    }
 }
 
 /// Run `$body` with `$d` bound to the const dimension `1`, `2` or `3`, so inner loops are

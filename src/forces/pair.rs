@@ -75,6 +75,17 @@ impl<P: PairPotential> PairTerm<P> {
         d
     }
 
+    fn min_distance_d<const D: usize>(&self, q: &[f64]) -> f64 {
+        self.pairs
+            .iter()
+            .map(|pair| {
+                let d = self.displacement::<D>(pair, q);
+                dot(&d, &d)
+            })
+            .fold(f64::INFINITY, f64::min)
+            .sqrt()
+    }
+
     fn energy_d<const D: usize>(&self, q: &[f64]) -> f64 {
         self.pairs
             .iter()
@@ -142,5 +153,12 @@ impl<P: PairPotential> ForceTerm for PairTerm<P> {
 
     fn interaction_count(&self) -> usize {
         self.pairs.len()
+    }
+
+    fn min_distance(&self, q: &[f64]) -> Option<f64> {
+        if self.pairs.is_empty() {
+            return None;
+        }
+        Some(with_dim!(self.dim, D => self.min_distance_d::<D>(q)))
     }
 }

@@ -7,11 +7,15 @@
 //! step, at which the slowest forces are sampled) and `inner_steps` / `dt` (the inner step
 //! `dt = h / inner_steps`) — never a bare "timestep".
 
+pub mod adaptive_verlet;
 pub mod impulse;
 pub mod mollified;
+pub mod structural;
 pub mod verlet;
 
+pub use adaptive_verlet::AdaptiveVerlet;
 pub use impulse::Impulse;
+pub use structural::{Structural, StructuralKind};
 pub use verlet::VelocityVerlet;
 
 use crate::error::{Error, Result};
@@ -53,6 +57,13 @@ pub trait Integrator {
 
     /// Values for [`Integrator::extra_columns`] at the current state.
     fn extra_values(&self, _system: &System, _out: &mut Vec<f64>) {}
+
+    /// Whether the method integrates velocity-dependent (magnetic) terms, whose force is
+    /// no gradient ([`ForceTerm::magnetic`](crate::forces::ForceTerm::magnetic)); the run
+    /// refuses such a system for every other method.
+    fn handles_magnetic(&self) -> bool {
+        false
+    }
 }
 
 /// `p -= scale · gradient`: a kick by the force `−gradient` over time `scale`.
@@ -113,6 +124,24 @@ pub const METHODS: &[MethodInfo] = &[
         help: "mollified impulse, LinearAverage: triangle over [-h, h] (GSS98)",
         uses: MOLLIFIED,
     },
+    MethodInfo {
+        name: "adaptive-verlet",
+        help: "time-reversible adaptive Verlet (HL97 4.2): h is the fictive step Δs; \
+               --control arclength|min-distance[=α], --h-min, --h-max",
+        uses: &["control", "h_min", "h_max"],
+    },
+    MethodInfo {
+        name: "structural-zd",
+        help: "structural ZD scheme (CFM25 2–4), order R+2 for even R: --block R, \
+               fixed point --tol, --max-iter",
+        uses: &["block", "tol", "max_iter"],
+    },
+    MethodInfo {
+        name: "structural-zds",
+        help: "structural ZDS scheme with second derivatives (CFM25 2–4), order 2(R+1): \
+               --block R, --tol, --max-iter",
+        uses: &["block", "tol", "max_iter"],
+    },
 ];
 
 /// Build the integrator the settings ask for. `notices` collects what the user should
@@ -151,6 +180,34 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
         "short-average" => mollified(Average::Short),
         "long-average" => mollified(Average::Long),
         "linear-average" => mollified(Average::Linear),
+        "adaptive-verlet" => {
+            let control = match &settings.control {
+                Some(text) => adaptive_verlet::Control::parse(text)?,
+                None => adaptive_verlet::Control::Arclength,
+            };
+            Ok(Box::new(AdaptiveVerlet::new(
+                settings.h,
+                control,
+                settings.h_min,
+                settings.h_max,
+            )?))
+        }
+        "structural-zd" | "structural-zds" => {
+            let kind = if info.name == "structural-zd" {
+                StructuralKind::Zd
+            } else {
+                StructuralKind::Zds
+            };
+            Ok(Box::new(Structural::new(
+                kind,
+                settings.h,
+                settings.block.unwrap_or(kind.default_block()),
+                settings.tol.unwrap_or(structural::DEFAULT_TOLERANCE),
+                settings
+                    .max_iter
+                    .unwrap_or(structural::DEFAULT_MAX_ITERATIONS),
+            )?))
+        }
         other => unreachable!("method {other} is listed but not built"),
     }
 }

@@ -15,9 +15,12 @@ use super::expr;
 use super::structure::{Structure, read_structure};
 use crate::error::{Error, Result};
 use crate::forces::angle::{AngleBend, HarmonicAngles};
+use crate::forces::external_field::{ExternalField, FieldShape};
 use crate::forces::field::UniformField;
 use crate::forces::gravity::{CentralMass, gravity};
+use crate::forces::inverse_power::{InversePower, inverse_power_pairs};
 use crate::forces::lennard_jones::{LennardJones, lennard_jones_pairs};
+use crate::forces::magnetic::{MagneticTerm, VectorPotential};
 use crate::forces::pendulum::Pendulum;
 use crate::forces::quartic::{QuarticBond, quartic_springs};
 use crate::forces::spring::{HarmonicBond, harmonic_springs};
@@ -183,6 +186,42 @@ pub enum TermSpec {
         particles: Option<Vec<Reference>>,
         strength: Value,
         axis: Option<usize>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// `c (r + a)^(−n)` between pairs: singular walls (HL97 (3.5)), softened Coulomb.
+    InversePower {
+        name: Option<String>,
+        between: Option<[Reference; 2]>,
+        pairs: Option<Vec<[Reference; 2]>>,
+        coefficient: Value,
+        power: Value,
+        softening: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// A static magnetic field through its vector potential, on charged particles
+    /// (CFM25 5.7); only the structural schemes integrate it.
+    Magnetic {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        /// `"uniform"` (`A = (0, B x₁, 0)`) or `"cfm25-singular"`.
+        field: String,
+        /// `B` of the uniform field.
+        strength: Option<Value>,
+        /// The particles' charge `e` (default 1).
+        charge: Option<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// A fixed external potential `e φ(x)` on 3-D particles (CFM25 5.7.3).
+    ExternalField {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        /// `"cfm25-trigonometric"`.
+        field: String,
+        /// The particles' charge `e` (default 1).
+        charge: Option<Value>,
         group: Option<Group>,
         level: Option<usize>,
     },
@@ -729,6 +768,15 @@ impl Builder<'_> {
             }
             | TermSpec::Pendulum {
                 name, group, level, ..
+            }
+            | TermSpec::InversePower {
+                name, group, level, ..
+            }
+            | TermSpec::Magnetic {
+                name, group, level, ..
+            }
+            | TermSpec::ExternalField {
+                name, group, level, ..
             } => (name, *group, *level),
         };
         let label = name.clone().unwrap_or_else(|| format!("term {index}"));
@@ -1086,6 +1134,130 @@ impl Builder<'_> {
                 Box::new(Pendulum::new(
                     dim,
                     members.into_iter().map(|i| (i, axis, strength)).collect(),
+                ))
+            }
+            TermSpec::InversePower {
+                between,
+                pairs,
+                coefficient,
+                power,
+                softening,
+                ..
+            } => {
+                let coefficient = number(coefficient, "coefficient")?;
+                let power = number(power, "power")?;
+                if power <= 0.0 {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: power must be positive, got {power}"),
+                    ));
+                }
+                let softening = match softening {
+                    Some(v) => non_negative(v, "softening")?,
+                    None => 0.0,
+                };
+                let interactions = pairs_of(between, pairs)?
+                    .into_iter()
+                    .map(|(a, b)| {
+                        (
+                            a,
+                            b,
+                            InversePower {
+                                coefficient,
+                                power,
+                                softening,
+                            },
+                        )
+                    })
+                    .collect();
+                Box::new(inverse_power_pairs(dim, interactions, periodic_box))
+            }
+            TermSpec::Magnetic {
+                particles,
+                field,
+                strength,
+                charge,
+                ..
+            } => {
+                let vector_potential = match (field.as_str(), strength) {
+                    ("uniform", Some(b)) => VectorPotential::Uniform {
+                        strength: number(b, "strength")?,
+                    },
+                    ("uniform", None) => {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what}: the uniform field needs its strength B"),
+                        ));
+                    }
+                    ("cfm25-singular", None) => VectorPotential::Cfm25Singular,
+                    ("cfm25-singular", Some(_)) => {
+                        return Err(self.error_at(
+                            offset,
+                            format!("{what}: the cfm25-singular field takes no strength"),
+                        ));
+                    }
+                    (other, _) => {
+                        return Err(self.error_at(
+                            offset,
+                            format!(
+                                "{what}: unknown magnetic field \"{other}\"; known: \
+                                 uniform, cfm25-singular"
+                            ),
+                        ));
+                    }
+                };
+                let needed = match vector_potential {
+                    VectorPotential::Uniform { .. } => 2,
+                    VectorPotential::Cfm25Singular => 3,
+                };
+                if dim < needed {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: the {field} magnetic field needs dim ≥ {needed}"),
+                    ));
+                }
+                let charge = match charge {
+                    Some(v) => number(v, "charge")?,
+                    None => 1.0,
+                };
+                let members = self.particle_list(particles, names, &what, offset)?;
+                Box::new(MagneticTerm::new(
+                    dim,
+                    vector_potential,
+                    members.into_iter().map(|i| (i, charge)).collect(),
+                ))
+            }
+            TermSpec::ExternalField {
+                particles,
+                field,
+                charge,
+                ..
+            } => {
+                let shape = match field.as_str() {
+                    "cfm25-trigonometric" => FieldShape::Cfm25Trigonometric,
+                    other => {
+                        return Err(self.error_at(
+                            offset,
+                            format!(
+                                "{what}: unknown external field \"{other}\"; known: \
+                                 cfm25-trigonometric"
+                            ),
+                        ));
+                    }
+                };
+                if dim != 3 {
+                    return Err(
+                        self.error_at(offset, format!("{what}: the {field} field needs dim = 3"))
+                    );
+                }
+                let charge = match charge {
+                    Some(v) => number(v, "charge")?,
+                    None => 1.0,
+                };
+                let members = self.particle_list(particles, names, &what, offset)?;
+                Box::new(ExternalField::new(
+                    shape,
+                    members.into_iter().map(|i| (i, charge)).collect(),
                 ))
             }
         };
