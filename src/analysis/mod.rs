@@ -2,3 +2,4 @@
 //! join them.
 
 pub mod monitor;
+pub mod stability;
