@@ -5,6 +5,7 @@
 //! outputs up to that point are written, and the summary says when).
 
 mod run;
+pub mod stability;
 
 use std::path::PathBuf;
 
@@ -42,6 +43,11 @@ enum Command {
     Check(CheckArgs),
     /// List the integration methods.
     Methods,
+    /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
+    /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map.
+    StabilityMap(Box<stability::StabilityMapArgs>),
+    /// The spectral radius and instability type at one (Γ1, Γ2).
+    SpectralRadius(Box<stability::SpectralRadiusArgs>),
 }
 
 #[derive(Args, Debug)]
@@ -90,6 +96,8 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
+        Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
+        Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);
