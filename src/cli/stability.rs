@@ -260,15 +260,12 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
         }
     }
     let range = shard.range(grid.len());
-    let mut csv = CsvWriter::create(
-        &args.out,
-        &["gamma1", "gamma2", "spectral_radius", "type"],
-    )?;
+    let mut csv = CsvWriter::create(&args.out, &["gamma1", "gamma2", "spectral_radius", "type"])?;
     let progress = if !args.quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(range.len() as u64);
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left")
-        {
+        if let Ok(style) = ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
+        ) {
             bar.set_style(style);
         }
         bar
@@ -288,7 +285,7 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
                 point.spectral_radius,
                 point.kind.code() as f64,
             ])?;
-            values[k] = point.spectral_radius;
+            values[k] = point.excess;
             kinds[k] = Some(point.kind);
         }
         points.extend_from_slice(block);
@@ -343,7 +340,7 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
 pub fn draw_map(
     path: &Path,
     grid: &Grid,
-    radii: &[f64],
+    excesses: &[f64],
     kinds: &[Option<InstabilityType>],
     colour: ColourBy,
     title: &str,
@@ -352,13 +349,13 @@ pub fn draw_map(
     let (values, colouring) = match colour {
         ColourBy::Radius => {
             // ρ − 1 for unstable points, 0 (drawn as "stable") for stable ones.
-            let values: Vec<f64> = radii
+            let values: Vec<f64> = excesses
                 .iter()
                 .zip(kinds)
-                .map(|(rho, kind)| match kind {
+                .map(|(excess, kind)| match kind {
                     None => f64::NAN,
                     Some(InstabilityType::Stable) => 0.0,
-                    Some(_) => rho - 1.0,
+                    Some(_) => *excess,
                 })
                 .collect();
             let positive = values.iter().copied().filter(|v| v.is_finite() && *v > 0.0);
@@ -367,7 +364,11 @@ pub fn draw_map(
             let (min, max) = if max.is_finite() {
                 // At most twelve decades: weaker instabilities share the lowest colour.
                 let min = min.max(max * 1e-12);
-                if max > min { (min, max) } else { (max / 10.0, max) }
+                if max > min {
+                    (min, max)
+                } else {
+                    (max / 10.0, max)
+                }
             } else {
                 (1e-6, 1e-3)
             };

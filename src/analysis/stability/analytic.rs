@@ -85,6 +85,11 @@ impl LinearProblem {
         let (sinc1, sinc2) = (sinc(gamma1), sinc(gamma2));
         let epsilon1 = 0.5 * h2 * self.coupling.alpha1 * phi1 * phi1 * sinc1;
         let epsilon2 = 0.5 * h2 * self.coupling.alpha2 * phi2 * phi2 * sinc2;
+        // 1 ± c_i through half angles (1 + cos Γ = 2cos²(Γ/2), 1 − cos Γ = 2sin²(Γ/2)):
+        // accurate to relative round-off where c_i is near ∓1, at the edges of the type-2
+        // and type-3 regions.
+        let (sin_half1, cos_half1) = (0.5 * gamma1).sin_cos();
+        let (sin_half2, cos_half2) = (0.5 * gamma2).sin_cos();
         let c1 = gamma1.cos() - epsilon1;
         let c2 = gamma2.cos() - epsilon2;
         // c1 − c2 with cos Γ1 − cos Γ2 as a product, accurate to relative round-off where
@@ -97,6 +102,14 @@ impl LinearProblem {
         Quartic {
             c1,
             c2,
+            one_plus_c: [
+                2.0 * cos_half1 * cos_half1 - epsilon1,
+                2.0 * cos_half2 * cos_half2 - epsilon2,
+            ],
+            one_minus_c: [
+                2.0 * sin_half1 * sin_half1 + epsilon1,
+                2.0 * sin_half2 * sin_half2 + epsilon2,
+            ],
             cross,
             s: c1 + c2,
             d: difference * difference + cross,
@@ -156,6 +169,9 @@ impl LinearProblem {
 pub struct Quartic {
     pub c1: f64,
     pub c2: f64,
+    /// 1 + c_i and 1 − c_i, computed without cancellation.
+    pub one_plus_c: [f64; 2],
+    pub one_minus_c: [f64; 2],
     pub cross: f64,
     /// S of Lemma 4.
     pub s: f64,
@@ -191,45 +207,56 @@ impl Quartic {
     /// Left-hand side minus right-hand side of the type-2 boundary (30):
     /// `(1 + cos Γ1 − ε1)(1 + cos Γ2 − ε2) − θ²ε1ε2`; equals `((2 + S)² − D)/4`.
     pub fn type2_boundary(&self) -> f64 {
-        (1.0 + self.c1) * (1.0 + self.c2) - 0.25 * self.cross
+        self.one_plus_c[0] * self.one_plus_c[1] - 0.25 * self.cross
     }
 
     /// Left-hand side minus right-hand side of the type-3 boundary (31):
     /// `(1 − cos Γ1 + ε1)(1 − cos Γ2 + ε2) − θ²ε1ε2`; equals `((2 − S)² − D)/4`.
     pub fn type3_boundary(&self) -> f64 {
-        (1.0 - self.c1) * (1.0 - self.c2) - 0.25 * self.cross
+        self.one_minus_c[0] * self.one_minus_c[1] - 0.25 * self.cross
     }
 
     /// Spectral radius and type from the exact roots.
+    ///
+    /// With `m = a − 1 ≥ 0` for the dominant factor, `ρ = a + √(a² − 1) = 1 + m +
+    /// √(m(m + 2))`. Every `m` is formed without cancellation, from `2 + S = (1 + c1) +
+    /// (1 + c2)` and `2 − S = (1 − c1) + (1 − c2)` (accurate half-angle forms), so ρ − 1 is
+    /// accurate to relative round-off even when it is 1e-12: near a collision at −1,
+    /// `2 + c₋ = ((2 + S)² − D)/(2 + S + √D) = 4·(30)/(2 + c₊)`, and likewise at +1 with (31).
     pub fn classify(&self) -> StabilityPoint {
-        let (s, d) = (self.s, self.d);
-        // m = a − 1 ≥ 0 for the dominant factor; ρ = a + √(a² − 1) = 1 + m + √(m(m + 2)).
+        let d = self.d;
+        let two_plus_s = self.one_plus_c[0] + self.one_plus_c[1];
+        let two_minus_s = self.one_minus_c[0] + self.one_minus_c[1];
         let (m, kind) = if d < 0.0 {
             // Complex c = S ± i√|D|: |c ± 2| = |S ± 2| + g(S ± 2) with
-            // g(x) = √(x² + |D|) − |x| = |D| / (√(x² + |D|) + |x|) (no cancellation), and
-            // |S + 2| + |S − 2| = max(4, 2|S|).
+            // g(x) = √(x² + |D|) − |x| = |D| / (√(x² + |D|) + |x|), and
+            // |S + 2| + |S − 2| − 4 = 2 max(0, |S| − 2) = 2 max(0, −(2 + S), −(2 − S)).
             let magnitude = -d;
             let g = |x: f64| magnitude / ((x * x + magnitude).sqrt() + x.abs());
-            let m = (0.5 * (s.abs() - 2.0)).max(0.0) + 0.25 * (g(s + 2.0) + g(s - 2.0));
+            let beyond = (-two_plus_s).max(-two_minus_s).max(0.0);
+            let m = 0.5 * beyond + 0.25 * (g(two_plus_s) + g(two_minus_s));
             (m, InstabilityType::Type1)
         } else {
             let root_d = d.sqrt();
-            let (plus, minus) = (s + root_d, s - root_d);
-            let dominant = if minus.abs() >= plus.abs() {
-                minus
+            // 2 + c₋ and 2 − c₊: by the quotient where its denominator is a sum of
+            // non-negative terms, else directly (then no cancellation either).
+            let two_plus_minus = if two_plus_s >= 0.0 && two_plus_s + root_d > 0.0 {
+                4.0 * self.type2_boundary() / (two_plus_s + root_d)
             } else {
-                plus
+                two_plus_s - root_d
             };
-            let m = 0.5 * (dominant.abs() - 2.0);
-            if m > 0.0 {
-                let kind = if dominant < 0.0 {
-                    InstabilityType::Type2
-                } else {
-                    InstabilityType::Type3
-                };
-                (m, kind)
+            let two_minus_plus = if two_minus_s >= 0.0 && two_minus_s + root_d > 0.0 {
+                4.0 * self.type3_boundary() / (two_minus_s + root_d)
             } else {
-                (0.0, InstabilityType::Stable)
+                two_minus_s - root_d
+            };
+            // c₋ < −2 or c₊ > 2 leaves the circle; the other cases are dominated.
+            let m_minus = (-0.5 * two_plus_minus).max(0.0);
+            let m_plus = (-0.5 * two_minus_plus).max(0.0);
+            if m_minus >= m_plus {
+                (m_minus, InstabilityType::Type2)
+            } else {
+                (m_plus, InstabilityType::Type3)
             }
         };
         // A |D| so small that m underflows to 0 is on the circle to machine precision.
@@ -238,8 +265,10 @@ impl Quartic {
         } else {
             InstabilityType::Stable
         };
+        let excess = m + (m * (m + 2.0)).sqrt();
         StabilityPoint {
-            spectral_radius: 1.0 + m + (m * (m + 2.0)).sqrt(),
+            spectral_radius: 1.0 + excess,
+            excess,
             kind,
         }
     }

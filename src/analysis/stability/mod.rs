@@ -226,6 +226,10 @@ impl InstabilityType {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StabilityPoint {
     pub spectral_radius: f64,
+    /// ρ − 1, computed without the cancellation of `spectral_radius - 1.0` where the
+    /// method allows (analytic mode: to relative round-off, so an instability with
+    /// ρ − 1 = 1e-14 is resolved; integrator mode: `spectral_radius - 1.0`).
+    pub excess: f64,
     pub kind: InstabilityType,
 }
 
@@ -243,6 +247,7 @@ pub fn classify_eigenvalues(eigenvalues: &[Complex<f64>], tolerance: f64) -> Sta
     else {
         return StabilityPoint {
             spectral_radius: 0.0,
+            excess: -1.0,
             kind: InstabilityType::Stable,
         };
     };
@@ -250,6 +255,7 @@ pub fn classify_eigenvalues(eigenvalues: &[Complex<f64>], tolerance: f64) -> Sta
     if !rho.is_finite() {
         return StabilityPoint {
             spectral_radius: f64::INFINITY,
+            excess: f64::INFINITY,
             kind: InstabilityType::Overflow,
         };
     }
@@ -264,6 +270,7 @@ pub fn classify_eigenvalues(eigenvalues: &[Complex<f64>], tolerance: f64) -> Sta
     };
     StabilityPoint {
         spectral_radius: rho,
+        excess: rho - 1.0,
         kind,
     }
 }
@@ -286,6 +293,7 @@ pub fn classify_matrix(matrix: &DMatrix<f64>, tolerance: f64) -> StabilityPoint 
         Some(values) => classify_eigenvalues(&values, tolerance),
         None => StabilityPoint {
             spectral_radius: f64::INFINITY,
+            excess: f64::INFINITY,
             kind: InstabilityType::Overflow,
         },
     }
