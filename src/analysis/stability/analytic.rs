@@ -110,6 +110,7 @@ impl LinearProblem {
                 2.0 * sin_half1 * sin_half1 + epsilon1,
                 2.0 * sin_half2 * sin_half2 + epsilon2,
             ],
+            difference,
             cross,
             s: c1 + c2,
             d: difference * difference + cross,
@@ -172,6 +173,9 @@ pub struct Quartic {
     /// 1 + c_i and 1 − c_i, computed without cancellation.
     pub one_plus_c: [f64; 2],
     pub one_minus_c: [f64; 2],
+    /// c1 − c2, without the cancellation of the two cosines along Γ1 + Γ2 ≈ 2πk.
+    pub difference: f64,
+    /// 4θ²ε1ε2 = h⁴β²Φ1²Φ2² sinc Γ1 sinc Γ2; D = (c1 − c2)² + cross.
     pub cross: f64,
     /// S of Lemma 4.
     pub s: f64,
