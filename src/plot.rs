@@ -8,15 +8,15 @@
 //!
 //! ```no_run
 //! use longstep::plot::{AxisSpec, LineChart, MarkerSet, Series};
-//! let chart = LineChart {
-//!     title: "Energy error".into(),
-//!     x: AxisSpec::linear("outer step h (fs)"),
-//!     y: AxisSpec::log("max |ΔE| / E0"),
-//!     series: vec![Series::line("impulse", vec![(1.0, 1e-4), (2.0, 4e-4)])],
-//!     markers: vec![MarkerSet::unstable(vec![(3.0, 1.0)])],
-//!     guides: vec![],
-//! };
-//! chart.save(std::path::Path::new("chart.png")).unwrap();
+//! let mut chart = LineChart::new(
+//!     "Energy error",
+//!     AxisSpec::linear("outer step h (fs)"),
+//!     AxisSpec::log("max |ΔE| / E0"),
+//! );
+//! chart.series.push(Series::line("impulse", vec![(1.0, 1e-4), (2.0, 4e-4)]));
+//! chart.markers.push(MarkerSet::unstable(vec![(3.0, 1.0)]));
+//! chart.save(std::path::Path::new("chart.png"))?;
+//! # Ok::<(), longstep::Error>(())
 //! ```
 
 use std::f64::consts::PI;
@@ -26,6 +26,7 @@ use std::sync::OnceLock;
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{Error, Result};
 
@@ -573,6 +574,16 @@ pub struct Guide {
     pub label: String,
 }
 
+/// Where the legend goes inside the plot.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Corner {
+    #[default]
+    UpperLeft,
+    UpperRight,
+    LowerLeft,
+    LowerRight,
+}
+
 /// A line or scatter chart.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LineChart {
@@ -582,9 +593,23 @@ pub struct LineChart {
     pub series: Vec<Series>,
     pub markers: Vec<MarkerSet>,
     pub guides: Vec<Guide>,
+    pub legend: Corner,
 }
 
 impl LineChart {
+    /// An empty chart; push series, markers and guides.
+    pub fn new(title: &str, x: AxisSpec, y: AxisSpec) -> Self {
+        LineChart {
+            title: title.into(),
+            x,
+            y,
+            series: Vec::new(),
+            markers: Vec::new(),
+            guides: Vec::new(),
+            legend: Corner::default(),
+        }
+    }
+
     pub fn save(&self, path: &Path) -> Result<()> {
         self.save_sized(path, (900, 600))
     }
@@ -642,8 +667,10 @@ impl LineChart {
             .map_err(|e| e.to_string())?;
         configure_mesh(&mut chart, &self.x, &self.y, true)?;
         let (xc, yc) = (|v: f64| self.x.coordinate(v), |v: f64| self.y.coordinate(v));
-        let y_range = chart.y_range();
-        for guide in &self.guides {
+        let (x_range, y_range) = (chart.x_range(), chart.y_range());
+        let x_middle = chart.backend_coord(&(x_range.start, y_range.start)).0 / 2
+            + chart.backend_coord(&(x_range.end, y_range.start)).0 / 2;
+        for (k, guide) in self.guides.iter().enumerate() {
             let x = xc(guide.x);
             chart
                 .draw_series(LineSeries::new(
@@ -651,13 +678,22 @@ impl LineChart {
                     BLACK.mix(0.4).stroke_width(1),
                 ))
                 .map_err(|e| e.to_string())?;
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    guide.label.clone(),
-                    (x, y_range.end),
-                    ("sans-serif", 12),
-                )))
-                .map_err(|e| e.to_string())?;
+            // The label beside the line's top (staggered so neighbours do not overlap),
+            // on the side towards the middle so it stays inside the plot.
+            let (px, py) = chart.backend_coord(&(x, y_range.end));
+            let right_half = px > x_middle;
+            let anchor = if right_half { HPos::Right } else { HPos::Left };
+            let grey = BLACK.mix(0.7);
+            let style = TextStyle::from(("sans-serif", 12).into_font())
+                .color(&grey)
+                .pos(Pos::new(anchor, VPos::Top));
+            let offset = if right_half { -4 } else { 4 };
+            root.draw(&Text::new(
+                guide.label.clone(),
+                (px + offset, py + 4 + 14 * (k as i32 % 3)),
+                style,
+            ))
+            .map_err(|e| e.to_string())?;
         }
         for (k, series) in self.series.iter().enumerate() {
             let colour = series.colour.unwrap_or(PALETTE[k % PALETTE.len()]);
@@ -725,7 +761,12 @@ impl LineChart {
                 .background_style(WHITE.mix(0.85))
                 .border_style(BLACK)
                 .label_font(("sans-serif", 14))
-                .position(SeriesLabelPosition::UpperRight)
+                .position(match self.legend {
+                    Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+                    Corner::UpperRight => SeriesLabelPosition::UpperRight,
+                    Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
+                    Corner::LowerRight => SeriesLabelPosition::LowerRight,
+                })
                 .draw()
                 .map_err(|e| e.to_string())?;
         }

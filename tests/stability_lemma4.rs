@@ -2,7 +2,9 @@
 //! closed-form roots against a general eigenvalue solver, and Lemma 5's conditions
 //! against the eigenvalues.
 
-use longstep::analysis::stability::analytic::LinearProblem;
+use std::f64::consts::PI;
+
+use longstep::analysis::stability::analytic::{LinearProblem, Quartic};
 use longstep::analysis::stability::{
     AnalyticMethod, Coupling, InstabilityType, classify_eigenvalues, eigenvalues,
 };
@@ -26,9 +28,9 @@ fn characteristic_polynomial(a: &Matrix4<f64>) -> [f64; 5] {
 
 fn random_problem(rng: &mut StdRng, method: AnalyticMethod) -> (LinearProblem, f64, f64) {
     // A random semidefinite coupling: α_i ∈ [0, 2], β² ≤ α1 α2.
-    let alpha1 = rng.random_range(0.0..2.0);
+    let alpha1: f64 = rng.random_range(0.0..2.0);
     let alpha2 = rng.random_range(0.0..2.0);
-    let beta = (alpha1 * alpha2 as f64).sqrt() * rng.random_range(-1.0..1.0);
+    let beta = (alpha1 * alpha2).sqrt() * rng.random_range(-1.0..1.0);
     let coupling = Coupling {
         alpha1,
         alpha2,
@@ -193,15 +195,13 @@ fn boundary_conditions_30_and_31_put_a_root_at_minus_one_and_plus_one() {
     // bisection in Γ1 at fixed Γ2 and check A′ itself there.
     let problem = LinearProblem::three_spring(AnalyticMethod::Impulse, 0.5).expect("valid");
     let gamma2 = 1.0;
-    let cases: [(
-        f64,
-        f64,
-        fn(&longstep::analysis::stability::analytic::Quartic) -> f64,
-        f64,
-    ); 2] = [
-        // Type 2 near Γ1 = π (Proposition 2), type 3 just below 2π (Proposition 3).
-        (3.0, 3.14159, |q| q.type2_boundary(), -1.0),
-        (6.2, 6.2831, |q| q.type3_boundary(), 1.0),
+    type Boundary = fn(&Quartic) -> f64;
+    // Type 2 just below Γ1 = π, type 3 just below 2π: the upper ends are Propositions 2
+    // and 3's points Γ − ½h²α1Φ(Γ)²/Γ (Φ = 1), inside the regions.
+    let shift = |gamma: f64| 0.5 * 0.25 * 0.5 / gamma;
+    let cases: [(f64, f64, Boundary, f64); 2] = [
+        (3.0, PI - shift(PI), |q| q.type2_boundary(), -1.0),
+        (6.2, 2.0 * PI - shift(2.0 * PI), |q| q.type3_boundary(), 1.0),
     ];
     for (mut low, mut high, boundary, root) in cases {
         let f = |g1: f64| boundary(&problem.quartic(g1, gamma2));
