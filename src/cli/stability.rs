@@ -336,6 +336,28 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     Ok(())
 }
 
+/// An axis of a map picture: in units of π for ranges of a radian or more, plain below,
+/// and as an offset from the start for close-ups narrower than 1e-3 of their position.
+fn map_axis(axis: &Axis, name: &str, meaning: &str) -> (AxisSpec, (f64, f64, usize)) {
+    let span = axis.end - axis.start;
+    if span >= 1.0 {
+        (
+            AxisSpec::pi(&format!("{name} = {meaning} (units of π)")),
+            (axis.start, axis.end, axis.count),
+        )
+    } else if span < 1e-3 * axis.start.abs().max(1.0) {
+        (
+            AxisSpec::linear(&format!("{name} − {} ({name} = {meaning})", axis.start)),
+            (0.0, span, axis.count),
+        )
+    } else {
+        (
+            AxisSpec::linear(&format!("{name} = {meaning}")),
+            (axis.start, axis.end, axis.count),
+        )
+    }
+}
+
 /// The heat map of a stability map; points not computed (another shard's) show as no data.
 pub fn draw_map(
     path: &Path,
@@ -398,24 +420,30 @@ pub fn draw_map(
                 colour,
             };
             use plotters::style::RGBColor;
-            (
-                values,
-                Colouring::Categorical(vec![
-                    category(InstabilityType::Stable, "stable", stable_colour),
-                    category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
-                    category(InstabilityType::Type2, "type 2", RGBColor(31, 119, 180)),
-                    category(InstabilityType::Type3, "type 3", RGBColor(44, 160, 44)),
-                    category(InstabilityType::Overflow, "overflow", RGBColor(0, 0, 0)),
-                ]),
-            )
+            // Stable always, the other categories only where they occur.
+            let present =
+                |kind: InstabilityType| kind.is_stable() || kinds.iter().any(|k| *k == Some(kind));
+            let categories = [
+                category(InstabilityType::Stable, "stable", stable_colour),
+                category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
+                category(InstabilityType::Type2, "type 2", RGBColor(31, 119, 180)),
+                category(InstabilityType::Type3, "type 3", RGBColor(44, 160, 44)),
+                category(InstabilityType::Overflow, "overflow", RGBColor(0, 0, 0)),
+            ]
+            .into_iter()
+            .filter(|c| InstabilityType::from_code(c.value as i32).is_some_and(present))
+            .collect();
+            (values, Colouring::Categorical(categories))
         }
     };
+    let (x, x_cells) = map_axis(&grid.gamma1, "Γ1", "hΩ1");
+    let (y, y_cells) = map_axis(&grid.gamma2, "Γ2", "hΩ2");
     HeatMap {
         title: title.into(),
-        x: AxisSpec::pi("Γ1 = hΩ1 (units of π)"),
-        y: AxisSpec::pi("Γ2 = hΩ2 (units of π)"),
-        x_cells: (grid.gamma1.start, grid.gamma1.end, grid.gamma1.count),
-        y_cells: (grid.gamma2.start, grid.gamma2.end, grid.gamma2.count),
+        x,
+        y,
+        x_cells,
+        y_cells,
         values,
         colouring,
         size: (1000, 800),
