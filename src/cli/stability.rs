@@ -421,8 +421,7 @@ pub fn draw_map(
             };
             use plotters::style::RGBColor;
             // Stable always, the other categories only where they occur.
-            let present =
-                |kind: InstabilityType| kind.is_stable() || kinds.iter().any(|k| *k == Some(kind));
+            let present = |kind: InstabilityType| kind.is_stable() || kinds.contains(&Some(kind));
             let categories = [
                 category(InstabilityType::Stable, "stable", stable_colour),
                 category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
