@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::analysis::stability::analytic::LinearProblem;
 use crate::analysis::stability::integrator::{IntegratorProbe, ProbeScene};
 use crate::analysis::stability::map::{Axis, Evaluator, Grid, Shard, census, evaluate};
-use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType, StabilityPoint};
+use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType};
 use crate::error::{Error, Result};
 use crate::io::csv::CsvWriter;
 use crate::io::expr;
@@ -213,7 +213,10 @@ fn type_meaning(kind: InstabilityType) -> &'static str {
 }
 
 pub fn spectral_radius_command(args: &SpectralRadiusArgs) -> Result<()> {
-    let (evaluator, _notices, _) = evaluator(&args.model)?;
+    let (evaluator, notices, _) = evaluator(&args.model)?;
+    for notice in &notices {
+        eprintln!("notice: {notice}");
+    }
     let gamma1 = number(&args.gamma1, "--gamma1")?;
     let gamma2 = number(&args.gamma2, "--gamma2")?;
     if gamma1 < 0.0 || gamma2 < 0.0 {
@@ -238,6 +241,9 @@ pub fn spectral_radius_command(args: &SpectralRadiusArgs) -> Result<()> {
     Ok(())
 }
 
+/// Largest grid a picture is drawn for (25 million points, about 225 MB of picture data).
+const MAX_PICTURE_POINTS: usize = 25_000_000;
+
 pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     let (evaluator, notices, description) = evaluator(&args.model)?;
     let grid = Grid {
@@ -260,6 +266,16 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
         }
     }
     let range = shard.range(grid.len());
+    // The picture needs every value; the CSV streams. Keep the picture's arrays within a
+    // few hundred megabytes (≈ 9 bytes per point).
+    let drawing = args.png.is_some() || args.svg.is_some();
+    if drawing && grid.len() > MAX_PICTURE_POINTS {
+        return Err(Error::input(format!(
+            "a picture of {} points is more than the {MAX_PICTURE_POINTS} a picture can hold; \
+             draw a coarser map (--n) or write only the CSV",
+            grid.len()
+        )));
+    }
     let mut csv = CsvWriter::create(&args.out, &["gamma1", "gamma2", "spectral_radius", "type"])?;
     let progress = if !args.quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(range.len() as u64);
@@ -272,9 +288,11 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     } else {
         ProgressBar::hidden()
     };
-    let mut values = vec![f64::NAN; grid.len()];
-    let mut kinds = vec![None; grid.len()];
-    let mut points: Vec<StabilityPoint> = Vec::with_capacity(range.len());
+    let picture_len = if drawing { grid.len() } else { 0 };
+    let mut values = vec![f64::NAN; picture_len];
+    let mut kinds = vec![None; picture_len];
+    let mut counts = [0usize; 5];
+    let mut largest = f64::NAN;
     evaluate(&evaluator, &grid, range.clone(), |first, block| {
         for (offset, point) in block.iter().enumerate() {
             let k = first + offset;
@@ -285,10 +303,16 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
                 point.spectral_radius,
                 point.kind.code() as f64,
             ])?;
-            values[k] = point.excess;
-            kinds[k] = Some(point.kind);
+            if drawing {
+                values[k] = point.excess;
+                kinds[k] = Some(point.kind);
+            }
+            largest = largest.max(point.spectral_radius);
         }
-        points.extend_from_slice(block);
+        let block_counts = census(block);
+        for (total, count) in counts.iter_mut().zip(block_counts) {
+            *total += count;
+        }
         progress.inc(block.len() as u64);
         Ok(())
     })?;
@@ -305,11 +329,10 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
         draw_map(path, &grid, &values, &kinds, args.colour, &title)?;
     }
     if !args.quiet {
-        let counts = census(&points);
         eprintln!(
             "{} points{shard_note}: {} stable, {} type 1, {} type 2, {} type 3{}; largest \
              spectral radius {}",
-            points.len(),
+            range.len(),
             counts[0],
             counts[1],
             counts[2],
@@ -319,10 +342,7 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
             } else {
                 String::new()
             },
-            points
-                .iter()
-                .map(|p| p.spectral_radius)
-                .fold(f64::NAN, f64::max)
+            largest
         );
         let mut written = vec![args.out.display().to_string()];
         written.extend(
