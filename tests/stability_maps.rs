@@ -368,3 +368,26 @@ fn figure_1_long_average_first_instability_is_the_strip() {
         );
     }
 }
+
+#[test]
+fn shards_partition_the_points_in_order() {
+    use longstep::analysis::stability::map::Shard;
+    for total in [0usize, 1, 7, 100, 1001, 160_000] {
+        for count in [1usize, 2, 3, 7, 64] {
+            let mut next = 0;
+            for index in 1..=count {
+                let range = Shard::parse(&format!("{index}/{count}"))
+                    .expect("valid shard")
+                    .range(total);
+                assert_eq!(range.start, next, "shard {index}/{count} of {total}");
+                // Balanced: sizes differ by at most one point.
+                assert!(range.len() <= total / count + 1 && range.len() >= total / count);
+                next = range.end;
+            }
+            assert_eq!(next, total, "shards of {total} by {count} do not cover it");
+        }
+    }
+    for bad in ["0/3", "4/3", "1/0", "a/b", "3", "1/2/3"] {
+        assert!(Shard::parse(bad).is_err(), "{bad} should be rejected");
+    }
+}
