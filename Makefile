@@ -25,5 +25,33 @@ test-all: test
 bench: cmake
 	$(CARGO) bench
 
+# Pictures for docs/ (not committed: regenerate with `make figures`). CSVs go to out/figures.
+FIGURES := docs/figures
+FIGURE_DATA := out/figures
+MAP := $(BIN) stability-map --quiet --h 0.5
+figures: cmake
+	$(CARGO) build --release
+	mkdir -p $(FIGURES) $(FIGURE_DATA)
+# GSS98 Figure 1 (and 4): LongAverage, h = 1/2, the strip near Γ1 + Γ2 = 2π.
+	$(MAP) --method long-average --gamma1 0:2*pi --gamma2 0:2*pi --n 1000 \
+		--out $(FIGURE_DATA)/fig1-long-average.csv --png $(FIGURES)/fig1-long-average.png
+# Figure 2: the wide end near Γ2 = 0.
+	$(MAP) --method long-average --gamma1 5.6:6.0 --gamma2 0:0.4 --n 800 \
+		--out $(FIGURE_DATA)/fig2-wide-end.csv --png $(FIGURES)/fig2-wide-end.png
+# Figure 3: the narrow end near (π, π), at u = π − Γ2 ≈ 0.006 (width ≈ 3e-7).
+	$(MAP) --method long-average --gamma1 3.1475920:3.1475930 --gamma2 3.1355925:3.1355935 \
+		--n 400 --out $(FIGURE_DATA)/fig3-narrow-end.csv --png $(FIGURES)/fig3-narrow-end.png
+# Figure 5: ShortAverage, type-2 bands near Γi = π.
+	$(MAP) --method short-average --gamma1 0:2*pi --gamma2 0:2*pi --n 1000 \
+		--out $(FIGURE_DATA)/fig5-short-average.csv --png $(FIGURES)/fig5-short-average.png
+# The census: instability types over [0, 4π]² for the four methods.
+	for m in impulse short-average long-average linear-average; do \
+		$(MAP) --method $$m --gamma1 0:4*pi --gamma2 0:4*pi --n 1000 --colour type \
+			--out $(FIGURE_DATA)/types-$$m.csv --png $(FIGURES)/types-$$m.png || exit 1; \
+	done
+# Integrator mode: velocity Verlet (single step) on the three-spring scene.
+	$(MAP) --mode integrator --method verlet --gamma1 0:2*pi --gamma2 0:2*pi --n 200 \
+		--out $(FIGURE_DATA)/verlet-integrator.csv --png $(FIGURES)/verlet-integrator.png
+
 fmt:
 	$(CARGO) fmt

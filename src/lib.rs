@@ -11,6 +11,7 @@ pub mod error;
 pub mod forces;
 pub mod integrators;
 pub mod io;
+pub mod plot;
 pub mod run;
 pub mod settings;
 pub mod split;

@@ -5,3 +5,4 @@ pub mod minimize;
 pub mod modes;
 pub mod monitor;
 pub mod scan;
+pub mod stability;

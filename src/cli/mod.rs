@@ -5,6 +5,7 @@
 //! outputs up to that point are written, and the summary says when).
 
 mod run;
+pub mod stability;
 mod studies;
 
 use std::path::PathBuf;
@@ -50,6 +51,11 @@ enum Command {
     /// Scans over outer steps (and, for the three-spring maps, stiffness).
     #[command(subcommand)]
     Scan(studies::ScanCommand),
+    /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
+    /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map.
+    StabilityMap(Box<stability::StabilityMapArgs>),
+    /// The spectral radius and instability type at one (Γ1, Γ2).
+    SpectralRadius(Box<stability::SpectralRadiusArgs>),
 }
 
 #[derive(Args, Debug)]
@@ -103,6 +109,8 @@ pub fn main() -> i32 {
         Command::Scan(studies::ScanCommand::Steps(args)) => {
             studies::scan_steps_command(&args).map(|()| 0)
         }
+        Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
+        Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

@@ -1,0 +1,471 @@
+//! `longstep stability-map` and `longstep spectral-radius`: GSS98 sections 3 and 7.
+
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::analysis::stability::analytic::LinearProblem;
+use crate::analysis::stability::integrator::{IntegratorProbe, ProbeScene};
+use crate::analysis::stability::map::{Axis, Evaluator, Grid, Shard, census, evaluate};
+use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType};
+use crate::error::{Error, Result};
+use crate::io::csv::CsvWriter;
+use crate::io::expr;
+use crate::plot::{AxisSpec, Category, Colouring, HeatMap};
+use crate::settings::MethodSettings;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Mode {
+    /// GSS98 Lemma 4: exact reduced flow and averages (impulse, short-average,
+    /// long-average, linear-average).
+    Analytic,
+    /// One outer step of the real integrator on the horizontal three-spring scene.
+    Integrator,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ColourBy {
+    /// ρ − 1 on a logarithmic colour bar; stable points white.
+    Radius,
+    /// The instability type (1, 2, 3) as categories.
+    Type,
+}
+
+/// The method, step and coupling shared by both commands.
+#[derive(Args, Debug)]
+pub struct ModelArgs {
+    /// Method: impulse, short-average, long-average, linear-average (analytic mode), or any
+    /// method of `longstep methods` (integrator mode).
+    #[arg(long)]
+    pub method: String,
+    /// Outer step h (number or expression).
+    #[arg(long, allow_negative_numbers = true)]
+    pub h: String,
+    /// Slow coupling U = [[alpha1, beta], [beta, alpha2]] of GSS98 eq. (27) (analytic mode;
+    /// default 1/2, the three-spring system).
+    #[arg(long, allow_negative_numbers = true)]
+    pub alpha1: Option<String>,
+    /// See --alpha1 (default 1/2).
+    #[arg(long, allow_negative_numbers = true)]
+    pub alpha2: Option<String>,
+    /// See --alpha1 (default -1/2).
+    #[arg(long, allow_negative_numbers = true)]
+    pub beta: Option<String>,
+    /// analytic: Lemma 4's formula; integrator: one outer step of the real integrator.
+    #[arg(long, value_enum, default_value_t = Mode::Analytic)]
+    pub mode: Mode,
+    /// Inner steps K per outer step (integrator mode).
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// Scene to linearise in integrator mode (default: the built-in three-spring scene);
+    /// it must have parameters omega1 and omega2 and start at rest at an equilibrium.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct StabilityMapArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Range of Γ1 = hΩ1 as START:END (numbers or expressions, e.g. 0:4*pi).
+    #[arg(long, default_value = "0:6.5")]
+    pub gamma1: String,
+    /// Range of Γ2 = hΩ2 as START:END.
+    #[arg(long, default_value = "0:6.5")]
+    pub gamma2: String,
+    /// Points along each axis.
+    #[arg(long, default_value_t = 400)]
+    pub n: usize,
+    /// CSV output: gamma1,gamma2,spectral_radius,type (type 0 = stable, -1 = overflow).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Heat-map picture (PNG).
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Heat-map picture (SVG).
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// What the picture's colours show.
+    #[arg(long = "colour", alias = "color", value_enum, default_value_t = ColourBy::Radius)]
+    pub colour: ColourBy,
+    /// Compute only the k-th of n contiguous slices of the grid points (k from 1 to n);
+    /// the CSV then holds only those rows, in grid order.
+    #[arg(long, value_name = "k/n")]
+    pub shard: Option<String>,
+    /// No progress bar, notices or summary on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct SpectralRadiusArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// Γ1 = hΩ1 (number or expression, e.g. 3*pi/4).
+    #[arg(long, allow_negative_numbers = true)]
+    pub gamma1: String,
+    /// Γ2 = hΩ2.
+    #[arg(long, allow_negative_numbers = true)]
+    pub gamma2: String,
+    /// Print {"spectral_radius": …, "type": …} (type 0 = stable, 1–3 GSS98's types).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn number(text: &str, what: &str) -> Result<f64> {
+    let value = expr::evaluate(text.trim(), &BTreeMap::new())
+        .map_err(|e| Error::input(format!("{what}: {e}")))?;
+    if !value.is_finite() {
+        return Err(Error::input(format!("{what} is not finite ({value})")));
+    }
+    Ok(value)
+}
+
+/// The evaluator the flags ask for, its notices, and a description for titles.
+fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
+    let h = number(&model.h, "--h")?;
+    if h <= 0.0 {
+        return Err(Error::input(format!("--h must be positive, got {h}")));
+    }
+    match model.mode {
+        Mode::Analytic => {
+            if model.inner_steps.is_some() {
+                return Err(Error::input(
+                    "--inner applies to --mode integrator; analytic mode integrates the \
+                     reduced problem exactly",
+                ));
+            }
+            if model.scene.is_some() {
+                return Err(Error::input("--scene applies to --mode integrator"));
+            }
+            let method = AnalyticMethod::from_name(&model.method)?;
+            let defaults = Coupling::default();
+            let coupling = Coupling {
+                alpha1: match &model.alpha1 {
+                    Some(text) => number(text, "--alpha1")?,
+                    None => defaults.alpha1,
+                },
+                alpha2: match &model.alpha2 {
+                    Some(text) => number(text, "--alpha2")?,
+                    None => defaults.alpha2,
+                },
+                beta: match &model.beta {
+                    Some(text) => number(text, "--beta")?,
+                    None => defaults.beta,
+                },
+            };
+            let problem = LinearProblem::new(method, h, coupling)?;
+            let description = format!(
+                "{} (analytic), h = {}, α = ({}, {}), β = {}",
+                method.paper_name(),
+                h,
+                coupling.alpha1,
+                coupling.alpha2,
+                coupling.beta
+            );
+            Ok((Evaluator::Analytic(problem), Vec::new(), description))
+        }
+        Mode::Integrator => {
+            if model.alpha1.is_some() || model.alpha2.is_some() || model.beta.is_some() {
+                return Err(Error::input(
+                    "--alpha1/--alpha2/--beta apply to --mode analytic; in integrator mode \
+                     the scene's slow spring sets the coupling",
+                ));
+            }
+            let scene = match &model.scene {
+                Some(path) => ProbeScene::load(path)?,
+                None => ProbeScene::three_spring(),
+            };
+            let mut settings = MethodSettings::new(&model.method, h);
+            if let Some(k) = model.inner_steps {
+                if k == 0 {
+                    return Err(Error::input("--inner must be at least 1"));
+                }
+                settings = settings.with_inner_steps(k);
+            }
+            let probe = IntegratorProbe::new(scene, settings)?;
+            let notices = probe.notices().to_vec();
+            let description = format!(
+                "{} (integrator{}), h = {}",
+                model.method,
+                model
+                    .inner_steps
+                    .map(|k| format!(", K = {k}"))
+                    .unwrap_or_default(),
+                h
+            );
+            Ok((Evaluator::Integrator(Box::new(probe)), notices, description))
+        }
+    }
+}
+
+fn type_meaning(kind: InstabilityType) -> &'static str {
+    match kind {
+        InstabilityType::Stable => "stable",
+        InstabilityType::Type1 => "type 1: non-real eigenvalues off the unit circle (D < 0)",
+        InstabilityType::Type2 => "type 2: a real negative eigenvalue, coalesced at -1",
+        InstabilityType::Type3 => "type 3: a real positive eigenvalue, coalesced at +1",
+        InstabilityType::Overflow => "the step overflowed",
+    }
+}
+
+pub fn spectral_radius_command(args: &SpectralRadiusArgs) -> Result<()> {
+    let (evaluator, notices, _) = evaluator(&args.model)?;
+    for notice in &notices {
+        eprintln!("notice: {notice}");
+    }
+    let gamma1 = number(&args.gamma1, "--gamma1")?;
+    let gamma2 = number(&args.gamma2, "--gamma2")?;
+    if gamma1 < 0.0 || gamma2 < 0.0 {
+        return Err(Error::input(format!(
+            "--gamma1 and --gamma2 must be non-negative, got {gamma1} and {gamma2}"
+        )));
+    }
+    let point = evaluator.point(gamma1, gamma2)?;
+    if args.json {
+        let json = serde_json::json!({
+            "spectral_radius": point.spectral_radius,
+            "type": point.kind.code(),
+        });
+        println!("{json}");
+    } else {
+        println!(
+            "spectral radius {} ({})",
+            point.spectral_radius,
+            type_meaning(point.kind)
+        );
+    }
+    Ok(())
+}
+
+/// Largest grid a picture is drawn for (25 million points, about 225 MB of picture data).
+const MAX_PICTURE_POINTS: usize = 25_000_000;
+
+pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
+    let (evaluator, notices, description) = evaluator(&args.model)?;
+    let grid = Grid {
+        gamma1: Axis::parse(&args.gamma1, args.n, "--gamma1")?,
+        gamma2: Axis::parse(&args.gamma2, args.n, "--gamma2")?,
+    };
+    if grid.gamma1.start < 0.0 || grid.gamma2.start < 0.0 {
+        return Err(Error::input("Γ ranges must start at 0 or above"));
+    }
+    let shard = match &args.shard {
+        Some(text) => Shard::parse(text)?,
+        None => Shard::whole(),
+    };
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        crate::plot::Format::of(path)?;
+    }
+    if !args.quiet {
+        for notice in &notices {
+            eprintln!("notice: {notice}");
+        }
+    }
+    let range = shard.range(grid.len());
+    // The picture needs every value; the CSV streams. Keep the picture's arrays within a
+    // few hundred megabytes (≈ 9 bytes per point).
+    let drawing = args.png.is_some() || args.svg.is_some();
+    if drawing && grid.len() > MAX_PICTURE_POINTS {
+        return Err(Error::input(format!(
+            "a picture of {} points is more than the {MAX_PICTURE_POINTS} a picture can hold; \
+             draw a coarser map (--n) or write only the CSV",
+            grid.len()
+        )));
+    }
+    let mut csv = CsvWriter::create(&args.out, &["gamma1", "gamma2", "spectral_radius", "type"])?;
+    let progress = if !args.quiet && std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(range.len() as u64);
+        if let Ok(style) = ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
+        ) {
+            bar.set_style(style);
+        }
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let picture_len = if drawing { grid.len() } else { 0 };
+    let mut values = vec![f64::NAN; picture_len];
+    let mut kinds = vec![None; picture_len];
+    let mut counts = [0usize; 5];
+    let mut largest = f64::NAN;
+    evaluate(&evaluator, &grid, range.clone(), |first, block| {
+        for (offset, point) in block.iter().enumerate() {
+            let k = first + offset;
+            let (gamma1, gamma2) = grid.point(k);
+            csv.row(&[
+                gamma1,
+                gamma2,
+                point.spectral_radius,
+                point.kind.code() as f64,
+            ])?;
+            if drawing {
+                values[k] = point.excess;
+                kinds[k] = Some(point.kind);
+            }
+            largest = largest.max(point.spectral_radius);
+        }
+        let block_counts = census(block);
+        for (total, count) in counts.iter_mut().zip(block_counts) {
+            *total += count;
+        }
+        progress.inc(block.len() as u64);
+        Ok(())
+    })?;
+    csv.flush()?;
+    progress.finish_and_clear();
+
+    let shard_note = if shard.count > 1 {
+        format!(" (shard {}/{})", shard.index, shard.count)
+    } else {
+        String::new()
+    };
+    let title = format!("Spectral radius: {description}{shard_note}");
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        draw_map(path, &grid, &values, &kinds, args.colour, &title)?;
+    }
+    if !args.quiet {
+        eprintln!(
+            "{} points{shard_note}: {} stable, {} type 1, {} type 2, {} type 3{}; largest \
+             spectral radius {}",
+            range.len(),
+            counts[0],
+            counts[1],
+            counts[2],
+            counts[3],
+            if counts[4] > 0 {
+                format!(", {} overflowed", counts[4])
+            } else {
+                String::new()
+            },
+            largest
+        );
+        let mut written = vec![args.out.display().to_string()];
+        written.extend(
+            [&args.png, &args.svg]
+                .into_iter()
+                .flatten()
+                .map(|p| p.display().to_string()),
+        );
+        eprintln!("wrote {}", written.join(", "));
+    }
+    Ok(())
+}
+
+/// An axis of a map picture: in units of π for ranges of a radian or more, plain below,
+/// and as an offset from the start for close-ups narrower than 1e-3 of their position.
+fn map_axis(axis: &Axis, name: &str, meaning: &str) -> (AxisSpec, (f64, f64, usize)) {
+    let span = axis.end - axis.start;
+    if span >= 1.0 {
+        (
+            AxisSpec::pi(&format!("{name} = {meaning} (units of π)")),
+            (axis.start, axis.end, axis.count),
+        )
+    } else if span < 1e-3 * axis.start.abs().max(1.0) {
+        (
+            AxisSpec::linear(&format!("{name} − {} ({name} = {meaning})", axis.start)),
+            (0.0, span, axis.count),
+        )
+    } else {
+        (
+            AxisSpec::linear(&format!("{name} = {meaning}")),
+            (axis.start, axis.end, axis.count),
+        )
+    }
+}
+
+/// The heat map of a stability map; points not computed (another shard's) show as no data.
+pub fn draw_map(
+    path: &Path,
+    grid: &Grid,
+    excesses: &[f64],
+    kinds: &[Option<InstabilityType>],
+    colour: ColourBy,
+    title: &str,
+) -> Result<()> {
+    let stable_colour = plotters::style::RGBColor(255, 255, 255);
+    let (values, colouring) = match colour {
+        ColourBy::Radius => {
+            // ρ − 1 for unstable points, 0 (drawn as "stable") for stable ones.
+            let values: Vec<f64> = excesses
+                .iter()
+                .zip(kinds)
+                .map(|(excess, kind)| match kind {
+                    None => f64::NAN,
+                    Some(InstabilityType::Stable) => 0.0,
+                    Some(_) => *excess,
+                })
+                .collect();
+            let positive = values.iter().copied().filter(|v| v.is_finite() && *v > 0.0);
+            let max = positive.clone().fold(f64::NAN, f64::max);
+            let min = positive.fold(f64::NAN, f64::min);
+            let (min, max) = if max.is_finite() {
+                // At most twelve decades: weaker instabilities share the lowest colour.
+                let min = min.max(max * 1e-12);
+                if max > min {
+                    (min, max)
+                } else {
+                    (max / 10.0, max)
+                }
+            } else {
+                (1e-6, 1e-3)
+            };
+            (
+                values,
+                Colouring::Continuous {
+                    label: "spectral radius ρ − 1".into(),
+                    min,
+                    max,
+                    log: true,
+                    below: Some(Category {
+                        value: 0.0,
+                        name: "stable (ρ = 1)".into(),
+                        colour: stable_colour,
+                    }),
+                },
+            )
+        }
+        ColourBy::Type => {
+            let values = kinds
+                .iter()
+                .map(|kind| kind.map_or(f64::NAN, |k| k.code() as f64))
+                .collect();
+            let category = |kind: InstabilityType, name: &str, colour| Category {
+                value: kind.code() as f64,
+                name: name.into(),
+                colour,
+            };
+            use plotters::style::RGBColor;
+            // Stable always, the other categories only where they occur.
+            let present = |kind: InstabilityType| kind.is_stable() || kinds.contains(&Some(kind));
+            let categories = [
+                category(InstabilityType::Stable, "stable", stable_colour),
+                category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
+                category(InstabilityType::Type2, "type 2", RGBColor(31, 119, 180)),
+                category(InstabilityType::Type3, "type 3", RGBColor(44, 160, 44)),
+                category(InstabilityType::Overflow, "overflow", RGBColor(0, 0, 0)),
+            ]
+            .into_iter()
+            .filter(|c| InstabilityType::from_code(c.value as i32).is_some_and(present))
+            .collect();
+            (values, Colouring::Categorical(categories))
+        }
+    };
+    let (x, x_cells) = map_axis(&grid.gamma1, "Γ1", "hΩ1");
+    let (y, y_cells) = map_axis(&grid.gamma2, "Γ2", "hΩ2");
+    HeatMap {
+        title: title.into(),
+        x,
+        y,
+        x_cells,
+        y_cells,
+        values,
+        colouring,
+        size: (1000, 800),
+    }
+    .save(path)
+}
