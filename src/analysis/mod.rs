@@ -6,3 +6,4 @@ pub mod modes;
 pub mod monitor;
 pub mod scan;
 pub mod stability;
+pub mod work_precision;

@@ -95,7 +95,11 @@ pub fn measure_cost_weights(system: &mut System) -> CostWeights {
     let slow = time(&mut |s, o| s.forces.gradient(top, &q, o));
     let hessian_vector = time(&mut |s, o| s.forces.hessian_vector(0, &q, &v, o));
     system.forces.reset_counts();
-    let unit = if slow > 0.0 { slow } else { fast.max(f64::MIN_POSITIVE) };
+    let unit = if slow > 0.0 {
+        slow
+    } else {
+        fast.max(f64::MIN_POSITIVE)
+    };
     CostWeights {
         fast: fast / unit,
         slow: slow / unit,
@@ -137,7 +141,12 @@ fn integrate_sampled(
         setup.blowup,
     );
     let velocity = |s: &System| -> Vec<f64> {
-        s.state.p.iter().zip(&s.inverse_mass).map(|(p, w)| p * w).collect()
+        s.state
+            .p
+            .iter()
+            .zip(&s.inverse_mass)
+            .map(|(p, w)| p * w)
+            .collect()
     };
     let mut previous = (system.state.t, system.state.q.clone(), velocity(system));
     let mut next = 0;
@@ -176,7 +185,13 @@ fn integrate_sampled(
         counts.gradient.last().copied().unwrap_or(0),
         hv,
     ];
-    Ok((samples, status, monitor.max_relative_error(), evaluations, wall))
+    Ok((
+        samples,
+        status,
+        monitor.max_relative_error(),
+        evaluations,
+        wall,
+    ))
 }
 
 /// Cubic Hermite interpolation between `(t0, q0, v0)` and `(t1, q1, v1)` at `t`.
@@ -272,7 +287,11 @@ pub fn run_points(
             let status = status.split(':').next().unwrap_or("failed").to_string();
             if status != "ok" {
                 // The error is that of the part that ran; the status marks the point.
-                error = if error.is_finite() { error } else { f64::INFINITY };
+                error = if error.is_finite() {
+                    error
+                } else {
+                    f64::INFINITY
+                };
             }
             Ok(PrecisionResult {
                 index: *index,

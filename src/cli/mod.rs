@@ -4,6 +4,7 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod charts;
 mod run;
 pub mod stability;
 mod studies;
@@ -51,6 +52,11 @@ enum Command {
     /// Scans over outer steps (and, for the three-spring maps, stiffness).
     #[command(subcommand)]
     Scan(studies::ScanCommand),
+    /// Charts of accuracy against cost.
+    #[command(subcommand)]
+    Chart(charts::ChartCommand),
+    /// Combine the outputs of --shard runs into what a single run writes.
+    Merge(charts::MergeArgs),
     /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
     /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map.
     StabilityMap(Box<stability::StabilityMapArgs>),
@@ -80,6 +86,9 @@ pub struct RunArgs {
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
+    /// Also draw the energies against time (energy.png and energy.svg in the output directory).
+    #[arg(long)]
+    pub plot: bool,
 }
 
 #[derive(Args, Debug)]
@@ -109,6 +118,10 @@ pub fn main() -> i32 {
         Command::Scan(studies::ScanCommand::Steps(args)) => {
             studies::scan_steps_command(&args).map(|()| 0)
         }
+        Command::Chart(charts::ChartCommand::WorkPrecision(args)) => {
+            charts::work_precision_command(&args).map(|()| 0)
+        }
+        Command::Merge(args) => charts::merge_command(&args).map(|()| 0),
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::Methods => {

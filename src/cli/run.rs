@@ -55,6 +55,9 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         integrator.as_mut(),
         &options,
     )?;
+    if args.plot {
+        plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
+    }
     if args.json {
         let json = serde_json::to_string_pretty(&summary)
             .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;
@@ -122,5 +125,69 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
         system.kinetic_energy(),
         system.potential_energies()
     );
+    Ok(())
+}
+
+/// Kinetic, potential and total energy against time from energy.csv, and the relative
+/// error of the total on a second chart.
+fn plot_energies(
+    csv: &std::path::Path,
+    summary: &crate::io::summary::RunSummary,
+    out: &std::path::Path,
+) -> Result<()> {
+    use crate::plot::{AxisSpec, Corner, LineChart, Series};
+    let text = std::fs::read_to_string(csv).map_err(|e| Error::io(csv, e))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name);
+    let (Some(t), Some(k), Some(v), Some(e)) = (
+        column("t"),
+        column("kinetic"),
+        column("potential"),
+        column("total"),
+    ) else {
+        return Err(Error::input(format!(
+            "{}: not an energy table",
+            csv.display()
+        )));
+    };
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    let series =
+        |name: &str, c: usize| Series::line(name, rows.iter().map(|r| (r[t], r[c])).collect());
+    let title = format!("{}: {}, h = {}", summary.scene, summary.method, summary.h);
+    let mut chart = LineChart::new(
+        &title,
+        AxisSpec::linear("time t"),
+        AxisSpec::linear("energy"),
+    );
+    chart.series = vec![
+        series("kinetic", k),
+        series("potential", v),
+        series("total", e),
+    ];
+    chart.legend = Corner::UpperRight;
+    let initial = summary.energy.initial;
+    let scale = if initial != 0.0 { initial.abs() } else { 1.0 };
+    let mut error = LineChart::new(
+        &format!("{title}: energy error"),
+        AxisSpec::linear("time t"),
+        AxisSpec::linear("(E − E0)/|E0|"),
+    );
+    error.series = vec![Series::line(
+        "total",
+        rows.iter()
+            .map(|r| (r[t], (r[e] - initial) / scale))
+            .collect(),
+    )];
+    for extension in ["png", "svg"] {
+        chart.save(&out.join(format!("energy.{extension}")))?;
+        error.save(&out.join(format!("energy-error.{extension}")))?;
+    }
     Ok(())
 }

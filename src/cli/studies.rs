@@ -9,7 +9,10 @@ use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::scan::{ScanSetup, StepResult, run_points, safe_steps, scan_points};
 use crate::error::{Error, Result};
+use std::collections::BTreeMap;
+
 use crate::io::scene::load_scene;
+use crate::io::study_csv::StudyTable;
 use crate::settings::{RunSpec, Value};
 
 #[derive(Args, Debug)]
@@ -147,7 +150,9 @@ pub fn parse_steps(text: &str) -> Result<Vec<f64>> {
                 "--h gives {count} steps; that is too many"
             )));
         }
-        Ok((0..count).map(|i| lo + i as f64 * step).collect())
+        // Round to 12 significant digits so 0.2 + 0.1·9 reads 1.1, not 1.1000000000000001.
+        let round = |x: f64| format!("{x:.11e}").parse::<f64>().unwrap_or(x);
+        Ok((0..count).map(|i| round(lo + i as f64 * step)).collect())
     } else {
         text.split(',').map(value).collect()
     }
@@ -325,20 +330,22 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
 
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let path = args.out.join("scan.csv");
-    write_scan_csv(&path, total, &results)?;
+    let table = scan_table(args, total, &results);
+    table.write(&path)?;
+    super::charts::draw_scan_steps(&table, &args.out)?;
     let safe = safe_steps(&results);
     println!(
-        "{:<18} {:>12} {:>22} stable beyond",
+        "{:<18} {:>12}  {:<24} stable again at",
         "method", "safe up to", "first failure"
     );
     for s in &safe {
         println!(
-            "{:<18} {:>12} {:>22} {:?}",
+            "{:<18} {:>12}  {:<24} {}",
             s.method,
             s.safe_up_to.map_or("none".to_string(), |h| format!("{h}")),
             s.first_failure
                 .map_or("-".to_string(), |(h, v)| format!("{} at {h}", v.name())),
-            s.stable_beyond
+            islands(&s.stable_beyond, &steps)
         );
     }
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
@@ -351,44 +358,87 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     Ok(())
 }
 
-/// The scan's CSV: a comment line naming the study and its size (so shards can be merged),
-/// then one row per point in index order.
-pub fn write_scan_csv(path: &std::path::Path, total: usize, results: &[StepResult]) -> Result<()> {
-    let header = [
-        "index",
-        "method",
-        "h",
-        "status",
-        "drift",
-        "blowup_time",
-        "max_relative_error",
-        "steps",
-        "slow_evaluations",
-        "fast_evaluations",
-        "hessian_vector",
-    ];
-    let mut text = format!(
-        "# longstep scan-steps, points = {total}\n{}\n",
-        header.join(",")
+/// The scan's study table (see `src/io/study_csv.rs`): one row per point in index order.
+pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) -> StudyTable {
+    let mut meta: BTreeMap<String, String> = [
+        ("points", total.to_string()),
+        ("scene", args.scene.display().to_string()),
+        ("set", args.set.join(" ")),
+        ("t_end", format!("{:?}", args.t_end)),
+        ("inner_steps", format!("{:?}", args.inner_steps)),
+        ("dt", format!("{:?}", args.dt)),
+        ("drift_bound", args.drift_bound.to_string()),
+        ("blowup", args.blowup.to_string()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
+    .collect();
+    if let Some(shard) = &args.shard {
+        meta.insert("shard".into(), shard.clone());
+    }
+    let mut table = StudyTable::new(
+        "scan-steps",
+        meta,
+        &[
+            "index",
+            "method",
+            "h",
+            "status",
+            "drift",
+            "blowup_time",
+            "max_relative_error",
+            "steps",
+            "slow_evaluations",
+            "fast_evaluations",
+            "hessian_vector",
+        ],
     );
     for r in results {
-        text += &format!(
-            "{},{},{},{},{},{},{},{},{},{},{}\n",
-            r.index,
-            r.method,
-            r.h,
-            r.verdict.name(),
-            r.drift,
+        table.rows.push(vec![
+            r.index.to_string(),
+            r.method.clone(),
+            r.h.to_string(),
+            r.verdict.name().to_string(),
+            r.drift.to_string(),
             r.blowup_time.map_or(String::new(), |t| t.to_string()),
-            r.max_relative_error,
-            r.steps,
-            r.slow_evaluations,
-            r.fast_evaluations,
-            r.hessian_vector
-        );
+            r.max_relative_error.to_string(),
+            r.steps.to_string(),
+            r.slow_evaluations.to_string(),
+            r.fast_evaluations.to_string(),
+            r.hessian_vector.to_string(),
+        ]);
     }
-    std::fs::write(path, text).map_err(|e| Error::io(path, e))?;
-    Ok(())
+    table
+}
+
+/// Stable steps beyond the first failure as intervals of consecutive scanned steps,
+/// e.g. "0.23–0.255, 0.27–0.305".
+fn islands(stable: &[f64], scanned: &[f64]) -> String {
+    let mut sorted: Vec<f64> = scanned.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mut runs: Vec<(f64, f64)> = Vec::new();
+    let mut previous: Option<usize> = None;
+    for &h in stable {
+        let position = sorted.iter().position(|&x| x == h);
+        match (position, previous, runs.last_mut()) {
+            (Some(i), Some(j), Some(run)) if i == j + 1 => run.1 = h,
+            _ => runs.push((h, h)),
+        }
+        previous = position;
+    }
+    if runs.is_empty() {
+        return "-".into();
+    }
+    runs.iter()
+        .map(|(a, b)| {
+            if a == b {
+                format!("{a}")
+            } else {
+                format!("{a}–{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {

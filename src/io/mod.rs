@@ -4,4 +4,5 @@ pub mod csv;
 pub mod expr;
 pub mod scene;
 pub mod structure;
+pub mod study_csv;
 pub mod summary;

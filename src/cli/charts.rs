@@ -1,0 +1,539 @@
+//! `longstep chart work-precision`, `longstep merge`, and the pictures of the studies.
+//!
+//! Every picture is drawn from its study table (`src/io/study_csv.rs`), so a merged set of
+//! shards gives the same pictures as a single run.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Subcommand};
+
+use super::studies::{parse_shard, parse_steps, progress_bar};
+use crate::analysis::modes::{fast_modes, predicted_resonances};
+use crate::analysis::work_precision::{
+    CostWeights, StudySetup, measure_cost_weights, reference, run_points, sample_times,
+};
+use crate::error::{Error, Result};
+use crate::io::scene::load_scene;
+use crate::io::study_csv::{StudyTable, merge};
+use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, Series, SeriesStyle};
+use crate::settings::{RunSpec, Value, whole_ratio};
+
+#[derive(Subcommand, Debug)]
+pub enum ChartCommand {
+    /// Error against cost for methods and outer steps: CSV, PNG and SVG.
+    WorkPrecision(WorkPrecisionArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct WorkPrecisionArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Methods, comma-separated.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub methods: Vec<String>,
+    /// Outer steps, comma-separated (or LO:HI:STEP).
+    #[arg(long)]
+    pub h_list: String,
+    /// End time.
+    #[arg(long)]
+    pub t_end: Value,
+    /// Sample interval of the position error (default: the largest h; every h must divide it).
+    #[arg(long)]
+    pub sample: Option<Value>,
+    /// Inner steps K per outer step for the multiple-time-step methods.
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// A fixed inner step instead of --inner.
+    #[arg(long)]
+    pub dt: Option<Value>,
+    /// Jacobian mode of the mollified methods.
+    #[arg(long)]
+    pub jacobian: Option<String>,
+    /// Quadrature of the pseudo-energy methods.
+    #[arg(long)]
+    pub quadrature: Option<String>,
+    /// Block size of the structural methods.
+    #[arg(long)]
+    pub block: Option<usize>,
+    /// Method of the reference solution.
+    #[arg(long, default_value = "verlet")]
+    pub reference_method: String,
+    /// Step of the reference solution (default: the smallest h / 64, fitted to the sample).
+    #[arg(long)]
+    pub reference_h: Option<Value>,
+    /// Relative costs of a fast gradient, a slow gradient and a Hessian-vector product
+    /// (F,S,H), instead of timing them. Give the same weights to every shard of a study.
+    #[arg(long, value_delimiter = ',', value_name = "F,S,H")]
+    pub weights: Option<Vec<f64>>,
+    /// Blow-up factor: a run beyond it is drawn as unstable.
+    #[arg(long, default_value_t = 10.0)]
+    pub blowup: f64,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Output directory.
+    #[arg(long, default_value = "out/work-precision")]
+    pub out: PathBuf,
+    /// Run only the k-th of n slices of the points.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Output directories (or CSV files) of the shards.
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Where to write the merged tables and pictures.
+    #[arg(long, default_value = "out/merged")]
+    pub out: PathBuf,
+}
+
+const WORK_PRECISION: &str = "work-precision.csv";
+const WALL_TIME: &str = "wall-time.csv";
+const SCAN_STEPS: &str = "scan.csv";
+
+fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
+        .collect()
+}
+
+pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
+    let steps = parse_steps(&args.h_list)?;
+    let no_parameters = BTreeMap::new();
+    let t_end = args.t_end.evaluate(&no_parameters, "--t-end")?;
+    let largest = steps.iter().copied().fold(0.0, f64::max);
+    let smallest = steps.iter().copied().fold(f64::INFINITY, f64::min);
+    let sample = match &args.sample {
+        Some(v) => v.evaluate(&no_parameters, "--sample")?,
+        None => largest,
+    };
+    if !(t_end > 0.0 && sample > 0.0 && sample <= t_end) {
+        return Err(Error::input(format!(
+            "--t-end ({t_end}) and --sample ({sample}) must be positive, the sample no longer than the run"
+        )));
+    }
+    for &h in &steps {
+        whole_ratio(sample, h, "outer step h", "sample interval")?;
+    }
+    let reference_h = match &args.reference_h {
+        Some(v) => v.evaluate(&no_parameters, "--reference-h")?,
+        None => sample / (64.0 * sample / smallest).ceil(),
+    };
+    whole_ratio(sample, reference_h, "reference step", "sample interval")?;
+    let setup = StudySetup {
+        scene: args.scene.clone(),
+        set: args.set.clone(),
+        base: RunSpec {
+            inner_steps: args.inner_steps,
+            dt: args.dt.clone(),
+            jacobian: args.jacobian.clone(),
+            quadrature: args.quadrature.clone(),
+            block: args.block,
+            blowup: Some(args.blowup),
+            ..Default::default()
+        },
+        t_end,
+        sample,
+        blowup: args.blowup,
+    };
+    // Check every (method, h) builds before spending time.
+    let mut scene = load_scene(&setup.scene, &setup.set)?;
+    for method in &args.methods {
+        for &h in &steps {
+            let mut spec = setup.base.clone();
+            spec.method = Some(method.clone());
+            spec.h = Some(Value::Number(h));
+            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            crate::integrators::build(&settings, &mut Vec::new())
+                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+        }
+    }
+    let weights = match &args.weights {
+        Some(w) => {
+            if w.len() != 3 || w.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                return Err(Error::input(
+                    "--weights expects three non-negative numbers F,S,H",
+                ));
+            }
+            CostWeights {
+                fast: w[0],
+                slow: w[1],
+                hessian_vector: w[2],
+            }
+        }
+        None => measure_cost_weights(&mut scene.system),
+    };
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let reference_base = StudySetup {
+        base: RunSpec {
+            blowup: Some(1e6),
+            ..setup.base.clone()
+        },
+        ..setup.clone()
+    };
+    let reference = reference(
+        &reference_base,
+        &args.reference_method,
+        reference_h,
+        &args.out.join("reference.csv"),
+    )?;
+    if reference.times.len() != sample_times(sample, t_end).len() {
+        return Err(Error::input("the reference run does not reach --t-end"));
+    }
+    let mut points = Vec::new();
+    for method in &args.methods {
+        for &h in &steps {
+            points.push((points.len(), method.clone(), h));
+        }
+    }
+    let total = points.len();
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    if let Some((k, n)) = shard {
+        points.retain(|(index, _, _)| index % n == k);
+    }
+    let bar = progress_bar(points.len() as u64, args.quiet, "work-precision");
+    let results = run_points(&setup, &points, &reference, weights, &|| bar.inc(1))?;
+    bar.finish_and_clear();
+
+    let mut meta = meta_of(&[
+        ("points", total.to_string()),
+        ("scene", args.scene.display().to_string()),
+        ("set", args.set.join(" ")),
+        ("t_end", t_end.to_string()),
+        ("sample", sample.to_string()),
+        (
+            "reference",
+            format!("{} h = {reference_h}", args.reference_method),
+        ),
+        ("inner_steps", format!("{:?}", args.inner_steps)),
+        (
+            "weights",
+            format!(
+                "fast {} slow {} hessian_vector {}",
+                weights.fast, weights.slow, weights.hessian_vector
+            ),
+        ),
+    ]);
+    if let Some(shard) = &args.shard {
+        meta.insert("shard".into(), shard.clone());
+    }
+    let mut table = StudyTable::new(
+        "work-precision",
+        meta.clone(),
+        &[
+            "index",
+            "method",
+            "h",
+            "status",
+            "max_position_error",
+            "max_relative_energy_error",
+            "slow_evaluations",
+            "fast_evaluations",
+            "hessian_vector",
+            "weighted_evaluations",
+        ],
+    );
+    let mut wall = StudyTable::new("work-precision-wall-time", meta, &["index", "wall_seconds"]);
+    for r in &results {
+        table.rows.push(vec![
+            r.index.to_string(),
+            r.method.clone(),
+            r.h.to_string(),
+            r.status.clone(),
+            r.max_position_error.to_string(),
+            r.max_relative_energy_error.to_string(),
+            r.slow_evaluations.to_string(),
+            r.fast_evaluations.to_string(),
+            r.hessian_vector.to_string(),
+            r.weighted_evaluations.to_string(),
+        ]);
+        wall.rows
+            .push(vec![r.index.to_string(), r.wall_seconds.to_string()]);
+    }
+    table.write(&args.out.join(WORK_PRECISION))?;
+    wall.write(&args.out.join(WALL_TIME))?;
+    draw_work_precision(&table, Some(&wall), &args.out)?;
+    if !args.quiet {
+        eprintln!(
+            "{} runs against {} (h = {reference_h}); tables and pictures in {}",
+            results.len(),
+            args.reference_method,
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// A method's (cost, error) points: finished runs, then unstable or failed ones.
+type MethodPoints = (String, Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// Points of one method as (cost, error) with unstable runs separated.
+fn method_points(
+    table: &StudyTable,
+    cost: &dyn Fn(&[String]) -> f64,
+    error_column: usize,
+) -> Result<Vec<MethodPoints>> {
+    let method = table.column("method")?;
+    let status = table.column("status")?;
+    let mut groups: Vec<MethodPoints> = Vec::new();
+    for row in &table.rows {
+        let name = &row[method];
+        if !groups.iter().any(|g| &g.0 == name) {
+            groups.push((name.clone(), Vec::new(), Vec::new()));
+        }
+        let group = groups
+            .iter_mut()
+            .find(|g| &g.0 == name)
+            .expect("just added");
+        let point = (cost(row), table.number(row, error_column));
+        if row[status] == "ok" {
+            group.1.push(point);
+        } else {
+            group.2.push(point);
+        }
+    }
+    Ok(groups)
+}
+
+/// Error-against-cost pictures; unstable runs are drawn as crosses at the top of the plot.
+pub fn draw_work_precision(
+    table: &StudyTable,
+    wall: Option<&StudyTable>,
+    out: &Path,
+) -> Result<()> {
+    let slow = table.column("slow_evaluations")?;
+    let weighted = table.column("weighted_evaluations")?;
+    let position = table.column("max_position_error")?;
+    let energy = table.column("max_relative_energy_error")?;
+    let wall_of: BTreeMap<String, f64> = wall
+        .map(|w| {
+            w.rows
+                .iter()
+                .map(|r| (r[0].clone(), w.number(r, 1)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let scene = table.meta.get("scene").cloned().unwrap_or_default();
+    type CostFn<'a> = Box<dyn Fn(&[String]) -> f64 + 'a>;
+    let mut charts: Vec<(&str, &str, CostFn, usize, &str)> = vec![
+        (
+            "error-vs-slow-evaluations",
+            "slow-force evaluations",
+            Box::new(move |r: &[String]| table.number(r, slow)),
+            position,
+            "max position error",
+        ),
+        (
+            "error-vs-force-evaluations",
+            "force evaluations, weighted by measured cost (slow-force units)",
+            Box::new(move |r: &[String]| table.number(r, weighted)),
+            position,
+            "max position error",
+        ),
+        (
+            "energy-error-vs-force-evaluations",
+            "force evaluations, weighted by measured cost (slow-force units)",
+            Box::new(move |r: &[String]| table.number(r, weighted)),
+            energy,
+            "max relative energy error",
+        ),
+    ];
+    if wall.is_some() {
+        charts.push((
+            "error-vs-wall-time",
+            "wall time (s)",
+            Box::new(|r: &[String]| wall_of.get(&r[0]).copied().unwrap_or(f64::NAN)),
+            position,
+            "max position error",
+        ));
+    }
+    for (name, x_label, cost, column, y_label) in charts {
+        let groups = method_points(table, cost.as_ref(), column)?;
+        let finite = |p: &(f64, f64)| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite();
+        let top = groups
+            .iter()
+            .flat_map(|g| g.1.iter())
+            .filter(|p| finite(p))
+            .map(|p| p.1)
+            .fold(f64::NAN, f64::max);
+        let mut chart = LineChart::new(
+            &format!("Work–precision: {y_label} vs {x_label} ({scene})"),
+            AxisSpec::log(x_label),
+            AxisSpec::log(y_label),
+        );
+        chart.legend = Corner::LowerLeft;
+        let mut unstable = Vec::new();
+        for (method, stable, failed) in &groups {
+            let points: Vec<(f64, f64)> = stable.iter().copied().filter(finite).collect();
+            if !points.is_empty() {
+                let mut series = Series::line(method, points);
+                series.style = SeriesStyle::LineAndPoints;
+                chart.series.push(series);
+            }
+            // An unstable run has no meaningful error: it is drawn at the top of the plot.
+            let ceiling = if top.is_finite() { 2.0 * top } else { 1.0 };
+            unstable.extend(
+                failed
+                    .iter()
+                    .filter(|p| p.0 > 0.0 && p.0.is_finite())
+                    .map(|p| (p.0, ceiling)),
+            );
+        }
+        if !unstable.is_empty() {
+            chart.markers.push(MarkerSet::unstable(unstable));
+        }
+        if chart.series.is_empty() && chart.markers.is_empty() {
+            continue;
+        }
+        for extension in ["png", "svg"] {
+            chart.save(&out.join(format!("{name}.{extension}")))?;
+        }
+    }
+    Ok(())
+}
+
+/// Drift against outer step for each method, unstable runs as crosses, and the resonances
+/// predicted from the fast normal modes as guide lines.
+pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
+    let method = table.column("method")?;
+    let h = table.column("h")?;
+    let status = table.column("status")?;
+    let drift = table.column("drift")?;
+    let scene = table.meta.get("scene").cloned().unwrap_or_default();
+    let mut chart = LineChart::new(
+        &format!("Step-size safety scan ({scene})"),
+        AxisSpec::linear("outer step h"),
+        AxisSpec::log("|energy drift| (kT per unit time per degree of freedom)"),
+    );
+    chart.legend = Corner::UpperLeft;
+    let floor = 1e-16;
+    let mut methods: Vec<&str> = Vec::new();
+    for row in &table.rows {
+        if !methods.contains(&row[method].as_str()) {
+            methods.push(&row[method]);
+        }
+    }
+    let top = table
+        .rows
+        .iter()
+        .map(|r| table.number(r, drift).abs())
+        .filter(|d| d.is_finite())
+        .fold(floor, f64::max);
+    let mut unstable = Vec::new();
+    for name in methods {
+        let mut points = Vec::new();
+        for row in table.rows.iter().filter(|r| r[method] == name) {
+            let x = table.number(row, h);
+            if row[status] == "unstable" {
+                unstable.push((x, 10.0 * top));
+            } else {
+                points.push((x, table.number(row, drift).abs().max(floor)));
+            }
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if !points.is_empty() {
+            let mut series = Series::line(name, points);
+            series.style = SeriesStyle::LineAndPoints;
+            chart.series.push(series);
+        }
+    }
+    if !unstable.is_empty() {
+        chart.markers.push(MarkerSet::unstable(unstable));
+    }
+    // Resonances predicted from the scene's fast modes, within the scanned range.
+    let hs: Vec<f64> = table.rows.iter().map(|r| table.number(r, h)).collect();
+    let (lo, hi) = (
+        hs.iter().copied().fold(f64::INFINITY, f64::min),
+        hs.iter().copied().fold(0.0, f64::max),
+    );
+    if let Some(path) = table.meta.get("scene") {
+        let set: Vec<String> = table
+            .meta
+            .get("set")
+            .map(|s| {
+                s.split(' ')
+                    .filter(|x| !x.is_empty())
+                    .map(str::to_string)
+                    .collect()
+            })
+            .unwrap_or_default();
+        if let Ok(mut scene) = load_scene(Path::new(path), &set) {
+            let modes = fast_modes(&mut scene.system);
+            for r in predicted_resonances(&modes, lo, hi, 3) {
+                chart.guides.push(Guide {
+                    x: r.h,
+                    label: format!("{:?} k={}", r.kind, r.k).to_lowercase(),
+                });
+            }
+        }
+    }
+    if chart.series.is_empty() && chart.markers.is_empty() {
+        return Ok(());
+    }
+    for extension in ["png", "svg"] {
+        chart.save(&out.join(format!("scan.{extension}")))?;
+    }
+    Ok(())
+}
+
+/// `longstep merge DIR…`: combine shard outputs into what a single run writes.
+pub fn merge_command(args: &MergeArgs) -> Result<()> {
+    let mut by_file: BTreeMap<String, Vec<StudyTable>> = BTreeMap::new();
+    for input in &args.inputs {
+        let files: Vec<PathBuf> = if input.is_dir() {
+            [WORK_PRECISION, WALL_TIME, SCAN_STEPS]
+                .iter()
+                .map(|f| input.join(f))
+                .filter(|p| p.exists())
+                .collect()
+        } else {
+            vec![input.clone()]
+        };
+        if files.is_empty() {
+            return Err(Error::input(format!(
+                "{}: no study table ({WORK_PRECISION}, {SCAN_STEPS}) in it",
+                input.display()
+            )));
+        }
+        for file in files {
+            let name = file
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            by_file
+                .entry(name)
+                .or_default()
+                .push(StudyTable::read(&file)?);
+        }
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let mut merged_tables = BTreeMap::new();
+    for (name, tables) in by_file {
+        let count = tables.len();
+        let merged = merge(tables)?;
+        merged.write(&args.out.join(&name))?;
+        eprintln!(
+            "merged {count} shards of {} into {}",
+            merged.study,
+            args.out.join(&name).display()
+        );
+        merged_tables.insert(merged.study.clone(), merged);
+    }
+    if let Some(table) = merged_tables.get("work-precision") {
+        draw_work_precision(
+            table,
+            merged_tables.get("work-precision-wall-time"),
+            &args.out,
+        )?;
+    }
+    if let Some(table) = merged_tables.get("scan-steps") {
+        draw_scan_steps(table, &args.out)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,150 @@
+//! `--shard k/n` and `longstep merge`: shards merged give exactly the tables and pictures of
+//! a single run.
+
+mod common;
+
+use std::path::Path;
+
+use common::{longstep, scratch_dir};
+
+fn run(args: &[&str]) {
+    let output = longstep().args(args).output().unwrap();
+    assert!(
+        output.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+fn same_files(a: &Path, b: &Path, names: &[&str]) {
+    for name in names {
+        let (x, y) = (
+            std::fs::read(a.join(name)).unwrap(),
+            std::fs::read(b.join(name)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{name} differs between the single run and the merged shards"
+        );
+    }
+}
+
+#[test]
+fn work_precision_shards_merge_into_the_single_run() {
+    let single = scratch_dir("wp-single");
+    let (first, second, merged) = (
+        scratch_dir("wp-1"),
+        scratch_dir("wp-2"),
+        scratch_dir("wp-merged"),
+    );
+    let base = [
+        "chart",
+        "work-precision",
+        "systems/two-spring.toml",
+        "--methods",
+        "impulse,long-average",
+        "--h-list",
+        "0.2,0.1",
+        "--inner",
+        "5",
+        "--t-end",
+        "2",
+        "--weights",
+        "1,0.5,1.5",
+        "--quiet",
+        "--out",
+    ];
+    let with = |out: &Path, shard: Option<&str>| {
+        let mut args: Vec<String> = base.iter().map(|s| s.to_string()).collect();
+        args.push(out.display().to_string());
+        if let Some(shard) = shard {
+            args.extend(["--shard".to_string(), shard.to_string()]);
+        }
+        args
+    };
+    let call = |args: Vec<String>| run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    call(with(&single, None));
+    call(with(&first, Some("1/2")));
+    call(with(&second, Some("2/2")));
+    run(&[
+        "merge",
+        first.to_str().unwrap(),
+        second.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    same_files(
+        &single,
+        &merged,
+        &[
+            "work-precision.csv",
+            "error-vs-slow-evaluations.png",
+            "error-vs-force-evaluations.svg",
+            "energy-error-vs-force-evaluations.png",
+        ],
+    );
+    // A shard alone is not the study: merging it refuses with the missing point.
+    let output = longstep()
+        .args([
+            "merge",
+            first.to_str().unwrap(),
+            "--out",
+            merged.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("point 1 is missing"), "{stderr}");
+}
+
+#[test]
+fn scan_shards_merge_into_the_single_run() {
+    let single = scratch_dir("scan-single");
+    let (first, second, third, merged) = (
+        scratch_dir("scan-1"),
+        scratch_dir("scan-2"),
+        scratch_dir("scan-3"),
+        scratch_dir("scan-merged"),
+    );
+    let args = |out: &Path| -> Vec<String> {
+        [
+            "scan",
+            "steps",
+            "systems/three-spring.toml",
+            "--methods",
+            "impulse,long-average",
+            "--h",
+            "0.2:0.5:0.1",
+            "--inner",
+            "10",
+            "--t-end",
+            "20",
+            "--quiet",
+            "--out",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([out.display().to_string()])
+        .collect()
+    };
+    let call = |mut a: Vec<String>, shard: Option<&str>| {
+        if let Some(s) = shard {
+            a.extend(["--shard".into(), s.into()]);
+        }
+        run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    };
+    call(args(&single), None);
+    call(args(&first), Some("1/3"));
+    call(args(&second), Some("2/3"));
+    call(args(&third), Some("3/3"));
+    run(&[
+        "merge",
+        third.to_str().unwrap(),
+        first.to_str().unwrap(),
+        second.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    same_files(&single, &merged, &["scan.csv", "scan.png", "scan.svg"]);
+}
