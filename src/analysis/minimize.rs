@@ -36,6 +36,24 @@ pub struct MinimizeReport {
     pub converged: bool,
 }
 
+impl std::fmt::Display for MinimizeReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} iterations, E {:.10e} -> {:.10e}, max force {:.2e}{}",
+            self.iterations,
+            self.energy_before,
+            self.energy_after,
+            self.max_force,
+            if self.converged {
+                ""
+            } else {
+                " (not converged)"
+            }
+        )
+    }
+}
+
 /// The largest curvature of the potential (unit masses), by power iteration with
 /// Hessian-vector products of every level.
 fn largest_curvature(system: &mut System) -> f64 {

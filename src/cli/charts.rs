@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
 
-use super::studies::{parse_shard, parse_steps, progress_bar};
+use super::studies::{check_methods, parse_shard, parse_steps, progress_bar};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::work_precision::{
     CostWeights, StudySetup, measure_cost_weights, reference, run_points, sample_times,
@@ -142,18 +142,7 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         sample,
         blowup: args.blowup,
     };
-    // Check every (method, h) builds before spending time.
-    let mut scene = load_scene(&setup.scene, &setup.set)?;
-    for method in &args.methods {
-        for &h in &steps {
-            let mut spec = setup.base.clone();
-            spec.method = Some(method.clone());
-            spec.h = Some(Value::Number(h));
-            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
-            crate::integrators::build(&settings, &mut Vec::new())
-                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-        }
-    }
+    let mut scene = check_methods(&setup.scene, &setup.set, &setup.base, &args.methods, &steps)?;
     let weights = match &args.weights {
         Some(w) => {
             if w.len() != 3 || w.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {

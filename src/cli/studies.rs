@@ -176,6 +176,29 @@ pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
     Ok((k - 1, n))
 }
 
+/// Load the scene and build every (method, h) once, so a bad combination fails before any
+/// time is spent on runs.
+pub fn check_methods(
+    scene: &std::path::Path,
+    set: &[String],
+    base: &RunSpec,
+    methods: &[String],
+    steps: &[f64],
+) -> Result<crate::io::scene::Scene> {
+    let scene = load_scene(scene, set)?;
+    for method in methods {
+        for &h in steps {
+            let mut spec = base.clone();
+            spec.method = Some(method.clone());
+            spec.h = Some(Value::Number(h));
+            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            crate::integrators::build(&settings, &mut Vec::new())
+                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+        }
+    }
+    Ok(scene)
+}
+
 /// A progress bar on a terminal, nothing otherwise.
 pub fn progress_bar(total: u64, quiet: bool, label: &str) -> indicatif::ProgressBar {
     if quiet || !std::io::stderr().is_terminal() {
@@ -221,18 +244,7 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(report) = minimized {
-        println!(
-            "minimised  {} iterations, E {:.10e} -> {:.10e}, max force {:.2e}{}",
-            report.iterations,
-            report.energy_before,
-            report.energy_after,
-            report.max_force,
-            if report.converged {
-                ""
-            } else {
-                " (not converged)"
-            }
-        );
+        println!("minimised  {report}");
     }
     let unstable = modes.iter().filter(|m| m.unstable).count();
     if unstable > 0 {
@@ -306,18 +318,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         drift_bound: args.drift_bound,
         energy_every: args.energy_every,
     };
-    // Check the scene and every method once before spending time.
-    let scene = load_scene(&setup.scene, &setup.set)?;
-    for method in &args.methods {
-        for &h in &steps {
-            let mut spec = setup.base.clone();
-            spec.method = Some(method.clone());
-            spec.h = Some(Value::Number(h));
-            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
-            crate::integrators::build(&settings, &mut Vec::new())
-                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-        }
-    }
+    check_methods(&setup.scene, &setup.set, &setup.base, &args.methods, &steps)?;
     let mut points = scan_points(&args.methods, &steps);
     let total = points.len();
     if let Some(shard) = &args.shard {
@@ -450,17 +451,6 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
             max_iterations: args.max_iterations,
         },
     );
-    println!(
-        "{} iterations, E {:.10e} -> {:.10e}, max force {:.2e}{}",
-        report.iterations,
-        report.energy_before,
-        report.energy_after,
-        report.max_force,
-        if report.converged {
-            ""
-        } else {
-            " (not converged)"
-        }
-    );
+    println!("{report}");
     Ok(())
 }

@@ -868,6 +868,16 @@ impl Builder<'_> {
                 .collect()
         };
 
+        // The pairs of a spring-like term with their rest lengths.
+        let pairs_at_rest = |between: &Option<[Reference; 2]>,
+                             pairs: &Option<Vec<[Reference; 2]>>,
+                             rest: &Option<Value>|
+         -> Result<Vec<(Site, Site, f64)>> {
+            pairs_of(between, pairs)?
+                .into_iter()
+                .map(|(a, b)| Ok((a, b, rest_length(rest, &a, &b, false)?)))
+                .collect()
+        };
         let term: Box<dyn ForceTerm> = match spec {
             TermSpec::Spring {
                 between,
@@ -877,20 +887,16 @@ impl Builder<'_> {
                 ..
             } => {
                 let stiffness = non_negative(stiffness, "stiffness")?;
-                let springs = pairs_of(between, pairs)?
+                let springs = pairs_at_rest(between, pairs, rest)?
                     .into_iter()
-                    .map(|(a, b)| {
-                        let rest_length = rest_length(rest, &a, &b, false)?;
-                        Ok((
-                            a,
-                            b,
-                            HarmonicBond {
-                                stiffness,
-                                rest_length,
-                            },
-                        ))
+                    .map(|(a, b, rest_length)| {
+                        let bond = HarmonicBond {
+                            stiffness,
+                            rest_length,
+                        };
+                        (a, b, bond)
                     })
-                    .collect::<Result<Vec<_>>>()?;
+                    .collect();
                 Box::new(harmonic_springs(dim, springs, periodic_box))
             }
             TermSpec::Chain {
@@ -949,20 +955,16 @@ impl Builder<'_> {
                 ..
             } => {
                 let coefficient = non_negative(coefficient, "coefficient")?;
-                let springs = pairs_of(between, pairs)?
+                let springs = pairs_at_rest(between, pairs, rest)?
                     .into_iter()
-                    .map(|(a, b)| {
-                        let rest_length = rest_length(rest, &a, &b, false)?;
-                        Ok((
-                            a,
-                            b,
-                            QuarticBond {
-                                coefficient,
-                                rest_length,
-                            },
-                        ))
+                    .map(|(a, b, rest_length)| {
+                        let bond = QuarticBond {
+                            coefficient,
+                            rest_length,
+                        };
+                        (a, b, bond)
                     })
-                    .collect::<Result<Vec<_>>>()?;
+                    .collect();
                 Box::new(quartic_springs(dim, springs, periodic_box))
             }
             TermSpec::Angle {
