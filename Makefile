@@ -2,7 +2,7 @@
 CARGO ?= cargo
 BIN := target/release/longstep
 
-.PHONY: run test test-all bench figures cmake fmt
+.PHONY: run test test-all bench figures figures-studies cmake fmt
 
 # chemfiles' C++ core is built with CMake; install it when missing (pip first, apt second).
 cmake:
@@ -52,6 +52,30 @@ figures: cmake
 # Integrator mode: velocity Verlet (single step) on the three-spring scene.
 	$(MAP) --mode integrator --method verlet --gamma1 0:2*pi --gamma2 0:2*pi --n 200 \
 		--out $(FIGURE_DATA)/verlet-integrator.csv --png $(FIGURES)/verlet-integrator.png
+	$(MAKE) figures-studies
+
+# docs/studies.md and docs/methods/*: work-precision charts per scene family, a step scan.
+CHART := $(BIN) chart work-precision --quiet
+figures-studies:
+	$(CARGO) build --release
+	mkdir -p $(FIGURES)/studies
+	$(CHART) systems/two-spring.toml --methods verlet,impulse,short-average,long-average,linear-average \
+		--h-list 0.4,0.2,0.1,0.05,0.025 --inner 10 --t-end 8 --out $(FIGURE_DATA)/wp-two-spring
+	cp $(FIGURE_DATA)/wp-two-spring/error-vs-force-evaluations.png $(FIGURES)/studies/wp-two-spring.png
+	$(CHART) systems/fpu.toml --methods verlet,impulse,long-average \
+		--h-list 0.04,0.02,0.01,0.005 --inner 20 --t-end 4 --out $(FIGURE_DATA)/wp-fpu
+	cp $(FIGURE_DATA)/wp-fpu/error-vs-force-evaluations.png $(FIGURES)/studies/wp-fpu.png
+	$(CHART) systems/kepler.toml --set eccentricity=0.9 --methods verlet,adaptive-verlet,structural-zd,structural-zds \
+		--h-list 0.04,0.02,0.01,0.005 --block 2 --t-end 2*pi --sample 0.04 \
+		--reference-method structural-zds --reference-h 0.00125 --out $(FIGURE_DATA)/wp-kepler
+	cp $(FIGURE_DATA)/wp-kepler/error-vs-force-evaluations.png $(FIGURES)/studies/wp-kepler.png
+	$(CHART) systems/pendulum.toml --methods verlet,adaptive-verlet,structural-zd,structural-zds \
+		--h-list 0.4,0.2,0.1,0.05 --block 2 --t-end 20 --sample 0.4 \
+		--reference-method structural-zds --reference-h 0.0125 --out $(FIGURE_DATA)/wp-pendulum
+	cp $(FIGURE_DATA)/wp-pendulum/error-vs-force-evaluations.png $(FIGURES)/studies/wp-pendulum.png
+	$(BIN) scan steps systems/three-spring.toml --methods impulse,short-average,linear-average,long-average \
+		--h 0.15:0.7:0.005 --inner 40 --t-end 250 --blowup 0.2 --quiet --out $(FIGURE_DATA)/scan-three-spring
+	cp $(FIGURE_DATA)/scan-three-spring/scan.png $(FIGURES)/studies/scan-three-spring.png
 
 fmt:
 	$(CARGO) fmt

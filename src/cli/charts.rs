@@ -259,6 +259,33 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     Ok(())
 }
 
+/// The scene's file stem and its --set values, for titles.
+fn scene_label(table: &StudyTable) -> String {
+    let path = table
+        .meta
+        .get("scene")
+        .map(String::as_str)
+        .unwrap_or_default();
+    let stem = Path::new(path)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = if stem == "scene" {
+        // systems/<name>/scene.toml: the folder names it.
+        Path::new(path)
+            .parent()
+            .and_then(|p| p.file_name())
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or(stem)
+    } else {
+        stem
+    };
+    match table.meta.get("set").filter(|s| !s.is_empty()) {
+        Some(set) => format!("{stem} ({set})"),
+        None => stem,
+    }
+}
+
 /// A method's (cost, error) points: finished runs, then unstable or failed ones.
 type MethodPoints = (String, Vec<(f64, f64)>, Vec<(f64, f64)>);
 
@@ -308,7 +335,7 @@ pub fn draw_work_precision(
                 .collect()
         })
         .unwrap_or_default();
-    let scene = table.meta.get("scene").cloned().unwrap_or_default();
+    let scene = scene_label(table);
     type CostFn<'a> = Box<dyn Fn(&[String]) -> f64 + 'a>;
     let mut charts: Vec<(&str, &str, CostFn, usize, &str)> = vec![
         (
@@ -352,7 +379,7 @@ pub fn draw_work_precision(
             .map(|p| p.1)
             .fold(f64::NAN, f64::max);
         let mut chart = LineChart::new(
-            &format!("Work–precision: {y_label} vs {x_label} ({scene})"),
+            &format!("Work–precision, {scene}"),
             AxisSpec::log(x_label),
             AxisSpec::log(y_label),
         );
@@ -394,9 +421,9 @@ pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     let h = table.column("h")?;
     let status = table.column("status")?;
     let drift = table.column("drift")?;
-    let scene = table.meta.get("scene").cloned().unwrap_or_default();
+    let scene = scene_label(table);
     let mut chart = LineChart::new(
-        &format!("Step-size safety scan ({scene})"),
+        &format!("Step-size safety scan, {scene}"),
         AxisSpec::linear("outer step h"),
         AxisSpec::log("|energy drift| (kT per unit time per degree of freedom)"),
     );
