@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::analysis::monitor::EnergyMonitor;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
 use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status};
@@ -41,6 +41,13 @@ pub fn run(
     integrator: &mut dyn Integrator,
     options: &RunOptions,
 ) -> Result<RunSummary> {
+    if system.mass_matrix.is_some() && !integrator.supports_mass_matrix() {
+        return Err(Error::input(format!(
+            "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
+             --method pseudo-energy, or set lump = true in the scene's [mass_matrix]",
+            integrator.name()
+        )));
+    }
     system.forces.reset_counts();
     integrator.setup(system)?;
     let h = integrator.outer_step();
@@ -143,5 +150,10 @@ pub fn run(
         unstable_at: stopped_early.then_some(system.state.t),
         message: message.map(|m| format!("{} stopped: {m}", integrator.name())),
         energy_csv: csv.as_ref().map(|c| c.path().display().to_string()),
+        extra: integrator
+            .report()
+            .map(|(key, value)| (key.to_string(), value))
+            .into_iter()
+            .collect(),
     })
 }

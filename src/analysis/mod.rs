@@ -1,4 +1,6 @@
 //! Analysis of runs and methods: energy monitors now; stability maps and normal modes
 //! join them.
 
+pub mod async_stability;
+pub mod exact;
 pub mod monitor;

@@ -4,6 +4,7 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod async_map;
 mod run;
 
 use std::path::PathBuf;
@@ -42,6 +43,8 @@ enum Command {
     Check(CheckArgs),
     /// List the integration methods.
     Methods,
+    /// Spectral radius of the asynchronous pseudo-energy scheme over h_slow (or h_fast) and K on a linear scene, as CSV.
+    AsyncStabilityMap(async_map::AsyncMapArgs),
 }
 
 #[derive(Args, Debug)]
@@ -90,6 +93,7 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
+        Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

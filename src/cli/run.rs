@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
+use crate::analysis::exact::position_error;
 use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
@@ -26,6 +27,7 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
 
     let mut notices = Vec::new();
     let mut integrator = integrators::build(&settings, &mut notices)?;
+    notices.extend(integrator.notices(&scene.system));
 
     let out_dir = args
         .out
@@ -48,12 +50,18 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
     };
-    let summary = run(
+    let mut summary = run(
         &scene.name,
         &mut scene.system,
         integrator.as_mut(),
         &options,
     )?;
+    if let Some(exact) = &scene.exact {
+        let error = position_error(exact.as_ref(), &scene.system.state)?;
+        let value = serde_json::to_value(&error)
+            .map_err(|e| Error::input(format!("cannot write the exact error as JSON: {e}")))?;
+        summary.extra.insert("exact_error".into(), value);
+    }
     if args.json {
         let json = serde_json::to_string_pretty(&summary)
             .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;

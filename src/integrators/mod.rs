@@ -7,8 +7,13 @@
 //! step, at which the slowest forces are sampled) and `inner_steps` / `dt` (the inner step
 //! `dt = h / inner_steps`) — never a bare "timestep".
 
+pub mod async_pseudo_energy;
+pub mod pseudo_energy;
+pub mod quadrature;
 pub mod verlet;
 
+pub use async_pseudo_energy::AsyncPseudoEnergy;
+pub use pseudo_energy::PseudoEnergy;
 pub use verlet::VelocityVerlet;
 
 use crate::error::{Error, Result};
@@ -50,6 +55,24 @@ pub trait Integrator {
 
     /// Values for [`Integrator::extra_columns`] at the current state.
     fn extra_values(&self, _system: &System, _out: &mut Vec<f64>) {}
+
+    /// Whether the method solves with a non-diagonal mass matrix
+    /// ([`System::mass_matrix`]); the run refuses a system with one otherwise.
+    fn supports_mass_matrix(&self) -> bool {
+        false
+    }
+
+    /// What the user should know about this method on this system before the run (a
+    /// fallback to another scheme, a costly split).
+    fn notices(&self, _system: &System) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// A method-specific object for the run summary, under its key (MEMM18's pseudo-energy
+    /// statistics are `("pseudo_energy", {...})`).
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        None
+    }
 }
 
 /// `p -= scale · gradient`: a kick by the force `−gradient` over time `scale`.
@@ -76,11 +99,23 @@ pub struct MethodInfo {
     pub uses: &'static [&'static str],
 }
 
-pub const METHODS: &[MethodInfo] = &[MethodInfo {
-    name: "verlet",
-    help: "velocity Verlet: every force level at every step h (single time step)",
-    uses: &[],
-}];
+pub const METHODS: &[MethodInfo] = &[
+    MethodInfo {
+        name: "verlet",
+        help: "velocity Verlet: every force level at every step h (single time step)",
+        uses: &[],
+    },
+    MethodInfo {
+        name: "pseudo-energy",
+        help: "MEMM18 (3): explicit, conserves a pseudo-energy for any steps; forces integrated along free flights",
+        uses: &["quadrature", "adaptive", "h_min"],
+    },
+    MethodInfo {
+        name: "async-pseudo-energy",
+        help: "MEMM18 (20)-(24): slow particles step h_slow = K h_fast, fast and mixed particles h_fast",
+        uses: &["quadrature", "h_slow", "h_fast", "ratio"],
+    },
+];
 
 /// Build the integrator the settings ask for. `notices` collects what the user should
 /// know, such as a setting the method does not use.
@@ -103,6 +138,10 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
     }
     match info.name {
         "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
+        "pseudo-energy" => Ok(Box::new(PseudoEnergy::from_settings(settings)?)),
+        "async-pseudo-energy" => Ok(Box::new(AsyncPseudoEnergy::from_settings(
+            settings, notices,
+        )?)),
         other => unreachable!("method {other} is listed but not built"),
     }
 }
