@@ -15,7 +15,9 @@ use longstep::system::System;
 use rand::{RngExt, SeedableRng};
 
 fn scene(name: &str, set: &[&str]) -> System {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems").join(name);
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("systems")
+        .join(name);
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
     load_scene(&path, &set).unwrap().system
 }
@@ -59,7 +61,9 @@ fn fpu_conserves_the_pseudo_energy_for_random_variable_steps() {
     let steps = 20_000;
     for rule in ["gl3", "gauss3"] {
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
-        let sequence: Vec<f64> = (0..steps).map(|_| rng.random_range(0.5e-3..1.5e-3)).collect();
+        let sequence: Vec<f64> = (0..steps)
+            .map(|_| rng.random_range(0.5e-3..1.5e-3))
+            .collect();
         let drift = sync_drift(&mut scene("fpu.toml", &[]), rule, steps, |n| sequence[n]);
         println!("fpu {rule}, random steps: max relative error {drift:.3e}");
         assert!(drift < round_off_bound(steps), "{rule}: {drift:e}");
@@ -94,8 +98,8 @@ fn async_conserves_the_pseudo_energy_at_coarse_nodes() {
     let coarse_steps = 2_000;
     for rule in ["gl3", "gl5"] {
         let mut system = scene("fpu-slow-fast.toml", &[]);
-        let mut method = AsyncPseudoEnergy::new(0.01, 50, Quadrature::by_name(rule).unwrap())
-            .unwrap();
+        let mut method =
+            AsyncPseudoEnergy::new(0.01, 50, Quadrature::by_name(rule).unwrap()).unwrap();
         method.setup(&mut system).unwrap();
         assert!(!method.is_synchronous_fallback());
         for _ in 0..coarse_steps {
@@ -104,7 +108,10 @@ fn async_conserves_the_pseudo_energy_at_coarse_nodes() {
         let drift = method.monitor().max_relative_error();
         println!("slow-fast fpu async {rule}: max relative error at coarse nodes {drift:.3e}");
         // The fast particles take 50 steps per coarse step: count every fine step.
-        assert!(drift < round_off_bound(50 * coarse_steps), "{rule}: {drift:e}");
+        assert!(
+            drift < round_off_bound(50 * coarse_steps),
+            "{rule}: {drift:e}"
+        );
     }
 }
 
