@@ -56,6 +56,11 @@ pub struct AsyncPlan {
     pub fine_dofs: Vec<usize>,
     /// Coordinates of slow particles.
     pub slow_dofs: Vec<usize>,
+    /// Coordinates of the slow particles the fine-grid slow terms touch (MEMM18's `V_M`
+    /// partners of mixed particles): the only slow coordinates a fine step reads or writes.
+    pub interface_dofs: Vec<usize>,
+    /// `fine_dofs` then `interface_dofs`: everything a fine-grid evaluation writes.
+    pub fine_written: Vec<usize>,
     pub n_fast: usize,
     pub n_mixed: usize,
     pub n_slow: usize,
@@ -99,6 +104,11 @@ impl AsyncPlan {
                 let mixed = couplings.iter().filter(|c| touches_mixed(c)).count();
                 if mixed > 0 {
                     plan.fine_terms[level].push(t);
+                    for &i in couplings.iter().flatten() {
+                        if classes[i] == ParticleClass::Slow {
+                            plan.interface_dofs.extend(i * dim..(i + 1) * dim);
+                        }
+                    }
                     if mixed < couplings.len() {
                         plan.costly_terms.push((
                             labelled.name.clone(),
@@ -111,6 +121,14 @@ impl AsyncPlan {
                 }
             }
         }
+        plan.interface_dofs.sort_unstable();
+        plan.interface_dofs.dedup();
+        plan.fine_written = plan
+            .fine_dofs
+            .iter()
+            .chain(&plan.interface_dofs)
+            .copied()
+            .collect();
         plan
     }
 }
@@ -304,7 +322,11 @@ impl AsyncPseudoEnergy {
     /// Fine-grid gradient at `scratch`: the fast level and the slow terms touching mixed
     /// particles.
     fn fine_gradient(&mut self, forces: &mut ForceSplit) {
-        self.gradient.fill(0.0);
+        // Only what the fine-grid terms write is zeroed (and later read): a fine step costs
+        // O(fast + mixed + interface), not O(all particles).
+        for &d in &self.plan.fine_written {
+            self.gradient[d] = 0.0;
+        }
         forces.add_gradient(0, &self.scratch, &mut self.gradient);
         for level in 1..self.plan.fine_terms.len() {
             forces.add_terms_gradient(
@@ -317,7 +339,9 @@ impl AsyncPseudoEnergy {
     }
 
     fn coarse_gradient(&mut self, forces: &mut ForceSplit) {
-        self.gradient.fill(0.0);
+        for &d in &self.plan.slow_dofs {
+            self.gradient[d] = 0.0;
+        }
         for level in 1..self.plan.coarse_terms.len() {
             forces.add_terms_gradient(
                 level,
@@ -351,9 +375,9 @@ impl AsyncPseudoEnergy {
                     for &d in &self.plan.fine_dofs {
                         self.scratch[d] = q[d] + s_fine * self.v_plus[d];
                     }
-                    // Slow particles on their coarse flight (23), at the same time.
+                    // Slow partners on their coarse flight (23), at the same time.
                     let s_slow = (m as f64 + tau) * h_fast;
-                    for &d in &self.plan.slow_dofs {
+                    for &d in &self.plan.interface_dofs {
                         self.scratch[d] = q[d] + s_slow * self.v_plus[d];
                     }
                     self.fine_gradient(&mut system.forces);
@@ -367,11 +391,11 @@ impl AsyncPseudoEnergy {
                     self.fine_integral[d] += w * gradient[d];
                 }
                 // ∂V_M/∂q_S over this fine interval, for (24b).
-                for &d in &self.plan.slow_dofs {
+                for &d in &self.plan.interface_dofs {
                     self.slow_integral[d] += w * h_fast * gradient[d];
                 }
                 if tau == 1.0 && ends {
-                    self.fine_end.copy_from_slice(&self.gradient);
+                    std::mem::swap(&mut self.fine_end, &mut self.gradient);
                 }
             }
             // (20a), (20b)/(22) for fast and mixed particles.
@@ -412,7 +436,7 @@ impl AsyncPseudoEnergy {
                     self.slow_integral[d] += w * h_slow * gradient[d];
                 }
                 if tau == 1.0 && ends {
-                    self.coarse_end.copy_from_slice(&self.gradient);
+                    std::mem::swap(&mut self.coarse_end, &mut self.gradient);
                 }
             }
             if ends {

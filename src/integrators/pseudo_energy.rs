@@ -335,7 +335,7 @@ impl PseudoEnergy {
                 *acc += w * g;
             }
             if tau == 1.0 && ends {
-                self.end_gradient.copy_from_slice(&self.gradient);
+                std::mem::swap(&mut self.end_gradient, &mut self.gradient);
             }
         }
     }
