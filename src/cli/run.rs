@@ -123,6 +123,15 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
         "fast graph {} connected components, the largest with {largest} particles",
         components.len()
     );
+    if let Some(mass) = &system.mass_matrix {
+        println!(
+            "mass       non-diagonal, bandwidth {} (only pseudo-energy solves with it)",
+            mass.bandwidth()
+        );
+    }
+    if let Some(exact) = &scene.exact {
+        println!("exact      {}", exact.describe());
+    }
     println!(
         "energy     E0 = {} (kinetic {}, potential per level {:?})",
         system.total_energy(),
