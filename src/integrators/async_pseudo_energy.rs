@@ -37,6 +37,8 @@
 //! says so ([`Integrator::notices`], the summary) and runs [`PseudoEnergy`] with `K` steps
 //! of `h_F` per outer step. The mass matrix must be diagonal (MEMM18 4.1).
 
+use std::ops::Range;
+
 use super::pseudo_energy::{PseudoEnergy, PseudoEnergyMonitor, pseudo_and_discrete_energy};
 use super::quadrature::Quadrature;
 use super::{Integrator, StepFailure};
@@ -59,8 +61,13 @@ pub struct AsyncPlan {
     /// Coordinates of the slow particles the fine-grid slow terms touch (MEMM18's `V_M`
     /// partners of mixed particles): the only slow coordinates a fine step reads or writes.
     pub interface_dofs: Vec<usize>,
-    /// `fine_dofs` then `interface_dofs`: everything a fine-grid evaluation writes.
+    /// `fine_dofs` and `interface_dofs`: everything a fine-grid evaluation writes.
     pub fine_written: Vec<usize>,
+    /// The same sets as contiguous index ranges, for the loops of a step.
+    fine_runs: Vec<Range<usize>>,
+    slow_runs: Vec<Range<usize>>,
+    interface_runs: Vec<Range<usize>>,
+    fine_written_runs: Vec<Range<usize>>,
     pub n_fast: usize,
     pub n_mixed: usize,
     pub n_slow: usize,
@@ -129,7 +136,92 @@ impl AsyncPlan {
             .chain(&plan.interface_dofs)
             .copied()
             .collect();
+        plan.fine_written.sort_unstable();
+        plan.fine_runs = runs_of(&plan.fine_dofs);
+        plan.slow_runs = runs_of(&plan.slow_dofs);
+        plan.interface_runs = runs_of(&plan.interface_dofs);
+        plan.fine_written_runs = runs_of(&plan.fine_written);
         plan
+    }
+}
+
+/// Sorted indices as maximal contiguous ranges.
+fn runs_of(sorted: &[usize]) -> Vec<Range<usize>> {
+    let mut runs: Vec<Range<usize>> = Vec::new();
+    for &i in sorted {
+        match runs.last_mut() {
+            Some(run) if run.end == i => run.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+/// `out = q + s v` on the runs (a free flight sampled at time offset `s`).
+fn flight(runs: &[Range<usize>], out: &mut [f64], q: &[f64], v: &[f64], s: f64) {
+    for r in runs {
+        for ((o, qi), vi) in out[r.clone()]
+            .iter_mut()
+            .zip(&q[r.clone()])
+            .zip(&v[r.clone()])
+        {
+            *o = qi + s * vi;
+        }
+    }
+}
+
+/// `acc += w g` on the runs.
+fn accumulate(runs: &[Range<usize>], acc: &mut [f64], g: &[f64], w: f64) {
+    for r in runs {
+        for (a, gi) in acc[r.clone()].iter_mut().zip(&g[r.clone()]) {
+            *a += w * gi;
+        }
+    }
+}
+
+fn zero(runs: &[Range<usize>], x: &mut [f64]) {
+    for r in runs {
+        x[r.clone()].fill(0.0);
+    }
+}
+
+/// The two-step update on the runs: `p_next = p_minus − scale · integral`,
+/// `q += h M⁻¹ p_plus`, then the half-step momenta (and velocities) shift by one.
+struct HalfSteps<'a> {
+    q: &'a mut [f64],
+    p_minus: &'a mut [f64],
+    p_plus: &'a mut [f64],
+    v_minus: &'a mut [f64],
+    v_plus: &'a mut [f64],
+}
+
+impl HalfSteps<'_> {
+    fn advance(
+        &mut self,
+        runs: &[Range<usize>],
+        integral: &[f64],
+        scale: f64,
+        h: f64,
+        inverse_mass: &[f64],
+    ) {
+        for r in runs {
+            let r = r.clone();
+            let columns = self.q[r.clone()]
+                .iter_mut()
+                .zip(&mut self.p_minus[r.clone()])
+                .zip(&mut self.p_plus[r.clone()])
+                .zip(&mut self.v_minus[r.clone()])
+                .zip(&mut self.v_plus[r.clone()])
+                .zip(integral[r.clone()].iter().zip(&inverse_mass[r]));
+            for (((((q, pm), pp), vm), vp), (i, wi)) in columns {
+                let next = *pm - scale * i;
+                *q += h * *vp;
+                *pm = *pp;
+                *vm = *vp;
+                *pp = next;
+                *vp = wi * next;
+            }
+        }
     }
 }
 
@@ -324,9 +416,7 @@ impl AsyncPseudoEnergy {
     fn fine_gradient(&mut self, forces: &mut ForceSplit) {
         // Only what the fine-grid terms write is zeroed (and later read): a fine step costs
         // O(fast + mixed + interface), not O(all particles).
-        for &d in &self.plan.fine_written {
-            self.gradient[d] = 0.0;
-        }
+        zero(&self.plan.fine_written_runs, &mut self.gradient);
         forces.add_gradient(0, &self.scratch, &mut self.gradient);
         for level in 1..self.plan.fine_terms.len() {
             forces.add_terms_gradient(
@@ -339,9 +429,7 @@ impl AsyncPseudoEnergy {
     }
 
     fn coarse_gradient(&mut self, forces: &mut ForceSplit) {
-        for &d in &self.plan.slow_dofs {
-            self.gradient[d] = 0.0;
-        }
+        zero(&self.plan.slow_runs, &mut self.gradient);
         for level in 1..self.plan.coarse_terms.len() {
             forces.add_terms_gradient(
                 level,
@@ -358,13 +446,9 @@ impl AsyncPseudoEnergy {
         // h_S as K h_F, so the slow flight sampled at the last fine node and the slow
         // drift agree to the last bit (the end gradient is reused).
         let h_slow = self.ratio as f64 * h_fast;
-        for &d in &self.plan.slow_dofs {
-            self.slow_integral[d] = 0.0;
-        }
+        zero(&self.plan.slow_runs, &mut self.slow_integral);
         for m in 0..self.ratio {
-            for &d in &self.plan.fine_dofs {
-                self.fine_integral[d] = 0.0;
-            }
+            zero(&self.plan.fine_runs, &mut self.fine_integral);
             for k in 0..self.quadrature.len() {
                 let tau = self.quadrature.nodes()[k];
                 let w = self.quadrature.weights()[k];
@@ -372,14 +456,22 @@ impl AsyncPseudoEnergy {
                 if !reuse {
                     let q = &system.state.q;
                     let s_fine = tau * h_fast;
-                    for &d in &self.plan.fine_dofs {
-                        self.scratch[d] = q[d] + s_fine * self.v_plus[d];
-                    }
+                    flight(
+                        &self.plan.fine_runs,
+                        &mut self.scratch,
+                        q,
+                        &self.v_plus,
+                        s_fine,
+                    );
                     // Slow partners on their coarse flight (23), at the same time.
                     let s_slow = (m as f64 + tau) * h_fast;
-                    for &d in &self.plan.interface_dofs {
-                        self.scratch[d] = q[d] + s_slow * self.v_plus[d];
-                    }
+                    flight(
+                        &self.plan.interface_runs,
+                        &mut self.scratch,
+                        q,
+                        &self.v_plus,
+                        s_slow,
+                    );
                     self.fine_gradient(&mut system.forces);
                 }
                 let gradient = if reuse {
@@ -387,26 +479,33 @@ impl AsyncPseudoEnergy {
                 } else {
                     &self.gradient
                 };
-                for &d in &self.plan.fine_dofs {
-                    self.fine_integral[d] += w * gradient[d];
-                }
+                accumulate(&self.plan.fine_runs, &mut self.fine_integral, gradient, w);
                 // ∂V_M/∂q_S over this fine interval, for (24b).
-                for &d in &self.plan.interface_dofs {
-                    self.slow_integral[d] += w * h_fast * gradient[d];
-                }
+                accumulate(
+                    &self.plan.interface_runs,
+                    &mut self.slow_integral,
+                    gradient,
+                    w * h_fast,
+                );
                 if tau == 1.0 && ends {
                     std::mem::swap(&mut self.fine_end, &mut self.gradient);
                 }
             }
             // (20a), (20b)/(22) for fast and mixed particles.
-            for &d in &self.plan.fine_dofs {
-                let next = self.p_minus[d] - 2.0 * h_fast * self.fine_integral[d];
-                system.state.q[d] += h_fast * self.v_plus[d];
-                self.p_minus[d] = self.p_plus[d];
-                self.v_minus[d] = self.v_plus[d];
-                self.p_plus[d] = next;
-                self.v_plus[d] = system.inverse_mass[d] * next;
+            HalfSteps {
+                q: &mut system.state.q,
+                p_minus: &mut self.p_minus,
+                p_plus: &mut self.p_plus,
+                v_minus: &mut self.v_minus,
+                v_plus: &mut self.v_plus,
             }
+            .advance(
+                &self.plan.fine_runs,
+                &self.fine_integral,
+                2.0 * h_fast,
+                h_fast,
+                &system.inverse_mass,
+            );
             if ends {
                 std::mem::swap(&mut self.fine_start, &mut self.fine_end);
                 self.fine_start_valid = true;
@@ -420,11 +519,14 @@ impl AsyncPseudoEnergy {
                 let w = self.quadrature.weights()[k];
                 let reuse = tau == 0.0 && ends && self.coarse_start_valid;
                 if !reuse {
-                    let q = &system.state.q;
                     let s = tau * h_slow;
-                    for &d in &self.plan.slow_dofs {
-                        self.scratch[d] = q[d] + s * self.v_plus[d];
-                    }
+                    flight(
+                        &self.plan.slow_runs,
+                        &mut self.scratch,
+                        &system.state.q,
+                        &self.v_plus,
+                        s,
+                    );
                     self.coarse_gradient(&mut system.forces);
                 }
                 let gradient = if reuse {
@@ -432,9 +534,12 @@ impl AsyncPseudoEnergy {
                 } else {
                     &self.gradient
                 };
-                for &d in &self.plan.slow_dofs {
-                    self.slow_integral[d] += w * h_slow * gradient[d];
-                }
+                accumulate(
+                    &self.plan.slow_runs,
+                    &mut self.slow_integral,
+                    gradient,
+                    w * h_slow,
+                );
                 if tau == 1.0 && ends {
                     std::mem::swap(&mut self.coarse_end, &mut self.gradient);
                 }
@@ -445,14 +550,20 @@ impl AsyncPseudoEnergy {
             }
         }
         // (24a), (24b) for slow particles.
-        for &d in &self.plan.slow_dofs {
-            let next = self.p_minus[d] - 2.0 * self.slow_integral[d];
-            system.state.q[d] += h_slow * self.v_plus[d];
-            self.p_minus[d] = self.p_plus[d];
-            self.v_minus[d] = self.v_plus[d];
-            self.p_plus[d] = next;
-            self.v_plus[d] = system.inverse_mass[d] * next;
+        HalfSteps {
+            q: &mut system.state.q,
+            p_minus: &mut self.p_minus,
+            p_plus: &mut self.p_plus,
+            v_minus: &mut self.v_minus,
+            v_plus: &mut self.v_plus,
         }
+        .advance(
+            &self.plan.slow_runs,
+            &self.slow_integral,
+            2.0,
+            h_slow,
+            &system.inverse_mass,
+        );
         self.sync_state(system);
     }
 }
