@@ -37,27 +37,27 @@ use crate::system::System;
 
 /// A pseudo-energy scheme seen as a map of its state vector.
 pub enum Scheme {
-    Synchronous(PseudoEnergy),
-    Asynchronous(AsyncPseudoEnergy),
+    Synchronous(Box<PseudoEnergy>),
+    Asynchronous(Box<AsyncPseudoEnergy>),
 }
 
 impl Scheme {
     pub fn synchronous(h: f64, quadrature: Quadrature) -> Result<Self> {
-        Ok(Scheme::Synchronous(
+        Ok(Scheme::Synchronous(Box::new(
             PseudoEnergy::new(h, quadrature)?.with_monitor(false),
-        ))
+        )))
     }
 
     pub fn asynchronous(h_slow: f64, ratio: usize, quadrature: Quadrature) -> Result<Self> {
-        Ok(Scheme::Asynchronous(
+        Ok(Scheme::Asynchronous(Box::new(
             AsyncPseudoEnergy::new(h_slow, ratio, quadrature)?.with_monitor(false),
-        ))
+        )))
     }
 
     fn integrator(&mut self) -> &mut dyn Integrator {
         match self {
-            Scheme::Synchronous(s) => s,
-            Scheme::Asynchronous(s) => s,
+            Scheme::Synchronous(s) => s.as_mut(),
+            Scheme::Asynchronous(s) => s.as_mut(),
         }
     }
 
