@@ -79,3 +79,12 @@ figures-studies:
 
 fmt:
 	$(CARGO) fmt
+
+# docs/pseudo-energy.md and docs/data/pseudo-energy/*.csv (MEMM18 studies, several minutes).
+figures: figures-pseudo-energy
+
+.PHONY: figures-pseudo-energy
+
+figures-pseudo-energy: cmake
+	$(CARGO) bench --bench pseudo_energy
+	$(CARGO) run --release --example pseudo_energy_report

@@ -59,6 +59,13 @@ pub fn run(
             integrator.name()
         )));
     }
+    if system.mass_matrix.is_some() && !integrator.supports_mass_matrix() {
+        return Err(Error::input(format!(
+            "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
+             --method pseudo-energy, or set lump = true in the scene's [mass_matrix]",
+            integrator.name()
+        )));
+    }
     system.forces.reset_counts();
     integrator.setup(system)?;
     let h = integrator.outer_step();
@@ -166,5 +173,10 @@ pub fn run(
         message: message.map(|m| format!("{} stopped: {m}", integrator.name())),
         energy_csv: csv.as_ref().map(|c| c.path().display().to_string()),
         series,
+        extra: integrator
+            .report()
+            .map(|(key, value)| (key.to_string(), value))
+            .into_iter()
+            .collect(),
     })
 }

@@ -171,6 +171,38 @@ impl ForceSplit {
         self.counts.gradient[level] += 1;
     }
 
+    /// `gradient += ∇V_T(q)` for a subset `terms` (indices into [`ForceSplit::terms`]) of
+    /// the terms on `level`: one evaluation of the level when the subset is not empty, and
+    /// its terms' interactions. The asynchronous pseudo-energy scheme (MEMM18 (20)–(24))
+    /// evaluates the slow terms that touch mixed particles on the fine grid and the others
+    /// on the coarse grid with it.
+    pub fn add_terms_gradient(
+        &mut self,
+        level: usize,
+        terms: &[usize],
+        q: &[f64],
+        gradient: &mut [f64],
+    ) {
+        if terms.is_empty() {
+            return;
+        }
+        for &t in terms {
+            debug_assert_eq!(
+                self.terms[t].level, level,
+                "term {t} is not on level {level}"
+            );
+            let term = &self.terms[t].term;
+            term.add_gradient(q, gradient);
+            self.counts.interactions += term.interaction_count() as u64;
+        }
+        self.counts.gradient[level] += 1;
+    }
+
+    /// Indices (into [`ForceSplit::terms`]) of the terms on `level`.
+    pub fn level_terms(&self, level: usize) -> &[usize] {
+        &self.levels[level]
+    }
+
     /// `gradient = ∇V(q)` over all levels (one evaluation of each non-empty level).
     pub fn total_gradient(&mut self, q: &[f64], gradient: &mut [f64]) {
         gradient.fill(0.0);

@@ -1,6 +1,8 @@
 //! Analysis of runs and methods: energy monitors, normal modes and resonance prediction,
 //! minimisation, and step-size safety scans.
 
+pub mod async_stability;
+pub mod exact;
 pub mod minimize;
 pub mod modes;
 pub mod monitor;

@@ -4,6 +4,7 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod async_map;
 mod charts;
 mod run;
 pub mod stability;
@@ -62,6 +63,8 @@ enum Command {
     StabilityMap(Box<stability::StabilityMapArgs>),
     /// The spectral radius and instability type at one (Γ1, Γ2).
     SpectralRadius(Box<stability::SpectralRadiusArgs>),
+    /// Spectral radius of the asynchronous pseudo-energy scheme over h_slow (or h_fast) and K on a linear scene, as CSV.
+    AsyncStabilityMap(async_map::AsyncMapArgs),
 }
 
 #[derive(Args, Debug)]
@@ -124,6 +127,7 @@ pub fn main() -> i32 {
         Command::Merge(args) => charts::merge_command(&args).map(|()| 0),
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
+        Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
+use crate::analysis::exact::position_error;
 use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
@@ -26,6 +27,7 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
 
     let mut notices = Vec::new();
     let mut integrator = integrators::build(&settings, &mut notices)?;
+    notices.extend(integrator.notices(&scene.system));
 
     let out_dir = args
         .out
@@ -49,12 +51,18 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         energy_csv: Some(out_dir.join("energy.csv")),
         ..Default::default()
     };
-    let summary = run(
+    let mut summary = run(
         &scene.name,
         &mut scene.system,
         integrator.as_mut(),
         &options,
     )?;
+    if let Some(exact) = &scene.exact {
+        let error = position_error(exact.as_ref(), &scene.system.state)?;
+        let value = serde_json::to_value(&error)
+            .map_err(|e| Error::input(format!("cannot write the exact error as JSON: {e}")))?;
+        summary.extra.insert("exact_error".into(), value);
+    }
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
     }
@@ -119,6 +127,15 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
         "fast graph {} connected components, the largest with {largest} particles",
         components.len()
     );
+    if let Some(mass) = &system.mass_matrix {
+        println!(
+            "mass       non-diagonal, bandwidth {} (only pseudo-energy solves with it)",
+            mass.bandwidth()
+        );
+    }
+    if let Some(exact) = &scene.exact {
+        println!("exact      {}", exact.describe());
+    }
     println!(
         "energy     E0 = {} (kinetic {}, potential per level {:?})",
         system.total_energy(),

@@ -24,6 +24,7 @@ pub mod pair;
 pub mod pendulum;
 pub mod quartic;
 pub mod spring;
+pub mod string;
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]

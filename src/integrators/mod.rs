@@ -8,13 +8,18 @@
 //! `dt = h / inner_steps`) — never a bare "timestep".
 
 pub mod adaptive_verlet;
+pub mod async_pseudo_energy;
 pub mod impulse;
 pub mod mollified;
+pub mod pseudo_energy;
+pub mod quadrature;
 pub mod structural;
 pub mod verlet;
 
 pub use adaptive_verlet::AdaptiveVerlet;
+pub use async_pseudo_energy::AsyncPseudoEnergy;
 pub use impulse::Impulse;
+pub use pseudo_energy::PseudoEnergy;
 pub use structural::{Structural, StructuralKind};
 pub use verlet::VelocityVerlet;
 
@@ -63,6 +68,24 @@ pub trait Integrator {
     /// refuses such a system for every other method.
     fn handles_magnetic(&self) -> bool {
         false
+    }
+
+    /// Whether the method solves with a non-diagonal mass matrix
+    /// ([`System::mass_matrix`]); the run refuses a system with one otherwise.
+    fn supports_mass_matrix(&self) -> bool {
+        false
+    }
+
+    /// What the user should know about this method on this system before the run (a
+    /// fallback to another scheme, a costly split).
+    fn notices(&self, _system: &System) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// A method-specific object for the run summary, under its key (MEMM18's pseudo-energy
+    /// statistics are `("pseudo_energy", {...})`).
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        None
     }
 }
 
@@ -142,6 +165,16 @@ pub const METHODS: &[MethodInfo] = &[
                --block R, --tol, --max-iter",
         uses: &["block", "tol", "max_iter"],
     },
+    MethodInfo {
+        name: "pseudo-energy",
+        help: "MEMM18 (3): explicit, conserves a pseudo-energy for any steps; forces integrated along free flights",
+        uses: &["quadrature", "adaptive", "h_min"],
+    },
+    MethodInfo {
+        name: "async-pseudo-energy",
+        help: "MEMM18 (20)-(24): slow particles step h_slow = K h_fast, fast and mixed particles h_fast",
+        uses: &["quadrature", "h_slow", "h_fast", "ratio"],
+    },
 ];
 
 /// Build the integrator the settings ask for. `notices` collects what the user should
@@ -208,6 +241,10 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
                     .unwrap_or(structural::DEFAULT_MAX_ITERATIONS),
             )?))
         }
+        "pseudo-energy" => Ok(Box::new(PseudoEnergy::from_settings(settings)?)),
+        "async-pseudo-energy" => Ok(Box::new(AsyncPseudoEnergy::from_settings(
+            settings, notices,
+        )?)),
         other => unreachable!("method {other} is listed but not built"),
     }
 }

@@ -13,6 +13,7 @@ use toml::Spanned;
 
 use super::expr;
 use super::structure::{Structure, read_structure};
+use crate::analysis::exact::{ExactSolution, ExpressionSolution, TwoMediaWave};
 use crate::error::{Error, Result};
 use crate::forces::angle::{AngleBend, HarmonicAngles};
 use crate::forces::external_field::{ExternalField, FieldShape};
@@ -24,10 +25,11 @@ use crate::forces::magnetic::{MagneticTerm, VectorPotential};
 use crate::forces::pendulum::Pendulum;
 use crate::forces::quartic::{QuarticBond, quartic_springs};
 use crate::forces::spring::{HarmonicBond, harmonic_springs};
+use crate::forces::string::FemString;
 use crate::forces::{ForceTerm, Site};
 use crate::settings::{RunSpec, Value};
 use crate::split::{Assignment, ForceSplit};
-use crate::system::{Particles, PeriodicBox, State, System};
+use crate::system::{MassMatrix, Particles, PeriodicBox, State, System};
 
 /// The scene-file format version this build reads.
 pub const SCENE_VERSION: u32 = 1;
@@ -83,14 +85,59 @@ pub struct SceneFile {
     pub run: RunSpec,
     #[serde(default)]
     pub output: OutputSpec,
+    /// A non-diagonal mass matrix (the particles' masses are its diagonal).
+    pub mass_matrix: Option<Spanned<MassMatrixSpec>>,
+    /// An exact solution to measure the run's error against.
+    pub exact: Option<Spanned<ExactSpec>>,
+}
+
+/// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MassMatrixSpec {
+    /// The value of every listed entry (`"dx/6"` for P1 elements).
+    pub off_diagonal: Value,
+    /// `"chain"` (every consecutive pair `i, i + 1`) or a list of pairs.
+    pub pairs: MassPairs,
+    /// Lump the matrix: add each row's off-diagonal entries to its diagonal, so every
+    /// method can run it (default false: solve with the full matrix).
+    pub lump: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MassPairs {
+    Keyword(String),
+    List(Vec<[Reference; 2]>),
+}
+
+/// `[exact]`: an exact solution (see [`crate::analysis::exact`]).
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ExactSpec {
+    /// One expression per axis in `t`, the particle index `i` and the parameters.
+    Expression { position: Vec<String> },
+    /// MEMM18 4.3.2's pulse through an interface between two wave speeds.
+    TwoMediaWave {
+        c1: Value,
+        c2: Value,
+        interface: Value,
+        /// `u₀(x)`, an expression in `x`.
+        pulse: String,
+        /// `u₀` is zero outside `[a, b]`.
+        support: [Value; 2],
+        /// Rest position of particle `i`, an expression in `i`.
+        node: String,
+    },
 }
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleSpec {
     /// Generate this many particles; their expressions see the index `i` = 0, 1, …
-    /// and `{i}` in the name is replaced by it.
-    pub count: Option<usize>,
+    /// and `{i}` in the name is replaced by it. A number, or an expression in the
+    /// parameters (`"n - 1"`) that evaluates to a whole number.
+    pub count: Option<Value>,
     pub name: Option<String>,
     pub mass: Value,
     pub position: Vec<Value>,
@@ -128,6 +175,12 @@ pub enum TermSpec {
         rest_length: Option<Value>,
         group: Option<Group>,
         level: Option<usize>,
+        /// Instead of `particles`: the particles `first..=last` by index (expressions).
+        range: Option<[Value; 2]>,
+        /// A site (anchor or particle) linked before the first particle.
+        start: Option<Reference>,
+        /// A site linked after the last particle.
+        end: Option<Reference>,
     },
     /// FPU springs `c (r − L)⁴`.
     QuarticSpring {
@@ -177,6 +230,18 @@ pub enum TermSpec {
         name: Option<String>,
         particles: Option<Vec<Reference>>,
         force: Vec<Value>,
+        group: Option<Group>,
+        level: Option<usize>,
+    },
+    /// The P1 finite-element nonlinear string of MEMM18 3.3 over consecutive sites.
+    FemString {
+        name: Option<String>,
+        particles: Option<Vec<Reference>>,
+        range: Option<[Value; 2]>,
+        start: Option<Reference>,
+        end: Option<Reference>,
+        element_length: Value,
+        alpha: Value,
         group: Option<Group>,
         level: Option<usize>,
     },
@@ -249,6 +314,8 @@ pub struct Scene {
     /// The scene's `[run]` table, unevaluated (the command line overrides it).
     pub run: RunSpec,
     pub output: OutputSpec,
+    /// The scene's exact solution, when it gives one (`[exact]`).
+    pub exact: Option<Box<dyn ExactSolution>>,
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters.
@@ -341,10 +408,19 @@ impl Builder<'_> {
                 for spanned in &file.particles {
                     let offset = spanned.span().start;
                     let spec = spanned.get_ref();
-                    let count = spec.count.unwrap_or(1);
-                    if count == 0 {
-                        return Err(self.error_at(offset, "particle count must be at least 1"));
-                    }
+                    let count = match &spec.count {
+                        Some(v) => {
+                            let x = value(v, "particle count", offset)?;
+                            if x < 1.0 || x.fract() != 0.0 {
+                                return Err(self.error_at(
+                                    offset,
+                                    format!("particle count must be a whole number ≥ 1, got {x}"),
+                                ));
+                            }
+                            x as usize
+                        }
+                        None => 1,
+                    };
                     // A generated block evaluates its expressions with `i` = 0, 1, … count − 1.
                     let mut local = parameters.clone();
                     for i in 0..count {
@@ -512,6 +588,14 @@ impl Builder<'_> {
             None => None,
         };
 
+        // A non-diagonal mass matrix, or its lumped diagonal.
+        let mass_matrix = match &file.mass_matrix {
+            Some(spanned) => {
+                self.mass_matrix(spanned, dim, &mut masses, &names_table, &parameters)?
+            }
+            None => None,
+        };
+
         // Terms.
         let mut terms: Vec<(String, Box<dyn ForceTerm>, Assignment)> = Vec::new();
         for (index, spanned) in file.terms.iter().enumerate() {
@@ -530,14 +614,21 @@ impl Builder<'_> {
         let forces = ForceSplit::new(terms).map_err(|e| self.error(e.to_string()))?;
 
         let state = State { t: 0.0, q, p };
-        let system = System::new(
+        let mut system = System::new(
             dim,
             Particles { names, masses },
             state,
             forces,
             periodic_box,
         );
+        if let Some(mass_matrix) = mass_matrix {
+            system = system.with_mass_matrix(mass_matrix);
+        }
         self.check_finite_start(&system)?;
+        let exact = match &file.exact {
+            Some(spanned) => Some(self.exact_solution(spanned, dim, &parameters)?),
+            None => None,
+        };
 
         Ok(Scene {
             name: file.name,
@@ -547,7 +638,129 @@ impl Builder<'_> {
             system,
             run: file.run,
             output: file.output,
+            exact,
         })
+    }
+
+    /// The `[mass_matrix]` table: the full matrix, or `None` after lumping it into `masses`.
+    fn mass_matrix(
+        &self,
+        spanned: &Spanned<MassMatrixSpec>,
+        dim: usize,
+        masses: &mut [f64],
+        names: &Names,
+        parameters: &BTreeMap<String, f64>,
+    ) -> Result<Option<MassMatrix>> {
+        let offset = spanned.span().start;
+        let spec = spanned.get_ref();
+        let what = "[mass_matrix]";
+        let value = self.evaluate(
+            &spec.off_diagonal,
+            parameters,
+            "[mass_matrix] off_diagonal",
+            offset,
+        )?;
+        let pairs: Vec<(usize, usize)> = match &spec.pairs {
+            MassPairs::Keyword(word) if word == "chain" => {
+                (1..masses.len()).map(|i| (i - 1, i)).collect()
+            }
+            MassPairs::Keyword(other) => {
+                return Err(self.error_at(
+                    offset,
+                    format!("{what}: pairs must be \"chain\" or a list of pairs, got \"{other}\""),
+                ));
+            }
+            MassPairs::List(list) => list
+                .iter()
+                .map(|[a, b]| {
+                    Ok((
+                        self.particle(a, names, what, offset)?,
+                        self.particle(b, names, what, offset)?,
+                    ))
+                })
+                .collect::<Result<_>>()?,
+        };
+        let entries: Vec<(usize, usize, f64)> = pairs.iter().map(|&(i, j)| (i, j, value)).collect();
+        let matrix = MassMatrix::new(dim, masses, &entries)
+            .map_err(|e| self.error_at(offset, format!("{what}: {e}")))?;
+        if spec.lump.unwrap_or(false) {
+            let lumped = matrix.row_sums();
+            if let Some(i) = lumped.iter().position(|&m| m.is_nan() || m <= 0.0) {
+                return Err(self.error_at(
+                    offset,
+                    format!(
+                        "{what}: lumped mass of particle {i} is {} (not positive)",
+                        lumped[i]
+                    ),
+                ));
+            }
+            masses.copy_from_slice(&lumped);
+            return Ok(None);
+        }
+        Ok(Some(matrix))
+    }
+
+    fn exact_solution(
+        &self,
+        spanned: &Spanned<ExactSpec>,
+        dim: usize,
+        parameters: &BTreeMap<String, f64>,
+    ) -> Result<Box<dyn ExactSolution>> {
+        let offset = spanned.span().start;
+        let solution: Box<dyn ExactSolution> = match spanned.get_ref() {
+            ExactSpec::Expression { position } => {
+                if position.len() != dim {
+                    return Err(self.error_at(
+                        offset,
+                        format!(
+                            "[exact] position has {} components, but the scene has dim = {dim}",
+                            position.len()
+                        ),
+                    ));
+                }
+                Box::new(ExpressionSolution {
+                    dim,
+                    position: position.clone(),
+                    parameters: parameters.clone(),
+                })
+            }
+            ExactSpec::TwoMediaWave {
+                c1,
+                c2,
+                interface,
+                pulse,
+                support,
+                node,
+            } => {
+                let positive = |v: &Value, key: &str| -> Result<f64> {
+                    let x = self.evaluate(v, parameters, &format!("[exact] {key}"), offset)?;
+                    if x <= 0.0 {
+                        return Err(self
+                            .error_at(offset, format!("[exact] {key} must be positive, got {x}")));
+                    }
+                    Ok(x)
+                };
+                let support = (
+                    self.evaluate(&support[0], parameters, "[exact] support", offset)?,
+                    self.evaluate(&support[1], parameters, "[exact] support", offset)?,
+                );
+                Box::new(TwoMediaWave {
+                    c1: positive(c1, "c1")?,
+                    c2: positive(c2, "c2")?,
+                    interface: positive(interface, "interface")?,
+                    pulse: pulse.clone(),
+                    support,
+                    node: node.clone(),
+                    parameters: parameters.clone(),
+                })
+            }
+        };
+        // Evaluate once now, so a typo is a scene error and not a failure after the run.
+        let mut probe = vec![0.0; dim];
+        solution
+            .positions(0.0, &mut probe)
+            .map_err(|e| self.error_at(offset, e.to_string()))?;
+        Ok(solution)
     }
 
     /// `[parameters]` with the `--set` overrides applied, each evaluated once (they may
@@ -714,6 +927,63 @@ impl Builder<'_> {
         }
     }
 
+    /// The sites of a chain-like term: `start`, then `particles` (or `range`, or every
+    /// particle), then `end`; consecutive sites are linked.
+    #[allow(clippy::too_many_arguments)]
+    fn chain_sites(
+        &self,
+        particles: &Option<Vec<Reference>>,
+        range: &Option<[Value; 2]>,
+        start: &Option<Reference>,
+        end: &Option<Reference>,
+        names: &Names,
+        parameters: &BTreeMap<String, f64>,
+        what: &str,
+        offset: usize,
+    ) -> Result<Vec<Site>> {
+        let members = match (particles, range) {
+            (Some(_), Some(_)) => {
+                return Err(self.error_at(
+                    offset,
+                    format!("{what} gives both particles and range; give one"),
+                ));
+            }
+            (_, Some([first, last])) => {
+                let index = |v: &Value, key: &str| -> Result<usize> {
+                    let x =
+                        self.evaluate(v, parameters, &format!("{what}: range {key}"), offset)?;
+                    if x < 0.0 || x.fract() != 0.0 || x as usize >= names.n_particles {
+                        return Err(self.error_at(
+                            offset,
+                            format!(
+                                "{what}: range {key} = {x} is not a particle index (0 to {})",
+                                names.n_particles.saturating_sub(1)
+                            ),
+                        ));
+                    }
+                    Ok(x as usize)
+                };
+                let (first, last) = (index(first, "first")?, index(last, "last")?);
+                if last < first {
+                    return Err(
+                        self.error_at(offset, format!("{what}: range [{first}, {last}] is empty"))
+                    );
+                }
+                (first..=last).collect()
+            }
+            (list, None) => self.particle_list(list, names, what, offset)?,
+        };
+        let mut sites = Vec::with_capacity(members.len() + 2);
+        if let Some(reference) = start {
+            sites.push(self.site(reference, names, what, offset)?);
+        }
+        sites.extend(members.into_iter().map(Site::Particle));
+        if let Some(reference) = end {
+            sites.push(self.site(reference, names, what, offset)?);
+        }
+        Ok(sites)
+    }
+
     fn particle_list(
         &self,
         list: &Option<Vec<Reference>>,
@@ -776,6 +1046,9 @@ impl Builder<'_> {
                 name, group, level, ..
             }
             | TermSpec::ExternalField {
+                name, group, level, ..
+            }
+            | TermSpec::FemString {
                 name, group, level, ..
             } => (name, *group, *level),
         };
@@ -903,9 +1176,14 @@ impl Builder<'_> {
                 particles,
                 stiffness,
                 rest_length: rest,
+                range,
+                start,
+                end,
                 ..
             } => {
-                let chain = self.particle_list(particles, names, &what, offset)?;
+                let chain = self.chain_sites(
+                    particles, range, start, end, names, parameters, &what, offset,
+                )?;
                 if chain.len() < 2 {
                     return Err(self.error_at(
                         offset,
@@ -933,7 +1211,7 @@ impl Builder<'_> {
                                 ),
                             ));
                         }
-                        let (a, b) = (Site::Particle(link[0]), Site::Particle(link[1]));
+                        let (a, b) = (link[0], link[1]);
                         let rest_length = rest_length(rest, &a, &b, true)?;
                         Ok((
                             a,
@@ -1117,6 +1395,39 @@ impl Builder<'_> {
                 let mut force = [0.0; 3];
                 force[..dim].copy_from_slice(&vector);
                 Box::new(UniformField::new(dim, members, force))
+            }
+            TermSpec::FemString {
+                particles,
+                range,
+                start,
+                end,
+                element_length,
+                alpha,
+                ..
+            } => {
+                let sites = self.chain_sites(
+                    particles, range, start, end, names, parameters, &what, offset,
+                )?;
+                if sites.len() < 2 {
+                    return Err(
+                        self.error_at(offset, format!("{what}: a string needs at least two sites"))
+                    );
+                }
+                let length = number(element_length, "element_length")?;
+                if length <= 0.0 {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: element_length must be positive, got {length}"),
+                    ));
+                }
+                let alpha = number(alpha, "alpha")?;
+                if !(0.0..1.0).contains(&alpha) {
+                    return Err(self.error_at(
+                        offset,
+                        format!("{what}: alpha must be in [0, 1) (convex energy), got {alpha}"),
+                    ));
+                }
+                Box::new(FemString::new(dim, sites, length, alpha))
             }
             TermSpec::Pendulum {
                 particles,

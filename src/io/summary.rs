@@ -3,7 +3,10 @@
 //! The JSON keys are a contract with scripts and later commands: `method`, `h`, `steps`,
 //! `t_end`, `force_evaluations` (`fast`, `slow`, `hessian_vector`, …), `energy`
 //! (`initial`, `final`, `max_abs_error`, `max_relative_error`), `wall_seconds`, `status`
-//! (`"ok"`, `"unstable"` or `"failed"`) and `unstable_at` when not ok.
+//! (`"ok"`, `"unstable"` or `"failed"`) and `unstable_at` when not ok; methods and scenes
+//! may add objects of their own (`pseudo_energy`, `exact_error`).
+
+use std::collections::BTreeMap;
 
 use serde::Serialize;
 
@@ -23,6 +26,10 @@ pub struct ForceEvaluations {
     /// Elementary interactions evaluated (springs, pairs, angles), gradients and
     /// Hessian-vector products together.
     pub interactions: u64,
+    /// Term evaluations: one per elementary interaction per force evaluation (quadrature
+    /// node), the unit of MEMM18's counts N_s and N_a (4.3.1). The same number as
+    /// `interactions`, under the name the pseudo-energy comparisons use.
+    pub terms: u64,
 }
 
 impl From<&ForceCounts> for ForceEvaluations {
@@ -33,6 +40,7 @@ impl From<&ForceCounts> for ForceEvaluations {
             hessian_vector: counts.hessian_vector_total(),
             levels: counts.gradient.clone(),
             interactions: counts.interactions,
+            terms: counts.interactions,
         }
     }
 }
@@ -76,6 +84,11 @@ pub struct RunSummary {
     /// `(t, kinetic, total)` per recorded row, when the run was asked to keep them.
     #[serde(skip)]
     pub series: Vec<[f64; 3]>,
+    /// Method- or scene-specific objects, each a top-level key of the JSON summary
+    /// (`pseudo_energy` from the pseudo-energy methods, `exact_error` from scenes with an
+    /// exact solution).
+    #[serde(flatten)]
+    pub extra: BTreeMap<String, serde_json::Value>,
 }
 
 impl RunSummary {
@@ -113,9 +126,32 @@ impl RunSummary {
             (_, None) => "failed".to_string(),
         };
         lines.push(format!("status     {status}"));
+        for (key, value) in &self.extra {
+            lines.push(format!(
+                "{:<10} {}",
+                key.replace('_', "-"),
+                compact_json(value)
+            ));
+        }
         if let Some(path) = &self.energy_csv {
             lines.push(format!("output     {path}"));
         }
         lines.join("\n")
+    }
+}
+
+/// A JSON object on one line, numbers in short exponent form: `a = 1.2e-13, b = "gl3"`.
+fn compact_json(value: &serde_json::Value) -> String {
+    match value {
+        serde_json::Value::Object(map) => map
+            .iter()
+            .map(|(k, v)| format!("{k} = {}", compact_json(v)))
+            .collect::<Vec<_>>()
+            .join(", "),
+        serde_json::Value::Number(n) => match n.as_f64() {
+            Some(x) if n.is_f64() => format!("{x:.6e}"),
+            _ => n.to_string(),
+        },
+        other => other.to_string(),
     }
 }

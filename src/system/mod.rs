@@ -3,10 +3,14 @@
 //! Positions and momenta are flat `n_particles × dim` arrays (`q[i * dim + a]` is
 //! coordinate `a` of particle `i`), with `dim ∈ {1, 2, 3}` chosen by the scene, so a
 //! 1-D chain stores one number per particle. The mass matrix is diagonal; its inverse is
-//! kept per degree of freedom so drifts are one multiply per coordinate.
+//! kept per degree of freedom so drifts are one multiply per coordinate. A scene may ask
+//! for a banded non-diagonal mass matrix instead ([`MassMatrix`], the consistent P1 mass of
+//! MEMM18 3.3); then the masses are its diagonal and only methods that solve with it run.
 
+mod mass;
 mod periodic_box;
 
+pub use mass::{MAX_BANDWIDTH, MassMatrix};
 pub use periodic_box::PeriodicBox;
 
 use crate::split::ForceSplit;
@@ -44,6 +48,9 @@ pub struct System {
     pub state: State,
     pub forces: ForceSplit,
     pub periodic_box: Option<PeriodicBox>,
+    /// A non-diagonal mass matrix, when the scene gives one (`None`: `M` is diagonal and
+    /// `inverse_mass` is `M⁻¹`). Its diagonal is `particles.masses`.
+    pub mass_matrix: Option<MassMatrix>,
 }
 
 impl System {
@@ -67,6 +74,26 @@ impl System {
             state,
             forces,
             periodic_box,
+            mass_matrix: None,
+        }
+    }
+
+    /// This system with a non-diagonal mass matrix (its diagonal must be the masses).
+    pub fn with_mass_matrix(mut self, mass_matrix: MassMatrix) -> Self {
+        self.mass_matrix = Some(mass_matrix);
+        self
+    }
+
+    /// `velocity = M⁻¹ p`: a multiply per coordinate, or a banded solve with a mass matrix.
+    /// Allocates nothing.
+    pub fn velocity(&self, p: &[f64], velocity: &mut [f64]) {
+        match &self.mass_matrix {
+            Some(mass) => mass.solve(p, velocity),
+            None => {
+                for ((v, pi), wi) in velocity.iter_mut().zip(p).zip(&self.inverse_mass) {
+                    *v = wi * pi;
+                }
+            }
         }
     }
 
@@ -79,9 +106,12 @@ impl System {
         self.state.q.len()
     }
 
-    /// `pᵀ M⁻¹ p / 2`.
+    /// `pᵀ M⁻¹ p / 2` (with the mass matrix when there is one).
     pub fn kinetic_energy(&self) -> f64 {
-        kinetic_energy(&self.state.p, &self.inverse_mass)
+        match &self.mass_matrix {
+            Some(mass) => 0.5 * mass.inverse_quadratic_form(&self.state.p),
+            None => kinetic_energy(&self.state.p, &self.inverse_mass),
+        }
     }
 
     /// Potential energy of every level, innermost (fastest) first.

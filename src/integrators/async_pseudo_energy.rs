@@ -1,0 +1,725 @@
+//! The asynchronous slow-fast pseudo-energy scheme of MEMM18 section 4 ((20)–(24)).
+//!
+//! The splitter's classes (MEMM18 4.1, [`ForceSplit::classify_particles`]): level 0 holds
+//! the fast forces, every other level the slow ones; fast particles feel only fast forces,
+//! slow particles only slow ones, mixed particles both. With `h_S = K h_F` and the coarse
+//! interval `[t^n, t^{n+1}]` cut into `K` fine ones `[t^{n,m}, t^{n,m+1}]`:
+//!
+//! * slow particles fly freely over the whole coarse interval (23):
+//!   `q̂_S(t) = q_S^n + (t − t^n) M_S⁻¹ p_S^{n+1/2}`;
+//! * fast and mixed particles take `K` fine steps (20a), (21), each with the two-step
+//!   momentum update (20b)/(22): `p^{n,m+3/2} = p^{n,m−1/2} − 2 ∫ ∂V/∂q dt` over the fine
+//!   interval, the integrand evaluated with fast and mixed particles on their fine free
+//!   flights and slow particles on their coarse one;
+//! * slow particles then take one coarse step (24): `p_S^{n+3/2} = p_S^{n−1/2} − 2(Σ_m ∫
+//!   ∂V_M/∂q_S over the fine intervals + ∫ ∂V_S/∂q_S over the coarse interval)`.
+//!
+//! Which slow terms go where: a slow term whose interactions touch a mixed particle (part
+//! of `V_M`) is evaluated at every fine quadrature node, on a scratch position array that
+//! holds the fine flights of fast and mixed particles and the coarse flight of the slow
+//! ones; a slow term touching only slow particles (`V_S`) is evaluated at the coarse nodes.
+//! Terms are evaluated whole, so a term mixing both kinds of interaction is evaluated on
+//! the fine grid (its slow-only part then gets a finer, still exact-if-the-rule-is, quadrature
+//! — Prop. 9 holds unchanged); [`Integrator::notices`] says when a scene could save work by
+//! splitting such a term.
+//!
+//! Initialisation as (5): every half-step momentum starts at `p(t⁰)`. At the coarse nodes
+//! the pseudo-energy (25) `H̃^n = V(q^n) + Σ_S ½ p^{n−1/2}·M⁻¹p^{n+1/2} + Σ_{F∪M} ½
+//! p^{n,−1/2}·M⁻¹p^{n,1/2}` is conserved under exact force integration (Prop. 9).
+//!
+//! Cost per coarse step, for an `n`-node rule (`n − 1` for Gauss–Lobatto, whose end node is
+//! the next interval's first): `K n` evaluations of the fast level and of the slow terms
+//! touching mixed particles, `n` of the other slow terms — MEMM18 4.3.1's
+//! `N_a = (n−1) T ((m+1)/h_F + m/h_S)` on the slow-fast FPU chain.
+//!
+//! When the split leaves no slow particle (every particle feels a fast force, as in a
+//! molecule where every atom is bonded), the scheme is the synchronous one at `h_F`: it
+//! says so ([`Integrator::notices`], the summary) and runs [`PseudoEnergy`] with `K` steps
+//! of `h_F` per outer step. The mass matrix must be diagonal (MEMM18 4.1).
+
+use std::ops::Range;
+
+use super::pseudo_energy::{PseudoEnergy, PseudoEnergyMonitor, pseudo_and_discrete_energy};
+use super::quadrature::Quadrature;
+use super::{Integrator, StepFailure};
+use crate::error::{Error, Result};
+use crate::settings::{MethodSettings, whole_ratio};
+use crate::split::{ForceSplit, ParticleClass};
+use crate::system::System;
+
+/// How the slow terms are evaluated, and which coordinates are slow.
+#[derive(Clone, Debug, Default)]
+pub struct AsyncPlan {
+    /// Per level (index 0 unused): the slow terms touching a mixed particle (fine grid).
+    pub fine_terms: Vec<Vec<usize>>,
+    /// Per level (index 0 unused): the slow terms touching only slow particles (coarse grid).
+    pub coarse_terms: Vec<Vec<usize>>,
+    /// Coordinates of fast and mixed particles.
+    pub fine_dofs: Vec<usize>,
+    /// Coordinates of slow particles.
+    pub slow_dofs: Vec<usize>,
+    /// Coordinates of the slow particles the fine-grid slow terms touch (MEMM18's `V_M`
+    /// partners of mixed particles): the only slow coordinates a fine step reads or writes.
+    pub interface_dofs: Vec<usize>,
+    /// `fine_dofs` and `interface_dofs`: everything a fine-grid evaluation writes.
+    pub fine_written: Vec<usize>,
+    /// The same sets as contiguous index ranges, for the loops of a step.
+    fine_runs: Vec<Range<usize>>,
+    slow_runs: Vec<Range<usize>>,
+    interface_runs: Vec<Range<usize>>,
+    fine_written_runs: Vec<Range<usize>>,
+    pub n_fast: usize,
+    pub n_mixed: usize,
+    pub n_slow: usize,
+    /// Terms evaluated on the fine grid that also hold slow-only interactions:
+    /// `(name, all interactions, slow-only interactions)`.
+    pub costly_terms: Vec<(String, usize, usize)>,
+}
+
+impl AsyncPlan {
+    pub fn new(forces: &ForceSplit, n_particles: usize, dim: usize) -> Self {
+        let classes = forces.classify_particles(n_particles);
+        let n_levels = forces.n_levels();
+        let mut plan = AsyncPlan {
+            fine_terms: vec![Vec::new(); n_levels],
+            coarse_terms: vec![Vec::new(); n_levels],
+            ..Default::default()
+        };
+        for (i, class) in classes.iter().enumerate() {
+            let dofs = (i * dim..(i + 1) * dim).collect::<Vec<_>>();
+            match class {
+                ParticleClass::Fast => {
+                    plan.n_fast += 1;
+                    plan.fine_dofs.extend(dofs);
+                }
+                ParticleClass::Mixed => {
+                    plan.n_mixed += 1;
+                    plan.fine_dofs.extend(dofs);
+                }
+                ParticleClass::Slow => {
+                    plan.n_slow += 1;
+                    plan.slow_dofs.extend(dofs);
+                }
+            }
+        }
+        for level in 1..n_levels {
+            for &t in forces.level_terms(level) {
+                let labelled = &forces.terms()[t];
+                let couplings = labelled.term.couplings();
+                let touches_mixed =
+                    |c: &Vec<usize>| c.iter().any(|&i| classes[i] == ParticleClass::Mixed);
+                let mixed = couplings.iter().filter(|c| touches_mixed(c)).count();
+                if mixed > 0 {
+                    plan.fine_terms[level].push(t);
+                    for &i in couplings.iter().flatten() {
+                        if classes[i] == ParticleClass::Slow {
+                            plan.interface_dofs.extend(i * dim..(i + 1) * dim);
+                        }
+                    }
+                    if mixed < couplings.len() {
+                        plan.costly_terms.push((
+                            labelled.name.clone(),
+                            couplings.len(),
+                            couplings.len() - mixed,
+                        ));
+                    }
+                } else {
+                    plan.coarse_terms[level].push(t);
+                }
+            }
+        }
+        plan.interface_dofs.sort_unstable();
+        plan.interface_dofs.dedup();
+        plan.fine_written = plan
+            .fine_dofs
+            .iter()
+            .chain(&plan.interface_dofs)
+            .copied()
+            .collect();
+        plan.fine_written.sort_unstable();
+        plan.fine_runs = runs_of(&plan.fine_dofs);
+        plan.slow_runs = runs_of(&plan.slow_dofs);
+        plan.interface_runs = runs_of(&plan.interface_dofs);
+        plan.fine_written_runs = runs_of(&plan.fine_written);
+        plan
+    }
+}
+
+/// Sorted indices as maximal contiguous ranges.
+fn runs_of(sorted: &[usize]) -> Vec<Range<usize>> {
+    let mut runs: Vec<Range<usize>> = Vec::new();
+    for &i in sorted {
+        match runs.last_mut() {
+            Some(run) if run.end == i => run.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+/// `out = q + s v` on the runs (a free flight sampled at time offset `s`).
+fn flight(runs: &[Range<usize>], out: &mut [f64], q: &[f64], v: &[f64], s: f64) {
+    for r in runs {
+        for ((o, qi), vi) in out[r.clone()]
+            .iter_mut()
+            .zip(&q[r.clone()])
+            .zip(&v[r.clone()])
+        {
+            *o = qi + s * vi;
+        }
+    }
+}
+
+/// `acc += w g` on the runs.
+fn accumulate(runs: &[Range<usize>], acc: &mut [f64], g: &[f64], w: f64) {
+    for r in runs {
+        for (a, gi) in acc[r.clone()].iter_mut().zip(&g[r.clone()]) {
+            *a += w * gi;
+        }
+    }
+}
+
+fn zero(runs: &[Range<usize>], x: &mut [f64]) {
+    for r in runs {
+        x[r.clone()].fill(0.0);
+    }
+}
+
+/// The two-step update on the runs: `p_next = p_minus − scale · integral`,
+/// `q += h M⁻¹ p_plus`, then the half-step momenta (and velocities) shift by one.
+struct HalfSteps<'a> {
+    q: &'a mut [f64],
+    p_minus: &'a mut [f64],
+    p_plus: &'a mut [f64],
+    v_minus: &'a mut [f64],
+    v_plus: &'a mut [f64],
+}
+
+impl HalfSteps<'_> {
+    fn advance(
+        &mut self,
+        runs: &[Range<usize>],
+        integral: &[f64],
+        scale: f64,
+        h: f64,
+        inverse_mass: &[f64],
+    ) {
+        for r in runs {
+            let r = r.clone();
+            let columns = self.q[r.clone()]
+                .iter_mut()
+                .zip(&mut self.p_minus[r.clone()])
+                .zip(&mut self.p_plus[r.clone()])
+                .zip(&mut self.v_minus[r.clone()])
+                .zip(&mut self.v_plus[r.clone()])
+                .zip(integral[r.clone()].iter().zip(&inverse_mass[r]));
+            for (((((q, pm), pp), vm), vp), (i, wi)) in columns {
+                let next = *pm - scale * i;
+                *q += h * *vp;
+                *pm = *pp;
+                *vm = *vp;
+                *pp = next;
+                *vp = wi * next;
+            }
+        }
+    }
+}
+
+enum Mode {
+    /// Not set up yet.
+    Unset,
+    Async,
+    /// No slow particles: the synchronous scheme at `h_F`, `K` steps per outer step.
+    Synchronous(Box<PseudoEnergy>),
+}
+
+pub struct AsyncPseudoEnergy {
+    h_slow: f64,
+    h_fast: f64,
+    ratio: usize,
+    quadrature: Quadrature,
+    track: bool,
+    mode: Mode,
+    plan: AsyncPlan,
+    p_minus: Vec<f64>,
+    p_plus: Vec<f64>,
+    v_minus: Vec<f64>,
+    v_plus: Vec<f64>,
+    /// `Σ w ∇V` over a fine step, for fast and mixed coordinates.
+    fine_integral: Vec<f64>,
+    /// `∫ ∂V/∂q_S dt` over the coarse step, for slow coordinates.
+    slow_integral: Vec<f64>,
+    gradient: Vec<f64>,
+    scratch: Vec<f64>,
+    fine_start: Vec<f64>,
+    fine_end: Vec<f64>,
+    fine_start_valid: bool,
+    coarse_start: Vec<f64>,
+    coarse_end: Vec<f64>,
+    coarse_start_valid: bool,
+    monitor: PseudoEnergyMonitor,
+}
+
+impl AsyncPseudoEnergy {
+    /// Coarse step `h_slow = ratio · h_fast`; the fine step is `h_slow / ratio`.
+    pub fn new(h_slow: f64, ratio: usize, quadrature: Quadrature) -> Result<Self> {
+        if !(h_slow.is_finite() && h_slow > 0.0) {
+            return Err(Error::input(format!(
+                "coarse step h_slow must be positive and finite, got {h_slow}"
+            )));
+        }
+        if ratio == 0 {
+            return Err(Error::input("ratio K = h_slow / h_fast must be at least 1"));
+        }
+        Ok(AsyncPseudoEnergy {
+            h_slow,
+            h_fast: h_slow / ratio as f64,
+            ratio,
+            quadrature,
+            track: true,
+            mode: Mode::Unset,
+            plan: AsyncPlan::default(),
+            p_minus: Vec::new(),
+            p_plus: Vec::new(),
+            v_minus: Vec::new(),
+            v_plus: Vec::new(),
+            fine_integral: Vec::new(),
+            slow_integral: Vec::new(),
+            gradient: Vec::new(),
+            scratch: Vec::new(),
+            fine_start: Vec::new(),
+            fine_end: Vec::new(),
+            fine_start_valid: false,
+            coarse_start: Vec::new(),
+            coarse_end: Vec::new(),
+            coarse_start_valid: false,
+            monitor: PseudoEnergyMonitor::default(),
+        })
+    }
+
+    /// The coarse step is `--h-slow` (else `--h`); the fine step `--h-fast`, or the coarse
+    /// one over `--ratio K` (both given: they must agree).
+    pub fn from_settings(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Self> {
+        let quadrature = Quadrature::by_name(settings.quadrature.as_deref().unwrap_or("midpoint"))?;
+        let h_slow = settings.h_slow.unwrap_or(settings.h);
+        if settings.h_slow.is_some() && (h_slow - settings.h).abs() > 1e-12 * h_slow {
+            notices.push(format!(
+                "async-pseudo-energy: the outer step is h_slow = {h_slow} (h = {} is not used)",
+                settings.h
+            ));
+        }
+        let ratio = match (settings.h_fast, settings.ratio) {
+            (Some(h_fast), None) => whole_ratio(h_slow, h_fast, "h_fast", "h_slow")?,
+            (None, Some(k)) => k,
+            (Some(h_fast), Some(k)) => {
+                let from_steps = whole_ratio(h_slow, h_fast, "h_fast", "h_slow")?;
+                if from_steps != k {
+                    return Err(Error::input(format!(
+                        "h_slow / h_fast = {from_steps} but ratio = {k}: give one of \
+                         --h-fast and --ratio, or consistent values"
+                    )));
+                }
+                k
+            }
+            (None, None) => {
+                return Err(Error::input(
+                    "async-pseudo-energy needs the fine step: give --h-fast or --ratio K \
+                     (h_slow = K h_fast)",
+                ));
+            }
+        };
+        Self::new(h_slow, ratio, quadrature)
+    }
+
+    /// See [`PseudoEnergy::with_monitor`].
+    pub fn with_monitor(mut self, track: bool) -> Self {
+        self.track = track;
+        self
+    }
+
+    pub fn h_fast(&self) -> f64 {
+        self.h_fast
+    }
+
+    pub fn ratio(&self) -> usize {
+        self.ratio
+    }
+
+    /// Whether [`Integrator::setup`] fell back to the synchronous scheme.
+    pub fn is_synchronous_fallback(&self) -> bool {
+        matches!(self.mode, Mode::Synchronous(_))
+    }
+
+    pub fn plan(&self) -> &AsyncPlan {
+        &self.plan
+    }
+
+    pub fn monitor(&self) -> &PseudoEnergyMonitor {
+        match &self.mode {
+            Mode::Synchronous(sync) => sync.monitor(),
+            _ => &self.monitor,
+        }
+    }
+
+    /// The state `Z = (q, p^{n−1/2}, p^{n+1/2})` at a coarse node (fast and mixed
+    /// particles: `p^{n,−1/2}`, `p^{n,1/2}`), length `3 n_dofs`.
+    pub fn state_vector(&self, system: &System, z: &mut [f64]) {
+        if let Mode::Synchronous(sync) = &self.mode {
+            return sync.state_vector(system, z);
+        }
+        let n = system.n_dofs();
+        z[..n].copy_from_slice(&system.state.q);
+        z[n..2 * n].copy_from_slice(&self.p_minus);
+        z[2 * n..3 * n].copy_from_slice(&self.p_plus);
+    }
+
+    /// Replace the state by `Z` (see [`AsyncPseudoEnergy::state_vector`]).
+    pub fn set_state_vector(&mut self, system: &mut System, z: &[f64]) {
+        if let Mode::Synchronous(sync) = &mut self.mode {
+            return sync.set_state_vector(system, z);
+        }
+        let n = system.n_dofs();
+        system.state.q.copy_from_slice(&z[..n]);
+        self.p_minus.copy_from_slice(&z[n..2 * n]);
+        self.p_plus.copy_from_slice(&z[2 * n..3 * n]);
+        system.velocity(&self.p_minus, &mut self.v_minus);
+        system.velocity(&self.p_plus, &mut self.v_plus);
+        self.fine_start_valid = false;
+        self.coarse_start_valid = false;
+        self.sync_state(system);
+    }
+
+    fn sync_state(&self, system: &mut System) {
+        for ((p, a), b) in system
+            .state
+            .p
+            .iter_mut()
+            .zip(&self.p_minus)
+            .zip(&self.p_plus)
+        {
+            *p = 0.5 * (a + b);
+        }
+    }
+
+    fn energies(&self, system: &System) -> (f64, f64) {
+        pseudo_and_discrete_energy(
+            system.forces.total_energy(&system.state.q),
+            &self.p_minus,
+            &self.p_plus,
+            &self.v_minus,
+            &self.v_plus,
+        )
+    }
+
+    /// Fine-grid gradient at `scratch`: the fast level and the slow terms touching mixed
+    /// particles.
+    fn fine_gradient(&mut self, forces: &mut ForceSplit) {
+        // Only what the fine-grid terms write is zeroed (and later read): a fine step costs
+        // O(fast + mixed + interface), not O(all particles).
+        zero(&self.plan.fine_written_runs, &mut self.gradient);
+        forces.add_gradient(0, &self.scratch, &mut self.gradient);
+        for level in 1..self.plan.fine_terms.len() {
+            forces.add_terms_gradient(
+                level,
+                &self.plan.fine_terms[level],
+                &self.scratch,
+                &mut self.gradient,
+            );
+        }
+    }
+
+    fn coarse_gradient(&mut self, forces: &mut ForceSplit) {
+        zero(&self.plan.slow_runs, &mut self.gradient);
+        for level in 1..self.plan.coarse_terms.len() {
+            forces.add_terms_gradient(
+                level,
+                &self.plan.coarse_terms[level],
+                &self.scratch,
+                &mut self.gradient,
+            );
+        }
+    }
+
+    fn async_step(&mut self, system: &mut System) {
+        let ends = self.quadrature.has_end_nodes();
+        let h_fast = self.h_fast;
+        // h_S as K h_F, so the slow flight sampled at the last fine node and the slow
+        // drift agree to the last bit (the end gradient is reused).
+        let h_slow = self.ratio as f64 * h_fast;
+        zero(&self.plan.slow_runs, &mut self.slow_integral);
+        for m in 0..self.ratio {
+            zero(&self.plan.fine_runs, &mut self.fine_integral);
+            for k in 0..self.quadrature.len() {
+                let tau = self.quadrature.nodes()[k];
+                let w = self.quadrature.weights()[k];
+                let reuse = tau == 0.0 && ends && self.fine_start_valid;
+                if !reuse {
+                    let q = &system.state.q;
+                    let s_fine = tau * h_fast;
+                    flight(
+                        &self.plan.fine_runs,
+                        &mut self.scratch,
+                        q,
+                        &self.v_plus,
+                        s_fine,
+                    );
+                    // Slow partners on their coarse flight (23), at the same time.
+                    let s_slow = (m as f64 + tau) * h_fast;
+                    flight(
+                        &self.plan.interface_runs,
+                        &mut self.scratch,
+                        q,
+                        &self.v_plus,
+                        s_slow,
+                    );
+                    self.fine_gradient(&mut system.forces);
+                }
+                let gradient = if reuse {
+                    &self.fine_start
+                } else {
+                    &self.gradient
+                };
+                accumulate(&self.plan.fine_runs, &mut self.fine_integral, gradient, w);
+                // ∂V_M/∂q_S over this fine interval, for (24b).
+                accumulate(
+                    &self.plan.interface_runs,
+                    &mut self.slow_integral,
+                    gradient,
+                    w * h_fast,
+                );
+                if tau == 1.0 && ends {
+                    std::mem::swap(&mut self.fine_end, &mut self.gradient);
+                }
+            }
+            // (20a), (20b)/(22) for fast and mixed particles.
+            HalfSteps {
+                q: &mut system.state.q,
+                p_minus: &mut self.p_minus,
+                p_plus: &mut self.p_plus,
+                v_minus: &mut self.v_minus,
+                v_plus: &mut self.v_plus,
+            }
+            .advance(
+                &self.plan.fine_runs,
+                &self.fine_integral,
+                2.0 * h_fast,
+                h_fast,
+                &system.inverse_mass,
+            );
+            if ends {
+                std::mem::swap(&mut self.fine_start, &mut self.fine_end);
+                self.fine_start_valid = true;
+            }
+        }
+        // ∂V_S/∂q_S over the coarse interval (24b).
+        let any_coarse = self.plan.coarse_terms.iter().any(|t| !t.is_empty());
+        if any_coarse {
+            for k in 0..self.quadrature.len() {
+                let tau = self.quadrature.nodes()[k];
+                let w = self.quadrature.weights()[k];
+                let reuse = tau == 0.0 && ends && self.coarse_start_valid;
+                if !reuse {
+                    let s = tau * h_slow;
+                    flight(
+                        &self.plan.slow_runs,
+                        &mut self.scratch,
+                        &system.state.q,
+                        &self.v_plus,
+                        s,
+                    );
+                    self.coarse_gradient(&mut system.forces);
+                }
+                let gradient = if reuse {
+                    &self.coarse_start
+                } else {
+                    &self.gradient
+                };
+                accumulate(
+                    &self.plan.slow_runs,
+                    &mut self.slow_integral,
+                    gradient,
+                    w * h_slow,
+                );
+                if tau == 1.0 && ends {
+                    std::mem::swap(&mut self.coarse_end, &mut self.gradient);
+                }
+            }
+            if ends {
+                std::mem::swap(&mut self.coarse_start, &mut self.coarse_end);
+                self.coarse_start_valid = true;
+            }
+        }
+        // (24a), (24b) for slow particles.
+        HalfSteps {
+            q: &mut system.state.q,
+            p_minus: &mut self.p_minus,
+            p_plus: &mut self.p_plus,
+            v_minus: &mut self.v_minus,
+            v_plus: &mut self.v_plus,
+        }
+        .advance(
+            &self.plan.slow_runs,
+            &self.slow_integral,
+            2.0,
+            h_slow,
+            &system.inverse_mass,
+        );
+        self.sync_state(system);
+    }
+}
+
+impl Integrator for AsyncPseudoEnergy {
+    fn name(&self) -> &'static str {
+        "async-pseudo-energy"
+    }
+
+    fn describe(&self) -> String {
+        let fallback = if self.is_synchronous_fallback() {
+            " (no slow particles: synchronous at h_fast)"
+        } else {
+            ""
+        };
+        format!(
+            "h_slow = {}, h_fast = {}, K = {}, quadrature {}{fallback}",
+            self.h_slow,
+            self.h_fast,
+            self.ratio,
+            self.quadrature.name()
+        )
+    }
+
+    fn outer_step(&self) -> f64 {
+        self.h_slow
+    }
+
+    fn setup(&mut self, system: &mut System) -> Result<()> {
+        if system.mass_matrix.is_some() {
+            return Err(Error::input(
+                "async-pseudo-energy needs a diagonal mass matrix (MEMM18 4.1)",
+            ));
+        }
+        self.plan = AsyncPlan::new(&system.forces, system.n_particles(), system.dim);
+        if self.plan.n_slow == 0 {
+            let mut sync =
+                PseudoEnergy::new(self.h_fast, self.quadrature.clone())?.with_monitor(self.track);
+            sync.setup(system)?;
+            self.mode = Mode::Synchronous(Box::new(sync));
+            return Ok(());
+        }
+        self.mode = Mode::Async;
+        let n = system.n_dofs();
+        self.p_minus = system.state.p.clone();
+        self.p_plus = system.state.p.clone();
+        self.v_minus = vec![0.0; n];
+        system.velocity(&self.p_minus, &mut self.v_minus);
+        self.v_plus = self.v_minus.clone();
+        self.fine_integral = vec![0.0; n];
+        self.slow_integral = vec![0.0; n];
+        self.gradient = vec![0.0; n];
+        self.scratch = system.state.q.clone();
+        self.fine_start = vec![0.0; n];
+        self.fine_end = vec![0.0; n];
+        self.coarse_start = vec![0.0; n];
+        self.coarse_end = vec![0.0; n];
+        self.fine_start_valid = false;
+        self.coarse_start_valid = false;
+        if self.quadrature.has_end_nodes() {
+            self.fine_gradient(&mut system.forces);
+            self.fine_start.copy_from_slice(&self.gradient);
+            self.fine_start_valid = true;
+            if self.plan.coarse_terms.iter().any(|t| !t.is_empty()) {
+                self.coarse_gradient(&mut system.forces);
+                self.coarse_start.copy_from_slice(&self.gradient);
+                self.coarse_start_valid = true;
+            }
+        }
+        let (pseudo, _) = self.energies(system);
+        let potential = system.forces.total_energy(&system.state.q);
+        self.monitor =
+            PseudoEnergyMonitor::new(pseudo, (pseudo - potential).abs() + potential.abs());
+        Ok(())
+    }
+
+    fn step(&mut self, system: &mut System) -> Result<(), StepFailure> {
+        match &mut self.mode {
+            Mode::Unset => Err(StepFailure("step before setup".into())),
+            Mode::Synchronous(sync) => {
+                for _ in 0..self.ratio {
+                    sync.step(system)?;
+                }
+                Ok(())
+            }
+            Mode::Async => {
+                self.async_step(system);
+                system.state.t += self.h_slow;
+                if self.track {
+                    let (pseudo, discrete) = self.energies(system);
+                    self.monitor.record(pseudo, discrete);
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn extra_columns(&self) -> Vec<&'static str> {
+        vec!["pseudo_energy", "discrete_energy"]
+    }
+
+    fn extra_values(&self, system: &System, out: &mut Vec<f64>) {
+        match &self.mode {
+            Mode::Synchronous(sync) => sync.extra_values(system, out),
+            _ => {
+                let (pseudo, discrete) = self.energies(system);
+                out.extend([pseudo, discrete]);
+            }
+        }
+    }
+
+    fn notices(&self, system: &System) -> Vec<String> {
+        let plan = AsyncPlan::new(&system.forces, system.n_particles(), system.dim);
+        let mut notices = Vec::new();
+        if plan.n_slow == 0 {
+            notices.push(format!(
+                "async-pseudo-energy: no slow particles ({} fast, {} mixed): every particle \
+                 feels a fast force, so there is nothing to step at h_slow; running the \
+                 synchronous pseudo-energy scheme at h_fast = {} instead",
+                plan.n_fast, plan.n_mixed, self.h_fast
+            ));
+        } else {
+            notices.push(format!(
+                "async-pseudo-energy: {} fast, {} mixed, {} slow particles (MEMM18 4.1)",
+                plan.n_fast, plan.n_mixed, plan.n_slow
+            ));
+            for (name, all, slow_only) in &plan.costly_terms {
+                notices.push(format!(
+                    "async-pseudo-energy: slow term \"{name}\" touches mixed particles, so all \
+                     {all} of its interactions are evaluated at every fine step, {slow_only} \
+                     of them joining slow particles only; a term of their own would evaluate \
+                     them once per coarse step"
+                ));
+            }
+        }
+        notices
+    }
+
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        let mut map = self.monitor().to_json();
+        map.insert("quadrature".into(), self.quadrature.name().into());
+        map.insert("ratio".into(), self.ratio.into());
+        map.insert("h_fast".into(), self.h_fast.into());
+        map.insert("h_slow".into(), self.h_slow.into());
+        map.insert(
+            "scheme".into(),
+            if self.is_synchronous_fallback() {
+                "synchronous (no slow particles)"
+            } else {
+                "asynchronous"
+            }
+            .into(),
+        );
+        map.insert("fast_particles".into(), self.plan.n_fast.into());
+        map.insert("mixed_particles".into(), self.plan.n_mixed.into());
+        map.insert("slow_particles".into(), self.plan.n_slow.into());
+        Some(("pseudo_energy", serde_json::Value::Object(map)))
+    }
+}
