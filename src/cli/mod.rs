@@ -59,7 +59,9 @@ enum Command {
     /// Combine the outputs of --shard runs into what a single run writes.
     Merge(charts::MergeArgs),
     /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
-    /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map.
+    /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map. With
+    /// `--method async-pseudo-energy SCENE` it maps MEMM18's asynchronous scheme instead
+    /// (the arguments of async-stability-map).
     StabilityMap(Box<stability::StabilityMapArgs>),
     /// The spectral radius and instability type at one (Γ1, Γ2).
     SpectralRadius(Box<stability::SpectralRadiusArgs>),
@@ -103,9 +105,27 @@ pub struct CheckArgs {
     pub set: Vec<String>,
 }
 
+/// `stability-map --method async-pseudo-energy SCENE …` maps the asynchronous scheme of
+/// MEMM18 over h_slow and K (issue 5); it has its own arguments, so it is routed to the
+/// `async-stability-map` command before parsing.
+fn route_async_map(mut args: Vec<String>) -> Vec<String> {
+    let is_async = |a: &[String], i: usize| {
+        (a[i] == "--method" && a.get(i + 1).is_some_and(|m| m == "async-pseudo-energy"))
+            || a[i] == "--method=async-pseudo-energy"
+    };
+    if args.get(1).is_some_and(|c| c == "stability-map")
+        && let Some(i) = (2..args.len()).find(|&i| is_async(&args, i))
+    {
+        let width = if args[i] == "--method" { 2 } else { 1 };
+        args.drain(i..i + width);
+        args[1] = "async-stability-map".into();
+    }
+    args
+}
+
 /// Run the command line; returns the process exit code.
 pub fn main() -> i32 {
-    let cli = match Cli::try_parse() {
+    let cli = match Cli::try_parse_from(route_async_map(std::env::args().collect())) {
         Ok(cli) => cli,
         Err(e) => {
             let code = e.exit_code();
