@@ -418,3 +418,30 @@ pub fn unstable_bands(points: &[MapPoint], parameter: MapParameter) -> Vec<(usiz
     }
     bands
 }
+
+/// The warning a run or a safety scan gives before the asynchronous scheme enters an
+/// instability band: the spectral radius of one coarse step of the scheme `settings` asks
+/// for on `system`, when it exceeds 1 + 1e-8. `None` when the step is stable, when the scene
+/// is not linear (the amplification matrix does not exist), or when the state is too large
+/// for the dense check. `system` is used as scratch: pass a copy you will not run.
+pub fn band_warning(
+    system: &mut System,
+    settings: &crate::settings::MethodSettings,
+) -> Option<String> {
+    if 3 * system.n_dofs() > RadiusOptions::default().max_dense {
+        return None;
+    }
+    let scheme = AsyncPseudoEnergy::from_settings(settings, &mut Vec::new()).ok()?;
+    let (h_slow, h_fast) = (scheme.h_slow(), scheme.h_fast());
+    let mut scheme = Scheme::Asynchronous(Box::new(scheme.with_monitor(false)));
+    let matrix = amplification_matrix(system, &mut scheme).ok()?;
+    let rho = dense_spectral_radius(&matrix);
+    (rho > 1.0 + 1e-8).then(|| {
+        format!(
+            "async-pseudo-energy at h_slow = {h_slow}, h_fast = {h_fast}: the coarse step's \
+             amplification matrix has spectral radius {rho:.8} > 1 — this step lies in an \
+             instability band of the asynchronous scheme (MEMM18 (20)–(24); docs/pseudo-energy.md), \
+             and perturbations grow like {rho:.6}^n"
+        )
+    })
+}

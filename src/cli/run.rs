@@ -27,6 +27,15 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
 
     let mut notices = Vec::new();
     let mut integrator = integrators::build(&settings, &mut notices)?;
+    if settings.method == "async-pseudo-energy" {
+        // On a scratch copy: the check steps the scene.
+        let mut scratch = load_scene(&args.scene, &args.set)?;
+        if let Some(warning) =
+            crate::analysis::async_stability::band_warning(&mut scratch.system, &settings)
+        {
+            notices.push(warning);
+        }
+    }
     notices.extend(integrator.notices(&scene.system));
 
     let out_dir = args

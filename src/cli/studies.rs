@@ -61,6 +61,12 @@ pub struct ScanStepsArgs {
     /// Jacobian mode of the mollified methods.
     #[arg(long)]
     pub jacobian: Option<String>,
+    /// Ratio K = h_slow / h_fast of the asynchronous pseudo-energy scheme (h is h_slow).
+    #[arg(long)]
+    pub ratio: Option<usize>,
+    /// Quadrature of the pseudo-energy schemes.
+    #[arg(long)]
+    pub quadrature: Option<String>,
     /// Length of each run.
     #[arg(long)]
     pub t_end: Value,
@@ -311,6 +317,8 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
             inner_steps: args.inner_steps,
             dt: args.dt.clone(),
             jacobian: args.jacobian.clone(),
+            ratio: args.ratio,
+            quadrature: args.quadrature.clone(),
             blowup: Some(args.blowup),
             ..Default::default()
         },
@@ -319,6 +327,21 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         energy_every: args.energy_every,
     };
     check_methods(&setup.scene, &setup.set, &setup.base, &args.methods, &steps)?;
+    // Warn before an asynchronous run enters an instability band (small linear scenes).
+    if args.methods.iter().any(|m| m == "async-pseudo-energy") && !args.quiet {
+        for &h in &steps {
+            let mut scene = load_scene(&setup.scene, &setup.set)?;
+            let mut spec = setup.base.clone();
+            spec.method = Some("async-pseudo-energy".into());
+            spec.h = Some(Value::Number(h));
+            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            if let Some(warning) =
+                crate::analysis::async_stability::band_warning(&mut scene.system, &settings)
+            {
+                eprintln!("warning: {warning}");
+            }
+        }
+    }
     let mut points = scan_points(&args.methods, &steps);
     let total = points.len();
     if let Some(shard) = &args.shard {

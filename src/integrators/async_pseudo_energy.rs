@@ -337,6 +337,10 @@ impl AsyncPseudoEnergy {
         self
     }
 
+    pub fn h_slow(&self) -> f64 {
+        self.h_slow
+    }
+
     pub fn h_fast(&self) -> f64 {
         self.h_fast
     }
