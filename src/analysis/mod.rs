@@ -7,3 +7,4 @@ pub mod modes;
 pub mod monitor;
 pub mod scan;
 pub mod stability;
+pub mod stiffness;

@@ -6,6 +6,7 @@
 
 mod run;
 pub mod stability;
+mod stiffness;
 mod studies;
 
 use std::path::PathBuf;
@@ -108,6 +109,9 @@ pub fn main() -> i32 {
         Command::Minimize(args) => studies::minimize_command(&args).map(|()| 0),
         Command::Scan(studies::ScanCommand::Steps(args)) => {
             studies::scan_steps_command(&args).map(|()| 0)
+        }
+        Command::Scan(studies::ScanCommand::Stiffness(args)) => {
+            stiffness::scan_stiffness_command(&args).map(|()| 0)
         }
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),

@@ -36,7 +36,10 @@ pub struct ModesArgs {
 #[derive(Subcommand, Debug)]
 pub enum ScanCommand {
     /// Run each method at each outer step and classify it: stable, drifting or unstable.
-    Steps(ScanStepsArgs),
+    Steps(Box<ScanStepsArgs>),
+    /// The largest position error against a scene parameter such as a stiff spring's
+    /// frequency (GSS98 Figures 11–13), against an extrapolated Verlet reference.
+    Stiffness(Box<super::stiffness::ScanStiffnessArgs>),
 }
 
 #[derive(Args, Debug)]
