@@ -21,6 +21,10 @@
 
 use std::f64::consts::TAU;
 
+use crate::error::Result;
+use crate::integrators::Integrator;
+use crate::system::System;
+
 /// The largest `|E_n − E_0|` in consecutive windows of `window` steps, with the last step
 /// of each window: `errors[n]` is the error after step n (`errors[0]`, the start, is not in
 /// any window); windows cover steps `1..=W`, `W+1..=2W`, …; a last partial window is kept.
@@ -110,6 +114,66 @@ pub fn modulation_gap(phi: f64, window: usize) -> f64 {
 /// The shortest window (up to `max_window`) whose modulation gap is at most `gap`.
 pub fn modulation_window(phi: f64, gap: f64, max_window: usize) -> Option<usize> {
     (1..=max_window).find(|&w| modulation_gap(phi, w) <= gap)
+}
+
+/// How a run of [`energy_errors`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunEnd {
+    /// All steps taken.
+    Finished,
+    /// The energy became non-finite.
+    Overflow,
+    /// The method could not take a step.
+    Failed,
+}
+
+impl RunEnd {
+    pub fn name(self) -> &'static str {
+        match self {
+            RunEnd::Finished => "ok",
+            RunEnd::Overflow => "overflow",
+            RunEnd::Failed => "failed",
+        }
+    }
+}
+
+/// Take up to `steps` outer steps (after `setup`), recording `|E_n − E_0| / |E_0|` after
+/// each (`[0]` is the start, 0). No blow-up limit: growth studies follow the error as far
+/// as the numbers go, and stop only at a non-finite energy or a failed step.
+pub fn energy_errors(
+    system: &mut System,
+    integrator: &mut dyn Integrator,
+    steps: usize,
+) -> Result<(Vec<f64>, RunEnd)> {
+    integrator.setup(system)?;
+    let e0 = system.total_energy();
+    let scale = if e0 != 0.0 { e0.abs() } else { 1.0 };
+    let mut errors = Vec::with_capacity(steps + 1);
+    errors.push(0.0);
+    for _ in 0..steps {
+        if integrator.step(system).is_err() {
+            return Ok((errors, RunEnd::Failed));
+        }
+        let error = (system.total_energy() - e0).abs() / scale;
+        if !error.is_finite() {
+            return Ok((errors, RunEnd::Overflow));
+        }
+        errors.push(error);
+    }
+    Ok((errors, RunEnd::Finished))
+}
+
+/// The default stretch of an envelope to fit: from ten times the first window's maximum to
+/// a tenth of the largest (leaving out the start, where the parts that do not grow are
+/// comparable, and a saturation); all windows when fewer than three qualify (a bounded
+/// run: its rate is then near zero).
+pub fn default_fit_range(points: &[(usize, f64)]) -> &[(usize, f64)] {
+    let Some(&(_, first)) = points.first() else {
+        return points;
+    };
+    let largest = points.iter().fold(0.0_f64, |m, p| m.max(p.1));
+    let stretch = fit_range(points, 10.0 * first, 0.1 * largest);
+    if stretch.len() >= 3 { stretch } else { points }
 }
 
 #[cfg(test)]

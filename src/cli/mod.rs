@@ -4,6 +4,7 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod growth;
 mod run;
 pub mod stability;
 mod stiffness;
@@ -112,6 +113,9 @@ pub fn main() -> i32 {
         }
         Command::Scan(studies::ScanCommand::Stiffness(args)) => {
             stiffness::scan_stiffness_command(&args).map(|()| 0)
+        }
+        Command::Scan(studies::ScanCommand::Growth(args)) => {
+            growth::scan_growth_command(&args).map(|()| 0)
         }
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),

@@ -40,6 +40,9 @@ pub enum ScanCommand {
     /// The largest position error against a scene parameter such as a stiff spring's
     /// frequency (GSS98 Figures 11–13), against an extrapolated Verlet reference.
     Stiffness(Box<super::stiffness::ScanStiffnessArgs>),
+    /// Long runs: the energy error's envelope, its fitted growth rate per step, and 2 ln ρ
+    /// from the linearised step of the same method (GSS98 Figures 6–10).
+    Growth(Box<super::growth::ScanGrowthArgs>),
 }
 
 #[derive(Args, Debug)]
