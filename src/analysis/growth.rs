@@ -163,17 +163,29 @@ pub fn energy_errors(
     Ok((errors, RunEnd::Finished))
 }
 
-/// The default stretch of an envelope to fit: from ten times the first window's maximum to
-/// a tenth of the largest (leaving out the start, where the parts that do not grow are
-/// comparable, and a saturation); all windows when fewer than three qualify (a bounded
-/// run: its rate is then near zero).
+/// The default stretch of an envelope to fit. The error starts from zero, so its level at
+/// the start is taken as the largest window maximum in the first 5 % of the run; the fit goes
+/// from ten times that to a tenth of the run's largest (leaving out the start, where the
+/// parts that do not grow are comparable, and a saturation). When fewer than three windows
+/// qualify (a bounded run) it takes every window after the first 5 %: the rate is then
+/// near zero.
 pub fn default_fit_range(points: &[(usize, f64)]) -> &[(usize, f64)] {
-    let Some(&(_, first)) = points.first() else {
+    let Some(&(last_step, _)) = points.last() else {
         return points;
     };
+    let early = points
+        .iter()
+        .position(|&(step, _)| step * 20 > last_step)
+        .unwrap_or(points.len())
+        .max(1);
+    let start = points[..early].iter().fold(0.0_f64, |m, p| m.max(p.1));
     let largest = points.iter().fold(0.0_f64, |m, p| m.max(p.1));
-    let stretch = fit_range(points, 10.0 * first, 0.1 * largest);
-    if stretch.len() >= 3 { stretch } else { points }
+    let stretch = fit_range(points, 10.0 * start, 0.1 * largest);
+    if stretch.len() >= 3 {
+        stretch
+    } else {
+        &points[early.min(points.len() - 1)..]
+    }
 }
 
 #[cfg(test)]
@@ -209,6 +221,37 @@ mod tests {
         assert_eq!(fit_range(&points, 1.0, 10.0), &points[1..3]);
         assert!(fit_range(&points, 100.0, 1e3).is_empty());
         assert_eq!(fit_range(&points, 0.0, f64::INFINITY), &points[..]);
+    }
+
+    #[test]
+    fn default_fit_skips_the_start_and_the_saturation() {
+        // Growth by e every 10 steps from step 100 to 400, then flat.
+        let points: Vec<(usize, f64)> = (1..=100)
+            .map(|k| {
+                let step = 10 * k;
+                let level = if step < 100 {
+                    1.0
+                } else {
+                    ((step.min(400) - 100) as f64 / 10.0).exp()
+                };
+                (step, level)
+            })
+            .collect();
+        let stretch = default_fit_range(&points);
+        // From 10× the level of the first 5 % (steps ≤ 50: 1) to a tenth of the largest.
+        assert!(
+            stretch[0].1 >= 10.0 && stretch[0].0 == 130,
+            "{:?}",
+            stretch[0]
+        );
+        assert!(stretch.last().unwrap().0 < 400);
+        let fit = fit_rate(stretch).expect("fit");
+        assert!((fit.rate - 0.1).abs() < 1e-12);
+        // A flat run: everything after the first 5 %.
+        let flat: Vec<(usize, f64)> = (1..=100)
+            .map(|k| (k, 1.0 + 0.1 * (k as f64).sin()))
+            .collect();
+        assert_eq!(default_fit_range(&flat)[0].0, 6);
     }
 
     #[test]

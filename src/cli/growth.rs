@@ -57,7 +57,8 @@ pub struct ScanGrowthArgs {
     #[arg(long, value_name = "W")]
     pub window: Option<usize>,
     /// Fit the growth rate where the envelope |ΔE|/E0 lies in LO:HI (default: from ten times
-    /// the first window to a tenth of the largest).
+    /// its level in the first 5 % of the run to a tenth of its largest, else after the first
+    /// 5 %).
     #[arg(long, value_name = "LO:HI")]
     pub fit: Option<String>,
     /// Output directory: growth.csv (one row per run) and envelope.csv.
