@@ -548,6 +548,7 @@ fn scan_growth_rejects_bad_input_naming_the_flag() {
         (&["--h", "0"], "--h"),
         (&["--h", "x+"], "--h"),
         (&["--t-end", "0.1"], "--t-end"),
+        (&["--h", "1e-9"], "--t-end"),
         (&["--window", "0"], "--window"),
         (&["--fit", "5:1"], "--fit"),
         (&["--fit", "1e3"], "--fit"),

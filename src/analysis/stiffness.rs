@@ -37,6 +37,8 @@ use crate::system::System;
 pub const DEFAULT_STEP_PHASE: f64 = 0.05;
 /// The fewest default inner / reference steps per outer step.
 pub const MIN_DEFAULT_SUBSTEPS: usize = 100;
+/// The most default inner / reference steps per outer step.
+pub const MAX_DEFAULT_SUBSTEPS: usize = 10_000_000;
 
 /// What a stiffness study computes: every method at every outer step for every value.
 pub struct StiffnessStudy {
@@ -166,6 +168,19 @@ impl StiffnessStudy {
                 .fold(0.0, f64::max);
             study.omega_max = study.omega_max.max(fastest);
         }
+        for &h in &study.steps {
+            let needed = h * study.omega_max / DEFAULT_STEP_PHASE;
+            let defaulted = study.reference_steps.is_none()
+                || (study.base.inner_steps.is_none() && study.base.dt.is_none());
+            if defaulted && (needed > MAX_DEFAULT_SUBSTEPS as f64 || needed.is_nan()) {
+                return Err(Error::input(format!(
+                    "--h {h}: the fastest fast mode over the scan (ω = {:e}) would need more \
+                     than {MAX_DEFAULT_SUBSTEPS} default inner or reference steps per outer \
+                     step; give --inner (or --dt) and --reference-steps",
+                    study.omega_max
+                )));
+            }
+        }
         let first = study.values[0];
         for method in &study.methods {
             for &h in &study.steps {
@@ -193,13 +208,11 @@ impl StiffnessStudy {
 
     /// The default count of inner and reference steps per outer step h.
     pub fn default_substeps(&self, h: f64) -> usize {
-        let needed = (h * self.omega_max / DEFAULT_STEP_PHASE).ceil();
-        // A frequency so large that the count overflows is refused by the runs' own checks.
-        if needed.is_finite() && needed < 1e9 {
-            (needed as usize).max(MIN_DEFAULT_SUBSTEPS)
-        } else {
-            usize::MAX
-        }
+        // At most MAX_DEFAULT_SUBSTEPS: `new` refuses a scan that would need more.
+        let needed = (h * self.omega_max / DEFAULT_STEP_PHASE)
+            .ceil()
+            .min(MAX_DEFAULT_SUBSTEPS as f64);
+        (needed as usize).max(MIN_DEFAULT_SUBSTEPS)
     }
 
     /// Reference Verlet steps per outer step h.
@@ -352,8 +365,18 @@ pub fn outer_steps(t_end: f64, h: f64) -> Result<usize> {
             "--t-end {t_end} is not a whole number of outer steps --h {h} (ratio {ratio})"
         )));
     }
+    // The reference keeps the positions at every outer step.
+    if n > MAX_OUTER_STEPS as f64 {
+        return Err(Error::input(format!(
+            "--t-end {t_end} / --h {h} is {n} outer steps, more than the {MAX_OUTER_STEPS} a \
+             stiffness study keeps"
+        )));
+    }
     Ok(n as usize)
 }
+
+/// Most outer steps per run of a stiffness study.
+pub const MAX_OUTER_STEPS: usize = 10_000_000;
 
 /// Euclidean distance of two coordinate arrays.
 fn distance(a: &[f64], b: &[f64]) -> f64 {

@@ -84,6 +84,9 @@ fn number(text: &str, what: &str) -> Result<f64> {
     Ok(value)
 }
 
+/// Most outer steps per run.
+const MAX_STEPS: usize = 100_000_000;
+
 /// One run's results.
 struct GrowthRun {
     index: usize,
@@ -152,6 +155,13 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             if n == 0 {
                 return Err(Error::input(format!(
                     "--t-end {t_end} is shorter than one outer step --h {h}"
+                )));
+            }
+            // Every step's error is kept (8 bytes each).
+            if t_end / h > MAX_STEPS as f64 {
+                return Err(Error::input(format!(
+                    "--t-end {t_end} / --h {h} is more than the {MAX_STEPS} steps a growth run \
+                     records"
                 )));
             }
             let mut spec = base.clone();

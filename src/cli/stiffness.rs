@@ -88,6 +88,9 @@ fn number(text: &str, what: &str) -> Result<f64> {
     Ok(value)
 }
 
+/// Most parameter values a study takes (each is a row of every curve, kept for the picture).
+const MAX_VALUES: usize = 1_000_000;
+
 /// `LO:HI` and a count → the evenly spaced values.
 pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
     let Some((lo, hi)) = range.split_once(':') else {
@@ -102,6 +105,11 @@ pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
     if n < 2 {
         return Err(Error::input(format!(
             "--n must be at least 2 (the two ends of --range), got {n}"
+        )));
+    }
+    if n > MAX_VALUES {
+        return Err(Error::input(format!(
+            "--n {n} is more than the {MAX_VALUES} values a study holds"
         )));
     }
     let step = (hi - lo) / (n - 1) as f64;
