@@ -29,6 +29,9 @@ bench: cmake
 FIGURES := docs/figures
 FIGURE_DATA := out/figures
 MAP := $(BIN) stability-map --quiet --h 0.5
+GROWTH := $(BIN) scan growth systems/three-spring.toml --quiet --inner 200
+PROP1 := --set 'omega1=pi-1/pi^3' --set 'omega2=3*pi-1/(27*pi^3)'
+STIFFNESS := $(BIN) scan stiffness systems/two-spring.toml --quiet --param omega1 --range 0:32 --n 400
 figures: cmake
 	$(CARGO) build --release
 	mkdir -p $(FIGURES) $(FIGURE_DATA)
@@ -52,6 +55,38 @@ figures: cmake
 # Integrator mode: velocity Verlet (single step) on the three-spring scene.
 	$(MAP) --mode integrator --method verlet --gamma1 0:2*pi --gamma2 0:2*pi --n 200 \
 		--out $(FIGURE_DATA)/verlet-integrator.csv --png $(FIGURES)/verlet-integrator.png
+# Integrator mode with coarse inner steps: what the inner Verlet adds (docs/stability.md).
+	for m in impulse short-average long-average linear-average; do for k in 5 10 20; do \
+		$(MAP) --mode integrator --inner $$k --method $$m --gamma1 0:2*pi --gamma2 0:2*pi --n 400 \
+			--colour type --out $(FIGURE_DATA)/coarse-k$$k-$$m.csv \
+			--png $(FIGURES)/coarse-k$$k-$$m.png || exit 1; \
+	done; done
+# GSS98 Figures 6-10: long runs at h = 1/2, K = 200 inner steps, GSS98's parameter sets.
+	$(GROWTH) --method long-average --h 0.5,0.49 --t-end 2000 $(PROP1) \
+		--out $(FIGURE_DATA)/fig6 --png $(FIGURES)/fig6-long-average.png
+	$(GROWTH) --method long-average,impulse,short-average,linear-average --h 0.5 --t-end 3000 \
+		$(PROP1) --set p0=1e-8 --fit 1e10:1e14 \
+		--out $(FIGURE_DATA)/fig6-linear --png $(FIGURES)/fig6-linear-regime.png
+	$(GROWTH) --method long-average --h 0.5,0.49 --t-end 10000 $(PROP1) --set angle=pi/48 \
+		--out $(FIGURE_DATA)/fig7 --png $(FIGURES)/fig7-angle-pi-48.png
+	$(GROWTH) --method long-average --h 0.5,0.49 --t-end 10000 $(PROP1) --set angle=pi/12 \
+		--out $(FIGURE_DATA)/fig8 --png $(FIGURES)/fig8-angle-pi-12.png
+	$(GROWTH) --method long-average,short-average,impulse,linear-average --h 0.5 --t-end 3000 \
+		--set 'omega1=2*pi-1/(2*pi^3)' --set omega2=0 \
+		--out $(FIGURE_DATA)/fig9 --png $(FIGURES)/fig9-type-2.png
+	$(GROWTH) --method long-average,linear-average,short-average,impulse --h 0.5 --t-end 3000 \
+		--set 'omega1=4*pi-1/(16*pi)' --set omega2=0 \
+		--out $(FIGURE_DATA)/fig10 --png $(FIGURES)/fig10-type-3-paper.png
+	$(GROWTH) --method long-average,linear-average,short-average,impulse --h 0.5 --t-end 3000 \
+		--set 'omega1=4*pi-1/(16*pi)' --set omega2=2 \
+		--out $(FIGURE_DATA)/fig10-third-spring --png $(FIGURES)/fig10-type-3-third-spring.png
+# GSS98 Figures 11-13: largest position error against Ω1 on the two-spring scene.
+	$(STIFFNESS) --method impulse --h 0.5,0.25,0.125 --t-end 8 \
+		--out $(FIGURE_DATA)/fig11.csv --png $(FIGURES)/fig11-impulse.png
+	$(STIFFNESS) --method long-average --h 0.5,0.25 --t-end 16 \
+		--out $(FIGURE_DATA)/fig12.csv --png $(FIGURES)/fig12-long-average.png
+	$(STIFFNESS) --method long-average,short-average,impulse --h 0.5,0.25 --t-end 16 \
+		--out $(FIGURE_DATA)/fig13.csv --png $(FIGURES)/fig13-three-methods.png
 	$(MAKE) figures-studies
 
 # docs/studies.md and docs/methods/*: work-precision charts per scene family, a step scan.

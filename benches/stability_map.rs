@@ -1,5 +1,5 @@
 //! Stability maps: the analytic 1000 × 1000 map (goal: under 1 s on 2 cores) and an
-//! integrator-mode map (verlet today; the MTS methods once registered).
+//! integrator-mode maps (verlet, and LongAverage with K = 20 inner steps).
 
 use std::f64::consts::PI;
 use std::hint::black_box;
@@ -38,6 +38,16 @@ fn analytic_map(c: &mut Criterion) {
     let evaluator = Evaluator::Integrator(Box::new(probe));
     let grid = grid(2.0 * PI, 200);
     group.bench_function("integrator_200x200_verlet", |b| {
+        b.iter(|| black_box(evaluate_all(&evaluator, &grid).expect("integrator")))
+    });
+    // The goal: LongAverage with K = 20 inner steps, 200 × 200, under 30 s on 2 cores.
+    let probe = IntegratorProbe::new(
+        ProbeScene::three_spring(),
+        MethodSettings::new("long-average", 0.5).with_inner_steps(20),
+    )
+    .expect("long-average");
+    let evaluator = Evaluator::Integrator(Box::new(probe));
+    group.bench_function("integrator_200x200_long_average_k20", |b| {
         b.iter(|| black_box(evaluate_all(&evaluator, &grid).expect("integrator")))
     });
     group.finish();

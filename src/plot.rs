@@ -751,9 +751,20 @@ impl LineChart {
                         .draw_series(points.iter().map(|&p| Circle::new(p, 5, style).into_dyn())),
                 }
                 .map_err(|e| e.to_string())?;
-            annotation.label(set.name.clone()).legend(move |(x, y)| {
-                Cross::new((x + 10, y), 5, colour.stroke_width(2)).into_dyn()
-            });
+            // The legend shows the set's own shape.
+            annotation
+                .label(set.name.clone())
+                .legend(move |(x, y)| match shape {
+                    MarkerShape::Cross => {
+                        Cross::new((x + 10, y), 5, colour.stroke_width(2)).into_dyn()
+                    }
+                    MarkerShape::Triangle => {
+                        TriangleMarker::new((x + 10, y), 5, colour.filled()).into_dyn()
+                    }
+                    MarkerShape::Circle => {
+                        Circle::new((x + 10, y), 4, colour.stroke_width(2)).into_dyn()
+                    }
+                });
         }
         if !self.series.is_empty() || !self.markers.is_empty() {
             chart

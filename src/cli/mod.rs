@@ -6,8 +6,10 @@
 
 mod async_map;
 mod charts;
+mod growth;
 mod run;
 pub mod stability;
+mod stiffness;
 mod studies;
 
 use std::path::PathBuf;
@@ -145,6 +147,12 @@ pub fn main() -> i32 {
             charts::work_precision_command(&args).map(|()| 0)
         }
         Command::Merge(args) => charts::merge_command(&args).map(|()| 0),
+        Command::Scan(studies::ScanCommand::Stiffness(args)) => {
+            stiffness::scan_stiffness_command(&args).map(|()| 0)
+        }
+        Command::Scan(studies::ScanCommand::Growth(args)) => {
+            growth::scan_growth_command(&args).map(|()| 0)
+        }
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),

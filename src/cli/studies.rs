@@ -39,7 +39,13 @@ pub struct ModesArgs {
 #[derive(Subcommand, Debug)]
 pub enum ScanCommand {
     /// Run each method at each outer step and classify it: stable, drifting or unstable.
-    Steps(ScanStepsArgs),
+    Steps(Box<ScanStepsArgs>),
+    /// The largest position error against a scene parameter such as a stiff spring's
+    /// frequency (GSS98 Figures 11–13), against an extrapolated Verlet reference.
+    Stiffness(Box<super::stiffness::ScanStiffnessArgs>),
+    /// Long runs: the energy error's envelope, its fitted growth rate per step, and 2 ln ρ
+    /// from the linearised step of the same method (GSS98 Figures 6–10).
+    Growth(Box<super::growth::ScanGrowthArgs>),
 }
 
 #[derive(Args, Debug)]

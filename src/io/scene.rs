@@ -326,8 +326,15 @@ pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene> {
 
 /// Build a scene from its text (`path` names it in messages and anchors relative files).
 pub fn build_scene(text: &str, path: &Path, overrides: &[String]) -> Result<Scene> {
+    let file = parse_scene(text, path)?;
+    build_parsed_scene(&file, text, path, overrides)
+}
+
+/// Parse a scene's text without building it, for studies that build the same scene many
+/// times with different parameters ([`build_parsed_scene`]); `path` names it in messages.
+pub fn parse_scene(text: &str, path: &Path) -> Result<SceneFile> {
     let builder = Builder { text, path };
-    let file: SceneFile = toml::from_str(text).map_err(|e| {
+    toml::from_str(text).map_err(|e| {
         let location = match e.span() {
             Some(span) => builder.location(span.start),
             None => path.display().to_string(),
@@ -336,8 +343,18 @@ pub fn build_scene(text: &str, path: &Path, overrides: &[String]) -> Result<Scen
             location,
             message: e.message().to_string(),
         }
-    })?;
-    builder.build(file, overrides)
+    })
+}
+
+/// Build a scene from a file parsed by [`parse_scene`] from `text` (kept for the line
+/// numbers of messages), with `overrides` of its parameters.
+pub fn build_parsed_scene(
+    file: &SceneFile,
+    text: &str,
+    path: &Path,
+    overrides: &[String],
+) -> Result<Scene> {
+    Builder { text, path }.build(file, overrides)
 }
 
 struct Builder<'a> {
@@ -375,7 +392,7 @@ impl Builder<'_> {
         }
     }
 
-    fn build(&self, file: SceneFile, overrides: &[String]) -> Result<Scene> {
+    fn build(&self, file: &SceneFile, overrides: &[String]) -> Result<Scene> {
         if file.version != SCENE_VERSION {
             return Err(self.error(format!(
                 "scene version {} is not supported; this longstep reads version {SCENE_VERSION}",
@@ -631,13 +648,13 @@ impl Builder<'_> {
         };
 
         Ok(Scene {
-            name: file.name,
-            description: file.description,
+            name: file.name.clone(),
+            description: file.description.clone(),
             path: self.path.to_path_buf(),
             parameters,
             system,
-            run: file.run,
-            output: file.output,
+            run: file.run.clone(),
+            output: file.output.clone(),
             exact,
         })
     }

@@ -1,0 +1,392 @@
+//! `longstep scan stiffness`: the largest position error against a parameter of the scene
+//! (GSS98 section 4, Figures 11–13), with a reference solution per value
+//! ([`crate::analysis::stiffness`]).
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use clap::Args;
+use rayon::prelude::*;
+
+use super::studies::{parse_shard, progress_bar};
+use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
+use crate::error::{Error, Result};
+use crate::io::expr;
+use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, Series};
+use crate::settings::{RunSpec, Value};
+
+#[derive(Args, Debug)]
+pub struct ScanStiffnessArgs {
+    /// Scene file (TOML), for example systems/two-spring.toml (GSS98 section 4).
+    pub scene: PathBuf,
+    /// Method(s), comma-separated: one curve per method and outer step.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub method: Vec<String>,
+    /// The scene parameter to scan, e.g. omega1.
+    #[arg(long)]
+    pub param: String,
+    /// Range of the parameter as LO:HI (numbers or expressions, e.g. 0:10*pi).
+    #[arg(long, value_name = "LO:HI")]
+    pub range: String,
+    /// Values of the parameter, evenly spaced from LO to HI inclusive.
+    #[arg(long, default_value_t = 400)]
+    pub n: usize,
+    /// Outer step(s) h, comma-separated (numbers or expressions).
+    #[arg(
+        long = "h",
+        value_delimiter = ',',
+        required = true,
+        allow_negative_numbers = true
+    )]
+    pub h: Vec<String>,
+    /// Inner steps K per outer step (default: max(100, ⌈h ω_max / 0.05⌉)).
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// A fixed inner step dt instead of --inner (every h must be a multiple of it).
+    #[arg(long, allow_negative_numbers = true)]
+    pub dt: Option<Value>,
+    /// Jacobian mode of the mollified methods.
+    #[arg(long)]
+    pub jacobian: Option<String>,
+    /// Length of each run; a whole number of every outer step.
+    #[arg(long, allow_negative_numbers = true)]
+    pub t_end: String,
+    /// Reference Verlet steps per outer step (default as for --inner); the reference is
+    /// Richardson-extrapolated from M, 2M and 4M steps.
+    #[arg(long, value_name = "M")]
+    pub reference_steps: Option<usize>,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// CSV output: index,method,h,<param>,max_error,error_time,reference_error,inner_steps,reference_steps,status.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Chart of the largest error against the parameter (PNG).
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// The same chart as SVG.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+    /// A logarithmic error axis.
+    #[arg(long)]
+    pub log_y: bool,
+    /// Compute only the k-th of n interleaved slices of the (h, value) units (k from 1 to
+    /// n), for job arrays; the CSV's index column orders the merged rows.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// No progress bar or summary on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn number(text: &str, what: &str) -> Result<f64> {
+    let value = expr::evaluate(text.trim(), &BTreeMap::new())
+        .map_err(|e| Error::input(format!("{what}: {e}")))?;
+    if !value.is_finite() {
+        return Err(Error::input(format!("{what} is not finite ({value})")));
+    }
+    Ok(value)
+}
+
+/// Most parameter values a study takes (each is a row of every curve, kept for the picture).
+const MAX_VALUES: usize = 1_000_000;
+
+/// `LO:HI` and a count → the evenly spaced values.
+pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
+    let Some((lo, hi)) = range.split_once(':') else {
+        return Err(Error::input(format!(
+            "--range expects LO:HI, got \"{range}\""
+        )));
+    };
+    let (lo, hi) = (number(lo, "--range")?, number(hi, "--range")?);
+    if lo >= hi {
+        return Err(Error::input(format!("--range: {lo} is not below {hi}")));
+    }
+    if n < 2 {
+        return Err(Error::input(format!(
+            "--n must be at least 2 (the two ends of --range), got {n}"
+        )));
+    }
+    if n > MAX_VALUES {
+        return Err(Error::input(format!(
+            "--n {n} is more than the {MAX_VALUES} values a study holds"
+        )));
+    }
+    let step = (hi - lo) / (n - 1) as f64;
+    Ok((0..n)
+        .map(|i| if i + 1 == n { hi } else { lo + i as f64 * step })
+        .collect())
+}
+
+pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
+    let values = parse_values(&args.range, args.n)?;
+    let steps = args
+        .h
+        .iter()
+        .map(|text| number(text, "--h"))
+        .collect::<Result<Vec<f64>>>()?;
+    let t_end = number(&args.t_end, "--t-end")?;
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        crate::plot::Format::of(path)?;
+    }
+    let base = RunSpec {
+        inner_steps: args.inner_steps,
+        dt: args.dt.clone(),
+        jacobian: args.jacobian.clone(),
+        ..Default::default()
+    };
+    let study = StiffnessStudy::new(
+        &args.scene,
+        args.set.clone(),
+        &args.param,
+        values,
+        args.method.clone(),
+        steps,
+        base,
+        t_end,
+        args.reference_steps,
+    )?;
+    let mut units = study.units();
+    if let Some((k, n)) = shard {
+        units.retain(|u| u.unit % n == k);
+    }
+    if !args.quiet {
+        for &h in &study.steps {
+            let inner: Vec<String> = study
+                .methods
+                .iter()
+                .map(|m| {
+                    study
+                        .settings(m, h, study.values[0])
+                        .map(|s| match s.inner_steps {
+                            Some(k) => format!("{m} K = {k}"),
+                            None => m.clone(),
+                        })
+                        .unwrap_or_else(|_| m.clone())
+                })
+                .collect();
+            eprintln!(
+                "h = {h}: {}; reference: Verlet with {}, {} and {} steps per h, \
+                 extrapolated (fastest fast mode over the scan: ω = {:.4})",
+                inner.join(", "),
+                study.reference_steps(h),
+                2 * study.reference_steps(h),
+                4 * study.reference_steps(h),
+                study.omega_max
+            );
+        }
+    }
+
+    let mut header = vec!["index", "method", "h"];
+    header.push(&study.param);
+    header.extend([
+        "max_error",
+        "error_time",
+        "reference_error",
+        "inner_steps",
+        "reference_steps",
+        "status",
+    ]);
+    // A comment line names the study and its size, so shards can be merged; then rows are
+    // written and flushed block by block as they finish.
+    let mut out = TextCsv::create(
+        &args.out,
+        &format!(
+            "# longstep scan-stiffness, points = {}",
+            study.total_points()
+        ),
+        &header,
+    )?;
+    let bar = progress_bar(units.len() as u64, args.quiet, "scan stiffness");
+    let mut all: Vec<StiffnessPoint> = Vec::with_capacity(units.len() * study.methods.len());
+    // Blocks of a few units per thread keep the file current without idling the threads.
+    let block = 4 * rayon::current_num_threads().max(1);
+    for chunk in units.chunks(block) {
+        let results = chunk
+            .par_iter()
+            .map(|&unit| {
+                let points = study.evaluate(unit);
+                bar.inc(1);
+                points
+            })
+            .collect::<Result<Vec<_>>>()?;
+        for point in results.into_iter().flatten() {
+            out.row(&point)?;
+            all.push(point);
+        }
+        out.flush()?;
+    }
+    bar.finish_and_clear();
+
+    // Summary: the largest error of each curve and where.
+    let curves = curves(&study, &all);
+    if !args.quiet {
+        for (name, points) in &curves {
+            match largest(points) {
+                Some((value, error)) => eprintln!(
+                    "{name}: largest error {error:.4e} at {} = {value:.6}",
+                    study.param
+                ),
+                None => eprintln!("{name}: no finite error"),
+            }
+        }
+        let worst_reference = all.iter().map(|p| p.reference_error).fold(0.0, f64::max);
+        let smallest_error = all
+            .iter()
+            .filter(|p| p.max_error.is_finite())
+            .map(|p| p.max_error)
+            .fold(f64::INFINITY, f64::min);
+        if worst_reference > 0.01 * smallest_error {
+            eprintln!(
+                "notice: the reference's estimated error (up to {worst_reference:.2e}) is not \
+                 small beside the smallest measured error ({smallest_error:.2e}); raise \
+                 --reference-steps"
+            );
+        }
+        eprintln!("{} rows in {}", all.len(), args.out.display());
+    }
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        chart(&study, &curves, args.log_y).save(path)?;
+    }
+    Ok(())
+}
+
+/// The points of each (method, h) curve, in study order, named "method, h = …".
+fn curves<'a>(
+    study: &StiffnessStudy,
+    points: &'a [StiffnessPoint],
+) -> Vec<(String, Vec<&'a StiffnessPoint>)> {
+    let mut curves = Vec::new();
+    for method in &study.methods {
+        for &h in &study.steps {
+            let members: Vec<&StiffnessPoint> = points
+                .iter()
+                .filter(|p| &p.method == method && p.h == h)
+                .collect();
+            if !members.is_empty() {
+                curves.push((format!("{method}, h = {h}"), members));
+            }
+        }
+    }
+    curves
+}
+
+fn chart(
+    study: &StiffnessStudy,
+    curves: &[(String, Vec<&StiffnessPoint>)],
+    log_y: bool,
+) -> LineChart {
+    let y_label = "max position error ‖q − q_ref‖";
+    let mut chart = LineChart::new(
+        &format!(
+            "Largest position error over t ≤ {} against {}",
+            study.t_end, study.param
+        ),
+        AxisSpec::linear(&study.param),
+        AxisSpec::log(y_label),
+    );
+    if !log_y {
+        // A linear axis from 0 (the errors' natural floor) to just above the largest.
+        let top = curves
+            .iter()
+            .flat_map(|(_, p)| p.iter())
+            .map(|p| p.max_error)
+            .filter(|e| e.is_finite())
+            .fold(0.0, f64::max);
+        chart.y = AxisSpec::linear(y_label);
+        if top > 0.0 {
+            chart.y = chart.y.with_range(0.0, 1.05 * top);
+        }
+    }
+    chart.legend = Corner::UpperRight;
+    let mut maxima = Vec::new();
+    let mut failed = Vec::new();
+    for (name, points) in curves {
+        let finite: Vec<(f64, f64)> = points
+            .iter()
+            .filter(|p| p.max_error.is_finite() && (!log_y || p.max_error > 0.0))
+            .map(|p| (p.value, p.max_error))
+            .collect();
+        failed.extend(
+            points
+                .iter()
+                .filter(|p| !p.max_error.is_finite())
+                .map(|p| p.value),
+        );
+        if let Some(peak) = largest(points) {
+            maxima.push(peak);
+        }
+        chart.series.push(Series::line(name, finite));
+    }
+    if !maxima.is_empty() {
+        chart.markers.push(MarkerSet {
+            name: "largest".into(),
+            points: maxima,
+            shape: MarkerShape::Circle,
+            colour: plotters::style::RGBColor(0, 0, 0),
+        });
+    }
+    if !failed.is_empty() {
+        // Unstable runs sit on the axis: their error is unbounded.
+        let floor = curves
+            .iter()
+            .flat_map(|(_, p)| p.iter())
+            .filter(|p| p.max_error.is_finite() && p.max_error > 0.0)
+            .map(|p| p.max_error)
+            .fold(f64::INFINITY, f64::min);
+        let y = if log_y && floor.is_finite() {
+            floor
+        } else {
+            0.0
+        };
+        chart.markers.push(MarkerSet::unstable(
+            failed.into_iter().map(|x| (x, y)).collect(),
+        ));
+    }
+    chart
+}
+
+/// The study's CSV: a comment line, a header, then rows flushed as blocks finish (the
+/// rows carry method names and statuses, which `CsvWriter` does not write).
+struct TextCsv {
+    path: PathBuf,
+    out: std::io::BufWriter<std::fs::File>,
+}
+
+impl TextCsv {
+    fn create(path: &std::path::Path, comment: &str, header: &[&str]) -> Result<Self> {
+        use std::io::Write;
+        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut out = std::io::BufWriter::new(file);
+        writeln!(out, "{comment}\n{}", header.join(",")).map_err(|e| Error::io(path, e))?;
+        Ok(TextCsv {
+            path: path.to_path_buf(),
+            out,
+        })
+    }
+
+    fn row(&mut self, p: &StiffnessPoint) -> Result<()> {
+        use std::io::Write;
+        writeln!(
+            self.out,
+            "{},{},{},{},{},{},{},{},{},{}",
+            p.index,
+            p.method,
+            p.h,
+            p.value,
+            p.max_error,
+            p.error_time,
+            p.reference_error,
+            p.inner_steps,
+            p.reference_steps,
+            p.status
+        )
+        .map_err(|e| Error::io(&self.path, e))
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        use std::io::Write;
+        self.out.flush().map_err(|e| Error::io(&self.path, e))
+    }
+}
