@@ -148,3 +148,50 @@ fn scan_shards_merge_into_the_single_run() {
     ]);
     same_files(&single, &merged, &["scan.csv", "scan.png", "scan.svg"]);
 }
+
+#[test]
+fn stiffness_scan_shards_merge_into_the_single_run_table() {
+    let dir = scratch_dir("stiffness-shards");
+    let out = |name: &str| dir.join(name).display().to_string();
+    let scan = |file: &str, shard: Option<&str>| {
+        let mut args = vec![
+            "scan",
+            "stiffness",
+            "systems/two-spring.toml",
+            "--method",
+            "impulse",
+            "--param",
+            "omega1",
+            "--range",
+            "0:32",
+            "--n",
+            "6",
+            "--h",
+            "0.5",
+            "--t-end",
+            "4",
+            "--quiet",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+        args.extend(["--out".into(), out(file)]);
+        if let Some(s) = shard {
+            args.extend(["--shard".into(), s.into()]);
+        }
+        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    };
+    scan("single.csv", None);
+    scan("a.csv", Some("1/2"));
+    scan("b.csv", Some("2/2"));
+    run(&[
+        "merge",
+        &out("b.csv"),
+        &out("a.csv"),
+        "--out",
+        &out("merged"),
+    ]);
+    let single = std::fs::read_to_string(dir.join("single.csv")).unwrap();
+    let merged = std::fs::read_to_string(dir.join("merged/scan-stiffness.csv")).unwrap();
+    assert_eq!(single, merged);
+}

@@ -95,6 +95,7 @@ pub struct MergeArgs {
 const WORK_PRECISION: &str = "work-precision.csv";
 const WALL_TIME: &str = "wall-time.csv";
 const SCAN_STEPS: &str = "scan.csv";
+const SCAN_STIFFNESS: &str = "scan-stiffness.csv";
 
 fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
     pairs
@@ -500,10 +501,11 @@ pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
 
 /// `longstep merge DIR…`: combine shard outputs into what a single run writes.
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
-    let mut by_file: BTreeMap<String, Vec<StudyTable>> = BTreeMap::new();
+    // Tables are grouped by the study they name, so shard files may be called anything.
+    let mut by_study: BTreeMap<String, Vec<StudyTable>> = BTreeMap::new();
     for input in &args.inputs {
         let files: Vec<PathBuf> = if input.is_dir() {
-            [WORK_PRECISION, WALL_TIME, SCAN_STEPS]
+            [WORK_PRECISION, WALL_TIME, SCAN_STEPS, SCAN_STIFFNESS]
                 .iter()
                 .map(|f| input.join(f))
                 .filter(|p| p.exists())
@@ -513,33 +515,33 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
         };
         if files.is_empty() {
             return Err(Error::input(format!(
-                "{}: no study table ({WORK_PRECISION}, {SCAN_STEPS}) in it",
+                "{}: no study table ({WORK_PRECISION}, {SCAN_STEPS}, {SCAN_STIFFNESS}) in it",
                 input.display()
             )));
         }
         for file in files {
-            let name = file
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            by_file
-                .entry(name)
-                .or_default()
-                .push(StudyTable::read(&file)?);
+            let table = StudyTable::read(&file)?;
+            by_study.entry(table.study.clone()).or_default().push(table);
         }
     }
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let mut merged_tables = BTreeMap::new();
-    for (name, tables) in by_file {
+    for (study, tables) in by_study {
         let count = tables.len();
         let merged = merge(tables)?;
-        merged.write(&args.out.join(&name))?;
+        let name = match study.as_str() {
+            "work-precision" => WORK_PRECISION,
+            "work-precision-wall-time" => WALL_TIME,
+            "scan-steps" => SCAN_STEPS,
+            "scan-stiffness" => SCAN_STIFFNESS,
+            _ => "merged.csv",
+        };
+        merged.write(&args.out.join(name))?;
         eprintln!(
-            "merged {count} shards of {} into {}",
-            merged.study,
-            args.out.join(&name).display()
+            "merged {count} shards of {study} into {}",
+            args.out.join(name).display()
         );
-        merged_tables.insert(merged.study.clone(), merged);
+        merged_tables.insert(study, merged);
     }
     if let Some(table) = merged_tables.get("work-precision") {
         draw_work_precision(
@@ -550,6 +552,12 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     }
     if let Some(table) = merged_tables.get("scan-steps") {
         draw_scan_steps(table, &args.out)?;
+    }
+    if merged_tables.contains_key("scan-stiffness") {
+        eprintln!(
+            "notice: a merged stiffness scan is a table only; its picture is drawn by \
+             `longstep scan stiffness` itself"
+        );
     }
     Ok(())
 }
