@@ -195,3 +195,49 @@ fn stiffness_scan_shards_merge_into_the_single_run_table() {
     let merged = std::fs::read_to_string(dir.join("merged/scan-stiffness.csv")).unwrap();
     assert_eq!(single, merged);
 }
+
+#[test]
+fn stability_map_shards_merge_into_the_single_run_map() {
+    let dir = scratch_dir("map-shards");
+    let out = |name: &str| dir.join(name).display().to_string();
+    let map = |file: &str, shard: Option<&str>| {
+        let mut args: Vec<String> = [
+            "stability-map",
+            "--method",
+            "impulse",
+            "--h",
+            "0.5",
+            "--gamma1",
+            "0:2*pi",
+            "--gamma2",
+            "0:2*pi",
+            "--n",
+            "25",
+            "--quiet",
+        ]
+        .map(String::from)
+        .to_vec();
+        args.extend(["--out".into(), out(file)]);
+        if let Some(s) = shard {
+            args.extend(["--shard".into(), s.into()]);
+        }
+        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    };
+    map("single.csv", None);
+    for k in 1..=4 {
+        map(&format!("part{k}.csv"), Some(&format!("{k}/4")));
+    }
+    run(&[
+        "merge",
+        &out("part4.csv"),
+        &out("part2.csv"),
+        &out("part1.csv"),
+        &out("part3.csv"),
+        "--out",
+        &out("m"),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("single.csv")).unwrap(),
+        std::fs::read_to_string(dir.join("m/stability-map.csv")).unwrap()
+    );
+}

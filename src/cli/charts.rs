@@ -499,10 +499,59 @@ pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     Ok(())
 }
 
+const MAP_HEADER: &str = "gamma1,gamma2,spectral_radius,type";
+
+/// Stability-map shards are contiguous slices of the grid, which runs Γ1-major: the whole
+/// map's rows are the shards' rows in (Γ1, Γ2) order, each point once.
+fn merge_maps(maps: &[(PathBuf, String)], out: &Path) -> Result<()> {
+    let mut rows: Vec<(f64, f64, &str)> = Vec::new();
+    for (path, text) in maps {
+        for (n, line) in text.lines().skip(1).enumerate() {
+            let mut fields = line.split(',');
+            let mut coordinate = || -> Result<f64> {
+                fields
+                    .next()
+                    .and_then(|x| x.parse::<f64>().ok())
+                    .ok_or_else(|| Error::Structure {
+                        path: path.clone(),
+                        message: format!("row {} is not a map row", n + 1),
+                    })
+            };
+            rows.push((coordinate()?, coordinate()?, line));
+        }
+    }
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    if let Some(pair) = rows
+        .windows(2)
+        .find(|w| (w[0].0, w[0].1) == (w[1].0, w[1].1))
+    {
+        return Err(Error::input(format!(
+            "the map shards overlap: the point ({}, {}) appears twice",
+            pair[0].0, pair[0].1
+        )));
+    }
+    let mut text = format!("{MAP_HEADER}\n");
+    for (_, _, line) in &rows {
+        text += line;
+        text += "\n";
+    }
+    let path = out.join("stability-map.csv");
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
+    eprintln!(
+        "merged {} map shards ({} points) into {}",
+        maps.len(),
+        rows.len(),
+        path.display()
+    );
+    Ok(())
+}
+
 /// `longstep merge DIR…`: combine shard outputs into what a single run writes.
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
     // Tables are grouped by the study they name, so shard files may be called anything.
     let mut by_study: BTreeMap<String, Vec<StudyTable>> = BTreeMap::new();
+    let mut maps: Vec<(PathBuf, String)> = Vec::new();
     for input in &args.inputs {
         let files: Vec<PathBuf> = if input.is_dir() {
             [WORK_PRECISION, WALL_TIME, SCAN_STEPS, SCAN_STIFFNESS]
@@ -520,9 +569,17 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
             )));
         }
         for file in files {
+            let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+            if text.starts_with(MAP_HEADER) {
+                maps.push((file.clone(), text));
+                continue;
+            }
             let table = StudyTable::read(&file)?;
             by_study.entry(table.study.clone()).or_default().push(table);
         }
+    }
+    if !maps.is_empty() {
+        merge_maps(&maps, &args.out)?;
     }
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let mut merged_tables = BTreeMap::new();
