@@ -15,7 +15,7 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
     let settings = scene
         .run
         .overridden_by(&args.run)
-        .resolve(&scene.parameters)?;
+        .resolve_with_units(&scene.parameters, scene.units)?;
     let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
@@ -37,6 +37,9 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
 
     if !args.quiet {
+        for line in &scene.forcefield_report {
+            eprintln!("{line}");
+        }
         eprintln!("{}", scene.system.forces.level_table());
         for notice in &notices {
             eprintln!("notice: {notice}");

@@ -13,14 +13,18 @@
 //! `χ`, `χ′` and `χ″`.
 
 pub mod angle;
+pub mod coulomb;
 pub mod dual;
 pub mod field;
 pub mod gravity;
 pub mod lennard_jones;
+pub mod neighbour_list;
+pub mod nonbonded;
 pub mod pair;
 pub mod pendulum;
 pub mod quartic;
 pub mod spring;
+pub mod torsion;
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,6 +70,13 @@ pub trait ForceTerm: Send + Sync {
 
     /// How many elementary interactions (one spring, one pair, one angle) the term holds.
     fn interaction_count(&self) -> usize;
+
+    /// The energy split into named parts, for reports (`longstep forces`): a term that
+    /// computes several kinds of interaction in one pass (Lennard-Jones and Coulomb) names
+    /// each. By default one part named after [`ForceTerm::kind`].
+    fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        vec![(self.kind(), self.energy(q))]
+    }
 }
 
 /// Run `$body` with `$d` bound to the const dimension `1`, `2` or `3`, so inner loops are

@@ -2,6 +2,7 @@
 
 pub mod csv;
 pub mod expr;
+pub mod forcefield;
 pub mod scene;
 pub mod structure;
 pub mod summary;

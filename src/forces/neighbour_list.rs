@@ -1,0 +1,451 @@
+//! Verlet neighbour lists built from a cell list, for the cutoff pair terms.
+//!
+//! A list holds every pair closer than `cutoff + skin` at the positions it was built from;
+//! it stays valid (holds every pair closer than `cutoff`) while no particle has moved more
+//! than `skin / 2` since, because the distance on the periodic torus is a metric. Callers ask
+//! [`NeighbourList::needs_rebuild`] before every use: an O(N) check of displacements.
+//!
+//! **Images.** Positions are never wrapped during a run (the integrators own them). At a
+//! build each particle gets a fixed offset, a whole number of box lengths, that puts its
+//! position into the box; the force loops subtract these offsets once per evaluation
+//! ([`NeighbourList::wrap_positions`], O(N)). Between two wrapped positions the displacement
+//! lies in `(−L, L)`, and each entry stores which image of its partner it means, one of 27
+//! shift vectors (`−L, 0, +L` per axis), so the pair loop needs no `round()`. A pair may be
+//! listed with two images when both lie within `cutoff + skin` (a box shorter than
+//! `2(cutoff + skin)`, like the 216-water box: 18.6 Å against 2 × 10 Å); since
+//! `cutoff < L/2`, at most one of them is inside the cutoff at any time, so each pair
+//! interacts once. The skin is clipped so that `cutoff + skin < L`.
+//!
+//! **Chunks.** The rows (particles) are split into a fixed number of contiguous chunks that
+//! depends only on the particle count; each chunk keeps its own part of the list and, in the
+//! force terms, its own gradient buffer, summed in chunk order. Results are therefore
+//! bit-for-bit identical whatever the number of threads. A pair `i < j` is stored in row `i`
+//! when `i + j` is even and in row `j` otherwise, which balances the rows of a half list.
+//!
+//! **Classes.** A builder callback sorts each pair into one of [`N_CLASSES`] classes (for
+//! the non-bonded term: Lennard-Jones and charge, charge only, Lennard-Jones only) or drops it
+//! (excluded pairs, pairs with nothing to compute), so the force loops have no branches on
+//! pair kind.
+
+use rayon::prelude::*;
+
+/// Pair classes a list distinguishes.
+pub const N_CLASSES: usize = 3;
+
+/// Bits of an entry that hold the partner index; the rest hold the image shift (0..27).
+const INDEX_BITS: u32 = 27;
+const INDEX_MASK: u32 = (1 << INDEX_BITS) - 1;
+/// The shift index of the zero shift (no image).
+pub const NO_SHIFT: u32 = 13;
+
+/// The partner index and image-shift index of a list entry.
+#[inline(always)]
+pub fn unpack(entry: u32) -> (usize, usize) {
+    (
+        (entry & INDEX_MASK) as usize,
+        (entry >> INDEX_BITS) as usize,
+    )
+}
+
+#[inline(always)]
+fn pack(j: usize, shift: u32) -> u32 {
+    j as u32 | (shift << INDEX_BITS)
+}
+
+/// One chunk of rows and its part of the list, per class in CSR form.
+#[derive(Clone, Debug, Default)]
+pub struct Chunk {
+    pub rows: std::ops::Range<usize>,
+    /// `starts[c][r]..starts[c][r + 1]` indexes `entries[c]` for row `rows.start + r`.
+    pub starts: [Vec<u32>; N_CLASSES],
+    pub entries: [Vec<u32>; N_CLASSES],
+}
+
+impl Chunk {
+    pub fn pair_count(&self) -> usize {
+        self.entries.iter().map(Vec::len).sum()
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct NeighbourList {
+    cutoff: f64,
+    skin: f64,
+    /// Box lengths (infinite along a non-periodic axis, or for no box at all).
+    lengths: [f64; 3],
+    periodic: bool,
+    n: usize,
+    /// Positions at the last build.
+    reference: Vec<f64>,
+    /// Per-particle whole-box offsets fixed at the last build (see the module doc).
+    offsets: Vec<f64>,
+    built: bool,
+    /// Shift vectors by index `9(sx+1) + 3(sy+1) + (sz+1)`.
+    pub shifts: [[f64; 3]; 27],
+    pub chunks: Vec<Chunk>,
+    builds: u64,
+    // Cell-list scratch.
+    cell_counts: [usize; 3],
+    cell_start: Vec<u32>,
+    cell_atoms: Vec<u32>,
+    atom_cell: Vec<u32>,
+    cell_next: Vec<u32>,
+    wrapped: Vec<f64>,
+}
+
+/// How many chunks for `n` particles: a function of `n` only, so a given system always
+/// splits the same way whatever the thread count (see the module doc).
+pub fn chunk_count(n: usize) -> usize {
+    match n {
+        0..256 => 1,
+        256..2048 => 4,
+        2048..8192 => 8,
+        _ => 16,
+    }
+}
+
+impl NeighbourList {
+    /// A list for `n` particles in 3-D with a pair cutoff (`f64::INFINITY` for none) and a
+    /// skin; `lengths` the periodic box, if any.
+    pub fn new(n: usize, cutoff: f64, skin: f64, lengths: Option<[f64; 3]>) -> Self {
+        let (lengths, periodic) = match lengths {
+            Some(l) => (l, true),
+            None => ([f64::INFINITY; 3], false),
+        };
+        let mut shifts = [[0.0; 3]; 27];
+        for (index, shift) in shifts.iter_mut().enumerate() {
+            let s = [index / 9, (index / 3) % 3, index % 3];
+            for axis in 0..3 {
+                shift[axis] = if periodic && lengths[axis].is_finite() {
+                    (s[axis] as f64 - 1.0) * lengths[axis]
+                } else {
+                    0.0
+                };
+            }
+        }
+        let n_chunks = chunk_count(n);
+        let chunks = (0..n_chunks)
+            .map(|c| Chunk {
+                rows: (c * n / n_chunks)..((c + 1) * n / n_chunks),
+                starts: Default::default(),
+                entries: Default::default(),
+            })
+            .collect();
+        // The images are −L, 0, +L only: the reach must stay below every periodic length.
+        let mut skin = if cutoff.is_finite() { skin } else { 0.0 };
+        if periodic {
+            for &l in &lengths {
+                if l.is_finite() && cutoff + skin >= l {
+                    skin = (0.999 * l - cutoff).max(0.0);
+                }
+            }
+        }
+        NeighbourList {
+            cutoff,
+            skin,
+            lengths,
+            periodic,
+            n,
+            reference: vec![0.0; 3 * n],
+            offsets: vec![0.0; 3 * n],
+            built: false,
+            shifts,
+            chunks,
+            builds: 0,
+            cell_counts: [1; 3],
+            cell_start: Vec::new(),
+            cell_atoms: Vec::new(),
+            atom_cell: Vec::new(),
+            cell_next: Vec::new(),
+            wrapped: vec![0.0; 3 * n],
+        }
+    }
+
+    pub fn cutoff(&self) -> f64 {
+        self.cutoff
+    }
+
+    pub fn skin(&self) -> f64 {
+        self.skin
+    }
+
+    /// How many times the list was built.
+    pub fn builds(&self) -> u64 {
+        self.builds
+    }
+
+    pub fn pair_count(&self) -> usize {
+        self.chunks.iter().map(Chunk::pair_count).sum()
+    }
+
+    /// Whether a particle has moved more than `skin / 2` from where the list was built
+    /// (always true before the first build; never with no cutoff after it).
+    pub fn needs_rebuild(&self, q: &[f64]) -> bool {
+        if !self.built {
+            return true;
+        }
+        if !self.cutoff.is_finite() {
+            return false;
+        }
+        let limit = 0.25 * self.skin * self.skin;
+        q.chunks_exact(3)
+            .zip(self.reference.chunks_exact(3))
+            .any(|(x, r)| {
+                let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
+                // `!(… <= …)` also catches NaN positions, which then rebuild (and fail loudly
+                // in the energy) rather than use a stale list.
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).partial_cmp(&limit)
+                    != Some(std::cmp::Ordering::Less)
+            })
+    }
+
+    /// Rebuild from positions `q` (`n × 3`). `classify(i, j)` gives the class of the pair
+    /// `i < j` or `None` to leave it out. Buffers grow only when a chunk holds more pairs than
+    /// ever before.
+    pub fn build<F>(&mut self, q: &[f64], classify: F)
+    where
+        F: Fn(usize, usize) -> Option<usize> + Sync,
+    {
+        debug_assert_eq!(q.len(), 3 * self.n);
+        self.reference.copy_from_slice(q);
+        for (k, (offset, &x)) in self.offsets.iter_mut().zip(q).enumerate() {
+            let l = self.lengths[k % 3];
+            *offset = if self.periodic && l.is_finite() {
+                l * (x / l).floor()
+            } else {
+                0.0
+            };
+        }
+        let mut wrapped = std::mem::take(&mut self.wrapped);
+        self.wrap_positions(q, &mut wrapped);
+        let q: &[f64] = &wrapped;
+        self.built = true;
+        self.builds += 1;
+        let reach = self.cutoff + self.skin;
+        let reach2 = reach * reach;
+        let n = self.n;
+
+        // The cell grid: cells at least `reach` wide along periodic axes with three or more
+        // of them; otherwise one cell along the axis (every pair is a candidate along it).
+        let mut origin = [0.0; 3];
+        let mut cell_width = [f64::INFINITY; 3];
+        let mut counts = [1usize; 3];
+        if reach.is_finite() && n > 0 {
+            for axis in 0..3 {
+                let (lo, span) = if self.periodic && self.lengths[axis].is_finite() {
+                    (0.0, self.lengths[axis])
+                } else {
+                    let (lo, hi) = q
+                        .iter()
+                        .skip(axis)
+                        .step_by(3)
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                            (lo.min(x), hi.max(x))
+                        });
+                    (lo, (hi - lo).max(reach) * (1.0 + 1e-12))
+                };
+                let count = (span / reach).floor() as usize;
+                // Periodic axes need three cells for the 27-cell stencil to hold distinct
+                // cells; open axes can use any number.
+                let usable = if self.periodic {
+                    count >= 3
+                } else {
+                    count >= 2
+                };
+                if usable && count < 1 << 10 {
+                    counts[axis] = count;
+                    cell_width[axis] = span / count as f64;
+                    origin[axis] = lo;
+                }
+            }
+        }
+        self.cell_counts = counts;
+        let n_cells = counts[0] * counts[1] * counts[2];
+        let cell_of = |x: &[f64]| -> usize {
+            let mut index = [0usize; 3];
+            for axis in 0..3 {
+                if counts[axis] > 1 {
+                    let u = x[axis] - origin[axis];
+                    index[axis] = ((u / cell_width[axis]) as usize).min(counts[axis] - 1);
+                }
+            }
+            (index[0] * counts[1] + index[1]) * counts[2] + index[2]
+        };
+        self.atom_cell.clear();
+        self.atom_cell
+            .extend(q.chunks_exact(3).map(|x| cell_of(x) as u32));
+        self.cell_start.clear();
+        self.cell_start.resize(n_cells + 1, 0);
+        for &c in &self.atom_cell {
+            self.cell_start[c as usize + 1] += 1;
+        }
+        for c in 0..n_cells {
+            self.cell_start[c + 1] += self.cell_start[c];
+        }
+        self.cell_atoms.resize(n, 0);
+        self.cell_next.clear();
+        self.cell_next
+            .extend_from_slice(&self.cell_start[..n_cells]);
+        for (i, &c) in self.atom_cell.iter().enumerate() {
+            let slot = &mut self.cell_next[c as usize];
+            self.cell_atoms[*slot as usize] = i as u32;
+            *slot += 1;
+        }
+
+        let lengths = self.lengths;
+        let periodic = self.periodic;
+        let cell_start = &self.cell_start;
+        let cell_atoms = &self.cell_atoms;
+        let atom_cell = &self.atom_cell;
+        // Candidate images of the displacement `d` (raw, along one axis) within `reach`.
+        let images = |axis: usize, d: f64, out: &mut [(f64, u32); 3]| -> usize {
+            if !periodic || !lengths[axis].is_finite() {
+                out[0] = (d, 1);
+                return 1;
+            }
+            // Both positions are wrapped, so d ∈ (−L, L) and the images within reach
+            // (reach < L) are among d − L, d, d + L.
+            let l = lengths[axis];
+            let mut k = 0;
+            for (index, shift) in [-l, 0.0, l].into_iter().enumerate() {
+                let e = d + shift;
+                if e.abs() < reach {
+                    out[k] = (e, index as u32);
+                    k += 1;
+                }
+            }
+            k
+        };
+
+        let visit = |i: usize, chunk: &mut Chunk, row: usize| {
+            let xi = &q[3 * i..3 * i + 3];
+            let ci = atom_cell[i] as usize;
+            let c = [
+                ci / (counts[1] * counts[2]),
+                (ci / counts[2]) % counts[1],
+                ci % counts[2],
+            ];
+            let range = |axis: usize| -> std::ops::RangeInclusive<isize> {
+                if counts[axis] == 1 {
+                    0..=0
+                } else if periodic {
+                    -1..=1
+                } else {
+                    let lo = if c[axis] == 0 { 0 } else { -1 };
+                    let hi = if c[axis] + 1 == counts[axis] { 0 } else { 1 };
+                    lo..=hi
+                }
+            };
+            for dx in range(0) {
+                for dy in range(1) {
+                    for dz in range(2) {
+                        let wrap = |v: usize, d: isize, count: usize| -> usize {
+                            (v as isize + d).rem_euclid(count as isize) as usize
+                        };
+                        let cell = (wrap(c[0], dx, counts[0]) * counts[1]
+                            + wrap(c[1], dy, counts[1]))
+                            * counts[2]
+                            + wrap(c[2], dz, counts[2]);
+                        let members =
+                            &cell_atoms[cell_start[cell] as usize..cell_start[cell + 1] as usize];
+                        for &j in members {
+                            let j = j as usize;
+                            if j == i {
+                                continue;
+                            }
+                            // Row of the pair: the smaller index if i + j is even.
+                            let (lo, hi) = (i.min(j), i.max(j));
+                            let owner = if (lo + hi) % 2 == 0 { lo } else { hi };
+                            if owner != i {
+                                continue;
+                            }
+                            let Some(class) = classify(lo, hi) else {
+                                continue;
+                            };
+                            let xj = &q[3 * j..3 * j + 3];
+                            let mut ix = [(0.0, 0); 3];
+                            let mut iy = [(0.0, 0); 3];
+                            let mut iz = [(0.0, 0); 3];
+                            let nx = images(0, xj[0] - xi[0], &mut ix);
+                            let ny = images(1, xj[1] - xi[1], &mut iy);
+                            let nz = images(2, xj[2] - xi[2], &mut iz);
+                            for &(ex, sx) in &ix[..nx] {
+                                for &(ey, sy) in &iy[..ny] {
+                                    for &(ez, sz) in &iz[..nz] {
+                                        if ex * ex + ey * ey + ez * ez < reach2 {
+                                            chunk.entries[class]
+                                                .push(pack(j, sx * 9 + sy * 3 + sz));
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            for class in 0..N_CLASSES {
+                chunk.starts[class][row + 1] = chunk.entries[class].len() as u32;
+            }
+        };
+
+        // With fewer than three cells along a periodic axis the stencil above would visit a
+        // cell twice; the one-cell case visits it once, which is what `counts = 1` gives.
+        let build_chunk = |chunk: &mut Chunk| {
+            let rows = chunk.rows.clone();
+            for class in 0..N_CLASSES {
+                chunk.entries[class].clear();
+                chunk.starts[class].clear();
+                chunk.starts[class].resize(rows.len() + 1, 0);
+            }
+            if reach.is_finite() {
+                for (row, i) in rows.enumerate() {
+                    visit(i, chunk, row);
+                }
+            } else {
+                // No cutoff: every pair, no images.
+                for (row, i) in rows.enumerate() {
+                    for j in 0..n {
+                        if j == i {
+                            continue;
+                        }
+                        let (lo, hi) = (i.min(j), i.max(j));
+                        let owner = if (lo + hi) % 2 == 0 { lo } else { hi };
+                        if owner != i {
+                            continue;
+                        }
+                        if let Some(class) = classify(lo, hi) {
+                            chunk.entries[class].push(pack(j, NO_SHIFT));
+                        }
+                    }
+                    for class in 0..N_CLASSES {
+                        chunk.starts[class][row + 1] = chunk.entries[class].len() as u32;
+                    }
+                }
+            }
+            // Room for density fluctuations, so later rebuilds rarely allocate in the run.
+            for entries in &mut chunk.entries {
+                let wanted = entries.len() + entries.len() / 4;
+                if entries.capacity() < wanted {
+                    entries.reserve(wanted - entries.len());
+                }
+            }
+        };
+        if n >= PARALLEL_MIN_PARTICLES {
+            self.chunks.par_iter_mut().for_each(build_chunk);
+        } else {
+            self.chunks.iter_mut().for_each(build_chunk);
+        }
+        self.wrapped = wrapped;
+    }
+
+    /// `out = q − offsets`: the positions the list's image shifts refer to.
+    pub fn wrap_positions(&self, q: &[f64], out: &mut [f64]) {
+        for ((o, &x), &offset) in out.iter_mut().zip(q).zip(&self.offsets) {
+            *o = x - offset;
+        }
+    }
+}
+
+/// Below this many particles list builds and force loops run on the calling thread: the
+/// work per chunk (≈ 100 pairs per particle) no longer pays for waking other threads.
+pub const PARALLEL_MIN_PARTICLES: usize = 256;
