@@ -63,6 +63,10 @@ pub struct RunArgs {
     /// Write a row of energy.csv every N steps.
     #[arg(long, value_name = "N")]
     pub energy_every: Option<usize>,
+    /// Write a trajectory frame every N steps (file: the scene's [output] trajectory, default
+    /// trajectory.xyz in the output directory; any chemfiles format by extension).
+    #[arg(long, value_name = "N")]
+    pub trajectory_every: Option<usize>,
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,

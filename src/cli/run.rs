@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::Status;
-use crate::run::{RunOptions, run};
+use crate::run::{RunOptions, TrajectoryOptions, run};
 use crate::split::ParticleClass;
 
 pub fn run_command(args: &RunArgs) -> Result<i32> {
@@ -45,11 +45,27 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
             eprintln!("notice: {notice}");
         }
     }
+    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
+    if trajectory_every == Some(0) {
+        return Err(Error::input("--trajectory-every must be at least 1"));
+    }
+    let trajectory = trajectory_every.map(|every| TrajectoryOptions {
+        path: out_dir.join(
+            scene
+                .output
+                .trajectory
+                .as_deref()
+                .unwrap_or("trajectory.xyz"),
+        ),
+        every,
+        names: scene.elements.clone(),
+    });
     let options = RunOptions {
         t_end,
         energy_every,
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
+        trajectory,
     };
     let summary = run(
         &scene.name,
@@ -57,6 +73,11 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
         integrator.as_mut(),
         &options,
     )?;
+    if let Some(t) = &options.trajectory
+        && !args.quiet
+    {
+        eprintln!("trajectory {}", t.path.display());
+    }
     if args.json {
         let json = serde_json::to_string_pretty(&summary)
             .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;

@@ -16,11 +16,12 @@
 //! `cutoff < L/2`, at most one of them is inside the cutoff at any time, so each pair
 //! interacts once. The skin is clipped so that `cutoff + skin < L`.
 //!
-//! **Chunks.** The rows (particles) are split into a fixed number of contiguous chunks that
-//! depends only on the particle count; each chunk keeps its own part of the list and, in the
-//! force terms, its own gradient buffer, summed in chunk order. Results are therefore
-//! bit-for-bit identical whatever the number of threads. A pair `i < j` is stored in row `i`
-//! when `i + j` is even and in row `j` otherwise, which balances the rows of a half list.
+//! **Chunks.** A half list: pair `i < j` is stored in row `i`. The rows (particles) are split
+//! into a fixed number of contiguous chunks that depends only on the particle count; each
+//! chunk keeps its own part of the list and, in the force terms, its own gradient buffer,
+//! summed in chunk order. Results are therefore bit-for-bit identical whatever the number of
+//! threads. Row `i` holds about `(n − i)/n` of its neighbours, so chunk boundaries are at
+//! `n (1 − √(1 − c/C))`, which gives every chunk the same expected number of pairs.
 //!
 //! **Classes.** A builder callback sorts each pair into one of [`N_CLASSES`] classes (for
 //! the non-bonded term: Lennard-Jones and charge, charge only, Lennard-Jones only) or drops it
@@ -93,6 +94,15 @@ pub struct NeighbourList {
     wrapped: Vec<f64>,
 }
 
+/// Start row of chunk `c` of `chunks`: equal shares of the half list's `Σ (n − i)`.
+fn balanced_boundary(c: usize, chunks: usize, n: usize) -> usize {
+    if c >= chunks {
+        return n;
+    }
+    let share = 1.0 - (1.0 - c as f64 / chunks as f64).sqrt();
+    ((share * n as f64).round() as usize).min(n)
+}
+
 /// How many chunks for `n` particles: a function of `n` only, so a given system always
 /// splits the same way whatever the thread count (see the module doc).
 pub fn chunk_count(n: usize) -> usize {
@@ -126,7 +136,7 @@ impl NeighbourList {
         let n_chunks = chunk_count(n);
         let chunks = (0..n_chunks)
             .map(|c| Chunk {
-                rows: (c * n / n_chunks)..((c + 1) * n / n_chunks),
+                rows: balanced_boundary(c, n_chunks, n)..balanced_boundary(c + 1, n_chunks, n),
                 starts: Default::default(),
                 entries: Default::default(),
             })
@@ -297,28 +307,23 @@ impl NeighbourList {
         let cell_start = &self.cell_start;
         let cell_atoms = &self.cell_atoms;
         let atom_cell = &self.atom_cell;
-        // Candidate images of the displacement `d` (raw, along one axis) within `reach`.
-        let images = |axis: usize, d: f64, out: &mut [(f64, u32); 3]| -> usize {
-            if !periodic || !lengths[axis].is_finite() {
-                out[0] = (d, 1);
-                return 1;
+        // Per axis: half the box (the minimum image is one comparison away) and whether a
+        // second image can also lie within reach (a box shorter than twice the reach).
+        let mut half = [f64::INFINITY; 3];
+        let mut second_image = [false; 3];
+        for axis in 0..3 {
+            if periodic && lengths[axis].is_finite() {
+                half[axis] = 0.5 * lengths[axis];
+                second_image[axis] = reach > half[axis];
             }
-            // Both positions are wrapped, so d ∈ (−L, L) and the images within reach
-            // (reach < L) are among d − L, d, d + L.
-            let l = lengths[axis];
-            let mut k = 0;
-            for (index, shift) in [-l, 0.0, l].into_iter().enumerate() {
-                let e = d + shift;
-                if e.abs() < reach {
-                    out[k] = (e, index as u32);
-                    k += 1;
-                }
-            }
-            k
-        };
+        }
+        let any_second = second_image.iter().any(|&b| b);
+        // The box length along periodic axes, 0 along open ones (no image shift there).
+        let box_step: [f64; 3] =
+            std::array::from_fn(|a| if half[a].is_finite() { lengths[a] } else { 0.0 });
 
         let visit = |i: usize, chunk: &mut Chunk, row: usize| {
-            let xi = &q[3 * i..3 * i + 3];
+            let xi = [q[3 * i], q[3 * i + 1], q[3 * i + 2]];
             let ci = atom_cell[i] as usize;
             let c = [
                 ci / (counts[1] * counts[2]),
@@ -348,35 +353,71 @@ impl NeighbourList {
                             + wrap(c[2], dz, counts[2]);
                         let members =
                             &cell_atoms[cell_start[cell] as usize..cell_start[cell + 1] as usize];
-                        for &j in members {
+                        // A half list: partners j > i, a sorted tail of each cell.
+                        let first = members.partition_point(|&j| j as usize <= i);
+                        for &j in &members[first..] {
                             let j = j as usize;
-                            if j == i {
+                            let (lo, hi) = (i, j);
+                            // The minimum image (wrapped positions: d ∈ (−L, L)), branch-free.
+                            let mut e = [0.0; 3];
+                            let mut shift = [1u32; 3];
+                            for axis in 0..3 {
+                                let d = q[3 * j + axis] - xi[axis];
+                                let up = (d < -half[axis]) as u32;
+                                let down = (d > half[axis]) as u32;
+                                shift[axis] = 1 + up - down;
+                                e[axis] = d + (up as f64 - down as f64) * box_step[axis];
+                            }
+                            let r2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                            let mut class = None;
+                            if r2 < reach2 {
+                                class = classify(lo, hi);
+                                let Some(class) = class else {
+                                    continue;
+                                };
+                                chunk.entries[class]
+                                    .push(pack(j, shift[0] * 9 + shift[1] * 3 + shift[2]));
+                            }
+                            if !any_second {
                                 continue;
                             }
-                            // Row of the pair: the smaller index if i + j is even.
-                            let (lo, hi) = (i.min(j), i.max(j));
-                            let owner = if (lo + hi) % 2 == 0 { lo } else { hi };
-                            if owner != i {
+                            // Other images within reach: per axis the image on the other side,
+                            // |e′| = L − |e|, in every combination of such axes (a short box).
+                            let mut alternatives = 0u32;
+                            for axis in 0..3 {
+                                if second_image[axis] && lengths[axis] - e[axis].abs() < reach {
+                                    alternatives |= 1 << axis;
+                                }
+                            }
+                            if alternatives == 0 {
                                 continue;
                             }
-                            let Some(class) = classify(lo, hi) else {
-                                continue;
-                            };
-                            let xj = &q[3 * j..3 * j + 3];
-                            let mut ix = [(0.0, 0); 3];
-                            let mut iy = [(0.0, 0); 3];
-                            let mut iz = [(0.0, 0); 3];
-                            let nx = images(0, xj[0] - xi[0], &mut ix);
-                            let ny = images(1, xj[1] - xi[1], &mut iy);
-                            let nz = images(2, xj[2] - xi[2], &mut iz);
-                            for &(ex, sx) in &ix[..nx] {
-                                for &(ey, sy) in &iy[..ny] {
-                                    for &(ez, sz) in &iz[..nz] {
-                                        if ex * ex + ey * ey + ez * ez < reach2 {
-                                            chunk.entries[class]
-                                                .push(pack(j, sx * 9 + sy * 3 + sz));
+                            for mask in 1u32..8 {
+                                if mask & !alternatives != 0 {
+                                    continue;
+                                }
+                                let mut f = e;
+                                let mut sh = shift;
+                                for axis in 0..3 {
+                                    if mask & (1 << axis) != 0 {
+                                        if e[axis] >= 0.0 {
+                                            f[axis] -= lengths[axis];
+                                            sh[axis] -= 1;
+                                        } else {
+                                            f[axis] += lengths[axis];
+                                            sh[axis] += 1;
                                         }
                                     }
+                                }
+                                if f[0] * f[0] + f[1] * f[1] + f[2] * f[2] < reach2 {
+                                    if class.is_none() {
+                                        class = classify(lo, hi);
+                                    }
+                                    let Some(class) = class else {
+                                        break;
+                                    };
+                                    chunk.entries[class]
+                                        .push(pack(j, sh[0] * 9 + sh[1] * 3 + sh[2]));
                                 }
                             }
                         }
@@ -404,16 +445,8 @@ impl NeighbourList {
             } else {
                 // No cutoff: every pair, no images.
                 for (row, i) in rows.enumerate() {
-                    for j in 0..n {
-                        if j == i {
-                            continue;
-                        }
-                        let (lo, hi) = (i.min(j), i.max(j));
-                        let owner = if (lo + hi) % 2 == 0 { lo } else { hi };
-                        if owner != i {
-                            continue;
-                        }
-                        if let Some(class) = classify(lo, hi) {
+                    for j in i + 1..n {
+                        if let Some(class) = classify(i, j) {
                             chunk.entries[class].push(pack(j, NO_SHIFT));
                         }
                     }

@@ -6,3 +6,4 @@ pub mod forcefield;
 pub mod scene;
 pub mod structure;
 pub mod summary;
+pub mod trajectory;
