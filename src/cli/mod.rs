@@ -4,6 +4,7 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod forces;
 mod run;
 
 use std::path::PathBuf;
@@ -42,6 +43,35 @@ enum Command {
     Check(CheckArgs),
     /// List the integration methods.
     Methods,
+    /// Energy per group and per-atom forces at the scene's starting positions.
+    Forces(ForcesArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ForcesArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print {"energy": {...}, "units": {...}} as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Add the force of each level to the CSV (fx_fast, ..., fx_slow, ...).
+    #[arg(long)]
+    pub by_level: bool,
+    /// Evaluate at the positions of this structure file (same atoms) instead of the scene's.
+    #[arg(long, value_name = "FILE")]
+    pub positions: Option<PathBuf>,
+    /// Write every force-field parameter of every interaction to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub parameters: Option<PathBuf>,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Print no force-field report or level table on stderr.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -94,6 +124,7 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
+        Command::Forces(args) => forces::forces_command(&args).map(|()| 0),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

@@ -714,11 +714,3 @@ impl ForceTerm for Nonbonded {
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
     }
 }
-impl Drop for Nonbonded {
-    fn drop(&mut self) {
-        if std::env::var_os("LONGSTEP_LIST_STATS").is_some() {
-            let (c, s, b) = self.list_statistics();
-            eprintln!("DEBUG list cutoff {c} skin {s} builds {b}");
-        }
-    }
-}

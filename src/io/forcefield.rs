@@ -184,6 +184,9 @@ pub struct BuiltForcefield {
     pub elements: Vec<String>,
     /// Which parameter came from where, one line each.
     pub report: Vec<String>,
+    /// Every parameter of every interaction, for `longstep forces --parameters` (peer codes
+    /// build the same system from it: `scripts/compare_openmm.py`).
+    pub parameters: serde_json::Value,
 }
 
 /// Report of one kind of bond or angle: count, constant, its source, the given rest value
@@ -428,6 +431,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     let mut terms: Vec<(String, Box<dyn ForceTerm>, Assignment)> = Vec::new();
     let mut bond_groups: BTreeMap<String, Group> = BTreeMap::new();
     let mut bond_pairs = Vec::with_capacity(bonds.len());
+    let mut bond_dump = Vec::with_capacity(bonds.len());
     for &[a, b] in &bonds {
         let (types, elems) = names(&[a, b]);
         let found = lookup(&spec.bonds, &types, &elems, Symmetry::Reversible);
@@ -470,6 +474,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
                 rest_length: r0.unwrap_or(length),
             },
         });
+        bond_dump.push(serde_json::json!([a, b, k.0, r0.unwrap_or(length)]));
     }
     for (key, (count, k, from, r0, lengths)) in &bond_groups {
         report.push(format!(
@@ -497,6 +502,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     // --- angles ---------------------------------------------------------------------------
     let mut angle_groups: BTreeMap<String, Group> = BTreeMap::new();
     let mut bends = Vec::with_capacity(angles.len());
+    let mut angle_dump = Vec::with_capacity(angles.len());
     for &[i, j, k] in &angles {
         let (types, elems) = names(&[i, j, k]);
         let found = lookup(&spec.angles, &types, &elems, Symmetry::Reversible);
@@ -545,6 +551,13 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
             stiffness: stiffness.0,
             rest_angle: theta0.map_or(geometry, f64::to_radians),
         });
+        angle_dump.push(serde_json::json!([
+            i,
+            j,
+            k,
+            stiffness.0,
+            theta0.map_or(geometry, f64::to_radians)
+        ]));
     }
     for (key, (count, k, from, theta0, values)) in &angle_groups {
         report.push(format!(
@@ -564,6 +577,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     }
 
     // --- torsions -------------------------------------------------------------------------
+    let mut torsion_dump = Vec::new();
     if let Some(table) = &spec.torsions {
         let mut list = Vec::with_capacity(dihedrals.len());
         let mut groups: BTreeMap<String, usize> = BTreeMap::new();
@@ -595,6 +609,14 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
         }
         for (key, count) in &groups {
             report.push(format!("torsion {key} ×{count} (scene)"));
+        }
+        for d in &list {
+            let series: Vec<_> = d
+                .series
+                .iter()
+                .map(|c| serde_json::json!([c.k, c.periodicity, c.phase]))
+                .collect();
+            torsion_dump.push(serde_json::json!([d.atoms, series]));
         }
         if !list.is_empty() {
             terms.push((
@@ -751,6 +773,48 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
         },
         electrostatics.describe()
     ));
+    let (coulomb_name, alpha, dielectric) = match electrostatics {
+        Electrostatics::None => ("none", None, None),
+        Electrostatics::Plain => ("plain", None, None),
+        Electrostatics::DampedShiftedForce { alpha } => ("dsf", Some(alpha), None),
+        Electrostatics::ReactionField { dielectric } => ("reaction-field", None, Some(dielectric)),
+    };
+    let parameters = serde_json::json!({
+        "units": input.units.name(),
+        "elements": elements,
+        "masses": masses,
+        "charges": charges,
+        "types": kinds,
+        "type_of": kind_of,
+        "lj_epsilon": (0..nt).map(|a| (0..nt).map(|b| {
+            let p = lj[a * nt + b];
+            if p.c12 > 0.0 && p.c6 > 0.0 { p.c6 * p.c6 / (4.0 * p.c12) } else { 0.0 }
+        }).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "lj_sigma": (0..nt).map(|a| (0..nt).map(|b| {
+            let p = lj[a * nt + b];
+            if p.c12 > 0.0 && p.c6 > 0.0 { (p.c12 / p.c6).powf(1.0 / 6.0) } else { 1.0 }
+        }).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "bonds": bond_dump,
+        "angles": angle_dump,
+        "torsions": torsion_dump,
+        "exclusions": excluded,
+        "pairs_14": if separate_14 { pairs_14.iter().collect::<Vec<_>>() } else { Vec::new() },
+        "scale_14_lj": scale_14_lj,
+        "scale_14_coulomb": scale_14_coulomb,
+        "nonbonded": {
+            "cutoff": if cutoff.is_finite() { Some(cutoff) } else { None },
+            "coulomb": coulomb_name,
+            "dsf_alpha": alpha,
+            "rf_dielectric": dielectric,
+            "lj_shift": lj_shift && cutoff.is_finite(),
+            "coulomb_constant": coulomb_constant,
+        },
+        "box": box_lengths,
+        "doc": "bonds [i, j, k, r0] (E = k/2 (r - r0)^2); angles [i, j, k, k, theta0 rad] \
+                (E = k/2 (theta - theta0)^2); torsions [[i, j, k, l], [[k, n, phase rad], ...]] \
+                (E = sum k (1 + cos(n phi - phase))); exclusions: pairs left out of the \
+                cutoff term; pairs_14: scaled, no cutoff, plain Coulomb",
+    });
     let nonbonded = Nonbonded::new(
         NonbondedSpec {
             cutoff,
@@ -761,7 +825,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
             types: kind_of.clone(),
             lj: lj.clone(),
             charges: charges.clone(),
-            excluded,
+            excluded: excluded.clone(),
         },
         q,
     )?;
@@ -833,6 +897,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
         charges,
         elements,
         report,
+        parameters,
     })
 }
 

@@ -241,6 +241,8 @@ pub struct Scene {
     pub elements: Vec<String>,
     /// Which force-field parameter came from where (empty without `[forcefield]`).
     pub forcefield_report: Vec<String>,
+    /// Every force-field parameter per interaction (`None` without `[forcefield]`).
+    pub forcefield_parameters: Option<serde_json::Value>,
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters.
@@ -550,6 +552,7 @@ impl Builder<'_> {
         // The molecular force field, and the masses and velocities it settles.
         let mut elements: Vec<String> = names.clone();
         let mut forcefield_report = Vec::new();
+        let mut forcefield_parameters = None;
         if let (Some(ff), Some(structure)) = (&file.forcefield, &structure_positions) {
             let offset = ff.span().start;
             let structure_spec = file.structure.as_ref().map(|s| s.get_ref());
@@ -582,6 +585,7 @@ impl Builder<'_> {
             masses = built.masses;
             elements = built.elements;
             forcefield_report = built.report;
+            forcefield_parameters = Some(built.parameters);
             forcefield_report.insert(
                 0,
                 format!(
@@ -655,6 +659,7 @@ impl Builder<'_> {
             units,
             elements,
             forcefield_report,
+            forcefield_parameters,
         })
     }
 
