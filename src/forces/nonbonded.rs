@@ -259,6 +259,7 @@ pub struct Nonbonded {
 }
 
 /// What a non-bonded term is built from.
+#[derive(Clone, Debug)]
 pub struct NonbondedSpec {
     /// `f64::INFINITY` for no cutoff.
     pub cutoff: f64,
