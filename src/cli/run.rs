@@ -10,7 +10,16 @@ use crate::io::summary::Status;
 use crate::run::{RunOptions, TrajectoryOptions, run};
 use crate::split::ParticleClass;
 
+/// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
+/// force loops then split their work from a worker thread, with no allocation per call.
 pub fn run_command(args: &RunArgs) -> Result<i32> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .build()
+        .map_err(|e| Error::input(format!("cannot start the thread pool: {e}")))?;
+    pool.install(|| run_in_pool(args))
+}
+
+fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let mut scene = load_scene(&args.scene, &args.set)?;
     let settings = scene
         .run
