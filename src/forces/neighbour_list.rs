@@ -30,6 +30,9 @@
 
 use rayon::prelude::*;
 
+/// Candidates per block of the list build's distance loop.
+const BUILD_BLOCK: usize = 64;
+
 /// Pair classes a list distinguishes.
 pub const N_CLASSES: usize = 3;
 
@@ -92,6 +95,7 @@ pub struct NeighbourList {
     atom_cell: Vec<u32>,
     cell_next: Vec<u32>,
     wrapped: Vec<f64>,
+    sorted: [Vec<f64>; 3],
 }
 
 /// Start row of chunk `c` of `chunks`: equal shares of the half list's `Σ (n − i)`.
@@ -167,6 +171,7 @@ impl NeighbourList {
             cell_atoms: Vec::new(),
             atom_cell: Vec::new(),
             cell_next: Vec::new(),
+            sorted: Default::default(),
             wrapped: vec![0.0; 3 * n],
         }
     }
@@ -306,6 +311,12 @@ impl NeighbourList {
         let periodic = self.periodic;
         let cell_start = &self.cell_start;
         let cell_atoms = &self.cell_atoms;
+        // Wrapped positions in cell order, one array per axis.
+        for axis in 0..3 {
+            self.sorted[axis].clear();
+            self.sorted[axis].extend(self.cell_atoms.iter().map(|&i| q[3 * i as usize + axis]));
+        }
+        let sorted = &self.sorted;
         let atom_cell = &self.atom_cell;
         // Per axis: half the box (the minimum image is one comparison away) and whether a
         // second image can also lie within reach (a box shorter than twice the reach).
@@ -355,71 +366,98 @@ impl NeighbourList {
                             &cell_atoms[cell_start[cell] as usize..cell_start[cell + 1] as usize];
                         // A half list: partners j > i, a sorted tail of each cell.
                         let first = members.partition_point(|&j| j as usize <= i);
-                        for &j in &members[first..] {
-                            let j = j as usize;
-                            let (lo, hi) = (i, j);
-                            // The minimum image (wrapped positions: d ∈ (−L, L)), branch-free.
-                            let mut e = [0.0; 3];
-                            let mut shift = [1u32; 3];
-                            for axis in 0..3 {
-                                let d = q[3 * j + axis] - xi[axis];
-                                let up = (d < -half[axis]) as u32;
-                                let down = (d > half[axis]) as u32;
-                                shift[axis] = 1 + up - down;
-                                e[axis] = d + (up as f64 - down as f64) * box_step[axis];
-                            }
-                            let r2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-                            let mut class = None;
-                            if r2 < reach2 {
-                                class = classify(lo, hi);
-                                let Some(class) = class else {
-                                    continue;
-                                };
-                                chunk.entries[class]
-                                    .push(pack(j, shift[0] * 9 + shift[1] * 3 + shift[2]));
-                            }
-                            if !any_second {
-                                continue;
-                            }
-                            // Other images within reach: per axis the image on the other side,
-                            // |e′| = L − |e|, in every combination of such axes (a short box).
-                            let mut alternatives = 0u32;
-                            for axis in 0..3 {
-                                if second_image[axis] && lengths[axis] - e[axis].abs() < reach {
-                                    alternatives |= 1 << axis;
-                                }
-                            }
-                            if alternatives == 0 {
-                                continue;
-                            }
-                            for mask in 1u32..8 {
-                                if mask & !alternatives != 0 {
-                                    continue;
-                                }
-                                let mut f = e;
-                                let mut sh = shift;
+                        let start = cell_start[cell] as usize + first;
+                        let end = cell_start[cell + 1] as usize;
+                        // Distances of a block of candidates from the cell-sorted coordinates
+                        // (contiguous, branch-free: it vectorises), then only the candidates
+                        // within reach, or with a second image possibly within reach, go on.
+                        let mut from = start;
+                        while from < end {
+                            let to = (from + BUILD_BLOCK).min(end);
+                            let mut keep = [0u16; BUILD_BLOCK];
+                            let mut kept = 0;
+                            for k in from..to {
+                                let mut r2 = 0.0;
+                                let mut alternative = false;
                                 for axis in 0..3 {
-                                    if mask & (1 << axis) != 0 {
-                                        if e[axis] >= 0.0 {
-                                            f[axis] -= lengths[axis];
-                                            sh[axis] -= 1;
-                                        } else {
-                                            f[axis] += lengths[axis];
-                                            sh[axis] += 1;
-                                        }
-                                    }
+                                    let d = sorted[axis][k] - xi[axis];
+                                    let up = (d < -half[axis]) as u32 as f64;
+                                    let down = (d > half[axis]) as u32 as f64;
+                                    let e = d + (up - down) * box_step[axis];
+                                    r2 += e * e;
+                                    alternative |=
+                                        second_image[axis] & (lengths[axis] - e.abs() < reach);
                                 }
-                                if f[0] * f[0] + f[1] * f[1] + f[2] * f[2] < reach2 {
-                                    if class.is_none() {
-                                        class = classify(lo, hi);
-                                    }
+                                keep[kept] = (k - from) as u16;
+                                kept += (r2 < reach2 || alternative) as usize;
+                            }
+                            for &k in &keep[..kept] {
+                                let j = cell_atoms[from + k as usize] as usize;
+                                let (lo, hi) = (i, j);
+                                // The minimum image (wrapped positions: d ∈ (−L, L)), branch-free.
+                                let mut e = [0.0; 3];
+                                let mut shift = [1u32; 3];
+                                for axis in 0..3 {
+                                    let d = q[3 * j + axis] - xi[axis];
+                                    let up = (d < -half[axis]) as u32;
+                                    let down = (d > half[axis]) as u32;
+                                    shift[axis] = 1 + up - down;
+                                    e[axis] = d + (up as f64 - down as f64) * box_step[axis];
+                                }
+                                let r2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                                let mut class = None;
+                                if r2 < reach2 {
+                                    class = classify(lo, hi);
                                     let Some(class) = class else {
-                                        break;
+                                        continue;
                                     };
                                     chunk.entries[class]
-                                        .push(pack(j, sh[0] * 9 + sh[1] * 3 + sh[2]));
+                                        .push(pack(j, shift[0] * 9 + shift[1] * 3 + shift[2]));
+                                }
+                                if !any_second {
+                                    continue;
+                                }
+                                // Other images within reach: per axis the image on the other side,
+                                // |e′| = L − |e|, in every combination of such axes (a short box).
+                                let mut alternatives = 0u32;
+                                for axis in 0..3 {
+                                    if second_image[axis] && lengths[axis] - e[axis].abs() < reach {
+                                        alternatives |= 1 << axis;
+                                    }
+                                }
+                                if alternatives == 0 {
+                                    continue;
+                                }
+                                for mask in 1u32..8 {
+                                    if mask & !alternatives != 0 {
+                                        continue;
+                                    }
+                                    let mut f = e;
+                                    let mut sh = shift;
+                                    for axis in 0..3 {
+                                        if mask & (1 << axis) != 0 {
+                                            if e[axis] >= 0.0 {
+                                                f[axis] -= lengths[axis];
+                                                sh[axis] -= 1;
+                                            } else {
+                                                f[axis] += lengths[axis];
+                                                sh[axis] += 1;
+                                            }
+                                        }
+                                    }
+                                    if f[0] * f[0] + f[1] * f[1] + f[2] * f[2] < reach2 {
+                                        if class.is_none() {
+                                            class = classify(lo, hi);
+                                        }
+                                        let Some(class) = class else {
+                                            break;
+                                        };
+                                        chunk.entries[class]
+                                            .push(pack(j, sh[0] * 9 + sh[1] * 3 + sh[2]));
+                                    }
                                 }
                             }
+                            from = to;
                         }
                     }
                 }

@@ -222,6 +222,9 @@ enum Kernel {
     ReactionField(ReactionField),
 }
 
+/// Partners per block of the pair loop (see [`Nonbonded::block`]).
+const BLOCK: usize = 64;
+
 /// Pair classes of the list.
 const LJ_AND_CHARGE: usize = 0;
 const CHARGE_ONLY: usize = 1;
@@ -498,7 +501,8 @@ impl Nonbonded {
     }
 
     /// The pairs of one chunk: energies, and the gradient into `buffer` when `GRADIENT`.
-    #[inline(never)]
+    /// Uses AVX2 when the processor has it (the same operations in the same order, so the
+    /// same bits as the portable path).
     fn chunk_kernel<C: CoulombForm, const GRADIENT: bool>(
         &self,
         chunk: &Chunk,
@@ -507,54 +511,79 @@ impl Nonbonded {
         coulomb: C,
         buffer: &mut [f64],
     ) -> (f64, f64) {
-        let mut e_lj = 0.0;
-        let mut e_q = 0.0;
-        let rc2 = self.cutoff_squared;
-        let nt = self.n_types;
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor supports AVX2, checked just above.
+                return unsafe {
+                    self.chunk_kernel_avx2::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+                };
+            }
+        }
+        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn chunk_kernel_avx2<C: CoulombForm, const GRADIENT: bool>(
+        &self,
+        chunk: &Chunk,
+        shifts: &[[f64; 3]; 27],
+        x: &[f64],
+        coulomb: C,
+        buffer: &mut [f64],
+    ) -> (f64, f64) {
+        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+    }
+
+    #[inline(always)]
+    fn chunk_kernel_body<C: CoulombForm, const GRADIENT: bool>(
+        &self,
+        chunk: &Chunk,
+        shifts: &[[f64; 3]; 27],
+        x: &[f64],
+        coulomb: C,
+        buffer: &mut [f64],
+    ) -> (f64, f64) {
+        let mut energies = (0.0, 0.0);
         for (row, i) in chunk.rows.clone().enumerate() {
-            let xi = [x[3 * i], x[3 * i + 1], x[3 * i + 2]];
-            let qi = self.scaled_charges[i];
-            let lj_row = &self.lj[self.types[i] as usize * nt..(self.types[i] as usize + 1) * nt];
             let mut gi = [0.0; 3];
             for class in 0..N_CLASSES {
                 let range =
                     chunk.starts[class][row] as usize..chunk.starts[class][row + 1] as usize;
                 let entries = &chunk.entries[class][range];
-                for &entry in entries {
-                    let (j, s) = unpack(entry);
-                    let shift = &shifts[s];
-                    let d = [
-                        x[3 * j] + shift[0] - xi[0],
-                        x[3 * j + 1] + shift[1] - xi[1],
-                        x[3 * j + 2] + shift[2] - xi[2],
-                    ];
-                    let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                    if r2 >= rc2 {
-                        continue;
-                    }
-                    let inv_r2 = 1.0 / r2;
-                    let mut f = 0.0;
-                    if class != CHARGE_ONLY {
-                        let p = lj_row[self.types[j] as usize];
-                        let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-                        e_lj += inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
-                        f += inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
-                    }
-                    if class != LJ_ONLY {
-                        let qq = qi * self.scaled_charges[j];
-                        let (e, fq) = coulomb.energy_force(qq, r2, inv_r2.sqrt());
-                        e_q += e;
-                        f += fq;
-                    }
-                    if GRADIENT {
-                        // ∂V/∂r_j = V′ d/r = −f d.
-                        let g = [f * d[0], f * d[1], f * d[2]];
-                        gi[0] += g[0];
-                        gi[1] += g[1];
-                        gi[2] += g[2];
-                        buffer[3 * j] -= g[0];
-                        buffer[3 * j + 1] -= g[1];
-                        buffer[3 * j + 2] -= g[2];
+                for block in entries.chunks(BLOCK) {
+                    match class {
+                        LJ_AND_CHARGE => self.block::<C, GRADIENT, true, true>(
+                            i,
+                            block,
+                            shifts,
+                            x,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
+                        CHARGE_ONLY => self.block::<C, GRADIENT, false, true>(
+                            i,
+                            block,
+                            shifts,
+                            x,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
+                        _ => self.block::<C, GRADIENT, true, false>(
+                            i,
+                            block,
+                            shifts,
+                            x,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
                     }
                 }
             }
@@ -564,7 +593,94 @@ impl Nonbonded {
                 buffer[3 * i + 2] += gi[2];
             }
         }
-        (e_lj, e_q)
+        energies
+    }
+
+    /// Up to `BLOCK` partners of particle `i`: gather their displacements and parameters,
+    /// compute every pair in a loop free of indirect access and branches (the cutoff is a
+    /// mask), so it vectorises, then sum the energies and scatter the forces in list order.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn block<C: CoulombForm, const GRADIENT: bool, const LJ: bool, const CHARGE: bool>(
+        &self,
+        i: usize,
+        block: &[u32],
+        shifts: &[[f64; 3]; 27],
+        x: &[f64],
+        coulomb: C,
+        buffer: &mut [f64],
+        gi: &mut [f64; 3],
+        energies: &mut (f64, f64),
+    ) {
+        let m = block.len();
+        let xi = [x[3 * i], x[3 * i + 1], x[3 * i + 2]];
+        let qi = self.scaled_charges[i];
+        let nt = self.n_types;
+        let lj_row = &self.lj[self.types[i] as usize * nt..(self.types[i] as usize + 1) * nt];
+        let mut dx = [0.0; BLOCK];
+        let mut dy = [0.0; BLOCK];
+        let mut dz = [0.0; BLOCK];
+        let mut qq = [0.0; BLOCK];
+        let mut c12 = [0.0; BLOCK];
+        let mut c6 = [0.0; BLOCK];
+        let mut lj_shift = [0.0; BLOCK];
+        for (k, &entry) in block.iter().enumerate() {
+            let (j, s) = unpack(entry);
+            let shift = &shifts[s];
+            dx[k] = x[3 * j] + shift[0] - xi[0];
+            dy[k] = x[3 * j + 1] + shift[1] - xi[1];
+            dz[k] = x[3 * j + 2] + shift[2] - xi[2];
+            if CHARGE {
+                qq[k] = qi * self.scaled_charges[j];
+            }
+            if LJ {
+                let p = lj_row[self.types[j] as usize];
+                c12[k] = p.c12;
+                c6[k] = p.c6;
+                lj_shift[k] = p.shift;
+            }
+        }
+        let rc2 = self.cutoff_squared;
+        let mut f = [0.0; BLOCK];
+        let mut e_lj = [0.0; BLOCK];
+        let mut e_q = [0.0; BLOCK];
+        for k in 0..m {
+            let r2 = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
+            let inside = r2 < rc2;
+            // Beyond the cutoff: evaluate at the cutoff (finite) and mask to zero.
+            let s = if inside { r2 } else { rc2 };
+            let mask = if inside { 1.0 } else { 0.0 };
+            let inv_r2 = 1.0 / s;
+            let mut force = 0.0;
+            if LJ {
+                let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+                e_lj[k] = mask * (inv_r6 * (c12[k] * inv_r6 - c6[k]) - lj_shift[k]);
+                force += inv_r2 * inv_r6 * (12.0 * c12[k] * inv_r6 - 6.0 * c6[k]);
+            }
+            if CHARGE {
+                let (e, fq) = coulomb.energy_force(qq[k], s, inv_r2.sqrt());
+                e_q[k] = mask * e;
+                force += fq;
+            }
+            f[k] = mask * force;
+        }
+        for k in 0..m {
+            energies.0 += e_lj[k];
+            energies.1 += e_q[k];
+        }
+        if GRADIENT {
+            for (k, &entry) in block.iter().enumerate() {
+                let (j, _) = unpack(entry);
+                // ∂V/∂r_j = V′ d/r = −f d.
+                let g = [f[k] * dx[k], f[k] * dy[k], f[k] * dz[k]];
+                gi[0] += g[0];
+                gi[1] += g[1];
+                gi[2] += g[2];
+                buffer[3 * j] -= g[0];
+                buffer[3 * j + 1] -= g[1];
+                buffer[3 * j + 2] -= g[2];
+            }
+        }
     }
 
     /// `(V′, V″)` of the pair `i, j` at distance `r` (both zero beyond the cutoff).
