@@ -291,7 +291,14 @@ fn neighbour_list_gives_the_brute_force_sum_through_rebuilds() {
                 }
             }
             let (_, _, builds) = term.list_statistics();
-            assert!(builds >= 2, "the list was never rebuilt ({builds} builds)");
+            if side > 20.0 {
+                // Reach 6 in a box of 23: a cell list, rebuilt as atoms move.
+                assert!(builds >= 2, "the list was never rebuilt ({builds} builds)");
+            } else {
+                // Reach 6 in a box of 11 (the sphere is 68 % of the box): every pair listed
+                // once, minimum image in the loop, never rebuilt.
+                assert_eq!(builds, 1, "an all-pairs list is built once");
+            }
         }
     }
 }

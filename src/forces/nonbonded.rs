@@ -225,7 +225,19 @@ enum Kernel {
 /// Partners per block of the pair loop (see [`Nonbonded::block`]).
 const BLOCK: usize = 64;
 
+/// One block of partners of particle `i` and what locating them needs.
+#[derive(Clone, Copy)]
+struct Pairs<'a> {
+    i: usize,
+    block: &'a [u32],
+    shifts: &'a [[f64; 3]; 27],
+    /// Box lengths when the list is all-pairs (minimum image taken in the loop).
+    image: Option<[f64; 3]>,
+    x: &'a [f64],
+}
+
 /// Pair classes of the list.
+const NO_CLASS: u8 = u8::MAX;
 const LJ_AND_CHARGE: usize = 0;
 const CHARGE_ONLY: usize = 1;
 const LJ_ONLY: usize = 2;
@@ -255,8 +267,13 @@ pub struct Nonbonded {
     lj: Vec<LjPair>,
     /// `q_i √k_e`, so the product of two is `k_e q_i q_j`.
     scaled_charges: Vec<f64>,
-    /// Sorted excluded partners of each particle.
-    excluded: Vec<Vec<u32>>,
+    /// Excluded partners of each particle (CSR: `excluded_start[i]..excluded_start[i + 1]`).
+    excluded_start: Vec<u32>,
+    excluded_partners: Vec<u32>,
+    /// Pair class by particle kind (type and whether charged): `n_kinds × n_kinds`.
+    kind: Vec<u32>,
+    n_kinds: usize,
+    class_table: Vec<u8>,
     workspace: Mutex<Workspace>,
     listed_pairs: AtomicUsize,
 }
@@ -355,6 +372,28 @@ impl Nonbonded {
             list.sort_unstable();
             list.dedup();
         }
+        let mut excluded_start = vec![0u32; n + 1];
+        for (i, list) in excluded.iter().enumerate() {
+            excluded_start[i + 1] = excluded_start[i] + list.len() as u32;
+        }
+        let excluded_partners: Vec<u32> = excluded.concat();
+        let kind: Vec<u32> = (0..n)
+            .map(|i| 2 * spec.types[i] + (scaled_charges[i] != 0.0) as u32)
+            .collect();
+        let n_kinds = 2 * n_types;
+        let mut class_table = vec![NO_CLASS; n_kinds * n_kinds];
+        for a in 0..n_kinds {
+            for b in 0..n_kinds {
+                let has_lj = !spec.lj[(a / 2) * n_types + b / 2].is_zero();
+                let has_charge = a % 2 == 1 && b % 2 == 1;
+                class_table[a * n_kinds + b] = match (has_lj, has_charge) {
+                    (true, true) => LJ_AND_CHARGE as u8,
+                    (false, true) => CHARGE_ONLY as u8,
+                    (true, false) => LJ_ONLY as u8,
+                    (false, false) => NO_CLASS,
+                };
+            }
+        }
         let list = NeighbourList::new(n, cutoff, spec.skin, spec.box_lengths);
         let chunks = list.chunks.len();
         let term = Nonbonded {
@@ -366,7 +405,11 @@ impl Nonbonded {
             types: spec.types,
             lj: spec.lj,
             scaled_charges,
-            excluded,
+            excluded_start,
+            excluded_partners,
+            kind,
+            n_kinds,
+            class_table,
             workspace: Mutex::new(Workspace {
                 list,
                 wrapped: vec![0.0; 3 * n],
@@ -403,19 +446,19 @@ impl Nonbonded {
         self.workspace.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// The list class of the pair `i < j`, or `None` (excluded, or nothing to compute).
+    #[inline(always)]
     fn classify(&self, i: usize, j: usize) -> Option<usize> {
-        if self.excluded[i].binary_search(&(j as u32)).is_ok() {
+        let class = self.class_table[self.kind[i] as usize * self.n_kinds + self.kind[j] as usize];
+        if class == NO_CLASS {
             return None;
         }
-        let has_lj =
-            !self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize].is_zero();
-        let has_charge = self.scaled_charges[i] * self.scaled_charges[j] != 0.0;
-        match (has_lj, has_charge) {
-            (true, true) => Some(LJ_AND_CHARGE),
-            (false, true) => Some(CHARGE_ONLY),
-            (true, false) => Some(LJ_ONLY),
-            (false, false) => None,
+        let excluded = &self.excluded_partners
+            [self.excluded_start[i] as usize..self.excluded_start[i + 1] as usize];
+        if excluded.contains(&(j as u32)) {
+            return None;
         }
+        Some(class as usize)
     }
 
     /// Rebuild the list if needed and set `wrapped` for `q`.
@@ -470,12 +513,13 @@ impl Nonbonded {
         } = workspace;
         let shifts = &list.shifts;
         let positions: &[f64] = wrapped;
+        let image = list.all_pairs.then(|| list.lengths());
         let work = |(chunk, buffer): (&Chunk, &mut Vec<f64>)| -> (f64, f64) {
             if with_gradient {
                 buffer.fill(0.0);
-                self.chunk_kernel::<C, true>(chunk, shifts, positions, coulomb, buffer)
+                self.chunk_kernel::<C, true>(chunk, shifts, image, positions, coulomb, buffer)
             } else {
-                self.chunk_kernel::<C, false>(chunk, shifts, positions, coulomb, buffer)
+                self.chunk_kernel::<C, false>(chunk, shifts, image, positions, coulomb, buffer)
             }
         };
         if self.n >= PARALLEL_MIN_PARTICLES && list.chunks.len() > 1 {
@@ -507,6 +551,7 @@ impl Nonbonded {
         &self,
         chunk: &Chunk,
         shifts: &[[f64; 3]; 27],
+        image: Option<[f64; 3]>,
         x: &[f64],
         coulomb: C,
         buffer: &mut [f64],
@@ -516,11 +561,11 @@ impl Nonbonded {
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the processor supports AVX2, checked just above.
                 return unsafe {
-                    self.chunk_kernel_avx2::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+                    self.chunk_kernel_avx2::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
                 };
             }
         }
-        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -529,11 +574,12 @@ impl Nonbonded {
         &self,
         chunk: &Chunk,
         shifts: &[[f64; 3]; 27],
+        image: Option<[f64; 3]>,
         x: &[f64],
         coulomb: C,
         buffer: &mut [f64],
     ) -> (f64, f64) {
-        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, x, coulomb, buffer)
+        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
     }
 
     #[inline(always)]
@@ -541,6 +587,7 @@ impl Nonbonded {
         &self,
         chunk: &Chunk,
         shifts: &[[f64; 3]; 27],
+        image: Option<[f64; 3]>,
         x: &[f64],
         coulomb: C,
         buffer: &mut [f64],
@@ -553,32 +600,51 @@ impl Nonbonded {
                     chunk.starts[class][row] as usize..chunk.starts[class][row + 1] as usize;
                 let entries = &chunk.entries[class][range];
                 for block in entries.chunks(BLOCK) {
-                    match class {
-                        LJ_AND_CHARGE => self.block::<C, GRADIENT, true, true>(
-                            i,
-                            block,
-                            shifts,
-                            x,
+                    let pairs = Pairs {
+                        i,
+                        block,
+                        shifts,
+                        image,
+                        x,
+                    };
+                    match (class, image.is_some()) {
+                        (LJ_AND_CHARGE, false) => self.block::<C, GRADIENT, true, true, false>(
+                            &pairs,
                             coulomb,
                             buffer,
                             &mut gi,
                             &mut energies,
                         ),
-                        CHARGE_ONLY => self.block::<C, GRADIENT, false, true>(
-                            i,
-                            block,
-                            shifts,
-                            x,
+                        (CHARGE_ONLY, false) => self.block::<C, GRADIENT, false, true, false>(
+                            &pairs,
                             coulomb,
                             buffer,
                             &mut gi,
                             &mut energies,
                         ),
-                        _ => self.block::<C, GRADIENT, true, false>(
-                            i,
-                            block,
-                            shifts,
-                            x,
+                        (_, false) => self.block::<C, GRADIENT, true, false, false>(
+                            &pairs,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
+                        (LJ_AND_CHARGE, true) => self.block::<C, GRADIENT, true, true, true>(
+                            &pairs,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
+                        (CHARGE_ONLY, true) => self.block::<C, GRADIENT, false, true, true>(
+                            &pairs,
+                            coulomb,
+                            buffer,
+                            &mut gi,
+                            &mut energies,
+                        ),
+                        (_, true) => self.block::<C, GRADIENT, true, false, true>(
+                            &pairs,
                             coulomb,
                             buffer,
                             &mut gi,
@@ -599,19 +665,31 @@ impl Nonbonded {
     /// Up to `BLOCK` partners of particle `i`: gather their displacements and parameters,
     /// compute every pair in a loop free of indirect access and branches (the cutoff is a
     /// mask), so it vectorises, then sum the energies and scatter the forces in list order.
-    #[allow(clippy::too_many_arguments)]
+    /// `MIN_IMAGE`: an all-pairs list (no stored images): take the minimum image here.
     #[inline(always)]
-    fn block<C: CoulombForm, const GRADIENT: bool, const LJ: bool, const CHARGE: bool>(
+    fn block<
+        C: CoulombForm,
+        const GRADIENT: bool,
+        const LJ: bool,
+        const CHARGE: bool,
+        const MIN_IMAGE: bool,
+    >(
         &self,
-        i: usize,
-        block: &[u32],
-        shifts: &[[f64; 3]; 27],
-        x: &[f64],
+        pairs: &Pairs,
         coulomb: C,
         buffer: &mut [f64],
         gi: &mut [f64; 3],
         energies: &mut (f64, f64),
     ) {
+        let Pairs {
+            i,
+            block,
+            shifts,
+            image,
+            x,
+        } = *pairs;
+        let lengths = image.unwrap_or([1.0; 3]);
+        let inverse = [1.0 / lengths[0], 1.0 / lengths[1], 1.0 / lengths[2]];
         let m = block.len();
         let xi = [x[3 * i], x[3 * i + 1], x[3 * i + 2]];
         let qi = self.scaled_charges[i];
@@ -644,6 +722,13 @@ impl Nonbonded {
         let mut f = [0.0; BLOCK];
         let mut e_lj = [0.0; BLOCK];
         let mut e_q = [0.0; BLOCK];
+        if MIN_IMAGE {
+            for k in 0..m {
+                dx[k] -= lengths[0] * (dx[k] * inverse[0]).round();
+                dy[k] -= lengths[1] * (dy[k] * inverse[1]).round();
+                dz[k] -= lengths[2] * (dz[k] * inverse[2]).round();
+            }
+        }
         for k in 0..m {
             let r2 = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
             let inside = r2 < rc2;
@@ -761,6 +846,7 @@ impl ForceTerm for Nonbonded {
         } = workspace;
         let x: &[f64] = wrapped;
         let rc2 = self.cutoff_squared;
+        let image = list.all_pairs.then(|| list.lengths());
         let work = |(chunk, buffer): (&Chunk, &mut Vec<f64>)| {
             buffer.fill(0.0);
             for (row, i) in chunk.rows.clone().enumerate() {
@@ -770,8 +856,13 @@ impl ForceTerm for Nonbonded {
                     for &entry in &chunk.entries[class][range] {
                         let (j, s) = unpack(entry);
                         let shift = &list.shifts[s];
-                        let d: [f64; 3] =
-                            std::array::from_fn(|a| x[3 * j + a] + shift[a] - x[3 * i + a]);
+                        let d: [f64; 3] = std::array::from_fn(|a| {
+                            let d = x[3 * j + a] + shift[a] - x[3 * i + a];
+                            match image {
+                                Some(l) => d - l[a] * (d / l[a]).round(),
+                                None => d,
+                            }
+                        });
                         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                         if r2 >= rc2 {
                             continue;
