@@ -202,7 +202,7 @@ def replicated_scene(base_name, reps, workdir):
     X = np.concatenate([x + s for s in shifts])
     V = np.concatenate([v for _ in shifts])
     E = elements * len(shifts)
-    box = list(L * reps)
+    box = [float(v) for v in L * reps]
     name = "%s-x%d" % (base_name, reps)
     mdsys.write_xyz(os.path.join(workdir, name + ".xyz"), E, X, "replicated")
     mdsys.write_xyz(os.path.join(workdir, name + ".vel.xyz"), E, V, "replicated velocities")
