@@ -265,6 +265,20 @@ impl NeighbourList {
         let mut origin = [0.0; 3];
         let mut cell_width = [f64::INFINITY; 3];
         let mut counts = [1usize; 3];
+        // Cells of width reach/2 with a ±2 stencil hold (5/2)³ ≈ 15.6 reach³ of candidates
+        // against 27 reach³ for width reach and ±1: used when every periodic axis has room for
+        // five such cells.
+        let sub: usize = if self.periodic
+            && self
+                .lengths
+                .iter()
+                .all(|l| l.is_finite() && (2.0 * l / reach).floor() >= 5.0)
+        {
+            2
+        } else {
+            1
+        };
+        let cell_reach = reach / sub as f64;
         if reach.is_finite() && n > 0 {
             for axis in 0..3 {
                 let (lo, span) = if self.periodic && self.lengths[axis].is_finite() {
@@ -279,11 +293,11 @@ impl NeighbourList {
                         });
                     (lo, (hi - lo).max(reach) * (1.0 + 1e-12))
                 };
-                let count = (span / reach).floor() as usize;
-                // Periodic axes need three cells for the 27-cell stencil to hold distinct
-                // cells; open axes can use any number.
+                let count = (span / cell_reach).floor() as usize;
+                // Periodic axes need 2·sub + 1 cells for the stencil to hold distinct cells;
+                // open axes can use any number.
                 let usable = if self.periodic {
-                    count >= 3
+                    count > 2 * sub
                 } else {
                     count >= 2
                 };
@@ -362,35 +376,47 @@ impl NeighbourList {
                 (ci / counts[2]) % counts[1],
                 ci % counts[2],
             ];
+            let reach_cells = sub as isize;
             let range = |axis: usize| -> std::ops::RangeInclusive<isize> {
                 if counts[axis] == 1 {
                     0..=0
                 } else if periodic {
-                    -1..=1
+                    -reach_cells..=reach_cells
                 } else {
-                    let lo = if c[axis] == 0 { 0 } else { -1 };
-                    let hi = if c[axis] + 1 == counts[axis] { 0 } else { 1 };
+                    let lo = -(c[axis].min(sub) as isize);
+                    let hi = (counts[axis] - 1 - c[axis]).min(sub) as isize;
                     lo..=hi
                 }
             };
+            let z = range(2);
+            let (z_lo, z_hi) = (c[2] as isize + z.start(), c[2] as isize + z.end());
+            let nz = counts[2] as isize;
+            // The stencil's z cells as at most two runs of consecutive cell indices.
+            let mut runs = [(0isize, -1isize); 2];
+            if z_lo >= 0 && z_hi < nz {
+                runs[0] = (z_lo, z_hi);
+            } else if z_lo < 0 {
+                runs[0] = (z_lo + nz, nz - 1);
+                runs[1] = (0, z_hi);
+            } else {
+                runs[0] = (z_lo, nz - 1);
+                runs[1] = (0, z_hi - nz);
+            }
             for dx in range(0) {
                 for dy in range(1) {
-                    for dz in range(2) {
-                        let wrap = |v: usize, d: isize, count: usize| -> usize {
-                            (v as isize + d).rem_euclid(count as isize) as usize
-                        };
-                        let cell = (wrap(c[0], dx, counts[0]) * counts[1]
-                            + wrap(c[1], dy, counts[1]))
-                            * counts[2]
-                            + wrap(c[2], dz, counts[2]);
-                        let members =
-                            &cell_atoms[cell_start[cell] as usize..cell_start[cell + 1] as usize];
-                        // A half list: partners j > i, a sorted tail of each cell.
-                        let first = members.partition_point(|&j| j as usize <= i);
-                        let start = cell_start[cell] as usize + first;
-                        let end = cell_start[cell + 1] as usize;
+                    let wrap = |v: usize, d: isize, count: usize| -> usize {
+                        (v as isize + d).rem_euclid(count as isize) as usize
+                    };
+                    let base = (wrap(c[0], dx, counts[0]) * counts[1] + wrap(c[1], dy, counts[1]))
+                        * counts[2];
+                    for &(first_z, last_z) in &runs {
+                        if last_z < first_z {
+                            continue;
+                        }
+                        let start = cell_start[base + first_z as usize] as usize;
+                        let end = cell_start[base + last_z as usize + 1] as usize;
                         // Distances of a block of candidates from the cell-sorted coordinates
-                        // (contiguous, branch-free: it vectorises), then only the candidates
+                        // (contiguous, branch-free), then only partners j > i (a half list)
                         // within reach, or with a second image possibly within reach, go on.
                         let mut from = start;
                         while from < end {
@@ -417,7 +443,8 @@ impl NeighbourList {
                                 keep[kept] = (k - from) as u16;
                                 image[kept] = e;
                                 codes[kept] = code;
-                                kept += (r2 < reach2 || alternative) as usize;
+                                let later = cell_atoms[k] as usize > i;
+                                kept += (later & (r2 < reach2 || alternative)) as usize;
                             }
                             for (slot, &k) in keep[..kept].iter().enumerate() {
                                 let j = cell_atoms[from + k as usize] as usize;

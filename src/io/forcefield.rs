@@ -53,7 +53,8 @@ use crate::units::{COULOMB_KCAL_ANGSTROM, Units};
 pub struct ForcefieldSpec {
     /// Non-bonded cutoff (length); none: every pair (no periodic box).
     pub cutoff: Option<f64>,
-    /// Neighbour-list skin (length), default 1.
+    /// Neighbour-list skin (length), default 2 (rebuilds against list length: fastest of
+    /// 1, 1.5, 2, 2.5 Å on 5184 water atoms at 4 fs).
     pub skin: Option<f64>,
     /// `"dsf"`, `"reaction-field"`, `"plain"` or `"none"`.
     pub coulomb: Option<String>,
@@ -702,7 +703,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     if box_lengths.is_some() && !cutoff.is_finite() {
         return Err("[forcefield] a periodic box needs a cutoff (give cutoff = …)".into());
     }
-    let skin = spec.skin.unwrap_or(1.0);
+    let skin = spec.skin.unwrap_or(2.0);
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("[forcefield] skin must be ≥ 0, got {skin}"));
     }
