@@ -48,6 +48,7 @@ SCENES = [
     "systems/molecules/alanine-dipeptide.toml",
     "systems/water-box/scene.toml",
     "systems/water-box/reaction-field.toml",
+    "systems/polymer-melt/scene.toml",
 ]
 
 
