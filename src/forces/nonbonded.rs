@@ -247,6 +247,8 @@ const LJ_ONLY: usize = 2;
 struct Workspace {
     list: NeighbourList,
     wrapped: Vec<f64>,
+    /// `[x, y, z, q√k_e]` per particle (from `wrapped`): one 32-byte read per partner.
+    packed: Vec<f64>,
     /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
     buffers: Vec<Vec<f64>>,
     /// (Lennard-Jones, Coulomb) energy of each chunk.
@@ -413,6 +415,7 @@ impl Nonbonded {
             workspace: Mutex::new(Workspace {
                 list,
                 wrapped: vec![0.0; 3 * n],
+                packed: vec![0.0; 4 * n],
                 buffers: vec![vec![0.0; 3 * n]; chunks],
                 energies: vec![(0.0, 0.0); chunks],
                 cached_q: vec![f64::NAN; 3 * n],
@@ -468,8 +471,21 @@ impl Nonbonded {
             self.listed_pairs
                 .store(workspace.list.pair_count(), Ordering::Relaxed);
         }
-        let Workspace { list, wrapped, .. } = workspace;
+        let Workspace {
+            list,
+            wrapped,
+            packed,
+            ..
+        } = workspace;
         list.wrap_positions(q, wrapped);
+        for ((p, x), &c) in packed
+            .chunks_exact_mut(4)
+            .zip(wrapped.chunks_exact(3))
+            .zip(&self.scaled_charges)
+        {
+            p[..3].copy_from_slice(x);
+            p[3] = c;
+        }
     }
 
     /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += ∇V`.
@@ -507,12 +523,14 @@ impl Nonbonded {
         let Workspace {
             list,
             wrapped,
+            packed,
             buffers,
             energies,
             ..
         } = workspace;
         let shifts = &list.shifts;
-        let positions: &[f64] = wrapped;
+        let _ = wrapped;
+        let positions: &[f64] = packed;
         let image = list.all_pairs.then(|| list.lengths());
         let work = |(chunk, buffer): (&Chunk, &mut Vec<f64>)| -> (f64, f64) {
             if with_gradient {
@@ -691,7 +709,7 @@ impl Nonbonded {
         let lengths = image.unwrap_or([1.0; 3]);
         let inverse = [1.0 / lengths[0], 1.0 / lengths[1], 1.0 / lengths[2]];
         let m = block.len();
-        let xi = [x[3 * i], x[3 * i + 1], x[3 * i + 2]];
+        let xi = [x[4 * i], x[4 * i + 1], x[4 * i + 2]];
         let qi = self.scaled_charges[i];
         let nt = self.n_types;
         let lj_row = &self.lj[self.types[i] as usize * nt..(self.types[i] as usize + 1) * nt];
@@ -704,12 +722,20 @@ impl Nonbonded {
         let mut lj_shift = [0.0; BLOCK];
         for (k, &entry) in block.iter().enumerate() {
             let (j, s) = unpack(entry);
-            let shift = &shifts[s];
-            dx[k] = x[3 * j] + shift[0] - xi[0];
-            dy[k] = x[3 * j + 1] + shift[1] - xi[1];
-            dz[k] = x[3 * j + 2] + shift[2] - xi[2];
+            let xj = &x[4 * j..4 * j + 4];
+            if MIN_IMAGE {
+                // All-pairs lists store no image (shift 0): the minimum image comes below.
+                dx[k] = xj[0] - xi[0];
+                dy[k] = xj[1] - xi[1];
+                dz[k] = xj[2] - xi[2];
+            } else {
+                let shift = &shifts[s];
+                dx[k] = xj[0] + shift[0] - xi[0];
+                dy[k] = xj[1] + shift[1] - xi[1];
+                dz[k] = xj[2] + shift[2] - xi[2];
+            }
             if CHARGE {
-                qq[k] = qi * self.scaled_charges[j];
+                qq[k] = qi * xj[3];
             }
             if LJ {
                 let p = lj_row[self.types[j] as usize];
@@ -729,35 +755,56 @@ impl Nonbonded {
                 dz[k] -= lengths[2] * (dz[k] * inverse[2]).round();
             }
         }
+        // Distances, then the pairs inside the cutoff packed to the front without branches:
+        // the costly part (division, square root) runs on those only, as a dense loop.
+        let mut r2 = [0.0; BLOCK];
         for k in 0..m {
-            let r2 = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
-            let inside = r2 < rc2;
-            // Beyond the cutoff: evaluate at the cutoff (finite) and mask to zero.
-            let s = if inside { r2 } else { rc2 };
-            let mask = if inside { 1.0 } else { 0.0 };
-            let inv_r2 = 1.0 / s;
+            r2[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
+        }
+        let mut index = [0u8; BLOCK];
+        let mut count = 0;
+        for k in 0..m {
+            index[count] = k as u8;
+            count += (r2[k] < rc2) as usize;
+        }
+        let mut s = [0.0; BLOCK];
+        for t in 0..count {
+            let k = index[t] as usize;
+            s[t] = r2[k];
+            if LJ {
+                c12[t] = c12[k];
+                c6[t] = c6[k];
+                lj_shift[t] = lj_shift[k];
+            }
+            if CHARGE {
+                qq[t] = qq[k];
+            }
+        }
+        for t in 0..count {
+            let inv_r2 = 1.0 / s[t];
             let mut force = 0.0;
             if LJ {
                 let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-                e_lj[k] = mask * (inv_r6 * (c12[k] * inv_r6 - c6[k]) - lj_shift[k]);
-                force += inv_r2 * inv_r6 * (12.0 * c12[k] * inv_r6 - 6.0 * c6[k]);
+                e_lj[t] = inv_r6 * (c12[t] * inv_r6 - c6[t]) - lj_shift[t];
+                force += inv_r2 * inv_r6 * (12.0 * c12[t] * inv_r6 - 6.0 * c6[t]);
             }
             if CHARGE {
-                let (e, fq) = coulomb.energy_force(qq[k], s, inv_r2.sqrt());
-                e_q[k] = mask * e;
+                let (e, fq) = coulomb.energy_force(qq[t], s[t], inv_r2.sqrt());
+                e_q[t] = e;
                 force += fq;
             }
-            f[k] = mask * force;
+            f[t] = force;
         }
-        for k in 0..m {
-            energies.0 += e_lj[k];
-            energies.1 += e_q[k];
+        for t in 0..count {
+            energies.0 += e_lj[t];
+            energies.1 += e_q[t];
         }
         if GRADIENT {
-            for (k, &entry) in block.iter().enumerate() {
-                let (j, _) = unpack(entry);
+            for t in 0..count {
+                let k = index[t] as usize;
+                let (j, _) = unpack(block[k]);
                 // ∂V/∂r_j = V′ d/r = −f d.
-                let g = [f[k] * dx[k], f[k] * dy[k], f[k] * dz[k]];
+                let g = [f[t] * dx[k], f[t] * dy[k], f[t] * dz[k]];
                 gi[0] += g[0];
                 gi[1] += g[1];
                 gi[2] += g[2];
