@@ -16,11 +16,13 @@
 //! `cutoff < L/2`, at most one of them is inside the cutoff at any time, so each pair
 //! interacts once. The skin is clipped so that `cutoff + skin < L`.
 //!
-//! **Chunks.** A half list: pair `i < j` is stored in row `i`. The rows (particles) are split
-//! into a fixed number of contiguous chunks that depends only on the particle count; each
-//! chunk keeps its own part of the list and, in the force terms, its own gradient buffer,
-//! summed in chunk order. Results are therefore bit-for-bit identical whatever the number of
-//! threads. Row `i` holds about `(n − i)/n` of its neighbours, so chunk boundaries are at
+//! **Chunks.** A half list: each pair once. Cell lists use a half shell (the own cell with
+//! partners j > i and the neighbour cells at a lexicographically positive offset); all-pairs
+//! lists store pair `i < j` in row `i`. The rows (particles) are split into a fixed number of
+//! contiguous chunks that depends only on the particle count; each chunk keeps its own part of
+//! the list and, in the force terms, its own gradient buffer, summed in chunk order. Results
+//! are therefore bit-for-bit identical whatever the number of threads. In a `j > i` list row
+//! `i` holds about `(n − i)/n` of its neighbours, so there the chunk boundaries are at
 //! `n (1 − √(1 − c/C))`, which gives every chunk the same expected number of pairs.
 //!
 //! **Classes.** A builder callback sorts each pair into one of [`N_CLASSES`] classes (for
@@ -146,9 +148,24 @@ impl NeighbourList {
             }
         }
         let n_chunks = chunk_count(n);
+        // Rows of the j > i lists (all pairs, no cutoff) hold (n − i)/n of the pairs; rows of
+        // the half-shell cell lists about the same number each.
+        let reach = cutoff + skin;
+        let triangular = !reach.is_finite()
+            || (periodic
+                && lengths.iter().all(|l| l.is_finite())
+                && 4.0 / 3.0 * std::f64::consts::PI * reach.powi(3)
+                    > ALL_PAIRS_FRACTION * lengths[0] * lengths[1] * lengths[2]);
+        let boundary = |c: usize| {
+            if triangular {
+                balanced_boundary(c, n_chunks, n)
+            } else {
+                c * n / n_chunks
+            }
+        };
         let chunks = (0..n_chunks)
             .map(|c| Chunk {
-                rows: balanced_boundary(c, n_chunks, n)..balanced_boundary(c + 1, n_chunks, n),
+                rows: boundary(c)..boundary(c + 1),
                 starts: Default::default(),
                 entries: Default::default(),
             })
@@ -388,22 +405,28 @@ impl NeighbourList {
                     lo..=hi
                 }
             };
+            // A half shell: the own cell (partners j > i) and the neighbour cells whose offset
+            // (dx, dy, dz) is lexicographically positive; the other half sees this atom from
+            // its own cell. Cells are distinct (counts > 2·sub along periodic axes).
             let z = range(2);
-            let (z_lo, z_hi) = (c[2] as isize + z.start(), c[2] as isize + z.end());
             let nz = counts[2] as isize;
-            // The stencil's z cells as at most two runs of consecutive cell indices.
-            let mut runs = [(0isize, -1isize); 2];
-            if z_lo >= 0 && z_hi < nz {
-                runs[0] = (z_lo, z_hi);
-            } else if z_lo < 0 {
-                runs[0] = (z_lo + nz, nz - 1);
-                runs[1] = (0, z_hi);
-            } else {
-                runs[0] = (z_lo, nz - 1);
-                runs[1] = (0, z_hi - nz);
-            }
-            for dx in range(0) {
-                for dy in range(1) {
+            let own_start = cell_start[ci] as usize;
+            let own_end = cell_start[ci + 1] as usize;
+            for dx in range(0).filter(|&d| d >= 0) {
+                for dy in range(1).filter(|&d| dx > 0 || d >= 0) {
+                    let first = if dx == 0 && dy == 0 { 0 } else { *z.start() };
+                    let (z_lo, z_hi) = (c[2] as isize + first, c[2] as isize + z.end());
+                    // The z cells as at most two runs of consecutive cell indices.
+                    let mut runs = [(0isize, -1isize); 2];
+                    if z_lo >= 0 && z_hi < nz {
+                        runs[0] = (z_lo, z_hi);
+                    } else if z_lo < 0 {
+                        runs[0] = (z_lo + nz, nz - 1);
+                        runs[1] = (0, z_hi);
+                    } else {
+                        runs[0] = (z_lo, nz - 1);
+                        runs[1] = (0, z_hi - nz);
+                    }
                     let wrap = |v: usize, d: isize, count: usize| -> usize {
                         (v as isize + d).rem_euclid(count as isize) as usize
                     };
@@ -416,8 +439,8 @@ impl NeighbourList {
                         let start = cell_start[base + first_z as usize] as usize;
                         let end = cell_start[base + last_z as usize + 1] as usize;
                         // Distances of a block of candidates from the cell-sorted coordinates
-                        // (contiguous, branch-free), then only partners j > i (a half list)
-                        // within reach, or with a second image possibly within reach, go on.
+                        // (contiguous, branch-free), then only the half-shell partners within
+                        // reach, or with a second image possibly within reach, go on.
                         let mut from = start;
                         while from < end {
                             let to = (from + BUILD_BLOCK).min(end);
@@ -443,7 +466,8 @@ impl NeighbourList {
                                 keep[kept] = (k - from) as u16;
                                 image[kept] = e;
                                 codes[kept] = code;
-                                let later = cell_atoms[k] as usize > i;
+                                let in_own = (k >= own_start) & (k < own_end);
+                                let later = !in_own | (cell_atoms[k] as usize > i);
                                 kept += (later & (r2 < reach2 || alternative)) as usize;
                             }
                             for (slot, &k) in keep[..kept].iter().enumerate() {

@@ -763,9 +763,9 @@ impl Nonbonded {
         }
         let mut index = [0u8; BLOCK];
         let mut count = 0;
-        for k in 0..m {
+        for (k, &distance) in r2[..m].iter().enumerate() {
             index[count] = k as u8;
-            count += (r2[k] < rc2) as usize;
+            count += (distance < rc2) as usize;
         }
         let mut s = [0.0; BLOCK];
         for t in 0..count {
