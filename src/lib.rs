@@ -16,5 +16,6 @@ pub mod run;
 pub mod settings;
 pub mod split;
 pub mod system;
+pub mod units;
 
 pub use error::{Error, Result};

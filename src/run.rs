@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
 use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status};
+use crate::io::trajectory::TrajectoryWriter;
 use crate::system::System;
 
 #[derive(Clone, Debug)]
@@ -21,6 +22,17 @@ pub struct RunOptions {
     pub energy_csv: Option<PathBuf>,
     /// Keep `(t, kinetic, total)` of every recorded row in the summary (for drift fits).
     pub keep_series: bool,
+    /// Trajectory frames (the first, then every `every` steps and the last).
+    pub trajectory: Option<TrajectoryOptions>,
+}
+
+/// A trajectory file: positions through chemfiles, format by extension.
+#[derive(Clone, Debug)]
+pub struct TrajectoryOptions {
+    pub path: PathBuf,
+    pub every: usize,
+    /// Atom names (element symbols) for the file.
+    pub names: Vec<String>,
 }
 
 impl Default for RunOptions {
@@ -31,6 +43,7 @@ impl Default for RunOptions {
             blowup: 10.0,
             energy_csv: None,
             keep_series: false,
+            trajectory: None,
         }
     }
 }
@@ -117,6 +130,15 @@ pub fn run(
         options.blowup,
     );
     record(system, integrator, &mut csv)?;
+    let mut trajectory = match &options.trajectory {
+        Some(t) => {
+            let mut writer =
+                TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
+            writer.write(&system.state.q, 0, system.state.t)?;
+            Some((writer, t.every.max(1) as u64))
+        }
+        None => None,
+    };
 
     let t_start = system.state.t;
     let started = Instant::now();
@@ -138,6 +160,11 @@ pub fn run(
         // The kinetic energy is cheap: check it every step so a blow-up is caught when
         // it happens, not at the next recorded row.
         let kinetic_finite = system.kinetic_energy().is_finite();
+        if let Some((writer, every)) = &mut trajectory
+            && (last || !kinetic_finite || steps.is_multiple_of(*every))
+        {
+            writer.write(&system.state.q, steps, system.state.t)?;
+        }
         if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
             let total = record(system, integrator, &mut csv)?;
             if let Err(reason) = monitor.record(total) {

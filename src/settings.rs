@@ -46,6 +46,24 @@ impl Value {
         }
         Ok(value)
     }
+
+    /// A time value, which may carry a unit suffix from `time_units` (`4fs`, `10ps`).
+    pub fn evaluate_time(
+        &self,
+        parameters: &BTreeMap<String, f64>,
+        what: &str,
+        time_units: &[(&str, f64)],
+    ) -> Result<f64> {
+        let value = match self {
+            Value::Number(x) => *x,
+            Value::Expression(text) => expr::evaluate_with_units(text, parameters, time_units)
+                .map_err(|e| Error::input(format!("{what}: {e}")))?,
+        };
+        if !value.is_finite() {
+            return Err(Error::input(format!("{what} is not finite ({value})")));
+        }
+        Ok(value)
+    }
 }
 
 /// The `[run]` table of a scene, and the same settings as `longstep run` flags.
@@ -135,10 +153,34 @@ impl RunSpec {
         merged
     }
 
-    /// Evaluate into the numbers a method is built from.
+    /// Evaluate into the numbers a method is built from (a dimensionless scene).
     pub fn resolve(&self, parameters: &BTreeMap<String, f64>) -> Result<MethodSettings> {
+        self.resolve_with_units(parameters, crate::units::Units::None)
+    }
+
+    /// Evaluate into the numbers a method is built from; the time values (`h`, `dt`,
+    /// `t_end`, `h_slow`, `h_fast`, `h_min`, `h_max`) may carry the time units of `units`.
+    pub fn resolve_with_units(
+        &self,
+        parameters: &BTreeMap<String, f64>,
+        units: crate::units::Units,
+    ) -> Result<MethodSettings> {
+        let time_units = units.time_units();
         let number = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
             v.as_ref().map(|v| v.evaluate(parameters, what)).transpose()
+        };
+        let time = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+            v.as_ref()
+                .map(|v| v.evaluate_time(parameters, what, time_units))
+                .transpose()
+        };
+        let positive_time = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+            match time(v, what)? {
+                Some(x) if x <= 0.0 => Err(Error::input(format!(
+                    "{what} must be positive and finite, got {x}"
+                ))),
+                other => Ok(other),
+            }
         };
         let positive = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
             match number(v, what)? {
@@ -148,10 +190,10 @@ impl RunSpec {
                 other => Ok(other),
             }
         };
-        let h = positive(&self.h, "outer step h")?.ok_or_else(|| {
+        let h = positive_time(&self.h, "outer step h")?.ok_or_else(|| {
             Error::input("no outer step h: give --h or set h in the scene's [run] table")
         })?;
-        let dt = positive(&self.dt, "inner step dt")?;
+        let dt = positive_time(&self.dt, "inner step dt")?;
         let inner_steps = match (self.inner_steps, dt) {
             (Some(_), Some(_)) => {
                 return Err(Error::input(
@@ -188,18 +230,18 @@ impl RunSpec {
             method: self.method.clone().unwrap_or_else(|| "verlet".into()),
             h,
             inner_steps,
-            t_end: positive(&self.t_end, "end time t_end")?,
+            t_end: positive_time(&self.t_end, "end time t_end")?,
             blowup: self.blowup.unwrap_or(10.0),
             level_steps: self.level_steps.clone(),
             jacobian: self.jacobian.clone(),
             quadrature: self.quadrature.clone(),
-            h_slow: positive(&self.h_slow, "h_slow")?,
-            h_fast: positive(&self.h_fast, "h_fast")?,
+            h_slow: positive_time(&self.h_slow, "h_slow")?,
+            h_fast: positive_time(&self.h_fast, "h_fast")?,
             ratio: self.ratio,
             adaptive: positive(&self.adaptive, "adaptive tolerance")?,
             control: self.control.clone(),
-            h_min: positive(&self.h_min, "h_min")?,
-            h_max: positive(&self.h_max, "h_max")?,
+            h_min: positive_time(&self.h_min, "h_min")?,
+            h_max: positive_time(&self.h_max, "h_max")?,
             block: self.block,
             tol: positive(&self.tol, "tol")?,
             max_iter: self.max_iter,

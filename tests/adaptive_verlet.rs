@@ -184,6 +184,7 @@ fn max_energy_error(system: &mut System, method: &mut dyn Integrator, t_end: f64
         blowup: 10.0,
         energy_csv: None,
         keep_series: false,
+        trajectory: None,
     };
     let summary = run("kepler", system, method, &options).unwrap();
     assert_eq!(summary.status, longstep::io::summary::Status::Ok);
@@ -246,6 +247,7 @@ fn three_body_close_encounter() {
         blowup: 10.0,
         energy_csv: None,
         keep_series: false,
+        trajectory: None,
     };
     let mut adaptive = AdaptiveVerlet::new(0.01, Control::Arclength, None, Some(1.0)).unwrap();
     let summary = run("three-body-hl97", &mut system, &mut adaptive, &options).unwrap();
@@ -289,6 +291,7 @@ fn bond_problem_wall() {
         blowup: 10.0,
         energy_csv: None,
         keep_series: false,
+        trajectory: None,
     };
     let mut system = scene("bond");
     let mut adaptive = AdaptiveVerlet::new(0.01, Control::Arclength, None, None).unwrap();
@@ -328,6 +331,7 @@ fn kepler_extreme_eccentricity() {
             blowup: 10.0,
             energy_csv: None,
             keep_series: false,
+            trajectory: None,
         };
         let summary = run("kepler", &mut system, &mut adaptive, &options).unwrap();
         let (smallest, largest) = adaptive.step_range();

@@ -631,6 +631,7 @@ fn fixed_point_reports_iterations_and_fails_clearly() {
         blowup: 10.0,
         energy_csv: None,
         keep_series: false,
+        trajectory: None,
     };
     // Converging: ZDS R = 2, N = 480 on the pendulum.
     let mut system = scene("pendulum", &[]);
@@ -755,6 +756,7 @@ fn charged_particle_as_printed_needs_a_finer_grid() {
         blowup: 10.0,
         energy_csv: None,
         keep_series: false,
+        trajectory: None,
     };
     let mut system = scene("charged-particle", &[]);
     let mut coarse = Structural::new(StructuralKind::Zds, 1.0 / 12.0, 2, 1e-14, 100).unwrap();

@@ -139,6 +139,7 @@ pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Resul
         blowup: settings.blowup,
         energy_csv: None,
         keep_series: true,
+        trajectory: None,
     };
     let summary = run(
         &scene.name,

@@ -6,6 +6,7 @@
 
 mod async_map;
 mod charts;
+mod forces;
 mod growth;
 mod run;
 pub mod stability;
@@ -69,6 +70,35 @@ enum Command {
     SpectralRadius(Box<stability::SpectralRadiusArgs>),
     /// Spectral radius of the asynchronous pseudo-energy scheme over h_slow (or h_fast) and K on a linear scene, as CSV.
     AsyncStabilityMap(async_map::AsyncMapArgs),
+    /// Energy per group and per-atom forces at the scene's starting positions.
+    Forces(ForcesArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ForcesArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print {"energy": {...}, "units": {...}} as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Add the force of each level to the CSV (fx_fast, ..., fx_slow, ...).
+    #[arg(long)]
+    pub by_level: bool,
+    /// Evaluate at the positions of this structure file (same atoms) instead of the scene's.
+    #[arg(long, value_name = "FILE")]
+    pub positions: Option<PathBuf>,
+    /// Write every force-field parameter of every interaction to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub parameters: Option<PathBuf>,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Print no force-field report or level table on stderr.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
@@ -90,6 +120,10 @@ pub struct RunArgs {
     /// Write a row of energy.csv every N steps.
     #[arg(long, value_name = "N")]
     pub energy_every: Option<usize>,
+    /// Write a trajectory frame every N steps (file: the scene's [output] trajectory, default
+    /// trajectory.xyz in the output directory; any chemfiles format by extension).
+    #[arg(long, value_name = "N")]
+    pub trajectory_every: Option<usize>,
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
@@ -156,6 +190,7 @@ pub fn main() -> i32 {
         Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),
+        Command::Forces(args) => forces::forces_command(&args).map(|()| 0),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

@@ -8,15 +8,24 @@ use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::Status;
-use crate::run::{RunOptions, run};
+use crate::run::{RunOptions, TrajectoryOptions, run};
 use crate::split::ParticleClass;
 
+/// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
+/// force loops then split their work from a worker thread, with no allocation per call.
 pub fn run_command(args: &RunArgs) -> Result<i32> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .build()
+        .map_err(|e| Error::input(format!("cannot start the thread pool: {e}")))?;
+    pool.install(|| run_in_pool(args))
+}
+
+fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let mut scene = load_scene(&args.scene, &args.set)?;
     let settings = scene
         .run
         .overridden_by(&args.run)
-        .resolve(&scene.parameters)?;
+        .resolve_with_units(&scene.parameters, scene.units)?;
     let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
@@ -48,16 +57,35 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
 
     if !args.quiet {
+        for line in &scene.forcefield_report {
+            eprintln!("{line}");
+        }
         eprintln!("{}", scene.system.forces.level_table());
         for notice in &notices {
             eprintln!("notice: {notice}");
         }
     }
+    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
+    if trajectory_every == Some(0) {
+        return Err(Error::input("--trajectory-every must be at least 1"));
+    }
+    let trajectory = trajectory_every.map(|every| TrajectoryOptions {
+        path: out_dir.join(
+            scene
+                .output
+                .trajectory
+                .as_deref()
+                .unwrap_or("trajectory.xyz"),
+        ),
+        every,
+        names: scene.elements.clone(),
+    });
     let options = RunOptions {
         t_end,
         energy_every,
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
+        trajectory,
         ..Default::default()
     };
     let mut summary = run(
@@ -74,6 +102,11 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
     }
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
+    }
+    if let Some(t) = &options.trajectory
+        && !args.quiet
+    {
+        eprintln!("trajectory {}", t.path.display());
     }
     if args.json {
         let json = serde_json::to_string_pretty(&summary)

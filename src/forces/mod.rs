@@ -13,6 +13,7 @@
 //! `χ`, `χ′` and `χ″`.
 
 pub mod angle;
+pub mod coulomb;
 pub mod dual;
 pub mod external_field;
 pub mod field;
@@ -20,11 +21,14 @@ pub mod gravity;
 pub mod inverse_power;
 pub mod lennard_jones;
 pub mod magnetic;
+pub mod neighbour_list;
+pub mod nonbonded;
 pub mod pair;
 pub mod pendulum;
 pub mod quartic;
 pub mod spring;
 pub mod string;
+pub mod torsion;
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,6 +88,13 @@ pub trait ForceTerm: Send + Sync {
     /// can integrate a system with one, and the run refuses the others.
     fn magnetic(&self) -> Option<&magnetic::MagneticTerm> {
         None
+    }
+
+    /// The energy split into named parts, for reports (`longstep forces`): a term that
+    /// computes several kinds of interaction in one pass (Lennard-Jones and Coulomb) names
+    /// each. By default one part named after [`ForceTerm::kind`].
+    fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        vec![(self.kind(), self.energy(q))]
     }
 }
 

@@ -9,10 +9,22 @@ use std::collections::BTreeMap;
 
 /// Evaluate `text` with the parameter values `parameters`.
 pub fn evaluate(text: &str, parameters: &BTreeMap<String, f64>) -> Result<f64, String> {
+    evaluate_with_units(text, parameters, &[])
+}
+
+/// Evaluate `text` where a number may carry one of the unit suffixes `units` (name, factor):
+/// `4fs`, `0.5 fs`, `10ps` are the number times the factor. A suffix the table lacks is an
+/// error that says which scenes accept it.
+pub fn evaluate_with_units(
+    text: &str,
+    parameters: &BTreeMap<String, f64>,
+    units: &[(&str, f64)],
+) -> Result<f64, String> {
     let mut parser = Parser {
         tokens: tokenize(text)?,
         position: 0,
         parameters,
+        units,
     };
     let value = parser.expression()?;
     if parser.position != parser.tokens.len() {
@@ -134,6 +146,7 @@ struct Parser<'a> {
     tokens: Vec<Token>,
     position: usize,
     parameters: &'a BTreeMap<String, f64>,
+    units: &'a [(&'a str, f64)],
 }
 
 impl Parser<'_> {
@@ -193,7 +206,24 @@ impl Parser<'_> {
 
     fn atom(&mut self) -> Result<f64, String> {
         match self.next() {
-            Some(Token::Number(x)) => Ok(x),
+            Some(Token::Number(x)) => match self.peek() {
+                // A number followed by a name that is no parameter: a unit suffix.
+                Some(Token::Name(name)) if !self.parameters.contains_key(name) => {
+                    let name = name.clone();
+                    match self.units.iter().find(|(unit, _)| *unit == name) {
+                        Some(&(_, factor)) => {
+                            self.position += 1;
+                            Ok(x * factor)
+                        }
+                        None if crate::units::is_known_time_unit(&name) => Err(format!(
+                            "the unit '{name}' needs a scene with units = \"real\" and a \
+                             time value (this value is dimensionless)"
+                        )),
+                        None => Err(format!("unknown unit '{name}' after {x}")),
+                    }
+                }
+                _ => Ok(x),
+            },
             Some(Token::Open) => {
                 let value = self.expression()?;
                 match self.next() {
@@ -297,6 +327,27 @@ mod tests {
         assert!(evaluate("(1 + 2", &empty).unwrap_err().contains(')'));
         assert!(evaluate("1 + $", &empty).unwrap_err().contains('$'));
         assert!(evaluate("foo(1)", &empty).unwrap_err().contains("foo"));
+    }
+
+    #[test]
+    fn time_units_multiply_the_number() {
+        let empty = BTreeMap::new();
+        let units = crate::units::Units::Real.time_units();
+        assert_eq!(evaluate_with_units("4fs", &empty, units).unwrap(), 4.0);
+        assert_eq!(evaluate_with_units("10ps", &empty, units).unwrap(), 1e4);
+        assert_eq!(evaluate_with_units("0.5 fs", &empty, units).unwrap(), 0.5);
+        assert_eq!(evaluate_with_units("2*1.5ps", &empty, units).unwrap(), 3e3);
+        assert_eq!(evaluate_with_units("1e-3ns", &empty, units).unwrap(), 1e3);
+        assert!(
+            evaluate("4fs", &empty)
+                .unwrap_err()
+                .contains("units = \"real\"")
+        );
+        assert!(
+            evaluate_with_units("4furlongs", &empty, units)
+                .unwrap_err()
+                .contains("unknown unit 'furlongs'")
+        );
     }
 
     #[test]

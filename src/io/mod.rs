@@ -2,7 +2,9 @@
 
 pub mod csv;
 pub mod expr;
+pub mod forcefield;
 pub mod scene;
 pub mod structure;
 pub mod study_csv;
 pub mod summary;
+pub mod trajectory;

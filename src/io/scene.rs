@@ -12,7 +12,10 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use super::expr;
-use super::structure::{Structure, read_structure};
+use super::forcefield::{
+    FfAtom, ForcefieldInput, ForcefieldSpec, build_forcefield, closest_overlap,
+};
+use super::structure::{Structure, read_structure, read_structure_with};
 use crate::analysis::exact::{ExactSolution, ExpressionSolution, TwoMediaWave};
 use crate::error::{Error, Result};
 use crate::forces::angle::{AngleBend, HarmonicAngles};
@@ -30,9 +33,13 @@ use crate::forces::{ForceTerm, Site};
 use crate::settings::{RunSpec, Value};
 use crate::split::{Assignment, ForceSplit};
 use crate::system::{MassMatrix, Particles, PeriodicBox, State, System};
+use crate::units::Units;
 
 /// The scene-file format version this build reads.
 pub const SCENE_VERSION: u32 = 1;
+
+/// Atoms of a molecule scene closer than this (Å) are an error naming the pair.
+pub const OVERLAP_LIMIT: f64 = 0.5;
 
 // ---------------------------------------------------------------------------------------
 // The file as written
@@ -70,6 +77,8 @@ pub struct SceneFile {
     #[serde(default)]
     pub description: String,
     pub dim: usize,
+    /// `"real"` (Å, fs, amu, kcal/mol, e) or `"none"` (dimensionless, the default).
+    pub units: Option<Spanned<String>>,
     #[serde(default)]
     pub parameters: BTreeMap<String, Value>,
     #[serde(default)]
@@ -89,6 +98,8 @@ pub struct SceneFile {
     pub mass_matrix: Option<Spanned<MassMatrixSpec>>,
     /// An exact solution to measure the run's error against.
     pub exact: Option<Spanned<ExactSpec>>,
+    /// A molecular force field over the structure's atoms and bonds.
+    pub forcefield: Option<Spanned<ForcefieldSpec>>,
 }
 
 /// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.
@@ -152,6 +163,16 @@ pub struct StructureSpec {
     pub file: String,
     /// One mass for every particle; by default each atom's element gives its mass.
     pub mass: Option<Value>,
+    /// A file of the same layout whose coordinates are velocities (length/time).
+    pub velocities: Option<String>,
+    /// Perceive bonds with chemfiles when the file lists none (default: with a force field).
+    pub guess_bonds: Option<bool>,
+    /// Bonds to add, as 0-based atom index pairs.
+    pub bonds: Option<Vec<[usize; 2]>>,
+    /// Apply `bonds` to every consecutive block of this many atoms (indices within a block).
+    pub bond_repeat: Option<usize>,
+    /// Bond consecutive atoms within every block of this many atoms (bead-spring chains).
+    pub chains: Option<usize>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -299,6 +320,11 @@ pub struct OutputSpec {
     pub dir: Option<String>,
     /// Write a row of `energy.csv` every this many steps.
     pub energy_every: Option<usize>,
+    /// Trajectory file name in the output directory (format by extension, default
+    /// `trajectory.xyz`).
+    pub trajectory: Option<String>,
+    /// Write a trajectory frame every this many steps (default: no trajectory).
+    pub trajectory_every: Option<usize>,
 }
 
 // ---------------------------------------------------------------------------------------
@@ -316,6 +342,13 @@ pub struct Scene {
     pub output: OutputSpec,
     /// The scene's exact solution, when it gives one (`[exact]`).
     pub exact: Option<Box<dyn ExactSolution>>,
+    pub units: Units,
+    /// Element (or name) of each particle, for trajectories and force tables.
+    pub elements: Vec<String>,
+    /// Which force-field parameter came from where (empty without `[forcefield]`).
+    pub forcefield_report: Vec<String>,
+    /// Every force-field parameter per interaction (`None` without `[forcefield]`).
+    pub forcefield_parameters: Option<serde_json::Value>,
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters.
@@ -402,6 +435,25 @@ impl Builder<'_> {
         let dim = file.dim;
         if !(1..=3).contains(&dim) {
             return Err(self.error(format!("dim must be 1, 2 or 3, got {dim}")));
+        }
+        let units = match &file.units {
+            Some(spanned) => Units::parse(spanned.get_ref())
+                .map_err(|e| self.error_at(spanned.span().start, e))?,
+            None => Units::None,
+        };
+        if let Some(spanned) = &file.forcefield {
+            if units != Units::Real {
+                return Err(self.error_at(
+                    spanned.span().start,
+                    "[forcefield] needs units = \"real\" (Å, fs, amu, kcal/mol, e)",
+                ));
+            }
+            if dim != 3 || file.structure.is_none() {
+                return Err(self.error_at(
+                    spanned.span().start,
+                    "[forcefield] needs dim = 3 and the atoms from a [structure] file",
+                ));
+            }
         }
         let parameters = self.resolve_parameters(&file.parameters, overrides)?;
         let value = |v: &Value, what: &str, offset: usize| -> Result<f64> {
@@ -507,7 +559,8 @@ impl Builder<'_> {
                     .parent()
                     .unwrap_or(Path::new("."))
                     .join(&spec.file);
-                let structure = read_structure(&structure_path)?;
+                let guess = spec.guess_bonds.unwrap_or(file.forcefield.is_some());
+                let structure = read_structure_with(&structure_path, guess)?;
                 let uniform_mass = match &spec.mass {
                     Some(mass) => {
                         let mass = value(mass, "structure mass", offset)?;
@@ -525,6 +578,8 @@ impl Builder<'_> {
                     let mass = match uniform_mass {
                         Some(mass) => mass,
                         None if atom.mass > 0.0 => atom.mass,
+                        // The force field gives masses of types that are no element.
+                        None if file.forcefield.is_some() => 0.0,
                         None => {
                             return Err(Error::Structure {
                                 path: structure_path.clone(),
@@ -602,7 +657,12 @@ impl Builder<'_> {
                 all[..dim].copy_from_slice(&lengths);
                 Some(PeriodicBox { lengths: all })
             }
-            None => None,
+            // A cell in the structure file (extended XYZ `Lattice=`, PDB `CRYST1`).
+            None => structure_positions
+                .as_ref()
+                .and_then(|s| s.cell)
+                .filter(|_| dim == 3)
+                .map(|lengths| PeriodicBox { lengths }),
         };
 
         // A non-diagonal mass matrix, or its lumped diagonal.
@@ -627,6 +687,94 @@ impl Builder<'_> {
                 periodic_box,
             )?;
             terms.push(term);
+        }
+
+        // The molecular force field, and the masses and velocities it settles.
+        let mut elements: Vec<String> = names.clone();
+        let mut forcefield_report = Vec::new();
+        let mut forcefield_parameters = None;
+        if let (Some(ff), Some(structure)) = (&file.forcefield, &structure_positions) {
+            let offset = ff.span().start;
+            let structure_spec = file.structure.as_ref().map(|s| s.get_ref());
+            let bonds = self.structure_bonds(structure, structure_spec, n_particles)?;
+            if let Some((i, j, r)) = closest_overlap(&q, periodic_box, OVERLAP_LIMIT) {
+                return Err(self.error(format!(
+                    "atoms {i} ({}) and {j} ({}) overlap: they are {r:.4} Å apart (closer than \
+                     {OVERLAP_LIMIT} Å)",
+                    names[i], names[j]
+                )));
+            }
+            let atoms: Vec<FfAtom> = structure
+                .atoms
+                .iter()
+                .map(|a| FfAtom {
+                    type_name: a.name.clone(),
+                    element: a.element.clone(),
+                    element_mass: a.mass,
+                })
+                .collect();
+            let built = build_forcefield(&ForcefieldInput {
+                spec: ff.get_ref(),
+                units,
+                atoms: &atoms,
+                q: &q,
+                bonds: &bonds,
+                periodic_box,
+            })
+            .map_err(|e| self.error_at(offset, e))?;
+            masses = built.masses;
+            elements = built.elements;
+            forcefield_report = built.report;
+            forcefield_parameters = Some(built.parameters);
+            forcefield_report.insert(
+                0,
+                format!(
+                    "force field: {} atoms, {} bonds ({}), box {}; units real: Å, fs, amu, kcal/mol, e",
+                    n_particles,
+                    bonds.len(),
+                    if structure.bonds.is_empty() {
+                        "none perceived or listed"
+                    } else {
+                        "from the file or perceived by chemfiles"
+                    },
+                    match periodic_box {
+                        Some(b) => format!("{:?}", b.lengths),
+                        None => "none".into(),
+                    }
+                ),
+            );
+            terms.extend(built.terms);
+        }
+        // Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.
+        for m in &mut masses {
+            *m = units.mass(*m);
+        }
+        for pk in &mut p {
+            *pk = units.mass(*pk);
+        }
+        if let Some(spec) = file.structure.as_ref().map(|s| s.get_ref())
+            && let Some(velocities) = &spec.velocities
+        {
+            let path = self
+                .path
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(velocities);
+            let file_velocities = read_structure(&path)?;
+            if file_velocities.atoms.len() != n_particles {
+                return Err(Error::Structure {
+                    path,
+                    message: format!(
+                        "has {} velocities for {n_particles} atoms",
+                        file_velocities.atoms.len()
+                    ),
+                });
+            }
+            for (i, atom) in file_velocities.atoms.iter().enumerate() {
+                for a in 0..dim {
+                    p[i * dim + a] = masses[i] * atom.position[a];
+                }
+            }
         }
         let forces = ForceSplit::new(terms).map_err(|e| self.error(e.to_string()))?;
 
@@ -656,6 +804,10 @@ impl Builder<'_> {
             run: file.run.clone(),
             output: file.output.clone(),
             exact,
+            units,
+            elements,
+            forcefield_report,
+            forcefield_parameters,
         })
     }
 
@@ -778,6 +930,54 @@ impl Builder<'_> {
             .positions(0.0, &mut probe)
             .map_err(|e| self.error_at(offset, e.to_string()))?;
         Ok(solution)
+    }
+
+    /// The bonds of a structure: listed in the file or perceived by chemfiles, plus the
+    /// scene's `bonds` (repeated over blocks of `bond_repeat` atoms) and `chains`.
+    fn structure_bonds(
+        &self,
+        structure: &Structure,
+        spec: Option<&StructureSpec>,
+        n: usize,
+    ) -> Result<Vec<[usize; 2]>> {
+        let mut bonds = structure.bonds.clone();
+        let Some(spec) = spec else {
+            return Ok(bonds);
+        };
+        let block = |size: usize, key: &str| -> Result<usize> {
+            if size == 0 || !n.is_multiple_of(size) {
+                return Err(self.error(format!(
+                    "[structure] {key} = {size} does not divide the {n} atoms into whole blocks"
+                )));
+            }
+            Ok(n / size)
+        };
+        if let Some(list) = &spec.bonds {
+            let (size, blocks) = match spec.bond_repeat {
+                Some(size) => (size, block(size, "bond_repeat")?),
+                None => (n, 1),
+            };
+            for &[a, b] in list {
+                if a >= size || b >= size || a == b {
+                    return Err(self.error(format!(
+                        "[structure] bond [{a}, {b}] must join two different atoms among {size}"
+                    )));
+                }
+                for k in 0..blocks {
+                    bonds.push([k * size + a, k * size + b]);
+                }
+            }
+        } else if spec.bond_repeat.is_some() {
+            return Err(self.error("[structure] bond_repeat needs a bonds list"));
+        }
+        if let Some(size) = spec.chains {
+            for k in 0..block(size, "chains")? {
+                for i in 0..size.saturating_sub(1) {
+                    bonds.push([k * size + i, k * size + i + 1]);
+                }
+            }
+        }
+        Ok(bonds)
     }
 
     /// `[parameters]` with the `--set` overrides applied, each evaluated once (they may

@@ -11,6 +11,8 @@ pub struct Atom {
     pub name: String,
     /// Mass from the element table; 0 when chemfiles does not know the element.
     pub mass: f64,
+    /// The element (chemfiles' atomic type: the name, or the element a PDB names).
+    pub element: String,
     pub position: [f64; 3],
 }
 
@@ -65,6 +67,13 @@ fn structure_error(path: &Path, message: String) -> Error {
 
 /// Read the first frame of a structure file.
 pub fn read_structure(path: &Path) -> Result<Structure> {
+    read_structure_with(path, false)
+}
+
+/// Read the first frame; with `guess_bonds`, bonds are perceived by chemfiles (its VMD
+/// criterion: `0.03 Å < d < 0.6 (R_a + R_b)` with van der Waals radii, minimum image in a
+/// cell) when the file lists none.
+pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> {
     if !path.exists() {
         return Err(Error::Structure {
             path: path.to_path_buf(),
@@ -78,6 +87,11 @@ pub fn read_structure(path: &Path) -> Result<Structure> {
     trajectory.read(&mut frame).map_err(|e| {
         structure_error(path, format!("cannot read the first frame: {}", e.message))
     })?;
+    if guess_bonds && frame.topology().bonds_count() == 0 {
+        frame
+            .guess_bonds()
+            .map_err(|e| structure_error(path, format!("cannot guess bonds: {}", e.message)))?;
+    }
     let positions = frame.positions();
     let mut atoms = Vec::with_capacity(frame.size());
     for (i, position) in positions.iter().enumerate() {
@@ -91,6 +105,7 @@ pub fn read_structure(path: &Path) -> Result<Structure> {
         atoms.push(Atom {
             name: atom.name(),
             mass: atom.mass(),
+            element: atom.atomic_type(),
             position: *position,
         });
     }

@@ -1,0 +1,184 @@
+//! `longstep forces SCENE`: a single-point evaluation to check a force field before a run.
+//!
+//! Prints the potential energy per group (bonds, angles, torsions, Lennard-Jones, Coulomb,
+//! other), per level (fast, slow) and in total, in the scene's units; `--out FILE` writes the
+//! per-atom forces `index,element,fx,fy,fz` (force = −gradient; `--by-level` adds the force
+//! of each level); `--json` prints `{"energy": {…}, "units": {…}}` instead of the table.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+
+use serde_json::json;
+
+use super::ForcesArgs;
+use crate::error::{Error, Result};
+use crate::io::scene::load_scene;
+use crate::io::structure::read_structure;
+
+/// The report group of an energy component named by its kind.
+fn group_of(component: &str) -> &'static str {
+    match component {
+        "bond" | "spring" | "chain" => "bonds",
+        "angle" => "angles",
+        "torsion" => "torsions",
+        "lennard-jones" | "lennard-jones-14" => "lennard_jones",
+        "coulomb" | "coulomb-14" => "coulomb",
+        _ => "other",
+    }
+}
+
+const GROUPS: [&str; 6] = [
+    "bonds",
+    "angles",
+    "torsions",
+    "lennard_jones",
+    "coulomb",
+    "other",
+];
+
+pub fn forces_command(args: &ForcesArgs) -> Result<()> {
+    let mut scene = load_scene(&args.scene, &args.set)?;
+    if !args.quiet {
+        for line in &scene.forcefield_report {
+            eprintln!("{line}");
+        }
+        eprintln!("{}", scene.system.forces.level_table());
+    }
+    if let Some(path) = &args.parameters {
+        let Some(parameters) = &scene.forcefield_parameters else {
+            return Err(Error::input(
+                "--parameters needs a scene with a [forcefield] section",
+            ));
+        };
+        let text = serde_json::to_string(parameters)
+            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+        std::fs::write(path, text).map_err(|e| Error::io(path, e))?;
+    }
+    let system = &mut scene.system;
+    let mut q = system.state.q.clone();
+    if let Some(path) = &args.positions {
+        let structure = read_structure(path)?;
+        let dim = system.dim;
+        if structure.atoms.len() != system.n_particles() {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "has {} atoms, the scene {}",
+                    structure.atoms.len(),
+                    system.n_particles()
+                ),
+            });
+        }
+        for (i, atom) in structure.atoms.iter().enumerate() {
+            q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
+        }
+    }
+    let n_levels = system.forces.n_levels();
+
+    let mut groups: BTreeMap<&str, f64> = GROUPS.iter().map(|&g| (g, 0.0)).collect();
+    let mut terms = serde_json::Map::new();
+    for labelled in system.forces.terms() {
+        for (component, energy) in labelled.term.energy_components(&q) {
+            *groups.entry(group_of(component)).or_insert(0.0) += energy;
+            let key = if labelled.term.energy_components(&q).len() > 1 {
+                format!("{}/{component}", labelled.name)
+            } else {
+                labelled.name.clone()
+            };
+            terms.insert(key, json!(energy));
+        }
+    }
+    let level_energies: Vec<f64> = (0..n_levels)
+        .map(|level| system.forces.energy(level, &q))
+        .collect();
+    let total: f64 = level_energies.iter().sum();
+
+    // Per-level gradients (forces are their negatives).
+    let mut level_gradients = vec![vec![0.0; q.len()]; n_levels];
+    for (level, gradient) in level_gradients.iter_mut().enumerate() {
+        system.forces.gradient(level, &q, gradient);
+    }
+    let units = scene.units.labels();
+    let unit = |name: &str| {
+        units
+            .iter()
+            .find(|(k, _)| *k == name)
+            .map(|(_, v)| *v)
+            .unwrap_or("scene")
+    };
+
+    if let Some(path) = &args.out {
+        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut out = std::io::BufWriter::new(file);
+        let dim = system.dim;
+        let axes = ["x", "y", "z"];
+        let mut header: Vec<String> = vec!["index".into(), "element".into()];
+        header.extend(axes[..dim].iter().map(|a| format!("f{a}")));
+        if args.by_level {
+            for level in 0..n_levels {
+                let name = system.forces.level_name(level).replace(' ', "_");
+                header.extend(axes[..dim].iter().map(|a| format!("f{a}_{name}")));
+            }
+        }
+        let io = |e| Error::io(path, e);
+        writeln!(out, "{}", header.join(",")).map_err(io)?;
+        for i in 0..system.n_particles() {
+            write!(out, "{i},{}", scene.elements[i]).map_err(io)?;
+            for a in 0..dim {
+                let f: f64 = -level_gradients.iter().map(|g| g[i * dim + a]).sum::<f64>();
+                write!(out, ",{f}").map_err(io)?;
+            }
+            if args.by_level {
+                for gradient in &level_gradients {
+                    for a in 0..dim {
+                        write!(out, ",{}", -gradient[i * dim + a]).map_err(io)?;
+                    }
+                }
+            }
+            writeln!(out).map_err(io)?;
+        }
+        out.flush().map_err(io)?;
+    }
+
+    if args.json {
+        let mut energy = serde_json::Map::new();
+        for (group, value) in &groups {
+            energy.insert(group.to_string(), json!(value));
+        }
+        energy.insert("fast".into(), json!(level_energies.first().copied()));
+        energy.insert("slow".into(), json!(level_energies.last().copied()));
+        energy.insert("levels".into(), json!(level_energies));
+        energy.insert("total".into(), json!(total));
+        energy.insert("terms".into(), serde_json::Value::Object(terms));
+        let units: serde_json::Map<String, serde_json::Value> = units
+            .iter()
+            .map(|(k, v)| (k.to_string(), json!(v)))
+            .collect();
+        let mut report = json!({ "energy": energy, "units": units });
+        if let Some(path) = &args.out {
+            report["forces_csv"] = json!(path.display().to_string());
+        }
+        let text = serde_json::to_string_pretty(&report)
+            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+        println!("{text}");
+    } else {
+        println!("scene      {}", scene.name);
+        println!("energy ({})", unit("energy"));
+        for group in GROUPS {
+            println!("  {group:<15} {:.10}", groups[group]);
+        }
+        for (level, energy) in level_energies.iter().enumerate() {
+            let name = format!("{} (level {level})", system.forces.level_name(level));
+            println!("  {name:<15} {energy:.10}");
+        }
+        println!("  {:<15} {total:.10}", "total");
+        if let Some(path) = &args.out {
+            println!(
+                "forces     {} ({}; index,element,fx,fy,fz)",
+                path.display(),
+                unit("force")
+            );
+        }
+    }
+    Ok(())
+}

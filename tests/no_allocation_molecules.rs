@@ -1,0 +1,85 @@
+//! A step of a molecule scene allocates nothing, on any thread: the neighbour list, the
+//! per-chunk gradient buffers and the mollifier's buffers are sized before the run, and
+//! rayon's per-chunk work inside a thread pool uses the workers' own deques. A global
+//! counter (this file holds one test, so nothing else runs meanwhile) counts allocations on
+//! every thread, rayon's workers included. Steps run inside `ThreadPool::install`, as
+//! `longstep run` does.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn molecule_steps_allocate_nothing() {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let probe = std::hint::black_box(vec![1.0f64; 16]);
+    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    for (scene, method, h, inner) in [
+        ("systems/water-box/scene.toml", "impulse", 2.0, 4),
+        ("systems/water-box/scene.toml", "long-average", 4.0, 8),
+        (
+            "systems/molecules/alanine-dipeptide.toml",
+            "impulse",
+            2.0,
+            4,
+        ),
+    ] {
+        pool.install(|| {
+            let mut scene = longstep::io::scene::load_scene(Path::new(scene), &[]).unwrap();
+            let settings =
+                longstep::settings::MethodSettings::new(method, h).with_inner_steps(inner);
+            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+            integrator.setup(&mut scene.system).unwrap();
+            // Warm up past the first list rebuilds (their buffers keep 25 % room).
+            for _ in 0..40 {
+                integrator.step(&mut scene.system).unwrap();
+            }
+            let listed = |scene: &longstep::io::scene::Scene| -> usize {
+                scene
+                    .system
+                    .forces
+                    .terms()
+                    .iter()
+                    .find(|t| t.name == "nonbonded")
+                    .map_or(0, |t| t.term.interaction_count())
+            };
+            let pairs_before = listed(&scene);
+            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            for _ in 0..40 {
+                integrator.step(&mut scene.system).unwrap();
+            }
+            let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+            assert_eq!(during, 0, "{method}: {during} allocations in 40 steps");
+            if scene.name == "polymer-melt" {
+                // The list was rebuilt meanwhile (its pair count changed): rebuilds allocate
+                // nothing either.
+                assert_ne!(listed(&scene), pairs_before, "no list rebuild in 40 steps");
+            }
+        });
+    }
+}
