@@ -108,6 +108,13 @@ figures-studies:
 		--h-list 0.4,0.2,0.1,0.05 --block 2 --t-end 20 --sample 0.4 \
 		--reference-method structural-zds --reference-h 0.0125 --out $(FIGURE_DATA)/wp-pendulum
 	cp $(FIGURE_DATA)/wp-pendulum/error-vs-force-evaluations.png $(FIGURES)/studies/wp-pendulum.png
+	$(CHART) systems/water-box/scene.toml --methods verlet,impulse,short-average,long-average,linear-average,pseudo-energy \
+		--h-list 4fs,2fs,1fs,0.5fs --dt 0.25fs --t-end 200fs --out $(FIGURE_DATA)/wp-water
+	cp $(FIGURE_DATA)/wp-water/error-vs-force-evaluations.png $(FIGURES)/studies/wp-water.png
+	$(BIN) scan steps systems/molecules/butane.toml --methods verlet,impulse,short-average,linear-average,long-average \
+		--h 0.5fs:8fs:0.25fs --dt 0.25fs --t-end 10ps --drift-bound 5e-7 --energy-every 4 --quiet \
+		--out $(FIGURE_DATA)/scan-butane
+	cp $(FIGURE_DATA)/scan-butane/scan.png $(FIGURES)/studies/scan-butane.png
 	$(BIN) scan steps systems/three-spring.toml --methods impulse,short-average,linear-average,long-average \
 		--h 0.15:0.7:0.005 --inner 40 --t-end 250 --blowup 0.2 --quiet --out $(FIGURE_DATA)/scan-three-spring
 	cp $(FIGURE_DATA)/scan-three-spring/scan.png $(FIGURES)/studies/scan-three-spring.png

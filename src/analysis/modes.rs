@@ -146,7 +146,9 @@ pub struct Resonance {
 }
 
 /// Dangerous outer steps in `[h_min, h_max]` from the `distinct` fastest distinct
-/// frequencies (frequencies within a relative 1e-6 of each other count once).
+/// frequencies. Frequencies within 1 % of one already taken count once: a box of identical
+/// molecules has hundreds of O–H stretches a fraction of a percent apart, and their
+/// resonances are one band, not hundreds of predictions.
 pub fn predicted_resonances(
     modes: &[Mode],
     h_min: f64,
@@ -157,7 +159,7 @@ pub fn predicted_resonances(
     for mode in modes.iter().filter(|m| m.frequency > 0.0 && !m.unstable) {
         if frequencies
             .iter()
-            .all(|f| (f - mode.frequency).abs() > 1e-6 * f)
+            .all(|f| (f - mode.frequency).abs() > 0.01 * f)
         {
             frequencies.push(mode.frequency);
         }

@@ -131,7 +131,10 @@ pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Resul
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
     spec.t_end = Some(Value::Number(setup.t_end));
-    let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+    let settings = scene
+        .run
+        .overridden_by(&spec)
+        .resolve_with_units(&scene.parameters, scene.units)?;
     let mut integrator = integrators::build(&settings, &mut Vec::new())?;
     let options = RunOptions {
         t_end: setup.t_end,

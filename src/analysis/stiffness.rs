@@ -230,7 +230,10 @@ impl StiffnessStudy {
         spec.method = Some(method.to_string());
         spec.h = Some(Value::Number(h));
         spec.t_end = Some(Value::Number(self.t_end));
-        let mut settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+        let mut settings = scene
+            .run
+            .overridden_by(&spec)
+            .resolve_with_units(&scene.parameters, scene.units)?;
         let uses_inner = METHODS
             .iter()
             .any(|m| m.name == method && m.uses.contains(&"inner_steps"));

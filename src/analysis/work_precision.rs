@@ -125,7 +125,10 @@ fn integrate_sampled(
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
-    let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+    let settings = scene
+        .run
+        .overridden_by(&spec)
+        .resolve_with_units(&scene.parameters, scene.units)?;
     let mut integrator = integrators::build(&settings, &mut Vec::new())?;
     let system = &mut scene.system;
     system.forces.reset_counts();

@@ -105,13 +105,15 @@ fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
 }
 
 pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
-    let steps = parse_steps(&args.h_list)?;
+    let scene_units = load_scene(&args.scene, &args.set)?.units;
+    let units = scene_units.time_units();
+    let steps = parse_steps(&args.h_list, scene_units)?;
     let no_parameters = BTreeMap::new();
-    let t_end = args.t_end.evaluate(&no_parameters, "--t-end")?;
+    let t_end = args.t_end.evaluate_time(&no_parameters, "--t-end", units)?;
     let largest = steps.iter().copied().fold(0.0, f64::max);
     let smallest = steps.iter().copied().fold(f64::INFINITY, f64::min);
     let sample = match &args.sample {
-        Some(v) => v.evaluate(&no_parameters, "--sample")?,
+        Some(v) => v.evaluate_time(&no_parameters, "--sample", units)?,
         None => largest,
     };
     if !(t_end > 0.0 && sample > 0.0 && sample <= t_end) {
@@ -123,7 +125,7 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         whole_ratio(sample, h, "outer step h", "sample interval")?;
     }
     let reference_h = match &args.reference_h {
-        Some(v) => v.evaluate(&no_parameters, "--reference-h")?,
+        Some(v) => v.evaluate_time(&no_parameters, "--reference-h", units)?,
         None => sample / (64.0 * sample / smallest).ceil(),
     };
     whole_ratio(sample, reference_h, "reference step", "sample interval")?;
@@ -160,10 +162,14 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         None => measure_cost_weights(&mut scene.system),
     };
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    // The reference takes only what its own method may need, never the studied methods'
+    // inner steps.
     let reference_base = StudySetup {
         base: RunSpec {
             blowup: Some(1e6),
-            ..setup.base.clone()
+            block: args.block,
+            quadrature: args.quadrature.clone(),
+            ..Default::default()
         },
         ..setup.clone()
     };

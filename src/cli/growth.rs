@@ -167,7 +167,10 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             let mut spec = base.clone();
             spec.method = Some(method.clone());
             spec.h = Some(Value::Number(h));
-            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            let settings = scene
+                .run
+                .overridden_by(&spec)
+                .resolve_with_units(&scene.parameters, scene.units)?;
             integrators::build(&settings, &mut Vec::new())
                 .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
             points.push((points.len(), settings, n));

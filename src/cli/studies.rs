@@ -14,6 +14,7 @@ use std::collections::BTreeMap;
 use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
 use crate::settings::{RunSpec, Value};
+use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct ModesArgs {
@@ -113,8 +114,8 @@ pub struct MinimizeArgs {
     pub max_iterations: usize,
 }
 
-/// `LO:HI` → (lo, hi).
-fn parse_range(text: &str, what: &str) -> Result<(f64, f64)> {
+/// `LO:HI` → (lo, hi), in the scene's time units when it has them.
+fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
     let parts: Vec<&str> = text.split(':').collect();
     let [lo, hi] = parts.as_slice() else {
         return Err(Error::input(format!(
@@ -124,7 +125,7 @@ fn parse_range(text: &str, what: &str) -> Result<(f64, f64)> {
     let value = |s: &str| -> Result<f64> {
         s.parse::<Value>()
             .map_err(|_| Error::input(format!("bad number in {what}")))?
-            .evaluate(&Default::default(), what)
+            .evaluate_time(&Default::default(), what, units.time_units())
     };
     let (lo, hi) = (value(lo)?, value(hi)?);
     if lo >= hi {
@@ -133,11 +134,12 @@ fn parse_range(text: &str, what: &str) -> Result<(f64, f64)> {
     Ok((lo, hi))
 }
 
-/// `LO:HI:STEP` (inclusive, with a tolerance for the last point) or `A,B,C`.
-pub fn parse_steps(text: &str) -> Result<Vec<f64>> {
+/// `LO:HI:STEP` (inclusive, with a tolerance for the last point) or `A,B,C`; in a scene with
+/// real units the values may carry time units (`1fs:10fs:0.25fs`).
+pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
     let value = |s: &str| -> Result<f64> {
         let v: Value = s.parse().map_err(|_| Error::input("bad number"))?;
-        let x = v.evaluate(&Default::default(), "--h")?;
+        let x = v.evaluate_time(&Default::default(), "--h", units.time_units())?;
         if x <= 0.0 {
             return Err(Error::input(format!(
                 "--h: steps must be positive, got {x}"
@@ -203,7 +205,10 @@ pub fn check_methods(
             let mut spec = base.clone();
             spec.method = Some(method.clone());
             spec.h = Some(Value::Number(h));
-            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            let settings = scene
+                .run
+                .overridden_by(&spec)
+                .resolve_with_units(&scene.parameters, scene.units)?;
             crate::integrators::build(&settings, &mut Vec::new())
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
         }
@@ -236,7 +241,7 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
     let modes = fast_modes(&mut scene.system);
     let fastest = modes.iter().map(|m| m.frequency).fold(0.0, f64::max);
     let (lo, hi) = match &args.h_range {
-        Some(range) => parse_range(range, "--h-range")?,
+        Some(range) => parse_range(range, "--h-range", scene.units)?,
         None if fastest > 0.0 => (0.0, 4.0 * std::f64::consts::TAU / fastest),
         None => (0.0, 0.0),
     };
@@ -308,8 +313,11 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
 }
 
 pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
-    let steps = parse_steps(&args.h)?;
-    let t_end = args.t_end.evaluate(&Default::default(), "--t-end")?;
+    let units = load_scene(&args.scene, &args.set)?.units;
+    let steps = parse_steps(&args.h, units)?;
+    let t_end = args
+        .t_end
+        .evaluate_time(&Default::default(), "--t-end", units.time_units())?;
     if t_end <= 0.0 {
         return Err(Error::input("--t-end must be positive"));
     }
@@ -340,7 +348,10 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
             let mut spec = setup.base.clone();
             spec.method = Some("async-pseudo-energy".into());
             spec.h = Some(Value::Number(h));
-            let settings = scene.run.overridden_by(&spec).resolve(&scene.parameters)?;
+            let settings = scene
+                .run
+                .overridden_by(&spec)
+                .resolve_with_units(&scene.parameters, scene.units)?;
             if let Some(warning) =
                 crate::analysis::async_stability::band_warning(&mut scene.system, &settings)
             {
