@@ -91,14 +91,17 @@ figures: cmake
 
 # docs/studies.md and docs/methods/*: work-precision charts per scene family, a step scan.
 CHART := $(BIN) chart work-precision --quiet
+ALL_METHODS := verlet,impulse,impulse-midpoint,short-average,long-average,linear-average,pseudo-energy,adaptive-verlet,structural-zd,structural-zds
 figures-studies:
 	$(CARGO) build --release
 	mkdir -p $(FIGURES)/studies
-	$(CHART) systems/two-spring.toml --methods verlet,impulse,short-average,long-average,linear-average \
-		--h-list 0.4,0.2,0.1,0.05,0.025 --inner 10 --t-end 8 --out $(FIGURE_DATA)/wp-two-spring
+	$(CHART) systems/two-spring.toml --methods $(ALL_METHODS) \
+		--h-list 0.4,0.2,0.1,0.05,0.025 --inner 10 --block 2 --t-end 8 \
+		--reference-method structural-zds --reference-h 0.003125 --out $(FIGURE_DATA)/wp-two-spring
 	cp $(FIGURE_DATA)/wp-two-spring/error-vs-force-evaluations.png $(FIGURES)/studies/wp-two-spring.png
-	$(CHART) systems/fpu.toml --methods verlet,impulse,long-average \
-		--h-list 0.04,0.02,0.01,0.005 --inner 20 --t-end 4 --out $(FIGURE_DATA)/wp-fpu
+	$(CHART) systems/fpu.toml --methods $(ALL_METHODS) --quadrature gl3 \
+		--h-list 0.04,0.02,0.01,0.005 --inner 20 --block 2 --t-end 4 \
+		--reference-method structural-zds --reference-h 0.000625 --out $(FIGURE_DATA)/wp-fpu
 	cp $(FIGURE_DATA)/wp-fpu/error-vs-force-evaluations.png $(FIGURES)/studies/wp-fpu.png
 	$(CHART) systems/kepler.toml --set eccentricity=0.9 --methods verlet,adaptive-verlet,structural-zd,structural-zds \
 		--h-list 0.04,0.02,0.01,0.005 --block 2 --t-end 2*pi --sample 0.04 \
