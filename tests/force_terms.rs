@@ -21,43 +21,11 @@ use longstep::system::PeriodicBox;
 
 const EPSILON: f64 = 1e-5;
 
-fn finite_difference_gradient(term: &dyn ForceTerm, q: &[f64]) -> Vec<f64> {
-    let mut x = q.to_vec();
-    (0..q.len())
-        .map(|k| {
-            x[k] = q[k] + EPSILON;
-            let plus = term.energy(&x);
-            x[k] = q[k] - EPSILON;
-            let minus = term.energy(&x);
-            x[k] = q[k];
-            (plus - minus) / (2.0 * EPSILON)
-        })
-        .collect()
-}
-
-fn finite_difference_hessian_vector(term: &dyn ForceTerm, q: &[f64], v: &[f64]) -> Vec<f64> {
-    let shifted = |sign: f64| -> Vec<f64> {
-        let x: Vec<f64> = q
-            .iter()
-            .zip(v)
-            .map(|(a, b)| a + sign * EPSILON * b)
-            .collect();
-        let mut g = vec![0.0; q.len()];
-        term.add_gradient(&x, &mut g);
-        g
-    };
-    let (plus, minus) = (shifted(1.0), shifted(-1.0));
-    plus.iter()
-        .zip(&minus)
-        .map(|(p, m)| (p - m) / (2.0 * EPSILON))
-        .collect()
-}
-
 /// Checks gradient and Hessian-vector product at `q` along several random directions.
 fn check(term: &dyn ForceTerm, q: &[f64], rng: &mut TestRng, label: &str) {
     let mut gradient = vec![0.0; q.len()];
     term.add_gradient(q, &mut gradient);
-    let fd = finite_difference_gradient(term, q);
+    let fd = common::finite_difference_gradient(term, q, EPSILON);
     let error = max_abs_difference(&gradient, &fd);
     let scale = max_abs(&gradient).max(1.0);
     assert!(
@@ -73,7 +41,7 @@ fn check(term: &dyn ForceTerm, q: &[f64], rng: &mut TestRng, label: &str) {
         let v = rng.vector(q.len(), -1.0, 1.0);
         let mut hv = vec![0.0; q.len()];
         term.add_hessian_vector(q, &v, &mut hv);
-        let fd = finite_difference_hessian_vector(term, q, &v);
+        let fd = common::finite_difference_hessian_vector(term, q, &v, EPSILON);
         let error = max_abs_difference(&hv, &fd);
         let scale = max_abs(&hv).max(1.0);
         assert!(

@@ -96,3 +96,46 @@ pub const MTS_METHODS: [&str; 5] = [
     "long-average",
     "linear-average",
 ];
+
+/// Central-difference gradient of `term`'s energy with step `epsilon`.
+pub fn finite_difference_gradient(
+    term: &dyn longstep::forces::ForceTerm,
+    q: &[f64],
+    epsilon: f64,
+) -> Vec<f64> {
+    let mut x = q.to_vec();
+    (0..q.len())
+        .map(|k| {
+            x[k] = q[k] + epsilon;
+            let plus = term.energy(&x);
+            x[k] = q[k] - epsilon;
+            let minus = term.energy(&x);
+            x[k] = q[k];
+            (plus - minus) / (2.0 * epsilon)
+        })
+        .collect()
+}
+
+/// Central-difference Hessian-vector product (of `term`'s gradient along `v`).
+pub fn finite_difference_hessian_vector(
+    term: &dyn longstep::forces::ForceTerm,
+    q: &[f64],
+    v: &[f64],
+    epsilon: f64,
+) -> Vec<f64> {
+    let shifted = |sign: f64| -> Vec<f64> {
+        let x: Vec<f64> = q
+            .iter()
+            .zip(v)
+            .map(|(a, b)| a + sign * epsilon * b)
+            .collect();
+        let mut g = vec![0.0; q.len()];
+        term.add_gradient(&x, &mut g);
+        g
+    };
+    let (plus, minus) = (shifted(1.0), shifted(-1.0));
+    plus.iter()
+        .zip(&minus)
+        .map(|(p, m)| (p - m) / (2.0 * epsilon))
+        .collect()
+}
