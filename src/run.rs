@@ -102,13 +102,14 @@ pub fn run(
     };
 
     let mut row = Vec::with_capacity(header.len());
+    let mut potentials = vec![0.0; n_levels];
     let mut series = Vec::new();
     let mut record = |system: &System,
                       integrator: &dyn Integrator,
                       csv: &mut Option<CsvWriter>|
      -> Result<f64> {
         let kinetic = system.kinetic_energy();
-        let potentials = system.potential_energies();
+        system.potential_energies_into(&mut potentials);
         let potential: f64 = potentials.iter().sum();
         let total = kinetic + potential;
         if options.keep_series {

@@ -143,15 +143,18 @@ fn integrate_sampled(
         &system.potential_energies(),
         setup.blowup,
     );
-    let velocity = |s: &System| -> Vec<f64> {
-        s.state
-            .p
-            .iter()
-            .zip(&s.inverse_mass)
-            .map(|(p, w)| p * w)
-            .collect()
+    // The last two step points (t, q, M⁻¹p), reused every step.
+    let point = |s: &System, into: &mut (f64, Vec<f64>, Vec<f64>)| {
+        into.0 = s.state.t;
+        into.1.copy_from_slice(&s.state.q);
+        for ((v, p), w) in into.2.iter_mut().zip(&s.state.p).zip(&s.inverse_mass) {
+            *v = p * w;
+        }
     };
-    let mut previous = (system.state.t, system.state.q.clone(), velocity(system));
+    let n = system.n_dofs();
+    let mut previous = (0.0, vec![0.0; n], vec![0.0; n]);
+    let mut current = previous.clone();
+    point(system, &mut previous);
     let mut next = 0;
     let mut status = "ok".to_string();
     let started = Instant::now();
@@ -170,7 +173,7 @@ fn integrate_sampled(
             status = format!("unstable: {reason}");
             break;
         }
-        let current = (system.state.t, system.state.q.clone(), velocity(system));
+        point(system, &mut current);
         while next < times.len() && times[next] <= current.0 + 1e-9 * h {
             samples.times.push(times[next]);
             samples
@@ -178,7 +181,7 @@ fn integrate_sampled(
                 .push(hermite(&previous, &current, times[next]));
             next += 1;
         }
-        previous = current;
+        std::mem::swap(&mut previous, &mut current);
     }
     let wall = started.elapsed().as_secs_f64();
     let counts = system.forces.counts();

@@ -116,14 +116,22 @@ impl System {
 
     /// Potential energy of every level, innermost (fastest) first.
     pub fn potential_energies(&self) -> Vec<f64> {
-        (0..self.forces.n_levels())
-            .map(|level| self.forces.energy(level, &self.state.q))
-            .collect()
+        let mut energies = vec![0.0; self.forces.n_levels()];
+        self.potential_energies_into(&mut energies);
+        energies
+    }
+
+    /// [`System::potential_energies`] into a buffer of one entry per level, without
+    /// allocating (the run loop records them every row).
+    pub fn potential_energies_into(&self, energies: &mut [f64]) {
+        for (level, energy) in energies.iter_mut().enumerate() {
+            *energy = self.forces.energy(level, &self.state.q);
+        }
     }
 
     /// Kinetic plus all potential energy.
     pub fn total_energy(&self) -> f64 {
-        self.kinetic_energy() + self.potential_energies().iter().sum::<f64>()
+        self.kinetic_energy() + self.forces.total_energy(&self.state.q)
     }
 }
 
