@@ -129,6 +129,29 @@ pub struct RunSpec {
     /// Iteration cap of an implicit solver.
     #[arg(long)]
     pub max_iter: Option<usize>,
+    /// Temperature: Maxwell–Boltzmann start velocities and the target of thermostatted
+    /// methods (`300K` in a real scene; in a dimensionless one the number k_B T).
+    #[arg(long, allow_hyphen_values = true)]
+    pub temperature: Option<Value>,
+    /// Seed of the random numbers (start velocities, stochastic methods).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Friction γ of a stochastic method, an inverse time (`1/ps` in a real scene).
+    #[arg(long, allow_hyphen_values = true)]
+    pub friction: Option<Value>,
+    /// Thermostat pairs L per degree of freedom (SIN(R)).
+    #[arg(long, value_name = "L")]
+    pub thermostats: Option<usize>,
+    /// Thermostat time scale τ (SIN(R): thermostat masses Q = k_B T τ²).
+    #[arg(long, allow_negative_numbers = true)]
+    pub tau: Option<Value>,
+    /// What the equilibrium mollifier holds at rest: bonds, or bonds-angles.
+    #[arg(long)]
+    pub molly_constraints: Option<String>,
+    /// Jacobian of the equilibrium mollifier: exact (conserves K + W(q) + U(A(q))) or
+    /// projection (the older literature's; does not conserve).
+    #[arg(long)]
+    pub molly_jacobian: Option<String>,
 }
 
 macro_rules! override_fields {
@@ -145,7 +168,8 @@ impl RunSpec {
         let over = other.clone();
         let mut merged = override_fields!(base, over;
             method, h, inner_steps, dt, t_end, blowup, level_steps, jacobian, quadrature, h_slow, h_fast,
-            ratio, adaptive, control, h_min, h_max, block, tol, max_iter);
+            ratio, adaptive, control, h_min, h_max, block, tol, max_iter, temperature, seed,
+            friction, thermostats, tau, molly_constraints, molly_jacobian);
         if other.inner_steps.is_some() || other.dt.is_some() {
             merged.inner_steps = other.inner_steps;
             merged.dt = other.dt.clone();
@@ -226,6 +250,38 @@ impl RunSpec {
         if self.max_iter == Some(0) {
             return Err(Error::input("max_iter must be at least 1"));
         }
+        if self.thermostats == Some(0) {
+            return Err(Error::input(
+                "thermostats (L, thermostat pairs per degree of freedom) must be at least 1",
+            ));
+        }
+        let temperature = match &self.temperature {
+            Some(v) => {
+                let kelvin = units.temperature_units();
+                let t = v.evaluate_time(parameters, "temperature", kelvin)?;
+                if t <= 0.0 {
+                    return Err(Error::input(format!(
+                        "temperature must be positive, got {t}{}",
+                        if units == crate::units::Units::Real {
+                            " K"
+                        } else {
+                            ""
+                        }
+                    )));
+                }
+                Some(t)
+            }
+            None => None,
+        };
+        // An inverse time: `1/ps` is 1/1000 per fs, the unit standing alone being its factor.
+        let friction = match time(&self.friction, "friction")? {
+            Some(g) if g <= 0.0 => {
+                return Err(Error::input(format!(
+                    "friction must be positive (an inverse time, e.g. 1/ps), got {g}"
+                )));
+            }
+            other => other,
+        };
         Ok(MethodSettings {
             method: self.method.clone().unwrap_or_else(|| "verlet".into()),
             h,
@@ -245,6 +301,14 @@ impl RunSpec {
             block: self.block,
             tol: positive(&self.tol, "tol")?,
             max_iter: self.max_iter,
+            temperature,
+            seed: self.seed,
+            friction,
+            thermostats: self.thermostats,
+            tau: positive_time(&self.tau, "thermostat time scale tau")?,
+            molly_constraints: self.molly_constraints.clone(),
+            molly_jacobian: self.molly_jacobian.clone(),
+            units,
         })
     }
 }
@@ -285,9 +349,25 @@ pub struct MethodSettings {
     pub block: Option<usize>,
     pub tol: Option<f64>,
     pub max_iter: Option<usize>,
+    /// In the scene's temperature unit (K in a real scene; k_B T in a dimensionless one).
+    pub temperature: Option<f64>,
+    pub seed: Option<u64>,
+    /// In inverse scene time units (1/fs in a real scene).
+    pub friction: Option<f64>,
+    pub thermostats: Option<usize>,
+    pub tau: Option<f64>,
+    pub molly_constraints: Option<String>,
+    pub molly_jacobian: Option<String>,
+    /// The scene's units, for `k_B` and for reports.
+    pub units: crate::units::Units,
 }
 
 impl MethodSettings {
+    /// `k_B T` in the scene's energy unit, when a temperature is given.
+    pub fn kt(&self) -> Option<f64> {
+        self.temperature.map(|t| t * self.units.boltzmann())
+    }
+
     /// A bare setting for tests and studies: `method` with outer step `h`.
     pub fn new(method: &str, h: f64) -> Self {
         MethodSettings {
@@ -306,7 +386,9 @@ impl MethodSettings {
     /// The names of the settings that are given, for methods that reject what they do not use.
     pub fn given(&self) -> Vec<&'static str> {
         let mut given = Vec::new();
-        let flags: [(&'static str, bool); 14] = [
+        // temperature and seed are the run's (start velocities) as well as a method's, so
+        // they are never "ignored" by a method.
+        let flags: [(&'static str, bool); 19] = [
             ("inner_steps", self.inner_steps.is_some()),
             ("level_steps", self.level_steps.is_some()),
             ("jacobian", self.jacobian.is_some()),
@@ -321,6 +403,11 @@ impl MethodSettings {
             ("block", self.block.is_some()),
             ("tol", self.tol.is_some()),
             ("max_iter", self.max_iter.is_some()),
+            ("friction", self.friction.is_some()),
+            ("thermostats", self.thermostats.is_some()),
+            ("tau", self.tau.is_some()),
+            ("molly_constraints", self.molly_constraints.is_some()),
+            ("molly_jacobian", self.molly_jacobian.is_some()),
         ];
         for (name, is_given) in flags {
             if is_given {

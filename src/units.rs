@@ -39,6 +39,9 @@ pub enum Units {
 /// Time-unit suffixes of a real scene and their value in fs.
 const REAL_TIME_UNITS: &[(&str, f64)] = &[("fs", 1.0), ("ps", 1e3), ("ns", 1e6)];
 
+/// Temperature-unit suffixes of a real scene (kelvin).
+const REAL_TEMPERATURE_UNITS: &[(&str, f64)] = &[("K", 1.0)];
+
 impl Units {
     /// Parse the scene key `units`.
     pub fn parse(text: &str) -> Result<Self, String> {
@@ -63,6 +66,24 @@ impl Units {
         match self {
             Units::None => &[],
             Units::Real => REAL_TIME_UNITS,
+        }
+    }
+
+    /// The suffixes a temperature may carry (`300K` in a real scene; none in a
+    /// dimensionless one, where a temperature is the number `k_B T` with `k_B = 1`).
+    pub fn temperature_units(self) -> &'static [(&'static str, f64)] {
+        match self {
+            Units::None => &[],
+            Units::Real => REAL_TEMPERATURE_UNITS,
+        }
+    }
+
+    /// Boltzmann's constant in the scene's energy per temperature unit: kcal/mol/K in a
+    /// real scene, 1 in a dimensionless one (a temperature there is `k_B T` itself).
+    pub fn boltzmann(self) -> f64 {
+        match self {
+            Units::None => 1.0,
+            Units::Real => BOLTZMANN_KCAL_PER_K,
         }
     }
 
@@ -105,9 +126,13 @@ impl Units {
     }
 }
 
-/// Every time suffix any unit system knows, for an error that says which scene accepts it.
-pub fn is_known_time_unit(name: &str) -> bool {
-    REAL_TIME_UNITS.iter().any(|(n, _)| *n == name)
+/// Every unit suffix any unit system knows (time, temperature), for an error that says
+/// which scene accepts it.
+pub fn is_known_unit(name: &str) -> bool {
+    REAL_TIME_UNITS
+        .iter()
+        .chain(REAL_TEMPERATURE_UNITS)
+        .any(|(n, _)| *n == name)
 }
 
 #[cfg(test)]

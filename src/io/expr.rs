@@ -13,8 +13,9 @@ pub fn evaluate(text: &str, parameters: &BTreeMap<String, f64>) -> Result<f64, S
 }
 
 /// Evaluate `text` where a number may carry one of the unit suffixes `units` (name, factor):
-/// `4fs`, `0.5 fs`, `10ps` are the number times the factor. A suffix the table lacks is an
-/// error that says which scenes accept it.
+/// `4fs`, `0.5 fs`, `10ps` are the number times the factor. A unit standing alone is its
+/// factor, so inverse units read naturally: `1/ps` is `1 / 1000` in a scene timed in fs. A
+/// suffix the table lacks is an error that says which scenes accept it.
 pub fn evaluate_with_units(
     text: &str,
     parameters: &BTreeMap<String, f64>,
@@ -215,10 +216,7 @@ impl Parser<'_> {
                             self.position += 1;
                             Ok(x * factor)
                         }
-                        None if crate::units::is_known_time_unit(&name) => Err(format!(
-                            "the unit '{name}' needs a scene with units = \"real\" and a \
-                             time value (this value is dimensionless)"
-                        )),
+                        None if crate::units::is_known_unit(&name) => Err(unit_not_accepted(&name)),
                         None => Err(format!("unknown unit '{name}' after {x}")),
                     }
                 }
@@ -247,6 +245,10 @@ impl Parser<'_> {
                     Ok(*value)
                 } else if let Some(value) = constant(&name) {
                     Ok(value)
+                } else if let Some(&(_, factor)) = self.units.iter().find(|(u, _)| *u == name) {
+                    Ok(factor)
+                } else if crate::units::is_known_unit(&name) {
+                    Err(unit_not_accepted(&name))
                 } else {
                     Err(format!("unknown parameter '{name}'"))
                 }
@@ -255,6 +257,15 @@ impl Parser<'_> {
             None => Err("expression ends too early".into()),
         }
     }
+}
+
+/// The error for a unit this value does not take: a real-scene unit in a dimensionless
+/// scene, or a unit of another quantity (`K` for a time).
+fn unit_not_accepted(name: &str) -> String {
+    format!(
+        "the unit '{name}' needs a scene with units = \"real\" and a value of its kind \
+         (a time for fs, ps, ns; a temperature for K)"
+    )
 }
 
 fn call(name: &str, arguments: &[f64]) -> Result<f64, String> {
@@ -347,6 +358,23 @@ mod tests {
             evaluate_with_units("4furlongs", &empty, units)
                 .unwrap_err()
                 .contains("unknown unit 'furlongs'")
+        );
+    }
+
+    #[test]
+    fn a_unit_alone_is_its_factor() {
+        let empty = BTreeMap::new();
+        let units = crate::units::Units::Real.time_units();
+        assert_eq!(evaluate_with_units("1/ps", &empty, units).unwrap(), 1e-3);
+        assert_eq!(evaluate_with_units("5/ns", &empty, units).unwrap(), 5e-6);
+        let kelvin = crate::units::Units::Real.temperature_units();
+        assert_eq!(evaluate_with_units("300K", &empty, kelvin).unwrap(), 300.0);
+        // A time unit where a temperature is asked, and kelvin in a dimensionless scene.
+        assert!(evaluate_with_units("300ps", &empty, kelvin).is_err());
+        assert!(
+            evaluate("300K", &empty)
+                .unwrap_err()
+                .contains("units = \"real\"")
         );
     }
 
