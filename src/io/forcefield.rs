@@ -31,22 +31,24 @@
 //! `K(r − r₀)²` doubled to this `(k/2)` form) and Lennard-Jones from AMBER parm99
 //! (σ = 2R*/2^{1/6}). They make a molecule run; they are no validated force field.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
-use crate::forces::angle::{AngleBend, HarmonicAngles};
-use crate::forces::coulomb::Coulomb;
-use crate::forces::lennard_jones::LennardJones;
+use crate::forces::ForceTerm;
 use crate::forces::neighbour_list::NeighbourList;
-use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
-use crate::forces::pair::{Pair, PairTerm};
-use crate::forces::spring::HarmonicBond;
-use crate::forces::torsion::{Cosine, Dihedral, Torsions};
-use crate::forces::{ForceTerm, Site, TermClass};
+use crate::forces::nonbonded::{Electrostatics, LjPair};
 use crate::split::Assignment;
 use crate::system::PeriodicBox;
-use crate::units::{COULOMB_KCAL_ANGSTROM, Units};
+use crate::units::Units;
+
+mod atoms;
+mod bonded;
+mod nonbonded;
+
+use atoms::AtomTable;
+use bonded::Topology;
+use nonbonded::{Exclusions, Settings};
 
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -209,584 +211,132 @@ pub struct ForcefieldInput<'a> {
     pub periodic_box: Option<PeriodicBox>,
 }
 
-/// Build the force-field terms. Errors are messages for the scene to locate.
-pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, String> {
-    let spec = input.spec;
-    let n = input.atoms.len();
-    let q = input.q;
-    let mut report = Vec::new();
-    let box_lengths = input.periodic_box.map(|b| b.lengths);
-    let wrap = |d: [f64; 3]| -> [f64; 3] {
-        match &input.periodic_box {
+/// The force-field terms, in the order the sections add them.
+type Terms = Vec<(String, Box<dyn ForceTerm>, Assignment)>;
+
+/// What the sections read: the input and every atom's resolved parameters.
+struct Context<'a> {
+    input: &'a ForcefieldInput<'a>,
+    atoms: &'a AtomTable,
+}
+
+impl Context<'_> {
+    fn position(&self, i: usize) -> [f64; 3] {
+        let q = self.input.q;
+        [q[3 * i], q[3 * i + 1], q[3 * i + 2]]
+    }
+
+    /// `r_a − r_b`, the nearest image in a periodic box.
+    fn difference(&self, a: usize, b: usize) -> [f64; 3] {
+        let (ra, rb) = (self.position(a), self.position(b));
+        let d: [f64; 3] = std::array::from_fn(|k| ra[k] - rb[k]);
+        match &self.input.periodic_box {
             Some(b) => std::array::from_fn(|a| b.wrap(a, d[a])),
             None => d,
         }
-    };
-    let position = |i: usize| -> [f64; 3] { [q[3 * i], q[3 * i + 1], q[3 * i + 2]] };
-    let difference = |a: usize, b: usize| -> [f64; 3] {
-        let (ra, rb) = (position(a), position(b));
-        wrap(std::array::from_fn(|k| ra[k] - rb[k]))
-    };
-    let norm = |d: [f64; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-
-    // --- atoms: element, mass, charge, LJ ------------------------------------------------
-    for key in spec.atoms.keys() {
-        if !input
-            .atoms
-            .iter()
-            .any(|a| &a.type_name == key || &a.element == key)
-        {
-            return Err(format!(
-                "[forcefield.atoms] has \"{key}\", but no atom of the structure has that type \
-                 or element"
-            ));
-        }
-    }
-    let atom_spec = |atom: &FfAtom| -> (Option<&AtomSpec>, Option<&AtomSpec>) {
-        (
-            spec.atoms.get(&atom.type_name),
-            spec.atoms.get(&atom.element),
-        )
-    };
-    let mut elements = Vec::with_capacity(n);
-    let mut masses = Vec::with_capacity(n);
-    let mut type_charges = Vec::with_capacity(n);
-    for (i, atom) in input.atoms.iter().enumerate() {
-        let (by_type, by_element) = atom_spec(atom);
-        let element = by_type
-            .and_then(|s| s.element.clone())
-            .unwrap_or_else(|| atom.element.clone());
-        let mass = by_type
-            .and_then(|s| s.mass)
-            .or_else(|| by_element.and_then(|s| s.mass));
-        let mass = match mass {
-            Some(m) if m > 0.0 && m.is_finite() => m,
-            Some(m) => {
-                return Err(format!(
-                    "atom {i} ({}): mass {m} must be positive",
-                    atom.type_name
-                ));
-            }
-            None if atom.element_mass > 0.0 => atom.element_mass,
-            None => {
-                return Err(format!(
-                    "atom {i} has type \"{}\", which is no element: give its element or mass in \
-                     [forcefield.atoms] \"{}\"",
-                    atom.type_name, atom.type_name
-                ));
-            }
-        };
-        let charge = by_type
-            .and_then(|s| s.charge)
-            .or_else(|| by_element.and_then(|s| s.charge))
-            .unwrap_or(0.0);
-        elements.push(element);
-        masses.push(mass);
-        type_charges.push(charge);
-    }
-    let charges = match &spec.charges {
-        Some(list) => {
-            if list.len() != n {
-                return Err(format!(
-                    "[forcefield] charges lists {} charges for {n} atoms",
-                    list.len()
-                ));
-            }
-            list.clone()
-        }
-        None => type_charges,
-    };
-    if let Some(bad) = charges.iter().position(|c| !c.is_finite()) {
-        return Err(format!("atom {bad} has a non-finite charge"));
     }
 
-    // Atom kinds for reports and LJ types: distinct type names in order of appearance.
-    let mut kinds: Vec<String> = Vec::new();
-    let mut kind_of = vec![0u32; n];
-    for (i, atom) in input.atoms.iter().enumerate() {
-        let index = match kinds.iter().position(|k| k == &atom.type_name) {
-            Some(index) => index,
-            None => {
-                kinds.push(atom.type_name.clone());
-                kinds.len() - 1
-            }
-        };
-        kind_of[i] = index as u32;
-    }
-    let first_of_kind: Vec<usize> = (0..kinds.len())
-        .map(|k| kind_of.iter().position(|&x| x as usize == k).unwrap_or(0))
-        .collect();
-    let mut lj_params = Vec::with_capacity(kinds.len());
-    for (k, name) in kinds.iter().enumerate() {
-        let i = first_of_kind[k];
-        let atom = &input.atoms[i];
-        let (by_type, by_element) = atom_spec(atom);
-        let element = &elements[i];
-        let given = |f: fn(&AtomSpec) -> Option<f64>| {
-            by_type.and_then(f).or_else(|| by_element.and_then(f))
-        };
-        let table = LJ_TABLE.iter().find(|(e, _, _)| e == element);
-        let epsilon = given(|s| s.epsilon);
-        let sigma = given(|s| s.sigma);
-        let (epsilon, sigma, from) = match (epsilon, sigma, table) {
-            (Some(e), Some(s), _) => (e, s, "scene"),
-            (None, None, Some(&(_, e, s))) => (e, s, "built-in table (AMBER parm99)"),
-            (Some(_), None, _) | (None, Some(_), _) => {
-                return Err(format!(
-                    "[forcefield.atoms] \"{name}\" gives only one of epsilon and sigma; give both"
-                ));
-            }
-            (None, None, None) => {
-                return Err(format!(
-                    "no Lennard-Jones parameters for atom type \"{name}\" (element \"{element}\", \
-                     first at atom {i}): give epsilon and sigma in [forcefield.atoms] \"{name}\""
-                ));
-            }
-        };
-        if !(epsilon >= 0.0 && sigma > 0.0) {
-            return Err(format!(
-                "atom type \"{name}\": epsilon must be ≥ 0 and sigma > 0, got {epsilon} and {sigma}"
-            ));
-        }
-        let count = kind_of.iter().filter(|&&x| x as usize == k).count();
-        report.push(format!(
-            "atom {name} ×{count}: element {element}, mass {} ({}), charge {} ({}), LJ ε = {epsilon}, σ = {sigma} ({from})",
-            masses[i],
-            if by_type.and_then(|s| s.mass).or(by_element.and_then(|s| s.mass)).is_some() {
-                "scene"
-            } else {
-                "element"
-            },
-            charges[i],
-            if spec.charges.is_some() {
-                "per-atom list"
-            } else if by_type.and_then(|s| s.charge).or(by_element.and_then(|s| s.charge)).is_some() {
-                "scene"
-            } else {
-                "default 0"
-            },
-        ));
-        lj_params.push((epsilon, sigma));
-    }
-
-    // --- bond graph -----------------------------------------------------------------------
-    let mut neighbours: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
-    for &[a, b] in input.bonds {
-        if a >= n || b >= n || a == b {
-            return Err(format!(
-                "bond {a}-{b} does not join two atoms of the structure"
-            ));
-        }
-        neighbours[a].insert(b);
-        neighbours[b].insert(a);
-    }
-    let mut bonds: Vec<[usize; 2]> = input
-        .bonds
-        .iter()
-        .map(|&[a, b]| [a.min(b), a.max(b)])
-        .collect();
-    bonds.sort_unstable();
-    bonds.dedup();
-    let mut angles = Vec::new();
-    for (j, around) in neighbours.iter().enumerate() {
-        let list: Vec<usize> = around.iter().copied().collect();
-        for (x, &i) in list.iter().enumerate() {
-            for &k in &list[x + 1..] {
-                angles.push([i, j, k]);
-            }
-        }
-    }
-    let mut dihedrals = Vec::new();
-    for &[j, k] in &bonds {
-        for &i in &neighbours[j] {
-            if i == k {
-                continue;
-            }
-            for &l in &neighbours[k] {
-                if l == j || l == i {
-                    continue;
-                }
-                dihedrals.push([i, j, k, l]);
-            }
-        }
-    }
-
-    let names = |atoms: &[usize]| -> (Vec<&str>, Vec<&str>) {
-        (
-            atoms
-                .iter()
-                .map(|&a| input.atoms[a].type_name.as_str())
-                .collect(),
-            atoms.iter().map(|&a| elements[a].as_str()).collect(),
-        )
-    };
-    let label = |atoms: &[usize]| -> String {
-        atoms
-            .iter()
-            .map(|&a| format!("{} {}", input.atoms[a].type_name, a))
-            .collect::<Vec<_>>()
-            .join(" - ")
-    };
-
-    // --- bonds ----------------------------------------------------------------------------
-    let mut terms: Vec<(String, Box<dyn ForceTerm>, Assignment)> = Vec::new();
-    let mut bond_groups: BTreeMap<String, Group> = BTreeMap::new();
-    let mut bond_pairs = Vec::with_capacity(bonds.len());
-    let mut bond_dump = Vec::with_capacity(bonds.len());
-    for &[a, b] in &bonds {
-        let (types, elems) = names(&[a, b]);
-        let found = lookup(&spec.bonds, &types, &elems, Symmetry::Reversible);
-        let table = BOND_TABLE
-            .iter()
-            .find(|(x, y, _)| {
-                (*x == elems[0] && *y == elems[1]) || (*x == elems[1] && *y == elems[0])
-            })
-            .map(|t| t.2);
-        let k = match (found.and_then(|(_, s)| s.k), table) {
-            (Some(k), _) => (k, true),
-            (None, Some(k)) => (k, false),
-            (None, None) => {
-                return Err(format!(
-                    "no force constant for bond {}: give [forcefield.bonds] \"{}-{}\" = {{ k = … }}",
-                    label(&[a, b]),
-                    types[0],
-                    types[1]
-                ));
-            }
-        };
-        let length = norm(difference(a, b));
-        let r0 = found.and_then(|(_, s)| s.r0);
-        let key = found
-            .map(|(key, _)| key.to_string())
-            .unwrap_or_else(|| sorted_key(&elems));
-        let entry = bond_groups
-            .entry(key)
-            .or_insert((0, k.0, source(k.1), r0, Vec::new()));
-        entry.0 += 1;
-        entry.4.push(length);
-        if k.0 < 0.0 || k.0.is_nan() || r0.is_some_and(|r| r < 0.0 || r.is_nan()) {
-            return Err(format!("bond {}: k and r0 must be ≥ 0", label(&[a, b])));
-        }
-        bond_pairs.push(Pair {
-            a: Site::Particle(a),
-            b: Site::Particle(b),
-            potential: HarmonicBond {
-                stiffness: k.0,
-                rest_length: r0.unwrap_or(length),
-            },
-        });
-        bond_dump.push(serde_json::json!([a, b, k.0, r0.unwrap_or(length)]));
-    }
-    for (key, (count, k, from, r0, lengths)) in &bond_groups {
-        report.push(format!(
-            "bond {key} ×{count}: k = {k} ({from}), r0 = {}",
-            match r0 {
-                Some(r) => format!("{r} (scene)"),
-                None => format!("geometry ({})", range_text(lengths)),
-            }
-        ));
-    }
-    if !bond_pairs.is_empty() {
-        terms.push((
-            "bonds".into(),
-            Box::new(PairTerm::new(
-                "bond",
-                TermClass::Bonded,
-                3,
-                bond_pairs,
-                input.periodic_box,
-            )),
-            Assignment::Default,
-        ));
-    }
-
-    // --- angles ---------------------------------------------------------------------------
-    let mut angle_groups: BTreeMap<String, Group> = BTreeMap::new();
-    let mut bends = Vec::with_capacity(angles.len());
-    let mut angle_dump = Vec::with_capacity(angles.len());
-    for &[i, j, k] in &angles {
-        let (types, elems) = names(&[i, j, k]);
-        let found = lookup(&spec.angles, &types, &elems, Symmetry::Reversible);
-        let table = ANGLE_TABLE
-            .iter()
-            .find(|(x, c, y, _)| {
-                *c == elems[1]
-                    && ((*x == elems[0] && *y == elems[2]) || (*x == elems[2] && *y == elems[0]))
-            })
-            .map(|t| t.3);
-        let stiffness = match (found.and_then(|(_, s)| s.k), table) {
-            (Some(k), _) => (k, true),
-            (None, Some(k)) => (k, false),
-            (None, None) => {
-                return Err(format!(
-                    "no force constant for angle {}: give [forcefield.angles] \"{}-{}-{}\" = {{ k = … }}",
-                    label(&[i, j, k]),
-                    types[0],
-                    types[1],
-                    types[2]
-                ));
-            }
-        };
-        let (u, w) = (difference(i, j), difference(k, j));
+    /// The angle `i-j-k` at `j` (radians).
+    fn angle(&self, i: usize, j: usize, k: usize) -> f64 {
+        let (u, w) = (self.difference(i, j), self.difference(k, j));
         let cross = [
             u[1] * w[2] - u[2] * w[1],
             u[2] * w[0] - u[0] * w[2],
             u[0] * w[1] - u[1] * w[0],
         ];
-        let geometry = norm(cross).atan2(u[0] * w[0] + u[1] * w[1] + u[2] * w[2]);
-        let theta0 = found.and_then(|(_, s)| s.theta0);
-        let key = found
-            .map(|(key, _)| key.to_string())
-            .unwrap_or_else(|| angle_key(&elems));
-        let entry = angle_groups.entry(key).or_insert((
-            0,
-            stiffness.0,
-            source(stiffness.1),
-            theta0,
-            Vec::new(),
-        ));
-        entry.0 += 1;
-        entry.4.push(geometry.to_degrees());
-        bends.push(AngleBend {
-            sites: [Site::Particle(i), Site::Particle(j), Site::Particle(k)],
-            stiffness: stiffness.0,
-            rest_angle: theta0.map_or(geometry, f64::to_radians),
-        });
-        angle_dump.push(serde_json::json!([
-            i,
-            j,
-            k,
-            stiffness.0,
-            theta0.map_or(geometry, f64::to_radians)
-        ]));
-    }
-    for (key, (count, k, from, theta0, values)) in &angle_groups {
-        report.push(format!(
-            "angle {key} ×{count}: k = {k} ({from}), theta0 = {}",
-            match theta0 {
-                Some(t) => format!("{t}° (scene)"),
-                None => format!("geometry ({}°)", range_text(values)),
-            }
-        ));
-    }
-    if !bends.is_empty() {
-        terms.push((
-            "angles".into(),
-            Box::new(HarmonicAngles::new(3, bends, input.periodic_box)),
-            Assignment::Default,
-        ));
+        norm(cross).atan2(u[0] * w[0] + u[1] * w[1] + u[2] * w[2])
     }
 
-    // --- torsions -------------------------------------------------------------------------
-    let mut torsion_dump = Vec::new();
-    if let Some(table) = &spec.torsions {
-        let mut list = Vec::with_capacity(dihedrals.len());
-        let mut groups: BTreeMap<String, usize> = BTreeMap::new();
-        for &[i, j, k, l] in &dihedrals {
-            let (types, elems) = names(&[i, j, k, l]);
-            let Some((key, series)) = lookup(table, &types, &elems, Symmetry::Torsion) else {
-                return Err(format!(
-                    "no torsion parameters for the dihedral {}: give [forcefield.torsions] \
-                     \"{}-{}-{}-{}\" (or with X at the ends) = [{{ k = …, n = …, phase = … }}]",
-                    label(&[i, j, k, l]),
-                    types[0],
-                    types[1],
-                    types[2],
-                    types[3]
-                ));
-            };
-            *groups.entry(key.to_string()).or_insert(0) += 1;
-            list.push(Dihedral {
-                atoms: [i, j, k, l],
-                series: series
-                    .iter()
-                    .map(|c| Cosine {
-                        k: c.k,
-                        periodicity: c.n,
-                        phase: c.phase.to_radians(),
-                    })
-                    .collect(),
-            });
-        }
-        for (key, count) in &groups {
-            report.push(format!("torsion {key} ×{count} (scene)"));
-        }
-        for d in &list {
-            let series: Vec<_> = d
-                .series
+    /// Type names and elements of some atoms, for table lookups.
+    fn names(&self, atoms: &[usize]) -> (Vec<&str>, Vec<&str>) {
+        (
+            atoms
                 .iter()
-                .map(|c| serde_json::json!([c.k, c.periodicity, c.phase]))
-                .collect();
-            torsion_dump.push(serde_json::json!([d.atoms, series]));
-        }
-        if !list.is_empty() {
-            terms.push((
-                "torsions".into(),
-                Box::new(Torsions::new(list, input.periodic_box)),
-                Assignment::Default,
-            ));
-        }
+                .map(|&a| self.input.atoms[a].type_name.as_str())
+                .collect(),
+            atoms
+                .iter()
+                .map(|&a| self.atoms.elements[a].as_str())
+                .collect(),
+        )
     }
 
-    // --- exclusions and 1-4 pairs ----------------------------------------------------------
-    let scale = |value: Option<f64>, default: f64, what: &str| -> Result<f64, String> {
-        let v = value.unwrap_or(default);
-        if !(0.0..=1.0).contains(&v) {
-            return Err(format!(
-                "[forcefield] {what} must be between 0 and 1, got {v}"
-            ));
-        }
-        Ok(v)
-    };
-    let scale_12 = scale(spec.scale_12, 0.0, "scale_12")?;
-    let scale_13 = scale(spec.scale_13, 0.0, "scale_13")?;
-    for (what, v) in [("scale_12", scale_12), ("scale_13", scale_13)] {
-        if v != 0.0 && v != 1.0 {
-            return Err(format!(
-                "[forcefield] {what} is 0 (excluded) or 1 (an ordinary pair), got {v}"
-            ));
-        }
+    /// `"CT 0 - HC 1"`, for messages.
+    fn label(&self, atoms: &[usize]) -> String {
+        atoms
+            .iter()
+            .map(|&a| format!("{} {}", self.input.atoms[a].type_name, a))
+            .collect::<Vec<_>>()
+            .join(" - ")
     }
-    let scale_14_lj = scale(spec.scale_14_lj, 0.5, "scale_14_lj")?;
-    let scale_14_coulomb = scale(spec.scale_14_coulomb, 1.0 / 1.2, "scale_14_coulomb")?;
-    let mut pairs_12: BTreeSet<(usize, usize)> = BTreeSet::new();
-    for &[a, b] in &bonds {
-        pairs_12.insert((a, b));
-    }
-    let mut pairs_13: BTreeSet<(usize, usize)> = BTreeSet::new();
-    for &[i, _, k] in &angles {
-        let p = (i.min(k), i.max(k));
-        if !pairs_12.contains(&p) {
-            pairs_13.insert(p);
-        }
-    }
-    let mut pairs_14: BTreeSet<(usize, usize)> = BTreeSet::new();
-    for &[i, _, _, l] in &dihedrals {
-        let p = (i.min(l), i.max(l));
-        if !pairs_12.contains(&p) && !pairs_13.contains(&p) {
-            pairs_14.insert(p);
-        }
-    }
-    let separate_14 = !(scale_14_lj == 1.0 && scale_14_coulomb == 1.0);
-    let mut excluded: Vec<(usize, usize)> = Vec::new();
-    if scale_12 == 0.0 {
-        excluded.extend(&pairs_12);
-    }
-    if scale_13 == 0.0 {
-        excluded.extend(&pairs_13);
-    }
-    if separate_14 {
-        excluded.extend(&pairs_14);
-    }
-    report.push(format!(
-        "pairs: {} 1-2 ({}), {} 1-3 ({}), {} 1-4 ({})",
-        pairs_12.len(),
-        if scale_12 == 0.0 { "excluded" } else { "ordinary" },
-        pairs_13.len(),
-        if scale_13 == 0.0 { "excluded" } else { "ordinary" },
-        pairs_14.len(),
-        if separate_14 {
-            format!(
-                "LJ × {scale_14_lj}, Coulomb × {scale_14_coulomb}, no cutoff, terms \"lj-14\" and \"coulomb-14\""
-            )
-        } else {
-            "ordinary".into()
-        }
-    ));
+}
 
-    // --- non-bonded -----------------------------------------------------------------------
-    let cutoff = match spec.cutoff {
-        Some(c) if c > 0.0 && c.is_finite() => c,
-        Some(c) => return Err(format!("[forcefield] cutoff must be positive, got {c}")),
-        None => f64::INFINITY,
+fn norm(d: [f64; 3]) -> f64 {
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+/// Build the force-field terms. Errors are messages for the scene to locate.
+pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, String> {
+    let mut report = Vec::new();
+    let atoms = atoms::resolve(input, &mut report)?;
+    let graph = Topology::new(input.bonds, input.atoms.len())?;
+    let ctx = Context {
+        input,
+        atoms: &atoms,
     };
-    if box_lengths.is_some() && !cutoff.is_finite() {
-        return Err("[forcefield] a periodic box needs a cutoff (give cutoff = …)".into());
-    }
-    let skin = spec.skin.unwrap_or(2.0);
-    if !(skin >= 0.0 && skin.is_finite()) {
-        return Err(format!("[forcefield] skin must be ≥ 0, got {skin}"));
-    }
-    let any_charge = charges.iter().any(|&c| c != 0.0);
-    let electrostatics = match spec.coulomb.as_deref() {
-        None if !any_charge => Electrostatics::None,
-        None => {
-            return Err(
-                "the atoms carry charges: choose [forcefield] coulomb = \"dsf\", \
-                 \"reaction-field\" (with a cutoff) or \"plain\" (without)"
-                    .into(),
-            );
-        }
-        Some("none") => Electrostatics::None,
-        Some("plain") => Electrostatics::Plain,
-        Some("dsf") => Electrostatics::DampedShiftedForce {
-            alpha: spec.dsf_alpha.unwrap_or(0.0),
-        },
-        Some("reaction-field") => Electrostatics::ReactionField {
-            dielectric: spec.rf_dielectric.unwrap_or(78.3),
-        },
-        Some(other) => {
-            return Err(format!(
-                "unknown [forcefield] coulomb \"{other}\"; use dsf, reaction-field, plain or none"
-            ));
-        }
-    };
-    let coulomb_constant = match input.units {
-        Units::Real => COULOMB_KCAL_ANGSTROM,
-        Units::None => 1.0,
-    };
-    let lj_shift = spec.lj_shift.unwrap_or(true);
-    let nt = kinds.len();
-    let mut lj = vec![LjPair::default(); nt * nt];
-    for a in 0..nt {
-        for b in 0..nt {
-            let key_types = [kinds[a].as_str(), kinds[b].as_str()];
-            let key_elements = [
-                elements[first_of_kind[a]].as_str(),
-                elements[first_of_kind[b]].as_str(),
-            ];
-            let (epsilon, sigma) =
-                match lookup(&spec.pairs, &key_types, &key_elements, Symmetry::Reversible) {
-                    Some((_, p)) => (p.epsilon, p.sigma),
-                    None => {
-                        let (ea, sa) = lj_params[a];
-                        let (eb, sb) = lj_params[b];
-                        ((ea * eb).sqrt(), 0.5 * (sa + sb))
-                    }
-                };
-            lj[a * nt + b] = LjPair::new(epsilon, sigma, cutoff, lj_shift);
-        }
-    }
-    for key in spec.pairs.keys() {
-        report.push(format!("LJ pair {key}: ε, σ (scene, no mixing)"));
-    }
-    report.push(format!(
-        "nonbonded: cutoff {}, skin {skin}, LJ {}Lorentz–Berthelot, Coulomb {}",
-        if cutoff.is_finite() {
-            cutoff.to_string()
-        } else {
-            "none".into()
-        },
-        if lj_shift && cutoff.is_finite() {
-            "energy-shifted, "
-        } else {
-            ""
-        },
-        electrostatics.describe()
+    let mut terms = Terms::new();
+    let dumps = [
+        bonded::bonds(&ctx, &graph.bonds, &mut terms, &mut report)?,
+        bonded::angles(&ctx, &graph.angles, &mut terms, &mut report)?,
+        bonded::torsions(&ctx, &graph.dihedrals, &mut terms, &mut report)?,
+    ];
+    let exclusions = nonbonded::exclusions(input.spec, &graph, &mut report)?;
+    let settings = nonbonded::settings(input, &atoms.charges)?;
+    let lj = nonbonded::lennard_jones(input.spec, &atoms, &settings, &mut report);
+    report.push(nonbonded::report_line(&settings));
+    let parameters = parameters(&ctx, &settings, &lj, &exclusions, dumps);
+    let cutoff_term = nonbonded::cutoff_term(input, &atoms, &settings, &lj, &exclusions.excluded)?;
+    terms.push((
+        "nonbonded".into(),
+        Box::new(cutoff_term),
+        Assignment::Default,
     ));
-    let (coulomb_name, alpha, dielectric) = match electrostatics {
+    nonbonded::pairs_14_terms(input, &atoms, &settings, &lj, &exclusions, &mut terms);
+    Ok(BuiltForcefield {
+        terms,
+        masses: atoms.masses,
+        charges: atoms.charges,
+        elements: atoms.elements,
+        report,
+        parameters,
+    })
+}
+
+/// Every parameter of every interaction as JSON (`longstep forces --parameters`); `dumps`
+/// are the bonds, angles and torsions.
+fn parameters(
+    ctx: &Context,
+    settings: &Settings,
+    lj: &[LjPair],
+    exclusions: &Exclusions,
+    [bonds, angles, torsions]: [Vec<serde_json::Value>; 3],
+) -> serde_json::Value {
+    let atoms = ctx.atoms;
+    let nt = atoms.kinds.len();
+    let cutoff = settings.cutoff;
+    let (coulomb_name, alpha, dielectric) = match settings.electrostatics {
         Electrostatics::None => ("none", None, None),
         Electrostatics::Plain => ("plain", None, None),
         Electrostatics::DampedShiftedForce { alpha } => ("dsf", Some(alpha), None),
         Electrostatics::ReactionField { dielectric } => ("reaction-field", None, Some(dielectric)),
     };
-    let parameters = serde_json::json!({
-        "units": input.units.name(),
-        "elements": elements,
-        "masses": masses,
-        "charges": charges,
-        "types": kinds,
-        "type_of": kind_of,
+    serde_json::json!({
+        "units": ctx.input.units.name(),
+        "elements": atoms.elements,
+        "masses": atoms.masses,
+        "charges": atoms.charges,
+        "types": atoms.kinds,
+        "type_of": atoms.kind_of,
         "lj_epsilon": (0..nt).map(|a| (0..nt).map(|b| {
             let p = lj[a * nt + b];
             if p.c12 > 0.0 && p.c6 > 0.0 { p.c6 * p.c6 / (4.0 * p.c12) } else { 0.0 }
@@ -795,110 +345,30 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
             let p = lj[a * nt + b];
             if p.c12 > 0.0 && p.c6 > 0.0 { (p.c12 / p.c6).powf(1.0 / 6.0) } else { 1.0 }
         }).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        "bonds": bond_dump,
-        "angles": angle_dump,
-        "torsions": torsion_dump,
-        "exclusions": excluded,
-        "pairs_14": if separate_14 { pairs_14.iter().collect::<Vec<_>>() } else { Vec::new() },
-        "scale_14_lj": scale_14_lj,
-        "scale_14_coulomb": scale_14_coulomb,
+        "bonds": bonds,
+        "angles": angles,
+        "torsions": torsions,
+        "exclusions": exclusions.excluded,
+        "pairs_14": if exclusions.separate_14 {
+            exclusions.pairs_14.iter().collect::<Vec<_>>()
+        } else {
+            Vec::new()
+        },
+        "scale_14_lj": exclusions.scale_14_lj,
+        "scale_14_coulomb": exclusions.scale_14_coulomb,
         "nonbonded": {
             "cutoff": if cutoff.is_finite() { Some(cutoff) } else { None },
             "coulomb": coulomb_name,
             "dsf_alpha": alpha,
             "rf_dielectric": dielectric,
-            "lj_shift": lj_shift && cutoff.is_finite(),
-            "coulomb_constant": coulomb_constant,
+            "lj_shift": settings.lj_shift && cutoff.is_finite(),
+            "coulomb_constant": settings.coulomb_constant,
         },
-        "box": box_lengths,
+        "box": ctx.input.periodic_box.map(|b| b.lengths),
         "doc": "bonds [i, j, k, r0] (E = k/2 (r - r0)^2); angles [i, j, k, k, theta0 rad] \
                 (E = k/2 (theta - theta0)^2); torsions [[i, j, k, l], [[k, n, phase rad], ...]] \
                 (E = sum k (1 + cos(n phi - phase))); exclusions: pairs left out of the \
                 cutoff term; pairs_14: scaled, no cutoff, plain Coulomb",
-    });
-    let nonbonded = Nonbonded::new(
-        NonbondedSpec {
-            cutoff,
-            skin,
-            electrostatics,
-            coulomb_constant,
-            box_lengths,
-            types: kind_of.clone(),
-            lj: lj.clone(),
-            charges: charges.clone(),
-            excluded: excluded.clone(),
-        },
-        q,
-    )?;
-    terms.push(("nonbonded".into(), Box::new(nonbonded), Assignment::Default));
-
-    if separate_14 && !pairs_14.is_empty() {
-        let mut lj_pairs = Vec::new();
-        let mut coulomb_pairs = Vec::new();
-        for &(i, l) in &pairs_14 {
-            let (a, b) = (kind_of[i] as usize, kind_of[l] as usize);
-            let p = lj[a * nt + b];
-            // Back from c12, c6 to ε, σ of the pair (σ⁶ = c12/c6, ε = c6²/(4 c12)).
-            if scale_14_lj > 0.0 && p.c12 > 0.0 && p.c6 > 0.0 {
-                let sigma = (p.c12 / p.c6).powf(1.0 / 6.0);
-                let epsilon = p.c6 * p.c6 / (4.0 * p.c12);
-                lj_pairs.push(Pair {
-                    a: Site::Particle(i),
-                    b: Site::Particle(l),
-                    potential: LennardJones::new(
-                        scale_14_lj * epsilon,
-                        sigma,
-                        f64::INFINITY,
-                        false,
-                    ),
-                });
-            }
-            if electrostatics != Electrostatics::None && scale_14_coulomb > 0.0 {
-                let qq = scale_14_coulomb * coulomb_constant * charges[i] * charges[l];
-                if qq != 0.0 {
-                    coulomb_pairs.push(Pair {
-                        a: Site::Particle(i),
-                        b: Site::Particle(l),
-                        potential: Coulomb { charge_product: qq },
-                    });
-                }
-            }
-        }
-        if !lj_pairs.is_empty() {
-            terms.push((
-                "lj-14".into(),
-                Box::new(PairTerm::new(
-                    "lennard-jones-14",
-                    TermClass::Nonbonded,
-                    3,
-                    lj_pairs,
-                    input.periodic_box,
-                )),
-                Assignment::Default,
-            ));
-        }
-        if !coulomb_pairs.is_empty() {
-            terms.push((
-                "coulomb-14".into(),
-                Box::new(PairTerm::new(
-                    "coulomb-14",
-                    TermClass::Nonbonded,
-                    3,
-                    coulomb_pairs,
-                    input.periodic_box,
-                )),
-                Assignment::Default,
-            ));
-        }
-    }
-
-    Ok(BuiltForcefield {
-        terms,
-        masses,
-        charges,
-        elements,
-        report,
-        parameters,
     })
 }
 
