@@ -1,0 +1,372 @@
+//! The scene file as written: every table and key of schema version 1 (`docs/scenes.md`).
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::io::forcefield::ForcefieldSpec;
+use crate::settings::{RunSpec, Value};
+
+/// A particle by 0-based index or by name; a name may also be an anchor's.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum Reference {
+    Index(usize),
+    Name(String),
+}
+
+impl std::fmt::Display for Reference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Reference::Index(i) => write!(f, "particle {i}"),
+            Reference::Name(name) => write!(f, "\"{name}\""),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Group {
+    Fast,
+    Slow,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub version: u32,
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub dim: usize,
+    /// `"real"` (Å, fs, amu, kcal/mol, e) or `"none"` (dimensionless, the default).
+    pub units: Option<Spanned<String>>,
+    #[serde(default)]
+    pub parameters: BTreeMap<String, Value>,
+    #[serde(default)]
+    pub anchors: BTreeMap<String, Vec<Value>>,
+    #[serde(default)]
+    pub particles: Vec<Spanned<ParticleSpec>>,
+    pub structure: Option<Spanned<StructureSpec>>,
+    #[serde(rename = "box")]
+    pub periodic_box: Option<Spanned<Vec<Value>>>,
+    #[serde(default)]
+    pub terms: Vec<Spanned<TermSpec>>,
+    #[serde(default)]
+    pub run: RunSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+    /// A non-diagonal mass matrix (the particles' masses are its diagonal).
+    pub mass_matrix: Option<Spanned<MassMatrixSpec>>,
+    /// An exact solution to measure the run's error against.
+    pub exact: Option<Spanned<ExactSpec>>,
+    /// A molecular force field over the structure's atoms and bonds.
+    pub forcefield: Option<Spanned<ForcefieldSpec>>,
+}
+
+/// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MassMatrixSpec {
+    /// The value of every listed entry (`"dx/6"` for P1 elements).
+    pub off_diagonal: Value,
+    /// `"chain"` (every consecutive pair `i, i + 1`) or a list of pairs.
+    pub pairs: MassPairs,
+    /// Lump the matrix: add each row's off-diagonal entries to its diagonal, so every
+    /// method can run it (default false: solve with the full matrix).
+    pub lump: Option<bool>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum MassPairs {
+    Keyword(String),
+    List(Vec<[Reference; 2]>),
+}
+
+/// `[exact]`: an exact solution (see [`crate::analysis::exact`]).
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ExactSpec {
+    /// One expression per axis in `t`, the particle index `i` and the parameters.
+    Expression { position: Vec<String> },
+    /// MEMM18 4.3.2's pulse through an interface between two wave speeds.
+    TwoMediaWave {
+        c1: Value,
+        c2: Value,
+        interface: Value,
+        /// `u₀(x)`, an expression in `x`.
+        pulse: String,
+        /// `u₀` is zero outside `[a, b]`.
+        support: [Value; 2],
+        /// Rest position of particle `i`, an expression in `i`.
+        node: String,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleSpec {
+    /// Generate this many particles; their expressions see the index `i` = 0, 1, …
+    /// and `{i}` in the name is replaced by it. A number, or an expression in the
+    /// parameters (`"n - 1"`) that evaluates to a whole number.
+    pub count: Option<Value>,
+    pub name: Option<String>,
+    pub mass: Value,
+    pub position: Vec<Value>,
+    pub momentum: Option<Vec<Value>>,
+    pub velocity: Option<Vec<Value>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StructureSpec {
+    /// Path relative to the scene file.
+    pub file: String,
+    /// One mass for every particle; by default each atom's element gives its mass.
+    pub mass: Option<Value>,
+    /// A file of the same layout whose coordinates are velocities (length/time).
+    pub velocities: Option<String>,
+    /// Perceive bonds with chemfiles when the file lists none (default: with a force field).
+    pub guess_bonds: Option<bool>,
+    /// Bonds to add, as 0-based atom index pairs.
+    pub bonds: Option<Vec<[usize; 2]>>,
+    /// Apply `bonds` to every consecutive block of this many atoms (indices within a block).
+    pub bond_repeat: Option<usize>,
+    /// Bond consecutive atoms within every block of this many atoms (bead-spring chains).
+    pub chains: Option<usize>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case")]
+pub enum TermSpec {
+    /// Harmonic springs `(k/2)(r − L)²`.
+    Spring(SpringSpec),
+    /// Harmonic springs between consecutive particles of a list (default: all).
+    Chain(ChainSpec),
+    /// FPU springs `c (r − L)⁴`.
+    QuarticSpring(QuarticSpringSpec),
+    /// Harmonic angles `(k/2)(θ − θ₀)²` at the middle particle of each triple.
+    Angle(AngleSpec),
+    /// Lennard-Jones 12-6 between all pairs of a particle list (default: all).
+    LennardJones(LennardJonesSpec),
+    /// Newtonian gravity among particles and towards an optional fixed central mass.
+    Gravity(GravitySpec),
+    /// A uniform force `f` on each listed particle (default: all): `V = −Σ f·q_i`.
+    Field(FieldSpec),
+    /// The P1 finite-element nonlinear string of MEMM18 3.3 over consecutive sites.
+    FemString(FemStringSpec),
+    /// `k(1 − cos x)` on one coordinate of each particle.
+    Pendulum(PendulumSpec),
+    /// `c (r + a)^(−n)` between pairs: singular walls (HL97 (3.5)), softened Coulomb.
+    InversePower(InversePowerSpec),
+    /// A static magnetic field through its vector potential, on charged particles
+    /// (CFM25 5.7); only the structural schemes integrate it.
+    Magnetic(MagneticSpec),
+    /// A fixed external potential `e φ(x)` on 3-D particles (CFM25 5.7.3).
+    ExternalField(ExternalFieldSpec),
+}
+
+impl TermSpec {
+    /// The keys every term has: its name, and its group or level.
+    pub fn placement(&self) -> (&Option<String>, Option<Group>, Option<usize>) {
+        match self {
+            TermSpec::Spring(s) => (&s.name, s.group, s.level),
+            TermSpec::Chain(s) => (&s.name, s.group, s.level),
+            TermSpec::QuarticSpring(s) => (&s.name, s.group, s.level),
+            TermSpec::Angle(s) => (&s.name, s.group, s.level),
+            TermSpec::LennardJones(s) => (&s.name, s.group, s.level),
+            TermSpec::Gravity(s) => (&s.name, s.group, s.level),
+            TermSpec::Field(s) => (&s.name, s.group, s.level),
+            TermSpec::FemString(s) => (&s.name, s.group, s.level),
+            TermSpec::Pendulum(s) => (&s.name, s.group, s.level),
+            TermSpec::InversePower(s) => (&s.name, s.group, s.level),
+            TermSpec::Magnetic(s) => (&s.name, s.group, s.level),
+            TermSpec::ExternalField(s) => (&s.name, s.group, s.level),
+        }
+    }
+}
+
+/// Harmonic springs `(k/2)(r − L)²`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    pub name: Option<String>,
+    pub between: Option<[Reference; 2]>,
+    pub pairs: Option<Vec<[Reference; 2]>>,
+    pub stiffness: Value,
+    pub rest_length: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// Harmonic springs between consecutive particles of a list (default: all).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChainSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub stiffness: Value,
+    pub rest_length: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+    /// Instead of `particles`: the particles `first..=last` by index (expressions).
+    pub range: Option<[Value; 2]>,
+    /// A site (anchor or particle) linked before the first particle.
+    pub start: Option<Reference>,
+    /// A site linked after the last particle.
+    pub end: Option<Reference>,
+}
+
+/// FPU springs `c (r − L)⁴`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QuarticSpringSpec {
+    pub name: Option<String>,
+    pub between: Option<[Reference; 2]>,
+    pub pairs: Option<Vec<[Reference; 2]>>,
+    pub coefficient: Value,
+    pub rest_length: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// Harmonic angles `(k/2)(θ − θ₀)²` at the middle particle of each triple.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AngleSpec {
+    pub name: Option<String>,
+    pub between: Option<[Reference; 3]>,
+    pub triples: Option<Vec<[Reference; 3]>>,
+    pub stiffness: Value,
+    pub rest_angle: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// Lennard-Jones 12-6 between all pairs of a particle list (default: all).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LennardJonesSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub epsilon: Value,
+    pub sigma: Value,
+    pub cutoff: Option<Value>,
+    pub shift: Option<bool>,
+    #[serde(default)]
+    pub exclude: Vec<[Reference; 2]>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// Newtonian gravity among particles and towards an optional fixed central mass.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GravitySpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub constant: Option<Value>,
+    pub center: Option<String>,
+    pub center_mass: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// A uniform force `f` on each listed particle (default: all): `V = −Σ f·q_i`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FieldSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub force: Vec<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// The P1 finite-element nonlinear string of MEMM18 3.3 over consecutive sites.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FemStringSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub range: Option<[Value; 2]>,
+    pub start: Option<Reference>,
+    pub end: Option<Reference>,
+    pub element_length: Value,
+    pub alpha: Value,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// `k(1 − cos x)` on one coordinate of each particle.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PendulumSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    pub strength: Value,
+    pub axis: Option<usize>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// `c (r + a)^(−n)` between pairs: singular walls (HL97 (3.5)), softened Coulomb.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InversePowerSpec {
+    pub name: Option<String>,
+    pub between: Option<[Reference; 2]>,
+    pub pairs: Option<Vec<[Reference; 2]>>,
+    pub coefficient: Value,
+    pub power: Value,
+    pub softening: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// A static magnetic field through its vector potential, on charged particles
+/// (CFM25 5.7); only the structural schemes integrate it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MagneticSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    /// `"uniform"` (`A = (0, B x₁, 0)`) or `"cfm25-singular"`.
+    pub field: String,
+    /// `B` of the uniform field.
+    pub strength: Option<Value>,
+    /// The particles' charge `e` (default 1).
+    pub charge: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+/// A fixed external potential `e φ(x)` on 3-D particles (CFM25 5.7.3).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExternalFieldSpec {
+    pub name: Option<String>,
+    pub particles: Option<Vec<Reference>>,
+    /// `"cfm25-trigonometric"`.
+    pub field: String,
+    /// The particles' charge `e` (default 1).
+    pub charge: Option<Value>,
+    pub group: Option<Group>,
+    pub level: Option<usize>,
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Output directory, relative to the working directory.
+    pub dir: Option<String>,
+    /// Write a row of `energy.csv` every this many steps.
+    pub energy_every: Option<usize>,
+    /// Trajectory file name in the output directory (format by extension, default
+    /// `trajectory.xyz`).
+    pub trajectory: Option<String>,
+    /// Write a trajectory frame every this many steps (default: no trajectory).
+    pub trajectory_every: Option<usize>,
+}
