@@ -4,6 +4,8 @@
 //! 2 bad command-line usage, 3 a run that went unstable or whose method failed (its
 //! outputs up to that point are written, and the summary says when).
 
+mod analyze;
+mod analyze_output;
 mod async_map;
 mod charts;
 mod forces;
@@ -72,6 +74,10 @@ enum Command {
     AsyncStabilityMap(async_map::AsyncMapArgs),
     /// Energy per group and per-atom forces at the scene's starting positions.
     Forces(ForcesArgs),
+    /// Configurational analysis of finished runs: g(r), potential energy per molecule,
+    /// kinetic and configurational temperature, bond lengths and angles, with block-average
+    /// error bars (docs/analysis.md).
+    Analyze(Box<analyze::AnalyzeArgs>),
 }
 
 #[derive(Args, Debug)]
@@ -191,6 +197,7 @@ pub fn main() -> i32 {
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),
         Command::Forces(args) => forces::forces_command(&args).map(|()| 0),
+        Command::Analyze(args) => analyze::analyze_command(&args).map(|()| 0),
         Command::Methods => {
             for method in crate::integrators::METHODS {
                 println!("{:<22} {}", method.name, method.help);

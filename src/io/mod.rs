@@ -1,6 +1,7 @@
 //! Input and output: scene files, structure files through chemfiles, CSV and JSON.
 
 pub mod csv;
+pub mod energy_table;
 pub mod expr;
 pub mod forcefield;
 pub mod scene;

@@ -89,3 +89,104 @@ impl TrajectoryWriter {
         Ok(())
     }
 }
+
+/// What one frame read back carries besides its positions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameInfo {
+    /// 0-based index of the frame in the file.
+    pub index: usize,
+    /// The frame's `time` property (written by [`TrajectoryWriter`]), if any.
+    pub time: Option<f64>,
+    /// Orthorhombic cell lengths, if the frame has a cell.
+    pub cell: Option<[f64; 3]>,
+}
+
+/// Frames of a trajectory file read one at a time (through chemfiles, any format it reads),
+/// so a long trajectory is never held in memory.
+pub struct TrajectoryReader {
+    path: PathBuf,
+    file: chemfiles::Trajectory,
+    frame: chemfiles::Frame,
+    frames: usize,
+    next: usize,
+}
+
+impl TrajectoryReader {
+    pub fn open(path: &Path) -> Result<Self> {
+        if !path.exists() {
+            return Err(trajectory_error(path, "no such file".into()));
+        }
+        let mut file = chemfiles::Trajectory::open(path, 'r')
+            .map_err(|e| trajectory_error(path, format!("cannot open: {}", e.message)))?;
+        let frames = file.nsteps();
+        if frames == 0 {
+            return Err(trajectory_error(path, "has no frame".into()));
+        }
+        Ok(TrajectoryReader {
+            path: path.to_path_buf(),
+            file,
+            frame: chemfiles::Frame::new(),
+            frames,
+            next: 0,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Atom names of the frame read last.
+    pub fn names(&self) -> Vec<String> {
+        (0..self.frame.size())
+            .map(|i| self.frame.atom(i).name())
+            .collect()
+    }
+
+    /// Read the next frame's positions into `q` (`n × 3`); `None` after the last frame.
+    pub fn read_next(&mut self, q: &mut Vec<f64>) -> Result<Option<FrameInfo>> {
+        if self.next >= self.frames {
+            return Ok(None);
+        }
+        let index = self.next;
+        self.file.read(&mut self.frame).map_err(|e| {
+            trajectory_error(
+                &self.path,
+                format!("cannot read frame {index}: {}", e.message),
+            )
+        })?;
+        self.next += 1;
+        q.clear();
+        for (i, position) in self.frame.positions().iter().enumerate() {
+            if position.iter().any(|x| !x.is_finite()) {
+                return Err(trajectory_error(
+                    &self.path,
+                    format!("frame {index}: atom {i} has a non-finite position"),
+                ));
+            }
+            q.extend_from_slice(position);
+        }
+        let time = match self.frame.get("time") {
+            Some(chemfiles::Property::Double(t)) => Some(t),
+            Some(chemfiles::Property::String(s)) => s.trim().parse().ok(),
+            _ => None,
+        };
+        let cell = self.frame.cell();
+        let cell = match cell.shape() {
+            chemfiles::CellShape::Orthorhombic => Some(cell.lengths()),
+            chemfiles::CellShape::Infinite => None,
+            chemfiles::CellShape::Triclinic => {
+                return Err(trajectory_error(
+                    &self.path,
+                    format!(
+                        "frame {index} has a triclinic cell; only orthorhombic boxes are analysed"
+                    ),
+                ));
+            }
+        };
+        Ok(Some(FrameInfo { index, time, cell }))
+    }
+}

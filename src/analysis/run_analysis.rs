@@ -1,0 +1,695 @@
+//! The configurational analysis of a finished run (`longstep analyze`): from its
+//! `energy.csv` and trajectory, with the scene it was made from.
+//!
+//! * **Blocks.** The analysed span runs from the first energy row at or after `skip` to the
+//!   last at or before `until` (default: the end). It is cut into `blocks` equal time
+//!   blocks; every quantity's error bar is the standard error of its block means
+//!   ([`super::block_average`]), and every block must hold at least one trajectory frame.
+//! * **Potential energy per molecule**: the `potential` column over the molecule count
+//!   (connected components of the bonded terms, [`super::geometry`]); the
+//!   Flyvbjerg–Petersen levels of the row series check that the blocks are long enough.
+//! * **Kinetic temperature** `2⟨K⟩/(n_dof k_B)` from the `kinetic` column, `n_dof = 3N` by
+//!   default (a thermostatted run: every degree of freedom, the centre of mass included, is
+//!   thermalised; an NVE run with zero total momentum has `3N − 3`).
+//! * **Configurational temperature** and **g(r)** and mean **bond lengths and angles** per
+//!   type from the trajectory frames ([`super::configurational`], [`super::rdf`]).
+
+use std::path::PathBuf;
+
+use super::block_average::{
+    BlockAccumulator, BlockingLevel, Blocks, Estimate, blocks_long_enough, flyvbjerg_petersen,
+    from_block_means, ratio_of_means,
+};
+use super::configurational::ConfigurationalProbe;
+use super::geometry::{Topology, mean_angle, mean_bond_length};
+use super::rdf::{PairSelection, Peak, RdfGrid, first_peak};
+use crate::error::{Error, Result};
+use crate::io::energy_table::EnergyTable;
+use crate::io::scene::Scene;
+use crate::io::trajectory::{FrameInfo, TrajectoryReader};
+
+/// What to compute, and how.
+#[derive(Clone, Debug)]
+pub struct AnalysisOptions {
+    /// Element pairs for g(r).
+    pub pairs: Vec<(String, String)>,
+    /// Count pairs within one molecule in g(r) (default: left out).
+    pub intramolecular: bool,
+    /// Start of the analysed span, in the scene's time unit.
+    pub skip: f64,
+    pub until: Option<f64>,
+    pub blocks: usize,
+    pub bin_width: f64,
+    /// Default: half the shortest box edge.
+    pub r_max: Option<f64>,
+    pub peak_window: f64,
+    pub peak_fit: f64,
+    /// Hutchinson probes per frame; `configurational = false` skips the whole estimate.
+    pub probes: usize,
+    pub seed: u64,
+    pub configurational: bool,
+    pub dof: Option<f64>,
+    /// Use every `stride`-th frame.
+    pub stride: usize,
+}
+
+/// Most blocks (a bound on a user-given size: each holds a g(r) per pair).
+pub const MAX_BLOCKS: usize = 10_000;
+
+/// A run's files.
+#[derive(Clone, Debug)]
+pub struct RunFiles {
+    pub energy: PathBuf,
+    pub trajectory: PathBuf,
+}
+
+#[derive(Clone, Debug)]
+pub struct RdfResult {
+    pub name: String,
+    pub r: Vec<f64>,
+    pub g: Vec<f64>,
+    /// Standard error per bin, from the blocks' g(r).
+    pub g_error: Vec<f64>,
+    /// The first peak of the mean g(r); its error bars from the blocks' peaks.
+    pub peak: Option<Peak>,
+    pub peak_position: Option<Estimate>,
+    pub peak_height: Option<Estimate>,
+}
+
+#[derive(Clone, Debug)]
+pub struct GeometryResult {
+    /// `"bond"` (length unit) or `"angle"` (degrees).
+    pub kind: &'static str,
+    pub name: String,
+    pub count: usize,
+    pub mean: Estimate,
+}
+
+#[derive(Clone, Debug)]
+pub struct ConfigurationalResult {
+    pub temperature: Estimate,
+    pub gradient_squared: f64,
+    pub laplacian: f64,
+    /// Mean over frames of the Hutchinson standard error of one frame's Laplacian,
+    /// relative to the Laplacian.
+    pub hutchinson_relative_error: f64,
+    pub exact_terms: Vec<String>,
+    pub estimated_terms: Vec<String>,
+    pub probes: usize,
+    pub colours: usize,
+    /// Hessian-vector products per frame: exact, Hutchinson.
+    pub products_per_frame: (usize, usize),
+    /// Per block: `⟨|∇U|²⟩/⟨∇²U⟩/k_B`.
+    pub block_values: Vec<f64>,
+}
+
+#[derive(Clone, Debug)]
+pub struct RunAnalysis {
+    pub blocks: Blocks,
+    pub rows: usize,
+    pub frames: usize,
+    pub rows_per_block: Vec<usize>,
+    pub frames_per_block: Vec<usize>,
+    pub molecules: usize,
+    pub potential_per_molecule: Estimate,
+    pub potential_block_means: Vec<f64>,
+    pub blocking: Vec<BlockingLevel>,
+    pub blocks_long_enough: bool,
+    /// Time between energy rows (for the blocking table).
+    pub row_interval: f64,
+    pub kinetic_temperature: Estimate,
+    pub kinetic_block_means: Vec<f64>,
+    pub dof: f64,
+    pub configurational: Option<ConfigurationalResult>,
+    pub rdf: Vec<RdfResult>,
+    pub geometry: Vec<GeometryResult>,
+}
+
+/// The scene-side setup shared by every run analysed against one scene.
+pub struct Analyzer<'a> {
+    scene: &'a Scene,
+    options: AnalysisOptions,
+    topology: Topology,
+    selections: Vec<PairSelection>,
+    grid: Option<RdfGrid>,
+    box_lengths: Option<[f64; 3]>,
+}
+
+fn bad_option(message: String) -> Error {
+    Error::input(message)
+}
+
+/// `"O-H"` → `("O", "H")`.
+pub fn parse_pair(text: &str) -> Result<(String, String)> {
+    match text.trim().split_once('-') {
+        Some((a, b)) if !a.is_empty() && !b.is_empty() && !b.contains('-') => {
+            Ok((a.to_string(), b.to_string()))
+        }
+        _ => Err(bad_option(format!(
+            "--pairs: \"{text}\" is not an element pair like O-H"
+        ))),
+    }
+}
+
+impl<'a> Analyzer<'a> {
+    pub fn new(scene: &'a Scene, options: AnalysisOptions) -> Result<Self> {
+        check_options(&options)?;
+        let system = &scene.system;
+        if system.dim != 3 {
+            return Err(bad_option(format!(
+                "{}: analyze needs a 3-D scene (this one has dim = {})",
+                scene.path.display(),
+                system.dim
+            )));
+        }
+        let topology = Topology::from_terms(system.forces.terms(), &scene.elements);
+        let box_lengths = system.periodic_box.map(|b| b.lengths);
+        let (grid, selections) = if options.pairs.is_empty() {
+            (None, Vec::new())
+        } else {
+            rdf_setup(scene, &options, &topology, box_lengths)?
+        };
+        Ok(Analyzer {
+            scene,
+            options,
+            topology,
+            selections,
+            grid,
+            box_lengths,
+        })
+    }
+
+    pub fn topology(&self) -> &Topology {
+        &self.topology
+    }
+
+    pub fn options(&self) -> &AnalysisOptions {
+        &self.options
+    }
+
+    /// Analyse one run.
+    pub fn analyze(&self, files: &RunFiles) -> Result<RunAnalysis> {
+        let table = EnergyTable::read(&files.energy, &["t", "kinetic", "potential"])?;
+        let blocks = self.blocks_of(&table)?;
+        let mut reader = TrajectoryReader::open(&files.trajectory)?;
+        let mut frames = FramePass::new(self, blocks);
+        frames.run(self, &mut reader)?;
+        let energies = self.energy_part(&table, blocks)?;
+        frames.finish(self, energies)
+    }
+
+    fn blocks_of(&self, table: &EnergyTable) -> Result<Blocks> {
+        let path = &table.path;
+        let times = table.column(0);
+        let until = self.options.until.unwrap_or(f64::INFINITY);
+        let inside: Vec<f64> = times
+            .iter()
+            .copied()
+            .filter(|&t| t >= self.options.skip && t <= until)
+            .collect();
+        let (Some(&start), Some(&end)) = (inside.first(), inside.last()) else {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "no energy row between the --skip time {} and {} (the rows run from {} to {})",
+                    self.options.skip,
+                    self.options
+                        .until
+                        .map_or("the end".into(), |u| u.to_string()),
+                    times.first().copied().unwrap_or(f64::NAN),
+                    times.last().copied().unwrap_or(f64::NAN),
+                ),
+            });
+        };
+        if inside.len() < 2 * self.options.blocks || end <= start {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "{} energy rows from t = {start} to {end} are too few for {} blocks",
+                    inside.len(),
+                    self.options.blocks
+                ),
+            });
+        }
+        Ok(Blocks {
+            start,
+            end,
+            count: self.options.blocks,
+        })
+    }
+}
+
+fn check_options(options: &AnalysisOptions) -> Result<()> {
+    if !(2..=MAX_BLOCKS).contains(&options.blocks) {
+        return Err(bad_option(format!(
+            "--blocks must be between 2 and {MAX_BLOCKS}, got {}",
+            options.blocks
+        )));
+    }
+    if options.stride == 0 {
+        return Err(bad_option("--stride must be at least 1".into()));
+    }
+    if options.configurational
+        && !(1..=super::configurational::MAX_PROBES).contains(&options.probes)
+    {
+        return Err(bad_option(format!(
+            "--probes must be between 1 and {}, got {}",
+            super::configurational::MAX_PROBES,
+            options.probes
+        )));
+    }
+    for (value, flag) in [
+        (options.peak_window, "--peak-window"),
+        (options.peak_fit, "--peak-fit"),
+    ] {
+        if !(value > 0.0 && value.is_finite()) {
+            return Err(bad_option(format!("{flag} must be positive, got {value}")));
+        }
+    }
+    if let Some(dof) = options.dof
+        && !(dof > 0.0 && dof.is_finite())
+    {
+        return Err(bad_option(format!("--dof must be positive, got {dof}")));
+    }
+    if let Some(until) = options.until
+        && until <= options.skip
+    {
+        return Err(bad_option(format!(
+            "--until ({until}) must be after --skip ({})",
+            options.skip
+        )));
+    }
+    Ok(())
+}
+
+fn rdf_setup(
+    scene: &Scene,
+    options: &AnalysisOptions,
+    topology: &Topology,
+    box_lengths: Option<[f64; 3]>,
+) -> Result<(Option<RdfGrid>, Vec<PairSelection>)> {
+    let Some(lengths) = box_lengths else {
+        return Err(bad_option(format!(
+            "{}: g(r) needs a periodic box (the scene has none); give --pairs none",
+            scene.path.display()
+        )));
+    };
+    let half = lengths.iter().copied().fold(f64::INFINITY, f64::min) / 2.0;
+    let r_max = options.r_max.unwrap_or(half);
+    if r_max > half * (1.0 + 1e-12) {
+        return Err(bad_option(format!(
+            "--r-max {r_max} is beyond half the shortest box edge ({half}), where minimum-image \
+             distances stop counting every pair"
+        )));
+    }
+    let grid =
+        RdfGrid::new(r_max, options.bin_width).map_err(|e| bad_option(format!("g(r): {e}")))?;
+    let molecule_of = (!options.intramolecular).then_some(topology.molecule_of.as_slice());
+    let selections = options
+        .pairs
+        .iter()
+        .map(|(a, b)| {
+            PairSelection::new(&scene.elements, a, b, molecule_of).map_err(|e| {
+                bad_option(format!(
+                    "--pairs {a}-{b}: the scene {} and its trajectories have {e}",
+                    scene.path.display()
+                ))
+            })
+        })
+        .collect::<Result<_>>()?;
+    Ok((Some(grid), selections))
+}
+
+/// Energy-table results: (PE per molecule block means and estimate, FP levels, kinetic
+/// temperature, rows per block, row interval, dof).
+struct EnergyPart {
+    potential: BlockAccumulator,
+    blocking: Vec<BlockingLevel>,
+    kinetic: BlockAccumulator,
+    rows: usize,
+    row_interval: f64,
+    dof: f64,
+}
+
+impl Analyzer<'_> {
+    fn energy_part(&self, table: &EnergyTable, blocks: Blocks) -> Result<EnergyPart> {
+        let (times, kinetic, potential) = (table.column(0), table.column(1), table.column(2));
+        let n = self.scene.elements.len();
+        let dof = self.options.dof.unwrap_or(3.0 * n as f64);
+        let k_b = self.scene.units.boltzmann();
+        let molecules = self.topology.molecules as f64;
+        let mut pe = BlockAccumulator::new(blocks.count, 1);
+        let mut temperature = BlockAccumulator::new(blocks.count, 1);
+        let mut series = Vec::new();
+        let mut used_times = Vec::new();
+        for (row, &t) in times.iter().enumerate() {
+            let Some(block) = blocks.index(t) else {
+                continue;
+            };
+            if !(potential[row].is_finite() && kinetic[row].is_finite()) {
+                return Err(Error::Structure {
+                    path: table.path.clone(),
+                    message: format!(
+                        "the energies at t = {t} are not finite (the run blew up): analyse up to \
+                         before then with --until"
+                    ),
+                });
+            }
+            pe.add(block, potential[row] / molecules);
+            temperature.add(block, 2.0 * kinetic[row] / (dof * k_b));
+            series.push(potential[row] / molecules);
+            used_times.push(t);
+        }
+        let row_interval = (used_times.last().unwrap_or(&0.0) - used_times.first().unwrap_or(&0.0))
+            / (used_times.len().max(2) - 1) as f64;
+        Ok(EnergyPart {
+            potential: pe,
+            blocking: flyvbjerg_petersen(&series),
+            kinetic: temperature,
+            rows: series.len(),
+            row_interval,
+            dof,
+        })
+    }
+}
+
+/// Per-block sums over the trajectory frames.
+struct FramePass {
+    blocks: Blocks,
+    frames: usize,
+    rdf: Vec<BlockAccumulator>,
+    counts: Vec<u64>,
+    g_frame: Vec<f64>,
+    geometry: Vec<(&'static str, String, usize, BlockAccumulator)>,
+    gradient_squared: BlockAccumulator,
+    laplacian: BlockAccumulator,
+    hutchinson: BlockAccumulator,
+    probe: Option<ConfigurationalProbe>,
+}
+
+impl FramePass {
+    fn new(analyzer: &Analyzer, blocks: Blocks) -> Self {
+        let bins = analyzer.grid.map_or(0, |g| g.bins);
+        let topology = &analyzer.topology;
+        let mut geometry = Vec::new();
+        for (name, bonds) in &topology.bonds {
+            geometry.push((
+                "bond",
+                name.clone(),
+                bonds.len(),
+                BlockAccumulator::new(blocks.count, 1),
+            ));
+        }
+        for (name, angles) in &topology.angles {
+            geometry.push((
+                "angle",
+                name.clone(),
+                angles.len(),
+                BlockAccumulator::new(blocks.count, 1),
+            ));
+        }
+        let options = &analyzer.options;
+        let system = &analyzer.scene.system;
+        let probe = options.configurational.then(|| {
+            ConfigurationalProbe::new(
+                system.forces.terms(),
+                system.n_particles(),
+                3,
+                options.probes,
+                options.seed,
+                true,
+            )
+        });
+        FramePass {
+            blocks,
+            frames: 0,
+            rdf: (0..analyzer.selections.len())
+                .map(|_| BlockAccumulator::new(blocks.count, bins))
+                .collect(),
+            counts: vec![0; bins],
+            g_frame: vec![0.0; bins],
+            geometry,
+            gradient_squared: BlockAccumulator::new(blocks.count, 1),
+            laplacian: BlockAccumulator::new(blocks.count, 1),
+            hutchinson: BlockAccumulator::new(blocks.count, 1),
+            probe,
+        }
+    }
+
+    fn run(&mut self, analyzer: &Analyzer, reader: &mut TrajectoryReader) -> Result<()> {
+        let mut q = Vec::new();
+        let mut in_span = 0usize;
+        while let Some(info) = reader.read_next(&mut q)? {
+            if info.index == 0 {
+                check_atoms(analyzer.scene, reader, q.len() / 3)?;
+            }
+            let Some(time) = info.time else {
+                return Err(Error::Structure {
+                    path: reader.path().to_path_buf(),
+                    message: format!(
+                        "frame {} has no time property (longstep and scripts/openmm_mts_langevin.py \
+                         write it in extended XYZ)",
+                        info.index
+                    ),
+                });
+            };
+            let Some(block) = self.blocks.index(time) else {
+                continue;
+            };
+            in_span += 1;
+            if !(in_span - 1).is_multiple_of(analyzer.options.stride) {
+                continue;
+            }
+            let lengths = frame_box(analyzer, reader, &info)?;
+            self.frame(analyzer, &q, lengths, &info, block);
+        }
+        if let Some(empty) = self
+            .rdf
+            .first()
+            .map_or(self.gradient_squared.empty_block(), |a| a.empty_block())
+        {
+            return Err(Error::Structure {
+                path: reader.path().to_path_buf(),
+                message: format!(
+                    "block {empty} of {} (t = {} to {}) has no trajectory frame: write frames more \
+                     often, use fewer --blocks or a smaller --stride",
+                    self.blocks.count,
+                    self.blocks.start + empty as f64 * self.blocks.length(),
+                    self.blocks.start + (empty + 1) as f64 * self.blocks.length()
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(
+        &mut self,
+        analyzer: &Analyzer,
+        q: &[f64],
+        lengths: Option<[f64; 3]>,
+        info: &FrameInfo,
+        block: usize,
+    ) {
+        self.frames += 1;
+        if let (Some(grid), Some(l)) = (&analyzer.grid, lengths) {
+            let volume = l[0] * l[1] * l[2];
+            for (selection, accumulator) in analyzer.selections.iter().zip(&mut self.rdf) {
+                self.counts.fill(0);
+                selection.histogram(q, l, grid, &mut self.counts);
+                selection.normalise(&self.counts, volume, grid, &mut self.g_frame);
+                accumulator.add_vector(block, &self.g_frame);
+            }
+        }
+        let topology = &analyzer.topology;
+        for (kind, name, _, accumulator) in &mut self.geometry {
+            let value = if *kind == "bond" {
+                mean_bond_length(q, lengths, &topology.bonds[name.as_str()])
+            } else {
+                mean_angle(q, lengths, &topology.angles[name.as_str()]).to_degrees()
+            };
+            accumulator.add(block, value);
+        }
+        if let Some(probe) = &mut self.probe {
+            let sample = probe.sample(analyzer.scene.system.forces.terms(), q, info.index as u64);
+            self.gradient_squared.add(block, sample.gradient_squared);
+            self.laplacian.add(block, sample.laplacian);
+            self.hutchinson.add(
+                block,
+                sample.laplacian_variance.sqrt() / sample.laplacian.abs(),
+            );
+        }
+        // Every block accumulator counts frames; keep one that always exists.
+        if analyzer.selections.is_empty() && self.probe.is_none() {
+            self.gradient_squared.add(block, 0.0);
+        }
+    }
+}
+
+/// The trajectory must hold the scene's atoms, with the same names.
+fn check_atoms(scene: &Scene, reader: &TrajectoryReader, atoms: usize) -> Result<()> {
+    let bad = |message: String| Error::Structure {
+        path: reader.path().to_path_buf(),
+        message,
+    };
+    if atoms != scene.elements.len() {
+        return Err(bad(format!(
+            "has {atoms} atoms, but the scene {} has {}: give the scene the run was made from",
+            scene.path.display(),
+            scene.elements.len()
+        )));
+    }
+    let names = reader.names();
+    if let Some(i) = (0..atoms).find(|&i| names[i] != scene.elements[i]) {
+        return Err(bad(format!(
+            "atom {i} is \"{}\", but the scene {} has \"{}\" there",
+            names[i],
+            scene.path.display(),
+            scene.elements[i]
+        )));
+    }
+    Ok(())
+}
+
+/// The box of a frame: its cell, which must be the scene's box (the runs are at constant
+/// volume; trajectory cells are written with about 6 significant digits), else the scene's.
+fn frame_box(
+    analyzer: &Analyzer,
+    reader: &TrajectoryReader,
+    info: &FrameInfo,
+) -> Result<Option<[f64; 3]>> {
+    match (info.cell, analyzer.box_lengths) {
+        (Some(cell), Some(scene_box)) => {
+            if (0..3).any(|a| (cell[a] - scene_box[a]).abs() > 1e-4 * scene_box[a]) {
+                return Err(Error::Structure {
+                    path: reader.path().to_path_buf(),
+                    message: format!(
+                        "frame {}: the cell {cell:?} is not the scene's box {scene_box:?}",
+                        info.index
+                    ),
+                });
+            }
+            Ok(Some(scene_box))
+        }
+        (_, scene_box) => Ok(scene_box),
+    }
+}
+
+impl FramePass {
+    fn finish(self, analyzer: &Analyzer, energies: EnergyPart) -> Result<RunAnalysis> {
+        let options = &analyzer.options;
+        let potential = energies.potential.estimate();
+        let frames_per_block = match self.rdf.first() {
+            Some(a) => a.counts().to_vec(),
+            None => self.gradient_squared.counts().to_vec(),
+        };
+        let rdf = match analyzer.grid {
+            Some(grid) => analyzer
+                .selections
+                .iter()
+                .zip(&self.rdf)
+                .map(|(s, a)| rdf_result(&s.name, &grid, a, options))
+                .collect(),
+            None => Vec::new(),
+        };
+        let geometry = self
+            .geometry
+            .iter()
+            .map(|(kind, name, count, a)| GeometryResult {
+                kind,
+                name: name.clone(),
+                count: *count,
+                mean: a.estimate(),
+            })
+            .collect();
+        let configurational = self.configurational(analyzer);
+        Ok(RunAnalysis {
+            blocks: self.blocks,
+            rows: energies.rows,
+            frames: self.frames,
+            rows_per_block: energies.potential.counts().to_vec(),
+            frames_per_block,
+            molecules: analyzer.topology.molecules,
+            blocks_long_enough: blocks_long_enough(
+                &energies.blocking,
+                potential.error,
+                potential.blocks,
+            ),
+            potential_per_molecule: potential,
+            potential_block_means: energies.potential.block_means(),
+            blocking: energies.blocking,
+            row_interval: energies.row_interval,
+            kinetic_temperature: energies.kinetic.estimate(),
+            kinetic_block_means: energies.kinetic.block_means(),
+            dof: energies.dof,
+            configurational,
+            rdf,
+            geometry,
+        })
+    }
+
+    fn configurational(&self, analyzer: &Analyzer) -> Option<ConfigurationalResult> {
+        let probe = self.probe.as_ref()?;
+        let k_b = analyzer.scene.units.boltzmann();
+        let (numerator, denominator) = (
+            self.gradient_squared.block_means(),
+            self.laplacian.block_means(),
+        );
+        let mut temperature = ratio_of_means(&numerator, &denominator);
+        temperature.mean /= k_b;
+        temperature.error /= k_b;
+        let (exact_terms, estimated_terms) = probe.term_names(analyzer.scene.system.forces.terms());
+        Some(ConfigurationalResult {
+            temperature,
+            gradient_squared: self.gradient_squared.overall_mean()[0],
+            laplacian: self.laplacian.overall_mean()[0],
+            hutchinson_relative_error: self.hutchinson.overall_mean()[0],
+            exact_terms,
+            estimated_terms,
+            probes: analyzer.options.probes,
+            colours: probe.colours(),
+            products_per_frame: probe.products_per_frame(),
+            block_values: numerator
+                .iter()
+                .zip(&denominator)
+                .map(|(n, d)| n / d / k_b)
+                .collect(),
+        })
+    }
+}
+
+fn rdf_result(
+    name: &str,
+    grid: &RdfGrid,
+    accumulator: &BlockAccumulator,
+    options: &AnalysisOptions,
+) -> RdfResult {
+    let g = accumulator.overall_mean();
+    let blocks = accumulator.counts().len();
+    let block_g: Vec<Vec<f64>> = (0..blocks).map(|b| accumulator.block_mean(b)).collect();
+    let g_error = (0..grid.bins)
+        .map(|k| from_block_means(&block_g.iter().map(|g| g[k]).collect::<Vec<_>>()).error)
+        .collect();
+    let peak = first_peak(grid, &g, options.peak_window, options.peak_fit);
+    let block_peaks: Option<Vec<Peak>> = block_g
+        .iter()
+        .map(|g| first_peak(grid, g, options.peak_window, options.peak_fit))
+        .collect();
+    let spread = |f: fn(&Peak) -> f64| {
+        let peaks = block_peaks.as_ref()?;
+        let values: Vec<f64> = peaks.iter().map(f).collect();
+        let main = peak.as_ref().map(f)?;
+        Some(Estimate {
+            mean: main,
+            ..from_block_means(&values)
+        })
+    };
+    RdfResult {
+        name: name.to_string(),
+        r: (0..grid.bins).map(|k| grid.centre(k)).collect(),
+        peak_position: spread(|p| p.position),
+        peak_height: spread(|p| p.height),
+        g,
+        g_error,
+        peak,
+    }
+}

@@ -1,0 +1,466 @@
+//! `longstep analyze SCENE RUN_DIR…`: configurational analysis of finished runs.
+//!
+//! Each run directory holds the `energy.csv` and the trajectory of one run of SCENE (or of a
+//! peer code written in the same form: `scripts/openmm_mts_langevin.py`). For every run it
+//! prints (or, with `--json`, emits as one JSON array) the mean potential energy per
+//! molecule, the kinetic and configurational temperatures, the first peak of g(r) for each
+//! `--pairs` entry and the mean bond lengths and angles, each with a block-average error
+//! bar, and writes the tables (`rdf.csv`, `blocks.csv`, `blocking.csv`, `geometry.csv`) and
+//! `summary.json` into `RUN_DIR/analysis/` (or `--out DIR/<label>/`). With several runs it
+//! adds each run's difference to the first in units of their combined error, and `--png`
+//! overlays their g(r). docs/analysis.md describes the estimators.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+use serde_json::{Value as Json, json};
+
+use crate::analysis::block_average::Estimate;
+use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles, parse_pair};
+use crate::error::{Error, Result};
+use crate::io::scene::{Scene, load_scene};
+use crate::plot::{AxisSpec, Corner, LineChart, Series};
+use crate::settings::Value;
+
+#[derive(Args, Debug)]
+pub struct AnalyzeArgs {
+    /// The scene the runs were made from (atoms, box, force field).
+    pub scene: PathBuf,
+    /// Run directories, each with energy.csv and a trajectory.
+    #[arg(required = true, value_name = "RUN_DIR")]
+    pub runs: Vec<PathBuf>,
+    /// Element pairs for g(r), comma-separated, or "none".
+    #[arg(long, default_value = "O-O", value_delimiter = ',')]
+    pub pairs: Vec<String>,
+    /// Count pairs within one molecule in g(r) (default: only pairs in different molecules).
+    #[arg(long)]
+    pub intramolecular: bool,
+    /// Leave out the start of each run (equilibration), e.g. 5ps; in the scene's time unit
+    /// when it has no suffix.
+    #[arg(long, default_value = "0")]
+    pub skip: String,
+    /// Analyse up to this time (default: the end of each run).
+    #[arg(long)]
+    pub until: Option<String>,
+    /// Number of equal time blocks for the error bars.
+    #[arg(long, default_value_t = 10)]
+    pub blocks: usize,
+    /// g(r) bin width, in the scene's length unit.
+    #[arg(long, default_value_t = 0.02)]
+    pub bin: f64,
+    /// g(r) range (default and largest: half the shortest box edge).
+    #[arg(long)]
+    pub r_max: Option<f64>,
+    /// The first peak is the first bin that is the largest within ± this distance.
+    #[arg(long, default_value_t = 0.25)]
+    pub peak_window: f64,
+    /// Half-width of the parabola fitted around the first peak.
+    #[arg(long, default_value_t = 0.1)]
+    pub peak_fit: f64,
+    /// Hutchinson probe vectors per frame for the non-bonded Laplacian.
+    #[arg(long, default_value_t = 4)]
+    pub probes: usize,
+    /// Seed of the probe vectors.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Skip the configurational temperature (a gradient and a few Hessian-vector products
+    /// per frame: the costliest part).
+    #[arg(long)]
+    pub no_configurational: bool,
+    /// Degrees of freedom for the kinetic temperature (default 3N; 3N − 3 for an NVE run
+    /// with zero total momentum).
+    #[arg(long)]
+    pub dof: Option<f64>,
+    /// Use every K-th trajectory frame.
+    #[arg(long, default_value_t = 1, value_name = "K")]
+    pub stride: usize,
+    /// Trajectory file name in each run directory (default: the scene's [output]
+    /// trajectory, else trajectory.xyz).
+    #[arg(long, value_name = "NAME")]
+    pub trajectory: Option<String>,
+    /// Labels of the runs, comma-separated (default: the directory names).
+    #[arg(long, value_delimiter = ',')]
+    pub labels: Vec<String>,
+    /// Write each run's tables to DIR/<label>/ instead of RUN_DIR/analysis/.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Draw every run's g(r) overlaid: FILE for one pair, FILE-<pair>.png for several.
+    #[arg(long, value_name = "FILE")]
+    pub png: Option<PathBuf>,
+    /// Print the summaries as a JSON array on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+}
+
+fn time_value(text: &str, flag: &str, scene: &Scene) -> Result<f64> {
+    let value: Value = text
+        .parse()
+        .map_err(|_| Error::input(format!("{flag}: \"{text}\" is not a time")))?;
+    value.evaluate_time(&scene.parameters, flag, scene.units.time_units())
+}
+
+fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {
+    let none = args.pairs.len() == 1 && args.pairs[0].trim() == "none";
+    let pairs = if none {
+        Vec::new()
+    } else {
+        args.pairs
+            .iter()
+            .map(|p| parse_pair(p))
+            .collect::<Result<_>>()?
+    };
+    Ok(AnalysisOptions {
+        pairs,
+        intramolecular: args.intramolecular,
+        skip: time_value(&args.skip, "--skip", scene)?,
+        until: match &args.until {
+            Some(text) => Some(time_value(text, "--until", scene)?),
+            None => None,
+        },
+        blocks: args.blocks,
+        bin_width: args.bin,
+        r_max: args.r_max,
+        peak_window: args.peak_window,
+        peak_fit: args.peak_fit,
+        probes: args.probes,
+        seed: args.seed,
+        configurational: !args.no_configurational,
+        dof: args.dof,
+        stride: args.stride,
+    })
+}
+
+/// The files of one run directory; missing ones are errors naming the directory.
+fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
+    if !dir.is_dir() {
+        return Err(Error::Structure {
+            path: dir.to_path_buf(),
+            message: "is not a run directory".into(),
+        });
+    }
+    let files = RunFiles {
+        energy: dir.join("energy.csv"),
+        trajectory: dir.join(trajectory),
+    };
+    for (path, hint) in [
+        (&files.energy, "energy.csv"),
+        (
+            &files.trajectory,
+            "a trajectory: run with --trajectory-every N",
+        ),
+    ] {
+        if !path.is_file() {
+            return Err(Error::Structure {
+                path: dir.to_path_buf(),
+                message: format!(
+                    "has no {} (a run directory holds {hint})",
+                    path.file_name()
+                        .map_or("file".into(), |n| n.to_string_lossy())
+                ),
+            });
+        }
+    }
+    Ok(files)
+}
+
+fn labels(args: &AnalyzeArgs) -> Result<Vec<String>> {
+    if args.labels.is_empty() {
+        return Ok(args
+            .runs
+            .iter()
+            .map(|d| {
+                d.file_name()
+                    .map_or_else(|| d.display().to_string(), |n| n.to_string_lossy().into())
+            })
+            .collect());
+    }
+    if args.labels.len() != args.runs.len() {
+        return Err(Error::input(format!(
+            "--labels gives {} labels for {} runs",
+            args.labels.len(),
+            args.runs.len()
+        )));
+    }
+    Ok(args.labels.clone())
+}
+
+pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
+    let scene = load_scene(&args.scene, &args.set)?;
+    let analyzer = Analyzer::new(&scene, options(args, &scene)?)?;
+    let labels = labels(args)?;
+    let trajectory = args
+        .trajectory
+        .clone()
+        .or_else(|| scene.output.trajectory.clone())
+        .unwrap_or_else(|| "trajectory.xyz".into());
+    let files: Vec<RunFiles> = args
+        .runs
+        .iter()
+        .map(|dir| run_files(dir, &trajectory))
+        .collect::<Result<_>>()?;
+    let mut results = Vec::new();
+    let mut summaries = Vec::new();
+    for ((dir, label), files) in args.runs.iter().zip(&labels).zip(&files) {
+        let result = analyzer.analyze(files)?;
+        let out_dir = match &args.out {
+            Some(out) => out.join(label),
+            None => dir.join("analysis"),
+        };
+        let summary = summary_json(&scene, label, dir, &result, &analyzer);
+        super::analyze_output::write_tables(&out_dir, &result, &summary)?;
+        if !args.json {
+            print_summary(&scene, label, &out_dir, &result);
+        }
+        results.push(result);
+        summaries.push(summary);
+    }
+    if results.len() > 1 && !args.json {
+        print_differences(&labels, &results);
+    }
+    if let Some(png) = &args.png {
+        draw_rdf(png, &scene, &labels, &results)?;
+    }
+    if args.json {
+        let text = serde_json::to_string_pretty(&Json::Array(summaries))
+            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+        println!("{text}");
+    }
+    Ok(())
+}
+
+fn estimate_json(e: &Estimate) -> Json {
+    json!({ "mean": e.mean, "error": e.error })
+}
+
+/// Unit names (length, energy, temperature, time) of the scene.
+fn units(scene: &Scene) -> (&'static str, &'static str, &'static str, &'static str) {
+    match scene.units {
+        crate::units::Units::Real => ("angstrom", "kcal/mol", "K", "fs"),
+        crate::units::Units::None => ("scene", "scene", "kT (k_B = 1)", "scene"),
+    }
+}
+
+fn summary_json(
+    scene: &Scene,
+    label: &str,
+    dir: &Path,
+    r: &RunAnalysis,
+    analyzer: &Analyzer,
+) -> Json {
+    let (length, energy, temperature, time) = units(scene);
+    let rdf: serde_json::Map<String, Json> = r
+        .rdf
+        .iter()
+        .map(|rdf| {
+            let peak = rdf.peak.map(|p| {
+                json!({
+                    "position": rdf.peak_position.as_ref().map(estimate_json),
+                    "height": rdf.peak_height.as_ref().map(estimate_json),
+                    "highest_bin": { "r": (p.bin as f64 + 0.5) * analyzer.options().bin_width, "g": p.bin_height },
+                    "fitted": p.fitted,
+                })
+            });
+            (rdf.name.clone(), json!({ "first_peak": peak }))
+        })
+        .collect();
+    let geometry: Vec<Json> = r
+        .geometry
+        .iter()
+        .map(|g| {
+            json!({
+                "kind": g.kind, "type": g.name, "count": g.count,
+                "mean": g.mean.mean, "error": g.mean.error,
+                "unit": if g.kind == "bond" { length } else { "degree" },
+            })
+        })
+        .collect();
+    let configurational = r.configurational.as_ref().map(|c| json!({
+        "mean": c.temperature.mean, "error": c.temperature.error,
+        "gradient_squared": c.gradient_squared, "laplacian": c.laplacian,
+        "exact_terms": c.exact_terms, "estimated_terms": c.estimated_terms,
+        "probes": c.probes, "colours": c.colours,
+        "hessian_vector_products_per_frame": { "exact": c.products_per_frame.0, "hutchinson": c.products_per_frame.1 },
+        "hutchinson_relative_error_per_frame": c.hutchinson_relative_error,
+    }));
+    let options = analyzer.options();
+    json!({
+        "label": label,
+        "run": dir.display().to_string(),
+        "scene": scene.path.display().to_string(),
+        "units": { "length": length, "energy": energy, "temperature": temperature, "time": time },
+        "span": { "start": r.blocks.start, "end": r.blocks.end, "skip": options.skip },
+        "blocks": { "count": r.blocks.count, "length": r.blocks.length() },
+        "energy_rows": r.rows,
+        "frames": r.frames,
+        "molecules": r.molecules,
+        "potential_energy_per_molecule": {
+            "mean": r.potential_per_molecule.mean, "error": r.potential_per_molecule.error,
+            "blocks_long_enough": r.blocks_long_enough,
+        },
+        "kinetic_temperature": { "mean": r.kinetic_temperature.mean, "error": r.kinetic_temperature.error, "dof": r.dof },
+        "configurational_temperature": configurational,
+        "rdf": rdf,
+        "rdf_intramolecular_pairs": options.intramolecular,
+        "geometry": geometry,
+    })
+}
+
+fn pm(e: &Estimate, digits: usize) -> String {
+    format!("{:.digits$} ± {:.digits$}", e.mean, e.error)
+}
+
+fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
+    let (length, energy, temperature, time) = units(scene);
+    println!(
+        "run {label}: t = {} to {} {time}, {} blocks of {} {time}, {} energy rows, {} frames",
+        r.blocks.start,
+        r.blocks.end,
+        r.blocks.count,
+        r.blocks.length(),
+        r.rows,
+        r.frames
+    );
+    let check = if r.blocks_long_enough {
+        "blocks long enough"
+    } else {
+        "WARNING: blocks too short (see blocking.csv)"
+    };
+    println!(
+        "  PE per molecule     {} {energy} ({} molecules; {check})",
+        pm(&r.potential_per_molecule, 4),
+        r.molecules
+    );
+    println!(
+        "  T kinetic           {} {temperature} (n_dof = {})",
+        pm(&r.kinetic_temperature, 2),
+        r.dof
+    );
+    if let Some(c) = &r.configurational {
+        println!(
+            "  T configurational   {} {temperature} (Hutchinson {} probes on {})",
+            pm(&c.temperature, 2),
+            c.probes,
+            if c.estimated_terms.is_empty() {
+                "no term".into()
+            } else {
+                c.estimated_terms.join(", ")
+            }
+        );
+    }
+    for rdf in &r.rdf {
+        match (&rdf.peak_position, &rdf.peak_height) {
+            (Some(position), Some(height)) => println!(
+                "  g {:<6} 1st peak  r = {} {length}, g = {}",
+                rdf.name,
+                pm(position, 4),
+                pm(height, 4)
+            ),
+            _ => println!("  g {:<6} 1st peak  not found", rdf.name),
+        }
+    }
+    for g in &r.geometry {
+        let unit = if g.kind == "bond" { length } else { "degree" };
+        println!(
+            "  {:<5} {:<12} {} {unit} (×{})",
+            g.kind,
+            g.name,
+            pm(&g.mean, 5),
+            g.count
+        );
+    }
+    println!("  tables in {}", out_dir.display());
+}
+
+/// `(value − first)/√(σ² + σ_first²)`.
+fn sigmas(a: &Estimate, b: &Estimate) -> (f64, f64) {
+    let difference = a.mean - b.mean;
+    (
+        difference,
+        difference / (a.error * a.error + b.error * b.error).sqrt(),
+    )
+}
+
+fn print_differences(labels: &[String], results: &[RunAnalysis]) {
+    let first = &results[0];
+    println!(
+        "differences to {} (in combined standard errors):",
+        labels[0]
+    );
+    for (label, r) in labels.iter().zip(results).skip(1) {
+        let mut items = vec![
+            (
+                "PE per molecule".to_string(),
+                sigmas(&r.potential_per_molecule, &first.potential_per_molecule),
+            ),
+            (
+                "T kinetic".to_string(),
+                sigmas(&r.kinetic_temperature, &first.kinetic_temperature),
+            ),
+        ];
+        if let (Some(a), Some(b)) = (&r.configurational, &first.configurational) {
+            items.push((
+                "T configurational".into(),
+                sigmas(&a.temperature, &b.temperature),
+            ));
+        }
+        for (rdf, rdf0) in r.rdf.iter().zip(&first.rdf) {
+            if let (Some(h), Some(h0), Some(p), Some(p0)) = (
+                &rdf.peak_height,
+                &rdf0.peak_height,
+                &rdf.peak_position,
+                &rdf0.peak_position,
+            ) {
+                items.push((format!("g {} peak height", rdf.name), sigmas(h, h0)));
+                items.push((format!("g {} peak position", rdf.name), sigmas(p, p0)));
+            }
+        }
+        println!("  {label}");
+        for (name, (difference, sigma)) in items {
+            println!("    {name:<24} {difference:+.5} ({sigma:+.2} σ)");
+        }
+    }
+}
+
+/// The file of one pair's chart: `FILE` for a single pair, `FILE-<pair>.ext` for several.
+fn chart_path(png: &Path, pair: &str, pairs: usize) -> PathBuf {
+    if pairs == 1 {
+        return png.to_path_buf();
+    }
+    let stem = png
+        .file_stem()
+        .map_or("gr".into(), |s| s.to_string_lossy().into_owned());
+    let extension = png
+        .extension()
+        .map_or("png".into(), |e| e.to_string_lossy().into_owned());
+    png.with_file_name(format!("{stem}-{pair}.{extension}"))
+}
+
+fn draw_rdf(png: &Path, scene: &Scene, labels: &[String], results: &[RunAnalysis]) -> Result<()> {
+    let pairs = results.first().map_or(0, |r| r.rdf.len());
+    if pairs == 0 {
+        return Err(Error::input("--png draws g(r): give --pairs"));
+    }
+    let (length, ..) = units(scene);
+    let length = if length == "angstrom" { "Å" } else { length };
+    for k in 0..pairs {
+        let name = &results[0].rdf[k].name;
+        let mut chart = LineChart::new(
+            &format!("g(r) {name}"),
+            AxisSpec::linear(&format!("r ({length})")),
+            AxisSpec::linear("g(r)"),
+        );
+        chart.legend = Corner::UpperRight;
+        for (label, r) in labels.iter().zip(results) {
+            let rdf = &r.rdf[k];
+            let points = rdf.r.iter().copied().zip(rdf.g.iter().copied()).collect();
+            chart.series.push(Series::line(label, points));
+        }
+        let path = chart_path(png, name, pairs);
+        chart.save(&path)?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
