@@ -145,6 +145,10 @@ pub struct RunSpec {
     /// Thermostat time scale τ (SIN(R): thermostat masses Q = k_B T τ²).
     #[arg(long, allow_negative_numbers = true)]
     pub tau: Option<Value>,
+    /// Mollified slow force of the thermostatted r-RESPA methods (langevin-respa, sinr):
+    /// short-average, long-average or linear-average (GSS98).
+    #[arg(long)]
+    pub mollifier: Option<String>,
     /// What the equilibrium mollifier holds at rest: bonds, or bonds-angles.
     #[arg(long)]
     pub molly_constraints: Option<String>,
@@ -169,7 +173,7 @@ impl RunSpec {
         let mut merged = override_fields!(base, over;
             method, h, inner_steps, dt, t_end, blowup, level_steps, jacobian, quadrature, h_slow, h_fast,
             ratio, adaptive, control, h_min, h_max, block, tol, max_iter, temperature, seed,
-            friction, thermostats, tau, molly_constraints, molly_jacobian);
+            friction, thermostats, tau, mollifier, molly_constraints, molly_jacobian);
         if other.inner_steps.is_some() || other.dt.is_some() {
             merged.inner_steps = other.inner_steps;
             merged.dt = other.dt.clone();
@@ -306,6 +310,7 @@ impl RunSpec {
             friction,
             thermostats: self.thermostats,
             tau: positive_time(&self.tau, "thermostat time scale tau")?,
+            mollifier: self.mollifier.clone(),
             molly_constraints: self.molly_constraints.clone(),
             molly_jacobian: self.molly_jacobian.clone(),
             units,
@@ -356,6 +361,8 @@ pub struct MethodSettings {
     pub friction: Option<f64>,
     pub thermostats: Option<usize>,
     pub tau: Option<f64>,
+    /// Mollified slow force of a thermostatted r-RESPA method (an average's name).
+    pub mollifier: Option<String>,
     pub molly_constraints: Option<String>,
     pub molly_jacobian: Option<String>,
     /// The scene's units, for `k_B` and for reports.
@@ -388,7 +395,7 @@ impl MethodSettings {
         let mut given = Vec::new();
         // temperature and seed are the run's (start velocities) as well as a method's, so
         // they are never "ignored" by a method.
-        let flags: [(&'static str, bool); 19] = [
+        let flags: [(&'static str, bool); 20] = [
             ("inner_steps", self.inner_steps.is_some()),
             ("level_steps", self.level_steps.is_some()),
             ("jacobian", self.jacobian.is_some()),
@@ -406,6 +413,7 @@ impl MethodSettings {
             ("friction", self.friction.is_some()),
             ("thermostats", self.thermostats.is_some()),
             ("tau", self.tau.is_some()),
+            ("mollifier", self.mollifier.is_some()),
             ("molly_constraints", self.molly_constraints.is_some()),
             ("molly_jacobian", self.molly_jacobian.is_some()),
         ];

@@ -71,3 +71,32 @@ fn steps_allocate_nothing() {
         );
     }
 }
+
+#[test]
+fn thermostatted_steps_allocate_nothing() {
+    // The O step, SIN(R)'s operators and watches, with a mollified slow force too.
+    let chain = "systems/chain/scene.toml";
+    for name in ["langevin-respa", "sinr"] {
+        for mollifier in [None, Some("long-average")] {
+            let mut scene = common::scene_file(chain, &[]);
+            let mut settings = longstep::settings::MethodSettings::new(name, 0.02);
+            settings.inner_steps = Some(4);
+            settings.temperature = Some(0.5);
+            settings.friction = Some(1.0);
+            settings.tau = Some(0.2);
+            settings.mollifier = mollifier.map(str::to_string);
+            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+            integrator.setup(&mut scene.system).unwrap();
+            integrator.step(&mut scene.system).unwrap();
+            let before = allocations();
+            for _ in 0..5 {
+                integrator.step(&mut scene.system).unwrap();
+            }
+            let during = allocations() - before;
+            assert_eq!(
+                during, 0,
+                "{name} ({mollifier:?}): {during} allocations in 5 steps"
+            );
+        }
+    }
+}

@@ -20,8 +20,18 @@
 //!
 //! Averaging and mollification are a hook around the slow-force call; the rest of the
 //! integrator does not know about them.
+//!
+//! **Thermostatted r-RESPA** ([`Thermostat`]): the same recursion with another innermost
+//! step and, for SIN(R), another kick. `langevin-respa` (BAOAB-RESPA, OpenMM's
+//! `MTSLangevinIntegrator`): the innermost step is BAOAB (LM13), kick `dt/2`, drift `dt/2`,
+//! O step ([`super::langevin`]), drift `dt/2`, kick `dt/2`; the outer levels kick as impulse
+//! does. With one force level it is plain BAOAB. `sinr`: every kick goes through the
+//! isokinetic operator and the innermost step carries the thermostat ([`super::sinr`]).
+//! Same cost in force evaluations as impulse.
 
+use super::langevin::Langevin;
 use super::mollified::{Average, JacobianChoice, Mollifier};
+use super::sinr::Sinr;
 use super::{Integrator, StepFailure, drift, kick};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
@@ -31,6 +41,14 @@ use crate::system::System;
 pub enum Variant {
     Endpoint,
     Midpoint,
+}
+
+/// What a thermostatted r-RESPA method changes in the impulse recursion.
+pub enum Thermostat {
+    /// BAOAB innermost step (`langevin-respa`).
+    Langevin(Langevin),
+    /// SIN(R): isokinetic kicks, thermostat and OU steps in the innermost step (`sinr`).
+    Sinr(Box<Sinr>),
 }
 
 pub struct Impulse {
@@ -46,6 +64,7 @@ pub struct Impulse {
     gradients: Vec<Vec<f64>>,
     empty: Vec<bool>,
     mollifier: Option<Mollifier>,
+    thermostat: Option<Thermostat>,
 }
 
 impl Impulse {
@@ -90,7 +109,28 @@ impl Impulse {
             gradients: Vec::new(),
             empty: Vec::new(),
             mollifier,
+            thermostat: None,
         })
+    }
+
+    /// A thermostatted r-RESPA method (endpoint form), optionally with a mollified slow force.
+    pub fn thermostatted(
+        settings: &MethodSettings,
+        mollify: Option<(Average, JacobianChoice)>,
+        thermostat: Thermostat,
+    ) -> Result<Self> {
+        let mut method = Impulse::new(settings, Variant::Endpoint, mollify)?;
+        method.name = match &thermostat {
+            Thermostat::Langevin(_) => "langevin-respa",
+            Thermostat::Sinr(_) => "sinr",
+        };
+        method.thermostat = Some(thermostat);
+        Ok(method)
+    }
+
+    /// The thermostat of a thermostatted method (for tests and studies).
+    pub fn thermostat(&self) -> Option<&Thermostat> {
+        self.thermostat.as_ref()
     }
 
     /// The mollifier of a mollified method (for tests and studies).
@@ -124,24 +164,21 @@ impl Impulse {
     }
 
     fn kick(&mut self, level: usize, system: &mut System, scale: f64) {
-        if !self.empty[level] {
-            kick(&mut system.state.p, &self.gradients[level], scale);
+        if self.empty[level] {
+            return;
+        }
+        match &mut self.thermostat {
+            Some(Thermostat::Sinr(sinr)) => {
+                sinr.isokinetic_kick(&mut system.state.p, &self.gradients[level], scale)
+            }
+            _ => kick(&mut system.state.p, &self.gradients[level], scale),
         }
     }
 
     /// One step of length `h_level` of `level` (endpoint form).
     fn advance(&mut self, level: usize, h_level: f64, system: &mut System) {
         if level == 0 {
-            let half = 0.5 * h_level;
-            self.kick(0, system, half);
-            drift(
-                &mut system.state.q,
-                &system.state.p,
-                &system.inverse_mass,
-                h_level,
-            );
-            self.refresh(0, system);
-            self.kick(0, system, half);
+            self.innermost(h_level, system);
             return;
         }
         let n = self.substeps[level];
@@ -165,6 +202,46 @@ impl Impulse {
                     self.advance(level - 1, h_sub, system);
                 }
             }
+        }
+    }
+
+    /// Size the thermostat for the innermost step `dt = h / Π level_steps` (SIN(R) also
+    /// starts its thermostat variables and puts the momenta on its constraint).
+    fn setup_thermostat(&mut self, system: &mut System) -> Result<()> {
+        let dt = self.h / self.substeps[1..].iter().product::<usize>() as f64;
+        match &mut self.thermostat {
+            Some(Thermostat::Langevin(langevin)) => langevin.setup(dt, &system.inverse_mass),
+            Some(Thermostat::Sinr(sinr)) => sinr.setup(dt, system)?,
+            None => {}
+        }
+        Ok(())
+    }
+
+    /// The innermost step: velocity Verlet, BAOAB, or SIN(R)'s
+    /// `N(dt/2) V(dt/2) X(dt) OU(dt) V(dt/2) N(dt/2)`.
+    fn innermost(&mut self, dt: f64, system: &mut System) {
+        let half = 0.5 * dt;
+        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
+            sinr.thermostat_flow(&mut system.state.p, half);
+        }
+        self.kick(0, system, half);
+        let (state, w) = (&mut system.state, &system.inverse_mass);
+        match &mut self.thermostat {
+            None => drift(&mut state.q, &state.p, w, dt),
+            Some(Thermostat::Langevin(langevin)) => {
+                drift(&mut state.q, &state.p, w, half);
+                langevin.apply(&mut state.p);
+                drift(&mut state.q, &state.p, w, half);
+            }
+            Some(Thermostat::Sinr(sinr)) => {
+                drift(&mut state.q, &state.p, w, dt);
+                sinr.ornstein_uhlenbeck();
+            }
+        }
+        self.refresh(0, system);
+        self.kick(0, system, half);
+        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
+            sinr.thermostat_flow(&mut system.state.p, half);
         }
     }
 }
@@ -193,6 +270,11 @@ impl Integrator for Impulse {
                 mollifier.mode().name(),
                 mollifier.auxiliary_steps()
             );
+        }
+        match &self.thermostat {
+            Some(Thermostat::Langevin(langevin)) => text += &langevin.describe(),
+            Some(Thermostat::Sinr(sinr)) => text += &sinr.describe(),
+            None => {}
         }
         text
     }
@@ -243,6 +325,9 @@ impl Integrator for Impulse {
             let components = system.forces.fast_components(system.n_particles());
             mollifier.setup(system.dim, &components);
         }
+        if self.thermostat.is_some() {
+            self.setup_thermostat(system)?;
+        }
         let n = system.n_dofs();
         self.gradients = vec![vec![0.0; n]; levels];
         self.empty = (0..levels)
@@ -263,7 +348,18 @@ impl Integrator for Impulse {
     fn step(&mut self, system: &mut System) -> Result<(), StepFailure> {
         self.advance(self.top(), self.h, system);
         system.state.t += self.h;
+        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
+            sinr.check(&system.state.p, system.state.t)?;
+        }
         Ok(())
+    }
+
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        match &self.thermostat {
+            Some(Thermostat::Langevin(langevin)) => Some(("langevin", langevin.report())),
+            Some(Thermostat::Sinr(sinr)) => Some(("sinr", sinr.report())),
+            None => None,
+        }
     }
 
     /// A mollified method is the impulse method for the mollified potential

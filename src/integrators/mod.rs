@@ -10,9 +10,11 @@
 pub mod adaptive_verlet;
 pub mod async_pseudo_energy;
 pub mod impulse;
+pub mod langevin;
 pub mod mollified;
 pub mod pseudo_energy;
 pub mod quadrature;
+pub mod sinr;
 pub mod structural;
 pub mod verlet;
 
@@ -115,6 +117,26 @@ pub struct MethodInfo {
 
 const MTS: &[&str] = &["inner_steps", "level_steps"];
 const MOLLIFIED: &[&str] = &["inner_steps", "jacobian"];
+const LANGEVIN: &[&str] = &[
+    "inner_steps",
+    "level_steps",
+    "temperature",
+    "seed",
+    "friction",
+    "mollifier",
+    "jacobian",
+];
+const SINR: &[&str] = &[
+    "inner_steps",
+    "level_steps",
+    "temperature",
+    "seed",
+    "friction",
+    "thermostats",
+    "tau",
+    "mollifier",
+    "jacobian",
+];
 
 pub const METHODS: &[MethodInfo] = &[
     MethodInfo {
@@ -146,6 +168,18 @@ pub const METHODS: &[MethodInfo] = &[
         name: "linear-average",
         help: "mollified impulse, LinearAverage: triangle over [-h, h] (GSS98)",
         uses: MOLLIFIED,
+    },
+    MethodInfo {
+        name: "langevin-respa",
+        help: "BAOAB r-RESPA (OpenMM MTSLangevinIntegrator): impulse kicks, BAOAB innermost step; \
+               --temperature, --friction (default 1/ps), --seed; one level = BAOAB",
+        uses: LANGEVIN,
+    },
+    MethodInfo {
+        name: "sinr",
+        help: "SIN(R) stochastic isokinetic r-RESPA (LMT13): --temperature, --thermostats L, \
+               --tau, --friction (on the thermostats), --seed; kinetic T is L/(L+1) T",
+        uses: SINR,
     },
     MethodInfo {
         name: "adaptive-verlet",
@@ -213,6 +247,23 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
         "short-average" => mollified(Average::Short),
         "long-average" => mollified(Average::Long),
         "linear-average" => mollified(Average::Linear),
+        "langevin-respa" | "sinr" => {
+            let mollify = match settings.mollifier.as_deref() {
+                Some(name) => Some((
+                    Average::parse(name)?,
+                    JacobianChoice::parse(settings.jacobian.as_deref())?,
+                )),
+                None => None,
+            };
+            let thermostat = if info.name == "sinr" {
+                impulse::Thermostat::Sinr(Box::new(sinr::Sinr::from_settings(settings)?))
+            } else {
+                impulse::Thermostat::Langevin(langevin::Langevin::from_settings(settings)?)
+            };
+            Ok(Box::new(Impulse::thermostatted(
+                settings, mollify, thermostat,
+            )?))
+        }
         "adaptive-verlet" => {
             let control = match &settings.control {
                 Some(text) => adaptive_verlet::Control::parse(text)?,

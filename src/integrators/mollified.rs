@@ -47,6 +47,19 @@ impl Average {
         }
     }
 
+    /// The average named as on the command line (`long-average`).
+    pub fn parse(name: &str) -> Result<Self> {
+        [Average::Short, Average::Long, Average::Linear]
+            .into_iter()
+            .find(|a| a.name() == name)
+            .ok_or_else(|| {
+                Error::input(format!(
+                    "unknown mollifier \"{name}\"; use short-average, long-average or \
+                     linear-average"
+                ))
+            })
+    }
+
     /// μ: φ(s) = 0 for |s| > μ.
     pub fn support(self) -> f64 {
         match self {
