@@ -64,6 +64,20 @@ fn sample(
     burn: usize,
     steps: usize,
 ) -> (Vec<f64>, Vec<f64>) {
+    let (x2, kinetic, _) = sample_with_extra(scene, integrator, burn, steps);
+    (x2, kinetic)
+}
+
+/// [`sample`], with the method's first extra column over the coordinates (langevin-respa:
+/// `2 kinetic_middle / n`, the mean of p²/m in the middle of the BAOAB step).
+fn sample_with_extra(
+    scene: &mut Scene,
+    integrator: &mut dyn Integrator,
+    burn: usize,
+    steps: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut extra = Vec::with_capacity(steps);
+    let mut values = Vec::new();
     integrator.setup(&mut scene.system).unwrap();
     for _ in 0..burn {
         integrator.step(&mut scene.system).unwrap();
@@ -82,8 +96,13 @@ fn sample(
             .map(|(p, w)| p * p * w)
             .sum();
         kinetic.push(twice_kinetic / n);
+        values.clear();
+        integrator.extra_values(s, &mut values);
+        if let Some(v) = values.first() {
+            extra.push(2.0 * v / n);
+        }
     }
-    (x2, kinetic)
+    (x2, kinetic, extra)
 }
 
 /// Mean of `series` and its standard error from [`BLOCKS`] block means.
@@ -111,8 +130,8 @@ fn assert_within(what: &str, mean: f64, error: f64, exact: f64) {
     );
 }
 
-/// The stationary ⟨x²⟩ of BAOAB r-RESPA on one unit-mass oscillator `k_fast + k_slow`,
-/// exactly: the scheme is linear in (x, p) plus Gaussian noise, so its stationary
+/// The stationary `(⟨x²⟩, ⟨p²⟩)` at step ends of BAOAB r-RESPA on one unit-mass oscillator
+/// `k_fast + k_slow`, exactly: the scheme is linear in (x, p) plus Gaussian noise, so its stationary
 /// covariance Σ is the fixed point of `Σ ← T Σ Tᵀ` through the kicks and drifts and
 /// `Σ ← D Σ D + diag(0, (1 − a²) kT)` through the O step. Iterated to convergence.
 fn baoab_respa_variance(
@@ -122,7 +141,7 @@ fn baoab_respa_variance(
     inner: usize,
     gamma: f64,
     kt: f64,
-) -> f64 {
+) -> (f64, f64) {
     type M = [[f64; 2]; 2];
     let apply = |s: &M, t: &M| -> M {
         let mut ts = [[0.0; 2]; 2];
@@ -162,7 +181,7 @@ fn baoab_respa_variance(
             break;
         }
     }
-    s[0][0]
+    (s[0][0], s[1][1])
 }
 
 #[test]
@@ -176,12 +195,21 @@ fn baoab_samples_the_harmonic_configuration_exactly() {
     let mut settings = settings("langevin-respa", 0.5, 1, kt);
     settings.friction = Some(1.0);
     let mut method = build(&settings);
-    let (x2, _) = sample(&mut s, method.as_mut(), 200, 250 * BLOCKS);
+    let (x2, kinetic, middle) = sample_with_extra(&mut s, method.as_mut(), 200, 250 * BLOCKS);
     let (mean, error) = block_mean(&x2);
     assert_within("BAOAB <x²>", mean, error, kt / k);
-    // The exact stationary variance of the discrete scheme is kT/k too (LM13).
-    let exact = baoab_respa_variance(k, 0.0, 0.5, 1, 1.0, kt);
+    // The exact stationary law of the discrete scheme: ⟨x²⟩ = kT/k (LM13), and at step ends
+    // ⟨p²⟩ = m kT (1 − (ω dt)²/4), low by 1/16 here; in the middle (after O) it is m kT.
+    let (exact, momentum) = baoab_respa_variance(k, 0.0, 0.5, 1, 1.0, kt);
     assert!((exact - kt / k).abs() < 1e-12, "{exact}");
+    assert!(
+        (momentum - kt * (1.0 - 0.25 * 0.25)).abs() < 1e-12,
+        "{momentum}"
+    );
+    let (mean, error) = block_mean(&kinetic);
+    assert_within("BAOAB <p²> at step ends", mean, error, momentum);
+    let (mean, error) = block_mean(&middle);
+    assert_within("BAOAB <p²> after O (kinetic_middle)", mean, error, kt);
 }
 
 #[test]
@@ -198,7 +226,7 @@ fn langevin_respa_samples_its_stationary_law() {
     let mut method = build(&settings);
     let (x2, _) = sample(&mut s, method.as_mut(), 100, 500 * BLOCKS);
     let (mean, error) = block_mean(&x2);
-    let exact = baoab_respa_variance(kf, ks, 1.0, 4, 1.0, kt);
+    let (exact, _) = baoab_respa_variance(kf, ks, 1.0, 4, 1.0, kt);
     assert_within("BAOAB-RESPA <x²>", mean, error, exact);
     let canonical = kt / (kf + ks);
     assert!(
@@ -310,7 +338,7 @@ fn one_level_langevin_respa_is_baoab_bit_for_bit() {
     let mut reference = scene(TRIANGLE);
     let system = &mut reference.system;
     let mut langevin = Langevin::new(kt, gamma, seed);
-    langevin.setup(h, &system.inverse_mass);
+    langevin.setup(h, &system.inverse_mass, &system.state.p);
     let mut gradient = vec![0.0; system.n_dofs()];
     system.forces.gradient(0, &system.state.q, &mut gradient);
     for _ in 0..steps {

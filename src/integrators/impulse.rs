@@ -210,7 +210,9 @@ impl Impulse {
     fn setup_thermostat(&mut self, system: &mut System) -> Result<()> {
         let dt = self.h / self.substeps[1..].iter().product::<usize>() as f64;
         match &mut self.thermostat {
-            Some(Thermostat::Langevin(langevin)) => langevin.setup(dt, &system.inverse_mass),
+            Some(Thermostat::Langevin(langevin)) => {
+                langevin.setup(dt, &system.inverse_mass, &system.state.p)
+            }
             Some(Thermostat::Sinr(sinr)) => sinr.setup(dt, system)?,
             None => {}
         }
@@ -365,11 +367,17 @@ impl Integrator for Impulse {
     /// A mollified method is the impulse method for the mollified potential
     /// `W(q) + U(A(h; q))` (GSS98 section 2): `mollified_total = K + W(q) + U(A(h; q))` is
     /// the energy it conserves (up to O(h²) oscillation, with no drift while stable).
+    /// langevin-respa adds `kinetic_middle`, the kinetic energy right after the last O step
+    /// (at the start, the start's): its momenta are the canonical ones (LM13).
     fn extra_columns(&self) -> Vec<&'static str> {
-        match self.mollifier {
-            Some(_) => vec!["mollified_total"],
-            None => Vec::new(),
+        let mut columns = Vec::new();
+        if self.mollifier.is_some() {
+            columns.push("mollified_total");
         }
+        if let Some(Thermostat::Langevin(_)) = self.thermostat {
+            columns.push("kinetic_middle");
+        }
+        columns
     }
 
     fn extra_values(&self, system: &System, out: &mut Vec<f64>) {
@@ -381,6 +389,9 @@ impl Integrator for Impulse {
             }
             energy += system.forces.energy(top, mollifier.averaged_positions());
             out.push(energy);
+        }
+        if let Some(Thermostat::Langevin(langevin)) = &self.thermostat {
+            out.push(langevin.kinetic_middle());
         }
     }
 }
