@@ -14,6 +14,7 @@
 
 pub mod angle;
 pub mod coulomb;
+pub mod distance_split;
 pub mod dual;
 pub mod external_field;
 pub mod field;

@@ -222,6 +222,71 @@ enum Kernel {
     ReactionField(ReactionField),
 }
 
+/// The Coulomb form of a term, pair by pair: `V`, `V′`, `V″` of one pair with its cutoff
+/// constants, the same formulas as the pair loop's.
+///
+/// Pub for `forces::distance_split`, which multiplies these pair energies by a switch and
+/// must use exactly the model of this term (its parts add up to it). Whoever rewrites the
+/// pair engine: keep this (and its formulas equal to the engine's) or tell that file.
+#[derive(Clone, Copy)]
+pub struct CoulombPair(Kernel);
+
+impl CoulombPair {
+    /// The form for `electrostatics` with `cutoff` (`f64::INFINITY` for none).
+    pub fn new(electrostatics: Electrostatics, cutoff: f64) -> Result<Self, String> {
+        let needs_cutoff = |name: &str| {
+            if cutoff.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{name} Coulomb needs a cutoff"))
+            }
+        };
+        Ok(CoulombPair(match electrostatics {
+            Electrostatics::None | Electrostatics::Plain => Kernel::Plain(Plain),
+            Electrostatics::DampedShiftedForce { alpha } => {
+                needs_cutoff("damped shifted force")?;
+                if alpha == 0.0 {
+                    Kernel::ShiftedForce(ShiftedForce {
+                        two_over_rc: 2.0 / cutoff,
+                        inv_rc2: 1.0 / (cutoff * cutoff),
+                    })
+                } else {
+                    Kernel::Damped(DampedShiftedForce::new(alpha, cutoff))
+                }
+            }
+            Electrostatics::ReactionField { dielectric } => {
+                needs_cutoff("reaction-field")?;
+                let k = (dielectric - 1.0) / ((2.0 * dielectric + 1.0) * cutoff.powi(3));
+                Kernel::ReactionField(ReactionField {
+                    k,
+                    c: 1.0 / cutoff + k * cutoff * cutoff,
+                })
+            }
+        }))
+    }
+
+    /// `(V, −V′/r)` of a pair with `k_e q_i q_j = charge_product` at `r² = s`, `1/r = inv_r`.
+    #[inline(always)]
+    pub fn energy_force(&self, charge_product: f64, s: f64, inv_r: f64) -> (f64, f64) {
+        match self.0 {
+            Kernel::Plain(c) => c.energy_force(charge_product, s, inv_r),
+            Kernel::ShiftedForce(c) => c.energy_force(charge_product, s, inv_r),
+            Kernel::Damped(c) => c.energy_force(charge_product, s, inv_r),
+            Kernel::ReactionField(c) => c.energy_force(charge_product, s, inv_r),
+        }
+    }
+
+    /// `(V, V′, V″)` of a pair at distance `r`.
+    pub fn derivatives(&self, charge_product: f64, r: f64) -> (f64, f64, f64) {
+        match self.0 {
+            Kernel::Plain(c) => c.derivatives(charge_product, r),
+            Kernel::ShiftedForce(c) => c.derivatives(charge_product, r),
+            Kernel::Damped(c) => c.derivatives(charge_product, r),
+            Kernel::ReactionField(c) => c.derivatives(charge_product, r),
+        }
+    }
+}
+
 /// Partners per block of the pair loop (see [`Nonbonded::block`]).
 const BLOCK: usize = 64;
 

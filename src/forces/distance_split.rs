@@ -1,0 +1,882 @@
+//! The non-bonded term split by distance into a short-range part and a remainder, for
+//! three or more r-RESPA levels (bonded innermost, short-range non-bonded in the middle, the
+//! remainder outermost), as LAMMPS `run_style respa … inner/middle/outer` splits pair
+//! forces. Non-bonded: both parts are placed by the scene.
+//!
+//! **The parts.** With `V_ij(r)` the pair energy of the non-bonded model
+//! ([`super::nonbonded`]: Lennard-Jones and the Coulomb form, with its cutoff `r_c`, zero
+//! beyond it) and a switch `S` that is 1 below `r_in` and 0 above `r_out`:
+//!
+//! * **by molecule**: `V_short = Σ_{I<J} S(R_IJ) Σ_{i∈I, j∈J} V_ij(r_ij) +
+//!   Σ_I Σ_{i<j ∈ I, not excluded} S(r_ij) V_ij(r_ij)`, where `R_IJ` is the
+//!   (minimum-image) distance between the reference atoms of molecules `I` and `J` (O–O for
+//!   water) and molecules are the connected components of the bond graph. Every atom pair of
+//!   two molecules gets the same weight, so a neutral molecule's short-range part is a whole
+//!   dipole–dipole interaction, switched off together: the remainder is a small, smooth
+//!   force. A pair inside one molecule has no second molecule: it is switched on its own
+//!   distance, as by atom pair.
+//! * **by atom pair**: `V_short = Σ_{i<j, not excluded} S(r_ij) V_ij(r_ij)`, LAMMPS's
+//!   choice. Cheaper bookkeeping, but the O–H and H–H pairs of two waters at the same O–O
+//!   distance are switched at different distances, so the remainder keeps large
+//!   charge–charge pieces that cancel only when summed over the molecule.
+//! * **the remainder**: `V_rest = V − V_short`, computed as the full term minus the short
+//!   part: the two add up to the model to round-off, whatever `r_in`, `r_out`.
+//!
+//! **The switch** is the quintic smoothstep `S(R) = 1 − 10t³ + 15t⁴ − 6t⁵ = u³(10 − 15u + 6u²)`
+//! (`u = 1 − t`, the form evaluated),
+//! `t = (R − r_in)/(r_out − r_in)` on `[r_in, r_out]`: `S′ = −30t²(1 − t)²/w` and
+//! `S″ = −60t(1 − t)(1 − 2t)/w²` (`w = r_out − r_in`) vanish at both ends, so both parts
+//! have continuous forces and Hessians. (LAMMPS multiplies each pair's *force* by the cubic
+//! `1 − t²(3 − 2t)`, which is C¹; switching the energy here keeps each part a potential
+//! with an energy, for the level energies and the conserved-energy monitors.)
+//!
+//! **Conditions.** `0 < r_in < r_out ≤ r_c`: the short part must lie inside the cutoff
+//! (beyond it there is nothing to switch), and `r_out < r_c < L/2` keeps `S(R_IJ)` smooth
+//! where the minimum image of the reference atoms jumps (at `R = L/2`, where `S = 0`).
+//!
+//! **Chain rule.** By molecule, with `E_IJ = Σ V_ij` and `n̂ = (x_J − x_I)/R` between the
+//! reference atoms: `∇(S E) = S ∇E + S′ E ∇R` (`∇R = ±n̂` on the reference atoms), and
+//! `∇²(S E)·v = S ∇²E v + S′[(∇R·v)∇E + (∇E·v)∇R] + E S″ (∇R·v)∇R + E S′ ∇²R v`, with
+//! `∇²R v = ±(I − n̂n̂ᵀ)(v_J − v_I)/R` on the reference atoms. By atom pair `W = S V` is
+//! radial: `W′ = S′V + SV′`, `W″ = S″V + 2S′V′ + SV″`, and the radial Hessian of
+//! [`super::nonbonded`] applies.
+//!
+//! **Cost.** The short part has its own pair search ([`search`]): molecule pairs whose
+//! reference atoms are closer than `r_out + skin` (or atom pairs, by atom pair), rebuilt
+//! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
+//! (a number that depends only on the atom count), in parallel for large systems, each into
+//! its own buffer, summed in chunk order: the same bits at any thread count. Nothing is
+//! allocated once the list has reached its size. The short part keeps its last gradient with
+//! a copy of the positions: r-RESPA evaluates the middle level and then the outer one at the
+//! same positions, so the remainder `∇V − ∇V_short` costs one full non-bonded evaluation,
+//! not two.
+
+mod kernels;
+mod search;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use rayon::prelude::*;
+
+use super::nonbonded::{CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use super::{ForceTerm, TermClass};
+use search::PairSearch;
+
+/// Intramolecular non-excluded pairs held for the molecule switch, at most (a bound on
+/// memory for scenes with very large molecules, which should switch by atom pair).
+const MAX_INTRAMOLECULAR_PAIRS: usize = 20_000_000;
+
+/// The C² quintic switch from 1 at `r_in` to 0 at `r_out` (module doc).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Switch {
+    r_in: f64,
+    r_out: f64,
+    inverse_width: f64,
+}
+
+impl Switch {
+    /// `0 < r_in < r_out`, both finite.
+    pub fn new(r_in: f64, r_out: f64) -> Result<Self, String> {
+        if !(r_in.is_finite() && r_out.is_finite()) {
+            return Err(format!("r_in = {r_in} and r_out = {r_out} must be finite"));
+        }
+        if r_in <= 0.0 {
+            return Err(format!("r_in = {r_in} must be positive"));
+        }
+        if r_in >= r_out {
+            return Err(format!(
+                "r_in = {r_in} must be smaller than r_out = {r_out} (the switch runs from 1 at \
+                 r_in to 0 at r_out)"
+            ));
+        }
+        Ok(Switch {
+            r_in,
+            r_out,
+            inverse_width: 1.0 / (r_out - r_in),
+        })
+    }
+
+    pub fn r_in(&self) -> f64 {
+        self.r_in
+    }
+
+    pub fn r_out(&self) -> f64 {
+        self.r_out
+    }
+
+    /// `(S, S′)` at `r`.
+    #[inline(always)]
+    pub fn value_slope(&self, r: f64) -> (f64, f64) {
+        if r <= self.r_in {
+            return (1.0, 0.0);
+        }
+        if r >= self.r_out {
+            return (0.0, 0.0);
+        }
+        let t = (r - self.r_in) * self.inverse_width;
+        let u = 1.0 - t;
+        // 1 − P(t) = P(1 − t) for the smoothstep P(t) = t³(10 − 15t + 6t²): each half
+        // uses the form without cancellation at its end.
+        let s = if t < 0.5 {
+            1.0 - t * t * t * (10.0 - 15.0 * t + 6.0 * t * t)
+        } else {
+            u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
+        };
+        (s, -30.0 * t * t * u * u * self.inverse_width)
+    }
+
+    /// `(S, S′, S″)` at `r`.
+    #[inline(always)]
+    pub fn derivatives(&self, r: f64) -> (f64, f64, f64) {
+        let (s, s1) = self.value_slope(r);
+        if r <= self.r_in || r >= self.r_out {
+            return (s, s1, 0.0);
+        }
+        let t = (r - self.r_in) * self.inverse_width;
+        let w2 = self.inverse_width * self.inverse_width;
+        (s, s1, -60.0 * t * (1.0 - t) * (1.0 - 2.0 * t) * w2)
+    }
+}
+
+/// What the switch variable is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SwitchBy {
+    /// The distance between the reference atoms of the two molecules.
+    Molecule,
+    /// The distance of the atom pair itself.
+    AtomPair,
+}
+
+impl SwitchBy {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SwitchBy::Molecule => "molecule",
+            SwitchBy::AtomPair => "atom",
+        }
+    }
+}
+
+/// How to split a non-bonded term.
+#[derive(Clone, Debug)]
+pub struct SplitSpec {
+    pub r_in: f64,
+    pub r_out: f64,
+    pub by: SwitchBy,
+    /// Molecule index per atom (by molecule; see [`molecules_from_bonds`]).
+    pub molecule_of: Vec<u32>,
+    /// The reference atom of each molecule (by molecule; see [`reference_atoms`]).
+    pub reference_atoms: Vec<usize>,
+}
+
+/// Molecules as the connected components of the bond graph: an index per atom, numbered
+/// in order of each molecule's first atom.
+pub fn molecules_from_bonds(n: usize, bonds: &[[usize; 2]]) -> Vec<u32> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for &[a, b] in bonds {
+        if a < n && b < n {
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            if ra != rb {
+                parent[ra.max(rb)] = ra.min(rb);
+            }
+        }
+    }
+    let mut index = vec![u32::MAX; n];
+    let mut molecule_of = vec![0u32; n];
+    let mut next = 0;
+    for (i, molecule) in molecule_of.iter_mut().enumerate() {
+        let r = root(&mut parent, i);
+        if index[r] == u32::MAX {
+            index[r] = next;
+            next += 1;
+        }
+        *molecule = index[r];
+    }
+    molecule_of
+}
+
+/// The reference atom of each molecule: the first atom (in file order) for which
+/// `eligible` holds, or with `eligible = None` the first of the heaviest atoms. Errors name
+/// a molecule with no eligible atom.
+pub fn reference_atoms(
+    molecule_of: &[u32],
+    masses: &[f64],
+    eligible: Option<&dyn Fn(usize) -> bool>,
+) -> Result<Vec<usize>, String> {
+    let n_molecules = molecule_of
+        .iter()
+        .map(|&m| m as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut chosen: Vec<Option<usize>> = vec![None; n_molecules];
+    for (i, &m) in molecule_of.iter().enumerate() {
+        let slot = &mut chosen[m as usize];
+        match eligible {
+            Some(eligible) => {
+                if slot.is_none() && eligible(i) {
+                    *slot = Some(i);
+                }
+            }
+            None => {
+                if slot.is_none_or(|k| masses[i] > masses[k]) {
+                    *slot = Some(i);
+                }
+            }
+        }
+    }
+    chosen
+        .into_iter()
+        .enumerate()
+        .map(|(m, atom)| {
+            atom.ok_or_else(|| {
+                let first = molecule_of
+                    .iter()
+                    .position(|&x| x as usize == m)
+                    .unwrap_or(0);
+                format!("molecule {m} (the one holding atom {first}) has no such atom")
+            })
+        })
+        .collect()
+}
+
+/// The non-bonded model pair by pair, and the minimum image.
+pub(crate) struct Model {
+    pub cutoff_squared: f64,
+    coulomb: CoulombPair,
+    n_types: usize,
+    types: Vec<u32>,
+    lj: Vec<LjPair>,
+    /// `q_i √k_e`.
+    scaled_charges: Vec<f64>,
+    period: [f64; 3],
+    inverse: [f64; 3],
+}
+
+impl Model {
+    /// Minimum-image `x_j − x_i`.
+    #[inline(always)]
+    pub fn displacement(&self, q: &[f64], i: usize, j: usize) -> [f64; 3] {
+        std::array::from_fn(|k| {
+            let d = q[3 * j + k] - q[3 * i + k];
+            d - self.period[k] * (d * self.inverse[k]).round()
+        })
+    }
+
+    #[inline(always)]
+    fn lj(&self, i: usize, j: usize) -> LjPair {
+        self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize]
+    }
+
+    /// `(V, −V′/r)` of pair `i, j` at `r² = s < r_c²`.
+    #[inline(always)]
+    pub fn energy_force(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
+        let p = self.lj(i, j);
+        let inv_r2 = 1.0 / s;
+        let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+        let mut energy = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+        let mut force = inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        if qq != 0.0 {
+            let (e, f) = self.coulomb.energy_force(qq, s, inv_r2.sqrt());
+            energy += e;
+            force += f;
+        }
+        (energy, force)
+    }
+
+    /// `(V, V′, V″)` of pair `i, j` at `r < r_c`.
+    pub fn derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
+        let p = self.lj(i, j);
+        let inv_r = 1.0 / r;
+        let inv6 = inv_r.powi(6);
+        let mut v = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
+        let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
+        let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        if qq != 0.0 {
+            let (e, a, b) = self.coulomb.derivatives(qq, r);
+            v += e;
+            d1 += a;
+            d2 += b;
+        }
+        (v, d1, d2)
+    }
+}
+
+/// Atoms of each molecule (CSR) and their reference atoms.
+pub(crate) struct Molecules {
+    pub start: Vec<u32>,
+    pub atoms: Vec<u32>,
+    pub reference: Vec<u32>,
+}
+
+impl Molecules {
+    #[inline(always)]
+    pub fn atoms(&self, m: usize) -> &[u32] {
+        &self.atoms[self.start[m] as usize..self.start[m + 1] as usize]
+    }
+}
+
+/// What one evaluation computes.
+#[derive(Clone, Copy)]
+enum Mode<'a> {
+    Energy,
+    Gradient,
+    HessianVector(&'a [f64]),
+}
+
+struct Workspace {
+    search: PairSearch,
+    /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
+    buffers: Vec<Vec<f64>>,
+    energies: Vec<f64>,
+    /// Positions of the last gradient evaluation, its gradient and energy.
+    cached_q: Vec<f64>,
+    cached_gradient: Vec<f64>,
+    cached_energy: Option<f64>,
+}
+
+/// The short-range part, shared by the two terms (the remainder subtracts it).
+pub struct ShortRange {
+    pub(crate) model: Model,
+    pub(crate) switch: Switch,
+    by: SwitchBy,
+    pub(crate) molecules: Molecules,
+    /// Non-excluded pairs inside one molecule (by molecule), switched on their distance.
+    intramolecular: Vec<[u32; 2]>,
+    excluded_start: Vec<u32>,
+    excluded_partners: Vec<u32>,
+    chunks: usize,
+    listed_atom_pairs: AtomicUsize,
+    workspace: Mutex<Workspace>,
+}
+
+/// Chunks of the short part's list: a function of the atom count only (determinism).
+fn chunk_count(n_atoms: usize) -> usize {
+    match n_atoms {
+        0..2048 => 1,
+        2048..8192 => 4,
+        _ => 8,
+    }
+}
+
+/// The short-range part on its level.
+pub struct NonbondedShort {
+    short: Arc<ShortRange>,
+}
+
+/// The full non-bonded term minus the short-range part, on a higher level.
+pub struct NonbondedRemainder {
+    full: Nonbonded,
+    short: Arc<ShortRange>,
+}
+
+/// Split the non-bonded term of `spec` by `split` at positions `q`: the short-range part
+/// and the remainder. Errors are messages for the scene to locate.
+pub fn split_nonbonded(
+    spec: NonbondedSpec,
+    split: &SplitSpec,
+    q: &[f64],
+) -> Result<(NonbondedShort, NonbondedRemainder), String> {
+    let switch = Switch::new(split.r_in, split.r_out)?;
+    if split.r_out > spec.cutoff {
+        return Err(format!(
+            "r_out = {} is beyond the non-bonded cutoff {}: the short-range part must lie \
+             inside the cutoff",
+            split.r_out, spec.cutoff
+        ));
+    }
+    let short = ShortRange::new(&spec, switch, split, q)?;
+    let full = Nonbonded::new(spec, q)?;
+    let short = Arc::new(short);
+    Ok((
+        NonbondedShort {
+            short: short.clone(),
+        },
+        NonbondedRemainder { full, short },
+    ))
+}
+
+impl ShortRange {
+    fn new(
+        spec: &NonbondedSpec,
+        switch: Switch,
+        split: &SplitSpec,
+        q: &[f64],
+    ) -> Result<Self, String> {
+        let n = spec.types.len();
+        if q.len() != 3 * n || spec.charges.len() != n {
+            return Err("non-bonded split: sizes of positions, types and charges differ".into());
+        }
+        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
+        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
+            return Err("non-bonded split: the Lennard-Jones table does not fit the types".into());
+        }
+        let root_ke = spec.coulomb_constant.sqrt();
+        let scaled_charges = if spec.electrostatics == Electrostatics::None {
+            vec![0.0; n]
+        } else {
+            spec.charges.iter().map(|c| c * root_ke).collect()
+        };
+        let period = spec.box_lengths.unwrap_or([0.0; 3]);
+        let model = Model {
+            cutoff_squared: spec.cutoff * spec.cutoff,
+            coulomb: CoulombPair::new(spec.electrostatics, spec.cutoff)?,
+            n_types,
+            types: spec.types.clone(),
+            lj: spec.lj.clone(),
+            scaled_charges,
+            period,
+            inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
+        };
+        let (excluded_start, excluded_partners) = exclusion_table(n, &spec.excluded)?;
+        let molecules = match split.by {
+            SwitchBy::Molecule => molecule_table(n, split)?,
+            SwitchBy::AtomPair => Molecules {
+                start: vec![0],
+                atoms: Vec::new(),
+                reference: Vec::new(),
+            },
+        };
+        let points = match split.by {
+            SwitchBy::Molecule => molecules.reference.len(),
+            SwitchBy::AtomPair => n,
+        };
+        let chunks = chunk_count(n);
+        let mut short = ShortRange {
+            model,
+            switch,
+            by: split.by,
+            molecules,
+            intramolecular: Vec::new(),
+            excluded_start,
+            excluded_partners,
+            chunks,
+            listed_atom_pairs: AtomicUsize::new(0),
+            workspace: Mutex::new(Workspace {
+                search: PairSearch::new(
+                    points,
+                    switch.r_out() + spec.skin,
+                    spec.skin,
+                    spec.box_lengths,
+                ),
+                buffers: vec![vec![0.0; 3 * n]; chunks],
+                energies: vec![0.0; chunks],
+                cached_q: vec![f64::NAN; 3 * n],
+                cached_gradient: vec![0.0; 3 * n],
+                cached_energy: None,
+            }),
+        };
+        if split.by == SwitchBy::Molecule {
+            short.intramolecular = short.intramolecular_pairs()?;
+        }
+        {
+            let mut workspace = short.lock();
+            short.refresh(&mut workspace, q);
+        }
+        Ok(short)
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Workspace> {
+        // A panic elsewhere while the lock was held leaves a list that is rebuilt anyway.
+        self.workspace.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn is_excluded(&self, i: usize, j: usize) -> bool {
+        self.excluded_partners[self.excluded_start[i] as usize..self.excluded_start[i + 1] as usize]
+            .contains(&(j as u32))
+    }
+
+    fn intramolecular_pairs(&self) -> Result<Vec<[u32; 2]>, String> {
+        let count: usize = (0..self.molecules.reference.len())
+            .map(|m| {
+                let k = self.molecules.atoms(m).len();
+                k * k.saturating_sub(1) / 2
+            })
+            .sum();
+        if count > MAX_INTRAMOLECULAR_PAIRS {
+            return Err(format!(
+                "by = \"molecule\" holds every pair inside a molecule ({count} here, at most \
+                 {MAX_INTRAMOLECULAR_PAIRS}): switch large molecules by = \"atom\""
+            ));
+        }
+        let mut pairs = Vec::new();
+        for m in 0..self.molecules.reference.len() {
+            let atoms = self.molecules.atoms(m);
+            for (a, &i) in atoms.iter().enumerate() {
+                for &j in &atoms[a + 1..] {
+                    if !self.is_excluded(i as usize, j as usize) {
+                        pairs.push([i, j]);
+                    }
+                }
+            }
+        }
+        Ok(pairs)
+    }
+
+    /// The position of search point `k` (a reference atom, or an atom).
+    #[inline(always)]
+    fn point(&self, q: &[f64], k: usize) -> [f64; 3] {
+        let i = match self.by {
+            SwitchBy::Molecule => self.molecules.reference[k] as usize,
+            SwitchBy::AtomPair => k,
+        };
+        [q[3 * i], q[3 * i + 1], q[3 * i + 2]]
+    }
+
+    /// Rebuild the pair list if a point has moved half the skin.
+    fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
+        let search = &mut workspace.search;
+        if !search.needs_rebuild(|k| self.point(q, k)) {
+            return;
+        }
+        match self.by {
+            SwitchBy::Molecule => search.build(|k| self.point(q, k), |_, _| true),
+            SwitchBy::AtomPair => {
+                search.build(|k| self.point(q, k), |a, b| !self.is_excluded(a, b))
+            }
+        }
+        let listed = match self.by {
+            SwitchBy::Molecule => {
+                search
+                    .pairs
+                    .iter()
+                    .map(|&[a, b]| {
+                        self.molecules.atoms(a as usize).len()
+                            * self.molecules.atoms(b as usize).len()
+                    })
+                    .sum::<usize>()
+                    + self.intramolecular.len()
+            }
+            SwitchBy::AtomPair => search.pairs.len(),
+        };
+        self.listed_atom_pairs.store(listed, Ordering::Relaxed);
+    }
+
+    /// One evaluation into the chunk buffers; returns the energy (0 for a Hessian-vector
+    /// product). The buffers hold the gradient or product afterwards (not for `Energy`).
+    fn run(&self, workspace: &mut Workspace, q: &[f64], mode: Mode) -> f64 {
+        self.refresh(workspace, q);
+        let Workspace {
+            search,
+            buffers,
+            energies,
+            ..
+        } = workspace;
+        let pairs: &[[u32; 2]] = &search.pairs;
+        let chunks = self.chunks;
+        let work = |(c, buffer): (usize, &mut Vec<f64>)| -> f64 {
+            let part = &pairs[c * pairs.len() / chunks..(c + 1) * pairs.len() / chunks];
+            if !matches!(mode, Mode::Energy) {
+                buffer.fill(0.0);
+            }
+            self.evaluate(q, mode, part, self.by, buffer)
+        };
+        if chunks > 1 {
+            buffers
+                .par_iter_mut()
+                .enumerate()
+                .zip(energies.par_iter_mut())
+                .for_each(|(chunk, energy)| *energy = work(chunk));
+        } else {
+            for (chunk, energy) in buffers.iter_mut().enumerate().zip(energies.iter_mut()) {
+                *energy = work(chunk);
+            }
+        }
+        // Pairs inside molecules after the chunks, into the first buffer (same order always).
+        energies[0] += self.evaluate(
+            q,
+            mode,
+            &self.intramolecular,
+            SwitchBy::AtomPair,
+            &mut buffers[0],
+        );
+        energies.iter().sum()
+    }
+
+    /// The pairs `part` of the list, switched `by` molecule or atom pair.
+    fn evaluate(
+        &self,
+        q: &[f64],
+        mode: Mode,
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        buffer: &mut [f64],
+    ) -> f64 {
+        match (mode, by) {
+            (Mode::Energy, SwitchBy::Molecule) => {
+                kernels::molecule_pairs::<false>(self, q, part, buffer)
+            }
+            (Mode::Gradient, SwitchBy::Molecule) => {
+                kernels::molecule_pairs::<true>(self, q, part, buffer)
+            }
+            (Mode::HessianVector(v), SwitchBy::Molecule) => {
+                kernels::molecule_pairs_hessian(self, q, v, part, buffer);
+                0.0
+            }
+            (Mode::Energy, SwitchBy::AtomPair) => {
+                kernels::atom_pairs::<false>(self, q, part, buffer)
+            }
+            (Mode::Gradient, SwitchBy::AtomPair) => {
+                kernels::atom_pairs::<true>(self, q, part, buffer)
+            }
+            (Mode::HessianVector(v), SwitchBy::AtomPair) => {
+                kernels::atom_pairs_hessian(self, q, v, part, buffer);
+                0.0
+            }
+        }
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        let mut workspace = self.lock();
+        if let Some(energy) = workspace.cached_energy
+            && workspace.cached_q == q
+        {
+            return energy;
+        }
+        self.run(&mut workspace, q, Mode::Energy)
+    }
+
+    /// `gradient += sign ∇V_short(q)`, from the cache when `q` is the last gradient's.
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
+        let mut guard = self.lock();
+        let workspace = &mut *guard;
+        if !(workspace.cached_energy.is_some() && workspace.cached_q == q) {
+            let energy = self.run(workspace, q, Mode::Gradient);
+            workspace.cached_gradient.fill(0.0);
+            reduce(&workspace.buffers, &mut workspace.cached_gradient, 1.0);
+            workspace.cached_q.copy_from_slice(q);
+            workspace.cached_energy = Some(energy);
+        }
+        for (g, c) in gradient.iter_mut().zip(&workspace.cached_gradient) {
+            *g += sign * c;
+        }
+    }
+
+    /// `out += sign ∇²V_short(q) v`.
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
+        let mut workspace = self.lock();
+        self.run(&mut workspace, q, Mode::HessianVector(v));
+        reduce(&workspace.buffers, out, sign);
+    }
+
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        let workspace = self.lock();
+        let mut couplings: Vec<Vec<usize>> = match self.by {
+            SwitchBy::Molecule => workspace
+                .search
+                .pairs
+                .iter()
+                .map(|&[a, b]| {
+                    let mut atoms: Vec<usize> = self
+                        .molecules
+                        .atoms(a as usize)
+                        .iter()
+                        .map(|&i| i as usize)
+                        .collect();
+                    atoms.extend(self.molecules.atoms(b as usize).iter().map(|&i| i as usize));
+                    atoms
+                })
+                .collect(),
+            SwitchBy::AtomPair => workspace
+                .search
+                .pairs
+                .iter()
+                .map(|&[a, b]| vec![a as usize, b as usize])
+                .collect(),
+        };
+        couplings.extend(
+            self.intramolecular
+                .iter()
+                .map(|&[a, b]| vec![a as usize, b as usize]),
+        );
+        couplings
+    }
+
+    /// `"switched off between r_in = 6 and r_out = 7 by molecule (reference atoms' distance)"`.
+    pub fn describe(&self) -> String {
+        let by = match self.by {
+            SwitchBy::Molecule => "by molecule (distance of the reference atoms)",
+            SwitchBy::AtomPair => "by atom pair",
+        };
+        format!(
+            "switched off between r_in = {} and r_out = {} {by}",
+            self.switch.r_in(),
+            self.switch.r_out()
+        )
+    }
+
+    /// How many times the pair list has been built.
+    pub fn list_builds(&self) -> u64 {
+        self.lock().search.builds()
+    }
+}
+
+/// `out += sign Σ_c buffers[c]`, chunk by chunk in order.
+fn reduce(buffers: &[Vec<f64>], out: &mut [f64], sign: f64) {
+    if buffers.len() == 1 {
+        for (o, b) in out.iter_mut().zip(&buffers[0]) {
+            *o += sign * b;
+        }
+        return;
+    }
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut sum = 0.0;
+        for buffer in buffers {
+            sum += buffer[k];
+        }
+        *o += sign * sum;
+    }
+}
+
+/// Excluded partners per atom (CSR).
+fn exclusion_table(n: usize, excluded: &[(usize, usize)]) -> Result<(Vec<u32>, Vec<u32>), String> {
+    let mut lists = vec![Vec::new(); n];
+    for &(i, j) in excluded {
+        if i >= n || j >= n {
+            return Err(format!("excluded pair ({i}, {j}) names a missing particle"));
+        }
+        lists[i].push(j as u32);
+        lists[j].push(i as u32);
+    }
+    let mut start = vec![0u32; n + 1];
+    for (i, list) in lists.iter_mut().enumerate() {
+        list.sort_unstable();
+        list.dedup();
+        start[i + 1] = start[i] + list.len() as u32;
+    }
+    Ok((start, lists.concat()))
+}
+
+/// Atoms per molecule (CSR) from `molecule_of`, checked against the reference atoms.
+fn molecule_table(n: usize, split: &SplitSpec) -> Result<Molecules, String> {
+    if split.molecule_of.len() != n {
+        return Err(format!(
+            "non-bonded split: {} molecule indices for {n} atoms",
+            split.molecule_of.len()
+        ));
+    }
+    let n_molecules = split.reference_atoms.len();
+    let mut start = vec![0u32; n_molecules + 1];
+    for &m in &split.molecule_of {
+        if m as usize >= n_molecules {
+            return Err(format!(
+                "non-bonded split: molecule {m} has no reference atom"
+            ));
+        }
+        start[m as usize + 1] += 1;
+    }
+    for m in 0..n_molecules {
+        start[m + 1] += start[m];
+    }
+    let mut fill = start.clone();
+    let mut atoms = vec![0u32; n];
+    for (i, &m) in split.molecule_of.iter().enumerate() {
+        atoms[fill[m as usize] as usize] = i as u32;
+        fill[m as usize] += 1;
+    }
+    for (m, &r) in split.reference_atoms.iter().enumerate() {
+        if r >= n || split.molecule_of[r] as usize != m {
+            return Err(format!(
+                "non-bonded split: reference atom {r} is not in molecule {m}"
+            ));
+        }
+    }
+    Ok(Molecules {
+        start,
+        atoms,
+        reference: split.reference_atoms.iter().map(|&r| r as u32).collect(),
+    })
+}
+
+impl NonbondedShort {
+    /// The shared short-range part (its switch, description and list statistics).
+    pub fn short_range(&self) -> &ShortRange {
+        &self.short
+    }
+}
+
+impl ForceTerm for NonbondedShort {
+    fn kind(&self) -> &'static str {
+        "nonbonded-short"
+    }
+
+    fn class(&self) -> TermClass {
+        TermClass::Nonbonded
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        self.short.energy(q)
+    }
+
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+        self.short.add_gradient(q, gradient, 1.0);
+    }
+
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        self.short.add_hessian_vector(q, v, out, 1.0);
+    }
+
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        self.short.couplings()
+    }
+
+    fn interaction_count(&self) -> usize {
+        self.short.listed_atom_pairs.load(Ordering::Relaxed)
+    }
+}
+
+impl NonbondedRemainder {
+    /// The full term the remainder is taken from.
+    pub fn full(&self) -> &Nonbonded {
+        &self.full
+    }
+}
+
+impl ForceTerm for NonbondedRemainder {
+    fn kind(&self) -> &'static str {
+        "nonbonded-remainder"
+    }
+
+    fn class(&self) -> TermClass {
+        TermClass::Nonbonded
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        self.full.energy(q) - self.short.energy(q)
+    }
+
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+        self.full.add_gradient(q, gradient);
+        self.short.add_gradient(q, gradient, -1.0);
+    }
+
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        self.full.add_hessian_vector(q, v, out);
+        self.short.add_hessian_vector(q, v, out, -1.0);
+    }
+
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        self.full.couplings()
+    }
+
+    /// The full term's pairs: the short part's gradient usually comes from its cache (the
+    /// middle level was just evaluated at the same positions).
+    fn interaction_count(&self) -> usize {
+        self.full.interaction_count()
+    }
+
+    fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        vec![
+            ("nonbonded (full)", self.full.energy(q)),
+            ("nonbonded-short (subtracted)", -self.short.energy(q)),
+        ]
+    }
+}

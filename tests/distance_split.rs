@@ -1,0 +1,479 @@
+//! The non-bonded term split by distance (`forces::distance_split`): the short-range part
+//! against a brute-force double loop of `S · V` over all pairs, the two parts adding up to
+//! the full term, gradients and Hessian-vector products against central finite
+//! differences (both switch modes, periodic and open), the switch's continuity at `r_in`
+//! and `r_out`, the gradient cache, and the same bits at 1 and 2 threads.
+//!
+//! Tolerances. Brute force against the term: the same formulas summed in another order;
+//! ≲ 10⁴ pair terms of size ≲ 10² in double precision differ by ≲ 10⁴·10²·1e-16 = 1e-10 of
+//! the absolute sum, so 1e-9·Σ|V| bounds it. Sum against full: one subtraction and one
+//! addition of numbers of size |V_full| and |V_short|, so a few ulps of their size:
+//! 1e-12·(|V_full| + |V_short|) (gradients likewise per component). Finite differences as
+//! in `molecule_terms.rs`: ε = 1e-5 gives truncation ≤ ε²/6·|f‴| and round-off ≈ 2u|V|/ε,
+//! both ≲ 1e-7 here (atoms ≥ 0.9 apart only within a molecule, whose pairs are excluded
+//! or carry |Q| ≤ 60 at ≥ 1.5; the switch's derivatives are ≤ 60/w³), so 1e-5·max(1, |exact|)
+//! bounds them while a missing chain-rule term is off by O(1).
+
+mod common;
+
+use common::{TestRng, max_abs, max_abs_difference};
+use longstep::forces::ForceTerm;
+use longstep::forces::distance_split::{
+    SplitSpec, Switch, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
+};
+use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+
+const K_E: f64 = 332.06371;
+const EPSILON: f64 = 1e-5;
+const FD_TOLERANCE: f64 = 1e-5;
+
+/// Waters on a jittered cubic grid (spacing 3.1 Å), randomly oriented, O–H 1.0 Å,
+/// H–O–H 109.5°, every atom ≥ 1.5 Å from the atoms of other molecules (minimum image in the
+/// grid's box): positions, O–H bonds and the box length. `side` sites per axis.
+fn waters(side: usize, count: usize, rng: &mut TestRng) -> (Vec<f64>, Vec<[usize; 2]>, f64) {
+    let spacing = 3.1;
+    let length = side as f64 * spacing;
+    let mut q: Vec<f64> = Vec::with_capacity(9 * count);
+    let mut bonds = Vec::new();
+    for w in 0..count {
+        let site = [w / (side * side), (w / side) % side, w % side];
+        let molecule = loop {
+            let candidate = water(site.map(|s| (s as f64 + 0.5) * spacing), rng);
+            let clear = candidate.chunks_exact(3).all(|x| {
+                q.chunks_exact(3).all(|y| {
+                    let r2: f64 = (0..3)
+                        .map(|a| {
+                            let d = x[a] - y[a];
+                            let d = d - length * (d / length).round();
+                            d * d
+                        })
+                        .sum();
+                    r2 >= 1.5 * 1.5
+                })
+            });
+            if clear {
+                break candidate;
+            }
+        };
+        q.extend(molecule);
+        bonds.push([3 * w, 3 * w + 1]);
+        bonds.push([3 * w, 3 * w + 2]);
+    }
+    (q, bonds, length)
+}
+
+/// One water near `centre`, randomly oriented: O, H, H.
+fn water(centre: [f64; 3], rng: &mut TestRng) -> Vec<f64> {
+    let o: [f64; 3] = centre.map(|c| c + rng.uniform(-0.3, 0.3));
+    let unit = |x: [f64; 3]| {
+        let norm = (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        x.map(|c| c / norm)
+    };
+    let u = unit([
+        rng.uniform(-1.0, 1.0),
+        rng.uniform(-1.0, 1.0),
+        rng.uniform(-1.0, 1.0),
+    ]);
+    let t = [
+        rng.uniform(-1.0, 1.0),
+        rng.uniform(-1.0, 1.0),
+        rng.uniform(-1.0, 1.0),
+    ];
+    let v = unit([
+        u[1] * t[2] - u[2] * t[1],
+        u[2] * t[0] - u[0] * t[2],
+        u[0] * t[1] - u[1] * t[0],
+    ]);
+    let half = 0.5 * 109.5_f64.to_radians();
+    let mut atoms = o.to_vec();
+    for sign in [1.0, -1.0] {
+        atoms.extend((0..3).map(|a| o[a] + half.cos() * u[a] + sign * half.sin() * v[a]));
+    }
+    atoms
+}
+
+/// SPC/Fw-like parameters: O with LJ and −0.82, H charge only; exclusions O–H always and
+/// H–H when `exclude_hh` (else the H–H pair is an intramolecular non-bonded pair).
+fn water_spec(
+    n: usize,
+    cutoff: f64,
+    electrostatics: Electrostatics,
+    box_lengths: Option<[f64; 3]>,
+    exclude_hh: bool,
+) -> NonbondedSpec {
+    let types: Vec<u32> = (0..n).map(|i| (i % 3 != 0) as u32).collect();
+    let charges = (0..n)
+        .map(|i| if i % 3 == 0 { -0.82 } else { 0.41 })
+        .collect();
+    let lj = vec![
+        LjPair::new(0.1554253, 3.165492, cutoff, true),
+        LjPair::default(),
+        LjPair::default(),
+        LjPair::default(),
+    ];
+    let mut excluded = Vec::new();
+    for w in 0..n / 3 {
+        excluded.push((3 * w, 3 * w + 1));
+        excluded.push((3 * w, 3 * w + 2));
+        if exclude_hh {
+            excluded.push((3 * w + 1, 3 * w + 2));
+        }
+    }
+    NonbondedSpec {
+        cutoff,
+        skin: 1.0,
+        electrostatics,
+        coulomb_constant: K_E,
+        box_lengths,
+        types,
+        lj,
+        charges,
+        excluded,
+    }
+}
+
+fn split_spec(by: SwitchBy, r_in: f64, r_out: f64, n: usize, bonds: &[[usize; 2]]) -> SplitSpec {
+    let molecule_of = molecules_from_bonds(n, bonds);
+    let masses: Vec<f64> = (0..n)
+        .map(|i| if i % 3 == 0 { 15.9994 } else { 1.008 })
+        .collect();
+    SplitSpec {
+        r_in,
+        r_out,
+        by,
+        reference_atoms: reference_atoms(&molecule_of, &masses, None).unwrap(),
+        molecule_of,
+    }
+}
+
+/// The pair energy of the test model (LJ energy-shifted at `r_c`, DSF α = 0 Coulomb).
+fn pair_energy(spec: &NonbondedSpec, i: usize, j: usize, r: f64) -> f64 {
+    let rc = spec.cutoff;
+    let mut v = 0.0;
+    if i.is_multiple_of(3) && j.is_multiple_of(3) {
+        let p = spec.lj[0];
+        v += p.c12 / r.powi(12) - p.c6 / r.powi(6) - p.shift;
+    }
+    let qq = K_E * spec.charges[i] * spec.charges[j];
+    v + qq * (1.0 / r - 2.0 / rc + r / (rc * rc))
+}
+
+/// Brute force: (Σ S·V, Σ V, Σ |V|) over every non-excluded pair inside the cutoff.
+fn brute_force(spec: &NonbondedSpec, split: &SplitSpec, q: &[f64]) -> (f64, f64, f64) {
+    let n = spec.types.len();
+    let switch = Switch::new(split.r_in, split.r_out).unwrap();
+    let distance = |i: usize, j: usize| -> f64 {
+        (0..3)
+            .map(|a| {
+                let mut d = q[3 * j + a] - q[3 * i + a];
+                if let Some(l) = spec.box_lengths {
+                    d -= l[a] * (d / l[a]).round();
+                }
+                d * d
+            })
+            .sum::<f64>()
+            .sqrt()
+    };
+    let (mut short, mut full, mut scale) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        for j in i + 1..n {
+            if spec.excluded.contains(&(i, j)) {
+                continue;
+            }
+            let r = distance(i, j);
+            if r >= spec.cutoff {
+                continue;
+            }
+            let v = pair_energy(spec, i, j, r);
+            let (mi, mj) = (split.molecule_of[i], split.molecule_of[j]);
+            let switch_distance = if split.by == SwitchBy::Molecule && mi != mj {
+                distance(
+                    split.reference_atoms[mi as usize],
+                    split.reference_atoms[mj as usize],
+                )
+            } else {
+                r
+            };
+            short += switch.value_slope(switch_distance).0 * v;
+            full += v;
+            scale += v.abs();
+        }
+    }
+    (short, full, scale)
+}
+
+fn gradient(term: &dyn ForceTerm, q: &[f64]) -> Vec<f64> {
+    let mut g = vec![0.0; q.len()];
+    term.add_gradient(q, &mut g);
+    g
+}
+
+fn check_finite_differences(term: &dyn ForceTerm, q: &[f64], rng: &mut TestRng, label: &str) {
+    let g = gradient(term, q);
+    let fd = common::finite_difference_gradient(term, q, EPSILON);
+    let error = max_abs_difference(&g, &fd);
+    let scale = max_abs(&g).max(1.0);
+    assert!(
+        error <= FD_TOLERANCE * scale,
+        "{label}: gradient differs from finite differences by {error:e} (scale {scale:e})"
+    );
+    assert!(max_abs(&g) > 1e-3, "{label}: gradient is zero");
+    for _ in 0..2 {
+        let v = rng.vector(q.len(), -1.0, 1.0);
+        let mut hv = vec![0.0; q.len()];
+        term.add_hessian_vector(q, &v, &mut hv);
+        let fd = common::finite_difference_hessian_vector(term, q, &v, EPSILON);
+        let error = max_abs_difference(&hv, &fd);
+        let scale = max_abs(&hv).max(1.0);
+        assert!(
+            error <= FD_TOLERANCE * scale,
+            "{label}: Hessian-vector product differs from finite differences by {error:e} \
+             (scale {scale:e})"
+        );
+    }
+}
+
+/// (label, mode, periodic, exclude H–H)
+const CASES: [(&str, SwitchBy, bool, bool); 4] = [
+    ("by molecule, periodic", SwitchBy::Molecule, true, true),
+    ("by atom pair, periodic", SwitchBy::AtomPair, true, true),
+    (
+        "by molecule, open, H–H pairs",
+        SwitchBy::Molecule,
+        false,
+        false,
+    ),
+    (
+        "by atom pair, open, H–H pairs",
+        SwitchBy::AtomPair,
+        false,
+        false,
+    ),
+];
+
+#[test]
+fn short_part_is_the_switched_brute_force_sum_and_parts_add_up() {
+    let mut rng = TestRng::new(12);
+    // 4³ sites: a 12.4 Å box, so a 6 Å cutoff is under half of it.
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    for (label, by, periodic, exclude_hh) in CASES {
+        let lengths = periodic.then_some([length; 3]);
+        let spec = water_spec(
+            n,
+            6.0,
+            Electrostatics::DampedShiftedForce { alpha: 0.0 },
+            lengths,
+            exclude_hh,
+        );
+        let split = split_spec(by, 3.5, 5.0, n, &bonds);
+        let (short, rest) = split_nonbonded(spec.clone(), &split, &q).unwrap();
+        let full = Nonbonded::new(spec.clone(), &q).unwrap();
+        let (expected_short, expected_full, scale) = brute_force(&spec, &split, &q);
+        let e_short = short.energy(&q);
+        assert!(
+            (e_short - expected_short).abs() <= 1e-9 * scale,
+            "{label}: short part {e_short} against brute force {expected_short}"
+        );
+        assert!(
+            e_short.abs() > 1.0 && (expected_full - expected_short).abs() > 1.0,
+            "{label}: both parts must be non-trivial"
+        );
+        let (e_rest, e_full) = (rest.energy(&q), full.energy(&q));
+        assert!(
+            (e_rest + e_short - e_full).abs() <= 1e-12 * (e_full.abs() + e_short.abs()),
+            "{label}: parts {e_short} + {e_rest} against full {e_full}"
+        );
+        let (g_short, g_rest, g_full) = (
+            gradient(&short, &q),
+            gradient(&rest, &q),
+            gradient(&full, &q),
+        );
+        let bound = 1e-12 * (max_abs(&g_full) + max_abs(&g_short));
+        for k in 0..q.len() {
+            assert!(
+                (g_short[k] + g_rest[k] - g_full[k]).abs() <= bound,
+                "{label}: gradient component {k}: parts {} + {} against full {}",
+                g_short[k],
+                g_rest[k],
+                g_full[k]
+            );
+        }
+    }
+}
+
+#[test]
+fn both_parts_match_finite_differences_in_both_modes() {
+    let mut rng = TestRng::new(7);
+    let (q, bonds, length) = waters(4, 40, &mut rng);
+    let n = q.len() / 3;
+    for (label, by, periodic, exclude_hh) in CASES {
+        for electrostatics in [
+            Electrostatics::DampedShiftedForce { alpha: 0.2 },
+            Electrostatics::ReactionField { dielectric: 78.3 },
+        ] {
+            let lengths = periodic.then_some([length; 3]);
+            let spec = water_spec(n, 6.0, electrostatics, lengths, exclude_hh);
+            let split = split_spec(by, 3.0, 5.5, n, &bonds);
+            let (short, rest) = split_nonbonded(spec, &split, &q).unwrap();
+            check_finite_differences(&short, &q, &mut rng, &format!("{label}, short"));
+            check_finite_differences(&rest, &q, &mut rng, &format!("{label}, remainder"));
+        }
+    }
+}
+
+#[test]
+fn switch_is_continuous_to_second_order_at_both_ends() {
+    let switch = Switch::new(6.0, 7.0).unwrap();
+    let w: f64 = 1.0;
+    for delta in [1e-3, 1e-6] {
+        for (edge, value) in [(6.0, 1.0), (7.0, 0.0)] {
+            for side in [-1.0, 1.0] {
+                let (s, s1, s2) = switch.derivatives(edge + side * delta);
+                // Taylor bounds of the quintic at an end: |S − S(end)| ≤ 10(δ/w)³,
+                // |S′| ≤ 30(δ/w)²/w, |S″| ≤ 60(δ/w)/w²; S near 1 carries a few ulps of 1.
+                let t = delta / w;
+                let round_off = 4.0 * f64::EPSILON * value;
+                assert!(
+                    (s - value).abs() <= 10.0 * t.powi(3) * (1.0 + 1e-9) + round_off,
+                    "S at {edge}±{delta}: {s}"
+                );
+                assert!(
+                    s1.abs() <= 30.0 * t * t / w * (1.0 + 1e-9),
+                    "S′ at {edge}±{delta}"
+                );
+                assert!(
+                    s2.abs() <= 60.0 * t / (w * w) * (1.0 + 1e-9),
+                    "S″ at {edge}±{delta}"
+                );
+            }
+        }
+    }
+    // Inside: S′ and S″ are the derivatives of S and S′ (central differences, h = 1e-5:
+    // truncation ≤ h²/6·max|S‴| = 1e-10·60/6, round-off ≈ 1e-16/1e-5).
+    for r in [6.1, 6.37, 6.5, 6.81, 6.99] {
+        let h = 1e-5;
+        let (_, s1, s2) = switch.derivatives(r);
+        let (sp, s1p) = switch.value_slope(r + h);
+        let (sm, s1m) = switch.value_slope(r - h);
+        assert!(((sp - sm) / (2.0 * h) - s1).abs() < 1e-8, "S′ at {r}");
+        assert!(((s1p - s1m) / (2.0 * h) - s2).abs() < 1e-8, "S″ at {r}");
+    }
+    assert_eq!(
+        switch.value_slope(6.5).0,
+        0.5,
+        "the quintic is symmetric about the middle"
+    );
+}
+
+#[test]
+fn bad_switch_ranges_are_refused_with_the_reason() {
+    let mut rng = TestRng::new(3);
+    let (q, bonds, length) = waters(4, 8, &mut rng);
+    let n = q.len() / 3;
+    let spec = water_spec(
+        n,
+        6.0,
+        Electrostatics::DampedShiftedForce { alpha: 0.0 },
+        Some([length; 3]),
+        true,
+    );
+    for (r_in, r_out, expected) in [
+        (5.0, 5.0, "must be smaller than r_out"),
+        (5.5, 4.0, "must be smaller than r_out"),
+        (0.0, 4.0, "must be positive"),
+        (4.0, 6.5, "beyond the non-bonded cutoff 6"),
+    ] {
+        let split = split_spec(SwitchBy::Molecule, r_in, r_out, n, &bonds);
+        let error = split_nonbonded(spec.clone(), &split, &q)
+            .err()
+            .expect("refused");
+        assert!(
+            error.contains(expected),
+            "r_in {r_in}, r_out {r_out}: {error}"
+        );
+    }
+    let molecule_of = molecules_from_bonds(n, &bonds);
+    let masses = vec![1.0; n];
+    let error = reference_atoms(&molecule_of, &masses, Some(&|_| false)).unwrap_err();
+    assert!(error.contains("molecule 0"), "{error}");
+}
+
+#[test]
+fn the_gradient_cache_serves_the_remainder_only_at_the_same_positions() {
+    let mut rng = TestRng::new(5);
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    let spec = water_spec(
+        n,
+        6.0,
+        Electrostatics::DampedShiftedForce { alpha: 0.0 },
+        Some([length; 3]),
+        true,
+    );
+    let split = split_spec(SwitchBy::Molecule, 3.5, 5.0, n, &bonds);
+    let (short, rest) = split_nonbonded(spec.clone(), &split, &q).unwrap();
+    let (_, fresh) = split_nonbonded(spec, &split, &q).unwrap();
+    // The remainder after the short part at the same q (cache hit) is bit-for-bit the
+    // remainder alone (cache miss).
+    gradient(&short, &q);
+    assert_eq!(gradient(&rest, &q), gradient(&fresh, &q));
+    // At other positions the cache must not be used.
+    let moved: Vec<f64> = q.iter().map(|x| x + rng.uniform(-0.05, 0.05)).collect();
+    gradient(&short, &q);
+    let (_, fresh) = split_nonbonded(
+        water_spec(
+            n,
+            6.0,
+            Electrostatics::DampedShiftedForce { alpha: 0.0 },
+            Some([length; 3]),
+            true,
+        ),
+        &split,
+        &moved,
+    )
+    .unwrap();
+    assert_eq!(gradient(&rest, &moved), gradient(&fresh, &moved));
+}
+
+#[test]
+fn same_bits_at_one_and_two_threads() {
+    // 700 waters (2100 atoms): the short part's list is split into 4 chunks.
+    let mut rng = TestRng::new(9);
+    let (q, bonds, length) = waters(9, 700, &mut rng);
+    let n = q.len() / 3;
+    let v = rng.vector(q.len(), -1.0, 1.0);
+    let mut results = Vec::new();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        results.push(pool.install(|| {
+            let mut out = Vec::new();
+            for by in [SwitchBy::Molecule, SwitchBy::AtomPair] {
+                let spec = water_spec(
+                    n,
+                    9.0,
+                    Electrostatics::DampedShiftedForce { alpha: 0.0 },
+                    Some([length; 3]),
+                    true,
+                );
+                let split = split_spec(by, 6.0, 7.0, n, &bonds);
+                let (short, rest) = split_nonbonded(spec, &split, &q).unwrap();
+                for term in [&short as &dyn ForceTerm, &rest] {
+                    out.push(vec![term.energy(&q)]);
+                    out.push(gradient(term, &q));
+                    let mut hv = vec![0.0; q.len()];
+                    term.add_hessian_vector(&q, &v, &mut hv);
+                    out.push(hv);
+                }
+            }
+            out
+        }));
+    }
+    assert!(
+        results[0] == results[1],
+        "results differ between 1 and 2 threads"
+    );
+}
