@@ -477,3 +477,101 @@ fn same_bits_at_one_and_two_threads() {
         "results differ between 1 and 2 threads"
     );
 }
+
+/// `∇V_level` of a scene's level at `q`.
+fn level_gradient(scene: &mut longstep::io::scene::Scene, level: usize, q: &[f64]) -> Vec<f64> {
+    let mut g = vec![0.0; q.len()];
+    scene.system.forces.gradient(level, q, &mut g);
+    g
+}
+
+#[test]
+fn the_water_box_split_adds_up_to_the_unsplit_model() {
+    let mut plain = common::scene_file("systems/water-box/scene.toml", &[]);
+    let mut split = common::scene_file("systems/water-box/three-level.toml", &[]);
+    assert_eq!(split.system.forces.n_levels(), 3);
+    let mut rng = TestRng::new(216);
+    let start = plain.system.state.q.clone();
+    // At the file's positions and at positions moved up to 0.4 Å per coordinate (past the
+    // skin/2 of both lists: both are rebuilt).
+    let moved: Vec<f64> = start.iter().map(|x| x + rng.uniform(-0.4, 0.4)).collect();
+    for q in [start, moved] {
+        let unsplit = plain.system.forces.energy(1, &q);
+        let (short, rest) = (
+            split.system.forces.energy(1, &q),
+            split.system.forces.energy(2, &q),
+        );
+        // Round-off of full − short + short: a few ulps of |full| + |short|.
+        let bound = 1e-12 * (unsplit.abs() + short.abs());
+        assert!(
+            (short + rest - unsplit).abs() <= bound,
+            "energy: {short} + {rest} against {unsplit}"
+        );
+        assert_eq!(
+            plain.system.forces.energy(0, &q),
+            split.system.forces.energy(0, &q),
+            "bonded level"
+        );
+        let g = level_gradient(&mut plain, 1, &q);
+        let (g1, g2) = (
+            level_gradient(&mut split, 1, &q),
+            level_gradient(&mut split, 2, &q),
+        );
+        let bound = 1e-12 * (max_abs(&g) + max_abs(&g1));
+        let error = (0..q.len())
+            .map(|k| (g1[k] + g2[k] - g[k]).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            error <= bound,
+            "gradient: parts differ from the model by {error:e}"
+        );
+        // The split is not trivial: the remainder is a small part of the force.
+        assert!(
+            max_abs(&g2) < 0.5 * max_abs(&g),
+            "remainder as large as the force"
+        );
+    }
+}
+
+#[test]
+fn the_level_table_shows_both_parts_with_their_range() {
+    let output = common::longstep()
+        .args(["check", "systems/water-box/three-level.toml"])
+        .output()
+        .unwrap();
+    assert!(output.status.success());
+    let text = String::from_utf8_lossy(&output.stdout).into_owned()
+        + &String::from_utf8_lossy(&output.stderr);
+    for expected in [
+        "1 (level 1) = nonbonded-short \"short-range: switched off from r_in = 6 to r_out = 7 by molecule (O)\"",
+        "2 (slow) = nonbonded-remainder \"remainder: nonbonded − short-range\"",
+        "0 (fast) = bond \"bonds\"",
+    ] {
+        assert!(
+            text.contains(expected),
+            "level table lacks {expected}:\n{text}"
+        );
+    }
+}
+
+#[test]
+fn impulse_on_three_levels_gives_the_same_bits_at_one_and_two_threads() {
+    let mut finals = Vec::new();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        finals.push(pool.install(|| {
+            let mut scene = common::scene_file("systems/water-box/three-level.toml", &[]);
+            let mut settings = longstep::settings::MethodSettings::new("impulse", 2.0);
+            settings.level_steps = Some(vec![2, 2]);
+            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+            common::integrate(&mut scene, integrator.as_mut(), 10)
+        }));
+    }
+    assert!(
+        finals[0] == finals[1],
+        "positions or momenta differ between 1 and 2 threads"
+    );
+}

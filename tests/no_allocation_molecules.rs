@@ -42,6 +42,8 @@ fn molecule_steps_allocate_nothing() {
     for (scene, method, h, inner) in [
         ("systems/water-box/scene.toml", "impulse", 2.0, 4),
         ("systems/water-box/scene.toml", "long-average", 4.0, 8),
+        // Three levels with the distance split: its own pair list and gradient cache.
+        ("systems/water-box/three-level.toml", "impulse", 4.0, 2),
         (
             "systems/molecules/alanine-dipeptide.toml",
             "impulse",

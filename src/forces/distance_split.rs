@@ -291,6 +291,20 @@ impl Model {
         (energy, force)
     }
 
+    /// `(V_LJ, V_Coulomb)` of pair `i, j` at `r² = s < r_c²` (for reports).
+    pub fn energy_parts(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
+        let p = self.lj(i, j);
+        let inv_r6 = (1.0 / s).powi(3);
+        let lj = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        let coulomb = if qq != 0.0 {
+            self.coulomb.energy_force(qq, s, 1.0 / s.sqrt()).0
+        } else {
+            0.0
+        };
+        (lj, coulomb)
+    }
+
     /// `(V, V′, V″)` of pair `i, j` at `r < r_c`.
     pub fn derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
         let p = self.lj(i, j);
@@ -667,6 +681,20 @@ impl ShortRange {
         reduce(&workspace.buffers, out, sign);
     }
 
+    /// The energy as (Lennard-Jones, Coulomb), for reports.
+    fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
+        let mut workspace = self.lock();
+        self.refresh(&mut workspace, q);
+        let listed = kernels::energy_parts(
+            self,
+            q,
+            &workspace.search.pairs,
+            self.by == SwitchBy::Molecule,
+        );
+        let inside = kernels::energy_parts(self, q, &self.intramolecular, false);
+        [listed[0] + inside[0], listed[1] + inside[1]]
+    }
+
     fn couplings(&self) -> Vec<Vec<usize>> {
         let workspace = self.lock();
         let mut couplings: Vec<Vec<usize>> = match self.by {
@@ -831,6 +859,11 @@ impl ForceTerm for NonbondedShort {
     fn interaction_count(&self) -> usize {
         self.short.listed_atom_pairs.load(Ordering::Relaxed)
     }
+
+    fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        let [lj, coulomb] = self.short.energy_parts(q);
+        vec![("lennard-jones", lj), ("coulomb", coulomb)]
+    }
 }
 
 impl NonbondedRemainder {
@@ -874,9 +907,12 @@ impl ForceTerm for NonbondedRemainder {
     }
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        let full = self.full.energy_components(q);
+        let [lj, coulomb] = self.short.energy_parts(q);
+        let component = |name: &str| full.iter().find(|(n, _)| *n == name).map_or(0.0, |c| c.1);
         vec![
-            ("nonbonded (full)", self.full.energy(q)),
-            ("nonbonded-short (subtracted)", -self.short.energy(q)),
+            ("lennard-jones", component("lennard-jones") - lj),
+            ("coulomb", component("coulomb") - coulomb),
         ]
     }
 }

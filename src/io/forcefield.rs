@@ -37,14 +37,17 @@ use serde::Deserialize;
 
 use crate::forces::ForceTerm;
 use crate::forces::neighbour_list::NeighbourList;
-use crate::forces::nonbonded::{Electrostatics, LjPair};
+use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded};
 use crate::split::Assignment;
 use crate::system::PeriodicBox;
 use crate::units::Units;
 
 mod atoms;
 mod bonded;
+mod distance_split;
 mod nonbonded;
+
+pub use distance_split::SplitSection;
 
 use atoms::AtomTable;
 use bonded::Topology;
@@ -78,6 +81,8 @@ pub struct ForcefieldSpec {
     #[serde(default)]
     pub angles: BTreeMap<String, AngleSpec>,
     pub torsions: Option<BTreeMap<String, Vec<CosineSpec>>>,
+    /// The cutoff term split by distance across two levels (`[forcefield.split]`).
+    pub split: Option<SplitSection>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -295,12 +300,17 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     let lj = nonbonded::lennard_jones(input.spec, &atoms, &settings, &mut report);
     report.push(nonbonded::report_line(&settings));
     let parameters = parameters(&ctx, &settings, &lj, &exclusions, dumps);
-    let cutoff_term = nonbonded::cutoff_term(input, &atoms, &settings, &lj, &exclusions.excluded)?;
-    terms.push((
-        "nonbonded".into(),
-        Box::new(cutoff_term),
-        Assignment::Default,
-    ));
+    let cutoff_spec = nonbonded::cutoff_spec(input, &atoms, &settings, &lj, &exclusions.excluded);
+    match &input.spec.split {
+        None => terms.push((
+            "nonbonded".into(),
+            Box::new(Nonbonded::new(cutoff_spec, input.q)?),
+            Assignment::Default,
+        )),
+        Some(section) => {
+            distance_split::terms(input, &atoms, section, cutoff_spec, &mut terms, &mut report)?
+        }
+    }
     nonbonded::pairs_14_terms(input, &atoms, &settings, &lj, &exclusions, &mut terms);
     Ok(BuiltForcefield {
         terms,

@@ -196,3 +196,54 @@ pub(super) fn atom_pairs_hessian(
         add_pair(buffer, i, j, h);
     }
 }
+
+/// The short part's energy as (Lennard-Jones, Coulomb), for reports: `pairs` switched `by`
+/// molecule (a molecule-pair list) or not (an atom-pair list).
+pub(super) fn energy_parts(
+    short: &ShortRange,
+    q: &[f64],
+    pairs: &[[u32; 2]],
+    by_molecule: bool,
+) -> [f64; 2] {
+    let model = &short.model;
+    let r_out2 = short.switch.r_out() * short.switch.r_out();
+    let mut parts = [0.0; 2];
+    let mut add = |i: usize, j: usize, weight: Option<f64>| {
+        let d = model.displacement(q, i, j);
+        let r2 = dot(&d, &d);
+        let limit = if weight.is_some() {
+            model.cutoff_squared
+        } else {
+            r_out2
+        };
+        if r2 < limit {
+            let s = weight.unwrap_or_else(|| short.switch.value_slope(r2.sqrt()).0);
+            let (lj, coulomb) = model.energy_parts(i, j, r2);
+            parts[0] += s * lj;
+            parts[1] += s * coulomb;
+        }
+    };
+    for &[a, b] in pairs {
+        let (a, b) = (a as usize, b as usize);
+        if !by_molecule {
+            add(a, b, None);
+            continue;
+        }
+        let (ra, rb) = (
+            short.molecules.reference[a] as usize,
+            short.molecules.reference[b] as usize,
+        );
+        let d = model.displacement(q, ra, rb);
+        let big_r2 = dot(&d, &d);
+        if big_r2 >= r_out2 {
+            continue;
+        }
+        let s = short.switch.value_slope(big_r2.sqrt()).0;
+        for &i in short.molecules.atoms(a) {
+            for &j in short.molecules.atoms(b) {
+                add(i as usize, j as usize, Some(s));
+            }
+        }
+    }
+    parts
+}

@@ -8,7 +8,7 @@ use super::bonded::Topology;
 use super::{ForcefieldInput, ForcefieldSpec, Symmetry, Terms, lookup};
 use crate::forces::coulomb::Coulomb;
 use crate::forces::lennard_jones::LennardJones;
-use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use crate::forces::nonbonded::{Electrostatics, LjPair, NonbondedSpec};
 use crate::forces::pair::{Pair, PairTerm};
 use crate::forces::{Site, TermClass};
 use crate::split::Assignment;
@@ -234,28 +234,26 @@ pub(super) fn report_line(settings: &Settings) -> String {
     )
 }
 
-/// The cutoff term over every pair not excluded.
-pub(super) fn cutoff_term(
+/// What the cutoff term over every pair not excluded is built from (the term itself, or
+/// its distance split: `super::distance_split`).
+pub(super) fn cutoff_spec(
     input: &ForcefieldInput,
     atoms: &AtomTable,
     settings: &Settings,
     lj: &[LjPair],
     excluded: &[(usize, usize)],
-) -> Result<Nonbonded, String> {
-    Nonbonded::new(
-        NonbondedSpec {
-            cutoff: settings.cutoff,
-            skin: settings.skin,
-            electrostatics: settings.electrostatics,
-            coulomb_constant: settings.coulomb_constant,
-            box_lengths: input.periodic_box.map(|b| b.lengths),
-            types: atoms.kind_of.clone(),
-            lj: lj.to_vec(),
-            charges: atoms.charges.clone(),
-            excluded: excluded.to_vec(),
-        },
-        input.q,
-    )
+) -> NonbondedSpec {
+    NonbondedSpec {
+        cutoff: settings.cutoff,
+        skin: settings.skin,
+        electrostatics: settings.electrostatics,
+        coulomb_constant: settings.coulomb_constant,
+        box_lengths: input.periodic_box.map(|b| b.lengths),
+        types: atoms.kind_of.clone(),
+        lj: lj.to_vec(),
+        charges: atoms.charges.clone(),
+        excluded: excluded.to_vec(),
+    }
 }
 
 /// The 1-4 pairs in their own terms, scaled, without cutoff, plain Coulomb ("lj-14",

@@ -1,0 +1,158 @@
+//! `[forcefield.split]`: the cutoff non-bonded term split by distance into a short-range
+//! part and a remainder on two levels (`forces::distance_split` has the formulas):
+//!
+//! ```toml
+//! [forcefield.split]
+//! r_in = 6.0             # S = 1 below (length)
+//! r_out = 7.0            # S = 0 above; 0 < r_in < r_out ≤ cutoff
+//! by = "molecule"        # or "atom" (each atom pair on its own distance); default molecule
+//! reference = "O"        # by molecule: the reference atom's element or type name
+//! short_level = 1        # level of the short-range part (default 1)
+//! remainder_level = 2    # level of the remainder (default short_level + 1)
+//! ```
+//!
+//! Molecules are the connected components of the bond graph. Each molecule's reference
+//! atom is its first atom (in file order) whose type name or element is `reference`; without
+//! `reference`, its first heaviest atom (O for water).
+
+use serde::Deserialize;
+
+use super::atoms::AtomTable;
+use super::{ForcefieldInput, Terms};
+use crate::forces::distance_split::{
+    SplitSpec, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
+};
+use crate::forces::nonbonded::NonbondedSpec;
+use crate::split::Assignment;
+
+/// Levels a split may name, at most (the splitter sizes a table per level).
+const MAX_LEVEL: usize = 15;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SplitSection {
+    pub r_in: f64,
+    pub r_out: f64,
+    /// `"molecule"` (default) or `"atom"`.
+    pub by: Option<String>,
+    /// By molecule: element or type name of each molecule's reference atom.
+    pub reference: Option<String>,
+    pub short_level: Option<usize>,
+    pub remainder_level: Option<usize>,
+}
+
+/// The short-range part and the remainder of the cutoff term `spec`, on their levels; one
+/// report line.
+pub(super) fn terms(
+    input: &ForcefieldInput,
+    atoms: &AtomTable,
+    section: &SplitSection,
+    spec: NonbondedSpec,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<(), String> {
+    let fail = |e: String| format!("[forcefield.split] {e}");
+    let (short_level, remainder_level) = levels(section).map_err(fail)?;
+    let by = match section.by.as_deref() {
+        None | Some("molecule") => SwitchBy::Molecule,
+        Some("atom") => SwitchBy::AtomPair,
+        Some(other) => {
+            return Err(fail(format!(
+                "by = \"{other}\": use \"molecule\" or \"atom\""
+            )));
+        }
+    };
+    if by == SwitchBy::AtomPair && section.reference.is_some() {
+        return Err(fail(
+            "reference is for by = \"molecule\" (by = \"atom\" has no reference atoms)".into(),
+        ));
+    }
+    let n = atoms.masses.len();
+    let (molecule_of, reference) = match by {
+        SwitchBy::Molecule => {
+            let molecule_of = molecules_from_bonds(n, input.bonds);
+            let reference = references(input, atoms, section, &molecule_of).map_err(fail)?;
+            (molecule_of, reference)
+        }
+        SwitchBy::AtomPair => (Vec::new(), Vec::new()),
+    };
+    let split = SplitSpec {
+        r_in: section.r_in,
+        r_out: section.r_out,
+        by,
+        molecule_of,
+        reference_atoms: reference,
+    };
+    let (short, remainder) = split_nonbonded(spec, &split, input.q).map_err(fail)?;
+    let reference_name = match by {
+        SwitchBy::Molecule => format!(
+            ", reference {} in each of {} molecules",
+            reference_label(section),
+            split.reference_atoms.len()
+        ),
+        SwitchBy::AtomPair => String::new(),
+    };
+    report.push(format!(
+        "nonbonded split: short-range part on level {short_level} {}{reference_name}; \
+         remainder (full − short) on level {remainder_level}",
+        short.short_range().describe()
+    ));
+    let by_name = match by {
+        SwitchBy::Molecule => format!("by molecule ({})", reference_label(section)),
+        SwitchBy::AtomPair => "by atom pair".into(),
+    };
+    let short_name = format!(
+        "short-range: switched off from r_in = {} to r_out = {} {by_name}",
+        section.r_in, section.r_out
+    );
+    terms.push((short_name, Box::new(short), Assignment::Level(short_level)));
+    terms.push((
+        "remainder: nonbonded − short-range".into(),
+        Box::new(remainder),
+        Assignment::Level(remainder_level),
+    ));
+    Ok(())
+}
+
+/// `(short_level, remainder_level)`: the remainder above the short part, both bounded.
+fn levels(section: &SplitSection) -> Result<(usize, usize), String> {
+    let short = section.short_level.unwrap_or(1);
+    let remainder = section.remainder_level.unwrap_or(short + 1);
+    if remainder <= short {
+        return Err(format!(
+            "remainder_level = {remainder} must be above short_level = {short} (the remainder \
+             is the slower part)"
+        ));
+    }
+    if remainder > MAX_LEVEL {
+        return Err(format!("levels go up to {MAX_LEVEL}, got {remainder}"));
+    }
+    Ok((short, remainder))
+}
+
+fn reference_label(section: &SplitSection) -> String {
+    match &section.reference {
+        Some(name) => name.clone(),
+        None => "heaviest atom".into(),
+    }
+}
+
+/// Each molecule's reference atom (module doc); errors name the reference or the molecule.
+fn references(
+    input: &ForcefieldInput,
+    atoms: &AtomTable,
+    section: &SplitSection,
+    molecule_of: &[u32],
+) -> Result<Vec<usize>, String> {
+    let Some(name) = &section.reference else {
+        return reference_atoms(molecule_of, &atoms.masses, None);
+    };
+    let matches = |i: usize| &input.atoms[i].type_name == name || &atoms.elements[i] == name;
+    if !(0..molecule_of.len()).any(matches) {
+        return Err(format!(
+            "reference = \"{name}\" is no element or type name of the structure's atoms"
+        ));
+    }
+    reference_atoms(molecule_of, &atoms.masses, Some(&matches))
+        .map_err(|e| format!("reference = \"{name}\": {e}"))
+}
