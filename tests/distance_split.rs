@@ -257,7 +257,13 @@ fn short_part_is_the_switched_brute_force_sum_and_parts_add_up() {
     // 4³ sites: a 12.4 Å box, so a 6 Å cutoff is under half of it.
     let (q, bonds, length) = waters(4, 60, &mut rng);
     let n = q.len() / 3;
-    for (label, by, periodic, exclude_hh) in CASES {
+    // With O–H = 1 Å, r_out + 2 Å < L − r_c = 6.4 Å takes the whole-molecule loop by
+    // molecule (r_out = 3.5), else the loop with a minimum image per atom pair (5.0).
+    for ((label, by, periodic, exclude_hh), (r_in, r_out)) in CASES
+        .into_iter()
+        .flat_map(|case| [(case, (2.5, 3.5)), (case, (3.5, 5.0))])
+    {
+        let label = format!("{label}, r_out {r_out}");
         let lengths = periodic.then_some([length; 3]);
         let spec = water_spec(
             n,
@@ -266,7 +272,7 @@ fn short_part_is_the_switched_brute_force_sum_and_parts_add_up() {
             lengths,
             exclude_hh,
         );
-        let split = split_spec(by, 3.5, 5.0, n, &bonds);
+        let split = split_spec(by, r_in, r_out, n, &bonds);
         let (short, rest) = split_nonbonded(spec.clone(), &split, &q).unwrap();
         let full = Nonbonded::new(spec.clone(), &q).unwrap();
         let (expected_short, expected_full, scale) = brute_force(&spec, &split, &q);
@@ -308,13 +314,14 @@ fn both_parts_match_finite_differences_in_both_modes() {
     let (q, bonds, length) = waters(4, 40, &mut rng);
     let n = q.len() / 3;
     for (label, by, periodic, exclude_hh) in CASES {
-        for electrostatics in [
-            Electrostatics::DampedShiftedForce { alpha: 0.2 },
-            Electrostatics::ReactionField { dielectric: 78.3 },
+        // The whole-molecule loop (r_out + 2 Å < L − r_c) and the per-pair image (5.5).
+        for (electrostatics, r_in, r_out) in [
+            (Electrostatics::DampedShiftedForce { alpha: 0.2 }, 2.5, 4.0),
+            (Electrostatics::ReactionField { dielectric: 78.3 }, 3.0, 5.5),
         ] {
             let lengths = periodic.then_some([length; 3]);
             let spec = water_spec(n, 6.0, electrostatics, lengths, exclude_hh);
-            let split = split_spec(by, 3.0, 5.5, n, &bonds);
+            let split = split_spec(by, r_in, r_out, n, &bonds);
             let (short, rest) = split_nonbonded(spec, &split, &q).unwrap();
             check_finite_differences(&short, &q, &mut rng, &format!("{label}, short"));
             check_finite_differences(&rest, &q, &mut rng, &format!("{label}, remainder"));

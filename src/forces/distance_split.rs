@@ -277,18 +277,52 @@ impl Model {
     /// `(V, −V′/r)` of pair `i, j` at `r² = s < r_c²`.
     #[inline(always)]
     pub fn energy_force(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
-        let p = self.lj(i, j);
-        let inv_r2 = 1.0 / s;
-        let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-        let mut energy = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
-        let mut force = inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        self.typed_energy_force(self.lj(i, j), qq, s)
+    }
+
+    /// The Lennard-Jones coefficients of types `a`, `b`.
+    #[inline(always)]
+    pub fn lj_types(&self, a: u32, b: u32) -> LjPair {
+        self.lj[a as usize * self.n_types + b as usize]
+    }
+
+    /// `(V, −V′/r)` of a pair with coefficients `p` and `k_e q_i q_j = qq` at `r² = s`.
+    #[inline(always)]
+    pub fn typed_energy_force(&self, p: LjPair, qq: f64, s: f64) -> (f64, f64) {
+        let inv_r2 = 1.0 / s;
+        let (mut energy, mut force) = (0.0, 0.0);
+        if p.c12 != 0.0 || p.c6 != 0.0 {
+            let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+            energy = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+            force = inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
+        }
         if qq != 0.0 {
             let (e, f) = self.coulomb.energy_force(qq, s, inv_r2.sqrt());
             energy += e;
             force += f;
         }
         (energy, force)
+    }
+
+    /// The periodic lengths (0 along an open axis) and the shortest of them (∞ for none).
+    pub fn shortest_period(&self) -> f64 {
+        self.period
+            .iter()
+            .filter(|&&l| l > 0.0)
+            .fold(f64::INFINITY, |a, &b| a.min(b))
+    }
+
+    /// Minimum image of a displacement `d`.
+    #[inline(always)]
+    pub fn image(&self, d: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| d[k] - self.period[k] * (d[k] * self.inverse[k]).round())
+    }
+
+    /// `q_i √k_e` (0 without electrostatics).
+    #[inline(always)]
+    pub fn scaled_charge(&self, i: usize) -> f64 {
+        self.scaled_charges[i]
     }
 
     /// `(V_LJ, V_Coulomb)` of pair `i, j` at `r² = s < r_c²` (for reports).
@@ -327,8 +361,13 @@ impl Model {
 /// Atoms of each molecule (CSR) and their reference atoms.
 pub(crate) struct Molecules {
     pub start: Vec<u32>,
+    /// Atoms in molecule order (global indices).
     pub atoms: Vec<u32>,
     pub reference: Vec<u32>,
+    /// Position of each reference atom in `atoms`.
+    pub reference_slot: Vec<u32>,
+    /// Type of each atom of `atoms`.
+    pub types: Vec<u32>,
 }
 
 impl Molecules {
@@ -348,6 +387,9 @@ enum Mode<'a> {
 
 struct Workspace {
     search: PairSearch,
+    /// By molecule: `[x, y, z, q√k_e]` per atom in molecule order, each atom at the image
+    /// nearest its reference atom (molecules made whole).
+    packed: Vec<[f64; 4]>,
     /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
     buffers: Vec<Vec<f64>>,
     energies: Vec<f64>,
@@ -452,11 +494,13 @@ impl ShortRange {
         };
         let (excluded_start, excluded_partners) = exclusion_table(n, &spec.excluded)?;
         let molecules = match split.by {
-            SwitchBy::Molecule => molecule_table(n, split)?,
+            SwitchBy::Molecule => molecule_table(n, split, &spec.types)?,
             SwitchBy::AtomPair => Molecules {
                 start: vec![0],
                 atoms: Vec::new(),
                 reference: Vec::new(),
+                reference_slot: Vec::new(),
+                types: Vec::new(),
             },
         };
         let points = match split.by {
@@ -481,6 +525,7 @@ impl ShortRange {
                     spec.skin,
                     spec.box_lengths,
                 ),
+                packed: vec![[0.0; 4]; if split.by == SwitchBy::Molecule { n } else { 0 }],
                 buffers: vec![vec![0.0; 3 * n]; chunks],
                 energies: vec![0.0; chunks],
                 cached_q: vec![f64::NAN; 3 * n],
@@ -578,20 +623,23 @@ impl ShortRange {
     /// product). The buffers hold the gradient or product afterwards (not for `Energy`).
     fn run(&self, workspace: &mut Workspace, q: &[f64], mode: Mode) -> f64 {
         self.refresh(workspace, q);
+        let whole = self.by == SwitchBy::Molecule && self.pack_molecules(q, &mut workspace.packed);
         let Workspace {
             search,
+            packed,
             buffers,
             energies,
             ..
         } = workspace;
         let pairs: &[[u32; 2]] = &search.pairs;
+        let packed = whole.then_some(&packed[..]);
         let chunks = self.chunks;
         let work = |(c, buffer): (usize, &mut Vec<f64>)| -> f64 {
             let part = &pairs[c * pairs.len() / chunks..(c + 1) * pairs.len() / chunks];
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
             }
-            self.evaluate(q, mode, part, self.by, buffer)
+            self.evaluate(q, mode, part, self.by, packed, buffer)
         };
         if chunks > 1 {
             buffers
@@ -610,39 +658,110 @@ impl ShortRange {
             mode,
             &self.intramolecular,
             SwitchBy::AtomPair,
+            None,
             &mut buffers[0],
         );
         energies.iter().sum()
     }
 
-    /// The pairs `part` of the list, switched `by` molecule or atom pair.
+    /// Fill `packed` (molecules made whole, charges) and say whether the whole-molecule
+    /// pair loop gives the model's minimum-image pairs: it uses `d = D_IJ + u_j − u_i`
+    /// (`D_IJ` the reference atoms' minimum image, `u` each atom's offset from its reference,
+    /// at most `e`), which is the minimum image whenever `|d| < r_c < L/2`, and can only
+    /// miss a pair inside the cutoff when `r_out + 2e > L − r_c` (a lattice vector is at
+    /// least `L` long). Then the loop takes the minimum image pair by pair instead.
+    fn pack_molecules(&self, q: &[f64], packed: &mut [[f64; 4]]) -> bool {
+        let molecules = &self.molecules;
+        let mut largest_offset2: f64 = 0.0;
+        for m in 0..molecules.reference.len() {
+            let r = molecules.reference[m] as usize;
+            let x_ref = [q[3 * r], q[3 * r + 1], q[3 * r + 2]];
+            for k in molecules.start[m] as usize..molecules.start[m + 1] as usize {
+                let i = molecules.atoms[k] as usize;
+                let u = self
+                    .model
+                    .image(std::array::from_fn(|a| q[3 * i + a] - x_ref[a]));
+                largest_offset2 = largest_offset2.max(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+                packed[k] = [
+                    x_ref[0] + u[0],
+                    x_ref[1] + u[1],
+                    x_ref[2] + u[2],
+                    self.model.scaled_charge(i),
+                ];
+            }
+        }
+        let reach = self.switch.r_out() + 2.0 * largest_offset2.sqrt();
+        reach < self.model.shortest_period() - self.model.cutoff_squared.sqrt()
+    }
+
+    /// The pairs `part` of the list, switched `by` molecule or atom pair; `packed`: whole
+    /// molecules for the fast molecule loop. Uses AVX2 when the processor has it (the
+    /// same operations in the same order, so the same bits; `round` becomes inline).
     fn evaluate(
         &self,
         q: &[f64],
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
+        packed: Option<&[[f64; 4]]>,
         buffer: &mut [f64],
     ) -> f64 {
-        match (mode, by) {
-            (Mode::Energy, SwitchBy::Molecule) => {
-                kernels::molecule_pairs::<false>(self, q, part, buffer)
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor supports AVX2, checked just above.
+                return unsafe { self.evaluate_avx2(q, mode, part, by, packed, buffer) };
             }
-            (Mode::Gradient, SwitchBy::Molecule) => {
-                kernels::molecule_pairs::<true>(self, q, part, buffer)
+        }
+        self.evaluate_body(q, mode, part, by, packed, buffer)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn evaluate_avx2(
+        &self,
+        q: &[f64],
+        mode: Mode,
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        packed: Option<&[[f64; 4]]>,
+        buffer: &mut [f64],
+    ) -> f64 {
+        self.evaluate_body(q, mode, part, by, packed, buffer)
+    }
+
+    #[inline(always)]
+    fn evaluate_body(
+        &self,
+        q: &[f64],
+        mode: Mode,
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        packed: Option<&[[f64; 4]]>,
+        buffer: &mut [f64],
+    ) -> f64 {
+        use kernels::*;
+        match (mode, by, packed) {
+            (Mode::Energy, SwitchBy::Molecule, Some(x)) => {
+                whole_molecule_pairs::<false>(self, x, part, buffer)
             }
-            (Mode::HessianVector(v), SwitchBy::Molecule) => {
-                kernels::molecule_pairs_hessian(self, q, v, part, buffer);
+            (Mode::Gradient, SwitchBy::Molecule, Some(x)) => {
+                whole_molecule_pairs::<true>(self, x, part, buffer)
+            }
+            (Mode::Energy, SwitchBy::Molecule, None) => {
+                molecule_pairs::<false>(self, q, part, buffer)
+            }
+            (Mode::Gradient, SwitchBy::Molecule, None) => {
+                molecule_pairs::<true>(self, q, part, buffer)
+            }
+            (Mode::HessianVector(v), SwitchBy::Molecule, _) => {
+                molecule_pairs_hessian(self, q, v, part, buffer);
                 0.0
             }
-            (Mode::Energy, SwitchBy::AtomPair) => {
-                kernels::atom_pairs::<false>(self, q, part, buffer)
-            }
-            (Mode::Gradient, SwitchBy::AtomPair) => {
-                kernels::atom_pairs::<true>(self, q, part, buffer)
-            }
-            (Mode::HessianVector(v), SwitchBy::AtomPair) => {
-                kernels::atom_pairs_hessian(self, q, v, part, buffer);
+            (Mode::Energy, SwitchBy::AtomPair, _) => atom_pairs::<false>(self, q, part, buffer),
+            (Mode::Gradient, SwitchBy::AtomPair, _) => atom_pairs::<true>(self, q, part, buffer),
+            (Mode::HessianVector(v), SwitchBy::AtomPair, _) => {
+                atom_pairs_hessian(self, q, v, part, buffer);
                 0.0
             }
         }
@@ -784,7 +903,7 @@ fn exclusion_table(n: usize, excluded: &[(usize, usize)]) -> Result<(Vec<u32>, V
 }
 
 /// Atoms per molecule (CSR) from `molecule_of`, checked against the reference atoms.
-fn molecule_table(n: usize, split: &SplitSpec) -> Result<Molecules, String> {
+fn molecule_table(n: usize, split: &SplitSpec, types: &[u32]) -> Result<Molecules, String> {
     if split.molecule_of.len() != n {
         return Err(format!(
             "non-bonded split: {} molecule indices for {n} atoms",
@@ -817,10 +936,17 @@ fn molecule_table(n: usize, split: &SplitSpec) -> Result<Molecules, String> {
             ));
         }
     }
+    let mut slot_of = vec![0u32; n];
+    for (k, &a) in atoms.iter().enumerate() {
+        slot_of[a as usize] = k as u32;
+    }
+    let reference_slot = split.reference_atoms.iter().map(|&r| slot_of[r]).collect();
     Ok(Molecules {
         start,
-        atoms,
         reference: split.reference_atoms.iter().map(|&r| r as u32).collect(),
+        reference_slot,
+        types: atoms.iter().map(|&a| types[a as usize]).collect(),
+        atoms,
     })
 }
 

@@ -25,6 +25,7 @@ fn difference(v: &[f64], i: usize, j: usize) -> [f64; 3] {
 }
 
 /// Molecule pairs: `Σ S(R) E_IJ`, and its gradient into `buffer` when `GRADIENT`.
+#[inline(always)]
 pub(super) fn molecule_pairs<const GRADIENT: bool>(
     short: &ShortRange,
     q: &[f64],
@@ -75,6 +76,7 @@ pub(super) fn molecule_pairs<const GRADIENT: bool>(
 }
 
 /// Atom pairs, each switched on its own distance: `Σ S(r) V(r)`, and the gradient.
+#[inline(always)]
 pub(super) fn atom_pairs<const GRADIENT: bool>(
     short: &ShortRange,
     q: &[f64],
@@ -106,6 +108,7 @@ pub(super) fn atom_pairs<const GRADIENT: bool>(
 }
 
 /// `buffer += ∇²(Σ S(R) E_IJ) v` over molecule pairs (chain rule in the parent's doc).
+#[inline(always)]
 pub(super) fn molecule_pairs_hessian(
     short: &ShortRange,
     q: &[f64],
@@ -168,6 +171,7 @@ pub(super) fn molecule_pairs_hessian(
 }
 
 /// `buffer += ∇²(Σ S(r) V(r)) v` over atom pairs: the radial Hessian of `W = S V`.
+#[inline(always)]
 pub(super) fn atom_pairs_hessian(
     short: &ShortRange,
     q: &[f64],
@@ -246,4 +250,80 @@ pub(super) fn energy_parts(
         }
     }
     parts
+}
+
+/// Molecule pairs over whole molecules (`packed`: `[x, y, z, q√k_e]` in molecule order,
+/// each atom at the image nearest its reference): one image shift per molecule pair, the
+/// forces on the first molecule's atoms summed locally.
+#[inline(always)]
+pub(super) fn whole_molecule_pairs<const GRADIENT: bool>(
+    short: &ShortRange,
+    packed: &[[f64; 4]],
+    pairs: &[[u32; 2]],
+    buffer: &mut [f64],
+) -> f64 {
+    let model = &short.model;
+    let molecules = &short.molecules;
+    let r_out2 = short.switch.r_out() * short.switch.r_out();
+    let rc2 = model.cutoff_squared;
+    let mut energy = 0.0;
+    for &[a, b] in pairs {
+        let (a, b) = (a as usize, b as usize);
+        let (ka, kb) = (
+            molecules.reference_slot[a] as usize,
+            molecules.reference_slot[b] as usize,
+        );
+        let raw: [f64; 3] = std::array::from_fn(|k| packed[kb][k] - packed[ka][k]);
+        let d = model.image(raw);
+        let big_r2 = dot(&d, &d);
+        if big_r2 >= r_out2 {
+            continue;
+        }
+        let shift: [f64; 3] = std::array::from_fn(|k| d[k] - raw[k]);
+        let big_r = big_r2.sqrt();
+        let (s, s1) = short.switch.value_slope(big_r);
+        let atoms_b = molecules.start[b] as usize..molecules.start[b + 1] as usize;
+        let mut pair_energy = 0.0;
+        for k in molecules.start[a] as usize..molecules.start[a + 1] as usize {
+            let xi = packed[k];
+            let type_i = molecules.types[k];
+            let mut gi = [0.0; 3];
+            for l in atoms_b.clone() {
+                let xj = packed[l];
+                let dij: [f64; 3] = std::array::from_fn(|c| (xj[c] + shift[c]) - xi[c]);
+                let r2 = dot(&dij, &dij);
+                if r2 >= rc2 {
+                    continue;
+                }
+                let p = model.lj_types(type_i, molecules.types[l]);
+                let (v, f) = model.typed_energy_force(p, xi[3] * xj[3], r2);
+                pair_energy += v;
+                if GRADIENT {
+                    // ∂V/∂x_j = V′ d/r = −f d, weighted by S.
+                    let g = dij.map(|x| -s * f * x);
+                    let j = molecules.atoms[l] as usize;
+                    for c in 0..3 {
+                        buffer[3 * j + c] += g[c];
+                        gi[c] -= g[c];
+                    }
+                }
+            }
+            if GRADIENT {
+                let i = molecules.atoms[k] as usize;
+                for c in 0..3 {
+                    buffer[3 * i + c] += gi[c];
+                }
+            }
+        }
+        energy += s * pair_energy;
+        if GRADIENT && s1 != 0.0 {
+            let k = pair_energy * s1 / big_r;
+            let (ra, rb) = (
+                molecules.reference[a] as usize,
+                molecules.reference[b] as usize,
+            );
+            add_pair(buffer, ra, rb, d.map(|x| k * x));
+        }
+    }
+    energy
 }
