@@ -676,13 +676,17 @@ impl ShortRange {
         for m in 0..molecules.reference.len() {
             let r = molecules.reference[m] as usize;
             let x_ref = [q[3 * r], q[3 * r + 1], q[3 * r + 2]];
-            for k in molecules.start[m] as usize..molecules.start[m + 1] as usize {
-                let i = molecules.atoms[k] as usize;
+            let slots = molecules.start[m] as usize..molecules.start[m + 1] as usize;
+            for (slot, &i) in packed[slots.clone()]
+                .iter_mut()
+                .zip(&molecules.atoms[slots])
+            {
+                let i = i as usize;
                 let u = self
                     .model
                     .image(std::array::from_fn(|a| q[3 * i + a] - x_ref[a]));
                 largest_offset2 = largest_offset2.max(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-                packed[k] = [
+                *slot = [
                     x_ref[0] + u[0],
                     x_ref[1] + u[1],
                     x_ref[2] + u[2],
