@@ -15,13 +15,13 @@ use longstep::analysis::async_stability::{
     MapParameter, MapPoint, MapSpec, RadiusMethod, RadiusOptions, async_stability_map,
     unstable_bands, write_map_csv,
 };
-use longstep::analysis::exact::position_error;
 use longstep::integrators::quadrature::Quadrature;
 use longstep::integrators::{self};
 use longstep::io::scene::{Scene, load_scene};
 use longstep::io::summary::{RunSummary, Status};
 use longstep::run::{RunOptions, run};
 use longstep::settings::MethodSettings;
+use longstep::system::exact::position_error;
 use longstep::{Error, Result};
 
 fn root() -> PathBuf {

@@ -3,11 +3,16 @@
 //! Layout, in the order a run uses it: [`io::scene`] reads a scene into a
 //! [`system::System`] whose [`forces`] terms the [`split`] puts on levels; an
 //! [`integrators::Integrator`] advances it; [`run`] records energies and stops on a
-//! blow-up; [`analysis`] holds monitors and studies; [`cli`] is the command line.
+//! blow-up; [`analysis`] holds studies; [`cli`] is the command line.
+//!
+//! Imports point down the layers: `error`, `units`, `expr`, `plot` < `settings` <
+//! `forces` < `split` < `system` < `integrators` < `io` < `run` < `analysis` < `cli`
+//! (checked by `tests/layout.rs`).
 
 pub mod analysis;
 pub mod cli;
 pub mod error;
+pub mod expr;
 pub mod forces;
 pub mod integrators;
 pub mod io;

@@ -1,14 +1,16 @@
 //! The run loop: step an integrator to the end time, record energies, stop on a blow-up.
 
+pub mod monitor;
+
 use std::path::PathBuf;
 use std::time::Instant;
 
-use crate::analysis::monitor::EnergyMonitor;
 use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
 use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status};
 use crate::io::trajectory::TrajectoryWriter;
+use crate::run::monitor::EnergyMonitor;
 use crate::system::System;
 
 #[derive(Clone, Debug)]

@@ -12,7 +12,7 @@ use clap::Args;
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
-use crate::io::expr;
+use crate::expr;
 
 /// A number, or an expression in the scene's parameters (`"omega1^2"`, `"2*pi/omega1"`).
 #[derive(Clone, Debug, Deserialize, PartialEq)]

@@ -8,13 +8,13 @@ use longstep::analysis::async_stability::{
     MapParameter, MapSpec, RadiusOptions, Scheme, amplification_matrix, async_stability_map,
     dense_spectral_radius,
 };
-use longstep::analysis::exact::position_error;
 use longstep::integrators::quadrature::Quadrature;
 use longstep::integrators::{self, AsyncPseudoEnergy, Integrator};
 use longstep::io::scene::{Scene, load_scene};
 use longstep::io::summary::Status;
 use longstep::run::{RunOptions, run};
 use longstep::settings::MethodSettings;
+use longstep::system::exact::position_error;
 
 fn wave_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/wave-inhomogeneous.toml")

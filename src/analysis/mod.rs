@@ -1,16 +1,14 @@
-//! Analysis of runs and methods: energy monitors, normal modes and resonance prediction,
-//! minimisation, step-size safety scans, and the configurational analysis of runs (g(r),
-//! block averages, configurational temperature, bond geometry).
+//! Analysis of runs and methods: normal modes and resonance prediction, minimisation,
+//! step-size safety scans, and the configurational analysis of runs (g(r), block
+//! averages, configurational temperature, bond geometry).
 
 pub mod async_stability;
 pub mod block_average;
 pub mod configurational;
-pub mod exact;
 pub mod geometry;
 pub mod growth;
 pub mod minimize;
 pub mod modes;
-pub mod monitor;
 pub mod rdf;
 pub mod run_analysis;
 pub mod scan;

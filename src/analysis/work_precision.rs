@@ -17,10 +17,10 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::analysis::monitor::EnergyMonitor;
 use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
+use crate::run::monitor::EnergyMonitor;
 use crate::settings::{RunSpec, Value};
 use crate::system::System;
 

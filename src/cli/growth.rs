@@ -17,8 +17,8 @@ use crate::analysis::growth::{
 use crate::analysis::stability::integrator::{INTEGRATOR_TOLERANCE, IntegratorProbe, ProbeScene};
 use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
+use crate::expr;
 use crate::integrators;
-use crate::io::expr;
 use crate::io::scene::load_scene;
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
 use crate::settings::{MethodSettings, RunSpec, Value};

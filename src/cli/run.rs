@@ -3,13 +3,13 @@
 use std::path::PathBuf;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
-use crate::analysis::exact::position_error;
 use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::Status;
 use crate::run::{RunOptions, TrajectoryOptions, run};
 use crate::split::ParticleClass;
+use crate::system::exact::position_error;
 
 /// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
 /// force loops then split their work from a worker thread, with no allocation per call.

@@ -12,8 +12,8 @@ use crate::analysis::stability::integrator::{IntegratorProbe, ProbeScene};
 use crate::analysis::stability::map::{Axis, Evaluator, Grid, Shard, census, evaluate};
 use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType};
 use crate::error::{Error, Result};
+use crate::expr;
 use crate::io::csv::CsvWriter;
-use crate::io::expr;
 use crate::plot::{AxisSpec, Category, Colouring, HeatMap};
 use crate::settings::MethodSettings;
 

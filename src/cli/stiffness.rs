@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::studies::{parse_shard, progress_bar};
 use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
 use crate::error::{Error, Result};
-use crate::io::expr;
+use crate::expr;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, Series};
 use crate::settings::{RunSpec, Value};
 

@@ -8,9 +8,9 @@
 //! gradient in the direction `v` with dual numbers ([`super::dual`]): exact, and one code
 //! path for both.
 
+use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
 use super::{ForceTerm, Site, TermClass, add_to_site, site_position, site_vector, with_dim};
-use crate::system::PeriodicBox;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AngleBend {

@@ -7,9 +7,9 @@
 //! With `r = √s`, `u = r + a`, `g(r) = −n c u^{−n−1}` (= dV/dr) and
 //! `g′(r) = n(n+1) c u^{−n−2}`: `χ = c u^{−n}`, `χ′ = g/(2r)`, `χ″ = (g′r − g)/(4r³)`.
 
+use super::PeriodicBox;
 use super::pair::{Pair, PairPotential, PairTerm};
 use super::{Site, TermClass};
-use crate::system::PeriodicBox;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InversePower {

@@ -5,9 +5,9 @@
 //! all three vanish beyond the cutoff. This is the plain all-pairs form: every pair of
 //! the listed particles not excluded.
 
+use super::PeriodicBox;
 use super::pair::{Pair, PairPotential, PairTerm};
 use super::{Site, TermClass};
-use crate::system::PeriodicBox;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LennardJones {

@@ -26,10 +26,13 @@ pub mod neighbour_list;
 pub mod nonbonded;
 pub mod pair;
 pub mod pendulum;
+mod periodic_box;
 pub mod quartic;
 pub mod spring;
 pub mod string;
 pub mod torsion;
+
+pub use periodic_box::PeriodicBox;
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]

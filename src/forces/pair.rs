@@ -10,8 +10,8 @@
 //! Each kind of pair term (spring, FPU spring, Lennard-Jones, gravity) only supplies
 //! `χ`, `χ′`, `χ″` through [`PairPotential`].
 
+use super::PeriodicBox;
 use super::{ForceTerm, Site, TermClass, add_to_site, dot, site_position, site_vector, with_dim};
-use crate::system::PeriodicBox;
 
 /// A radial potential written in the squared distance `s`.
 pub trait PairPotential: Copy + Send + Sync {

@@ -5,9 +5,9 @@
 //! With `u = √s − L`: `χ = c u⁴`, `χ′ = 2c u³/√s`, `χ″ = 3c u²/s − c u³/s^{3/2}`;
 //! for `L = 0`: `χ = c s²`, `χ′ = 2cs`, `χ″ = 2c`.
 
+use super::PeriodicBox;
 use super::pair::{Pair, PairPotential, PairTerm};
 use super::{Site, TermClass};
-use crate::system::PeriodicBox;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QuarticBond {

@@ -5,9 +5,9 @@
 //! `χ″ = kL/(4 s^{3/2})`. With `L = 0` the spring is `(k/2)s`, smooth everywhere
 //! (the stiff springs of the FPU chain, MEMM18 3.2).
 
+use super::PeriodicBox;
 use super::pair::{Pair, PairPotential, PairTerm};
 use super::{Site, TermClass};
-use crate::system::PeriodicBox;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HarmonicBond {

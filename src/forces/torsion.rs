@@ -11,9 +11,9 @@
 //! with `p = r_ij·r_kj/|r_kj|²`, `s = r_kl·r_kj/|r_kj|²`. The Hessian-vector product runs the
 //! same code on dual numbers ([`super::dual`]), as the angle term does.
 
+use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
 use super::{ForceTerm, TermClass};
-use crate::system::PeriodicBox;
 
 /// One cosine `k (1 + cos(n φ − δ))`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,7 +2,6 @@
 
 pub mod csv;
 pub mod energy_table;
-pub mod expr;
 pub mod forcefield;
 pub mod scene;
 pub mod structure;

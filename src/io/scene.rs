@@ -25,11 +25,11 @@ mod values;
 
 pub use schema::*;
 
-use crate::analysis::exact::ExactSolution;
 use crate::error::{Error, Result};
 use crate::forces::ForceTerm;
 use crate::settings::RunSpec;
 use crate::split::{Assignment, ForceSplit};
+use crate::system::exact::ExactSolution;
 use crate::system::{Particles, State, System};
 use crate::units::Units;
 use terms::SceneSoFar;

@@ -7,11 +7,11 @@
 //! for a banded non-diagonal mass matrix instead ([`MassMatrix`], the consistent P1 mass of
 //! MEMM18 3.3); then the masses are its diagonal and only methods that solve with it run.
 
+pub mod exact;
 mod mass;
-mod periodic_box;
 
+pub use crate::forces::PeriodicBox;
 pub use mass::{MAX_BANDWIDTH, MassMatrix};
-pub use periodic_box::PeriodicBox;
 
 use crate::split::ForceSplit;
 

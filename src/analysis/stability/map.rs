@@ -17,7 +17,7 @@ use super::analytic::LinearProblem;
 use super::integrator::IntegratorProbe;
 use super::{InstabilityType, StabilityPoint};
 use crate::error::{Error, Result};
-use crate::io::expr;
+use crate::expr;
 
 /// An evenly spaced closed interval of `count` values from `start` to `end`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -85,7 +85,7 @@ pub enum MassPairs {
     List(Vec<[Reference; 2]>),
 }
 
-/// `[exact]`: an exact solution (see [`crate::analysis::exact`]).
+/// `[exact]`: an exact solution (see [`crate::system::exact`]).
 #[derive(Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ExactSpec {

@@ -6,10 +6,10 @@ use toml::Spanned;
 
 use super::sites::Names;
 use super::{Builder, ExactSpec, MassMatrixSpec, MassPairs};
-use crate::analysis::exact::{ExactSolution, ExpressionSolution, TwoMediaWave};
 use crate::error::Result;
 use crate::io::structure::Structure;
 use crate::settings::Value;
+use crate::system::exact::{ExactSolution, ExpressionSolution, TwoMediaWave};
 use crate::system::{MassMatrix, PeriodicBox};
 
 impl Builder<'_> {

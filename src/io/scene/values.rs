@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use super::Builder;
 use crate::error::{Error, Result};
-use crate::io::expr;
+use crate::expr;
 use crate::settings::Value;
 
 impl Builder<'_> {

@@ -18,9 +18,9 @@
 
 use std::collections::BTreeMap;
 
+use super::State;
 use crate::error::{Error, Result};
-use crate::io::expr;
-use crate::system::State;
+use crate::expr;
 
 /// Exact positions of a scene as functions of time.
 pub trait ExactSolution: Send + Sync {
