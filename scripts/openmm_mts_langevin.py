@@ -19,6 +19,7 @@ its block-average error bar, and every compared run's difference in combined sta
     python3 scripts/openmm_mts_langevin.py --t-end 2 --skip 0.5 --blocks 5      # a quick check
     python3 scripts/openmm_mts_langevin.py --t-end 50 --skip 5 --longstep       # the comparison
     python3 scripts/openmm_mts_langevin.py --t-end 50 --skip 5 --compare out/my-langevin-run
+    python3 scripts/openmm_mts_langevin.py --t-end 50 --skip 5 --reuse-openmm --longstep
 
 --longstep also runs `longstep run SCENE --method langevin-respa` with the same h, K, T, γ
 and output intervals (seeded by --seed; the random streams differ from OpenMM's, so the two
@@ -201,11 +202,14 @@ def main():
     ap.add_argument("--out", default="out/openmm-mts-langevin")
     ap.add_argument("--longstep", action="store_true", help="also run longstep's langevin-respa")
     ap.add_argument("--compare", nargs="*", default=[], help="other run directories to analyse")
-    ap.add_argument("--analyze-only", action="store_true", help="reuse OUT, do not rerun OpenMM")
+    ap.add_argument("--reuse-openmm", action="store_true",
+                    help="do not rerun OpenMM: analyse the run already in OUT")
+    ap.add_argument("--analyze-only", action="store_true",
+                    help="rerun nothing (neither OpenMM nor --longstep): analyse what is there")
     args = ap.parse_args()
     args.scene = os.path.relpath(os.path.abspath(args.scene), ROOT)
     out = os.path.abspath(args.out)
-    if not args.analyze_only:
+    if not (args.analyze_only or args.reuse_openmm):
         run_openmm(args, out)
     runs, labels = [out], ["openmm-mts-langevin"]
     if args.longstep:
