@@ -8,7 +8,8 @@
 //! * **Potential energy per molecule**: the `potential` column over the molecule count
 //!   (connected components of the bonded terms, [`super::geometry`]); the
 //!   Flyvbjerg–Petersen levels of the row series check that the blocks are long enough.
-//! * **Kinetic temperature** `2⟨K⟩/(n_dof k_B)` from the `kinetic` column, `n_dof = 3N` by
+//! * **Kinetic temperature** `2⟨K⟩/(n_dof k_B)` from the `kinetic` column (or another one
+//!   named in the options), `n_dof = 3N` by
 //!   default (a thermostatted run: every degree of freedom, the centre of mass included, is
 //!   thermalised; an NVE run with zero total momentum has `3N − 3`).
 //! * **Configurational temperature** and **g(r)** and mean **bond lengths and angles** per
@@ -49,6 +50,9 @@ pub struct AnalysisOptions {
     pub seed: u64,
     pub configurational: bool,
     pub dof: Option<f64>,
+    /// The energy-table column of the kinetic energy (`kinetic`; a method may write
+    /// another, e.g. one taken at a point of its step where it is canonical).
+    pub kinetic_column: String,
     /// Use every `stride`-th frame.
     pub stride: usize,
 }
@@ -189,7 +193,8 @@ impl<'a> Analyzer<'a> {
 
     /// Analyse one run.
     pub fn analyze(&self, files: &RunFiles) -> Result<RunAnalysis> {
-        let table = EnergyTable::read(&files.energy, &["t", "kinetic", "potential"])?;
+        let kinetic = self.options.kinetic_column.as_str();
+        let table = EnergyTable::read(&files.energy, &["t", kinetic, "potential"])?;
         let blocks = self.blocks_of(&table)?;
         let mut reader = TrajectoryReader::open(&files.trajectory)?;
         let mut frames = FramePass::new(self, blocks);

@@ -71,6 +71,9 @@ pub struct AnalyzeArgs {
     /// with zero total momentum).
     #[arg(long)]
     pub dof: Option<f64>,
+    /// The energy.csv column holding the kinetic energy.
+    #[arg(long, default_value = "kinetic", value_name = "NAME")]
+    pub kinetic_column: String,
     /// Use every K-th trajectory frame.
     #[arg(long, default_value_t = 1, value_name = "K")]
     pub stride: usize,
@@ -129,6 +132,7 @@ fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {
         seed: args.seed,
         configurational: !args.no_configurational,
         dof: args.dof,
+        kinetic_column: args.kinetic_column.clone(),
         stride: args.stride,
     })
 }
@@ -300,7 +304,10 @@ fn summary_json(
             "mean": r.potential_per_molecule.mean, "error": r.potential_per_molecule.error,
             "blocks_long_enough": r.blocks_long_enough,
         },
-        "kinetic_temperature": { "mean": r.kinetic_temperature.mean, "error": r.kinetic_temperature.error, "dof": r.dof },
+        "kinetic_temperature": {
+            "mean": r.kinetic_temperature.mean, "error": r.kinetic_temperature.error,
+            "dof": r.dof, "column": options.kinetic_column,
+        },
         "configurational_temperature": configurational,
         "rdf": rdf,
         "rdf_intramolecular_pairs": options.intramolecular,
