@@ -33,6 +33,16 @@ impl std::str::FromStr for Value {
     }
 }
 
+/// As the user wrote it: `0.5`, `2*pi/omega1`, `4fs`.
+impl std::fmt::Display for Value {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Value::Number(x) => write!(f, "{x}"),
+            Value::Expression(text) => f.write_str(text),
+        }
+    }
+}
+
 impl Value {
     /// The value with the given parameters; `what` names it in the error.
     pub fn evaluate(&self, parameters: &BTreeMap<String, f64>, what: &str) -> Result<f64> {

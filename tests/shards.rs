@@ -241,3 +241,137 @@ fn stability_map_shards_merge_into_the_single_run_map() {
         std::fs::read_to_string(dir.join("m/stability-map.csv")).unwrap()
     );
 }
+
+/// Run `longstep` and return (exit code, stderr).
+fn status_of(args: &[&str]) -> (Option<i32>, String) {
+    let output = longstep().args(args).output().unwrap();
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn stability_map_merge_checks_its_shards() {
+    let dir = scratch_dir("map-shard-checks");
+    let out = |name: &str| dir.join(name).display().to_string();
+    let map = |file: &str, method: &str, shard: &str| {
+        run(&[
+            "stability-map",
+            "--method",
+            method,
+            "--h",
+            "0.5",
+            "--n",
+            "6",
+            "--quiet",
+            "--out",
+            &out(file),
+            "--shard",
+            shard,
+        ]);
+    };
+    map("a.csv", "impulse", "1/2");
+    map("b.csv", "long-average", "2/2");
+    map("c.csv", "impulse", "1/3");
+    // One shard of two is not the map.
+    let (code, stderr) = status_of(&["merge", &out("a.csv"), "--out", &out("m1")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("shard 2/2 is missing"), "{stderr}");
+    // Shards of different methods: the message names the setting and both values.
+    let (code, stderr) = status_of(&["merge", &out("a.csv"), &out("b.csv"), "--out", &out("m2")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("method") && stderr.contains("impulse") && stderr.contains("long-average"),
+        "{stderr}"
+    );
+    // Shards of different splits.
+    let (code, stderr) = status_of(&["merge", &out("a.csv"), &out("c.csv"), "--out", &out("m3")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("1/3"), "{stderr}");
+    assert!(!dir.join("m1/stability-map.csv").exists());
+}
+
+#[test]
+fn merge_names_the_differing_setting_in_the_users_terms() {
+    let dir = scratch_dir("scan-shard-settings");
+    let scan = |name: &str, t_end: &str, shard: &str| {
+        run(&[
+            "scan",
+            "steps",
+            "systems/three-spring.toml",
+            "--methods",
+            "impulse",
+            "--h",
+            "0.2:0.3:0.1",
+            "--inner",
+            "10",
+            "--t-end",
+            t_end,
+            "--quiet",
+            "--out",
+            &dir.join(name).display().to_string(),
+            "--shard",
+            shard,
+        ]);
+    };
+    scan("a", "20", "1/2");
+    scan("b", "10", "2/2");
+    let text = std::fs::read_to_string(dir.join("a/scan.csv")).unwrap();
+    let first = text.lines().next().unwrap();
+    assert!(
+        !first.contains("Some(") && !first.contains("Number("),
+        "{first}"
+    );
+    let (code, stderr) = status_of(&[
+        "merge",
+        &dir.join("a").display().to_string(),
+        &dir.join("b").display().to_string(),
+        "--out",
+        &dir.join("m").display().to_string(),
+    ]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("t_end: ") && stderr.contains("20") && stderr.contains("10"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("Number(") && !stderr.contains("Some("),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn stiffness_scan_merge_checks_the_method() {
+    let dir = scratch_dir("stiffness-shard-settings");
+    let out = |name: &str| dir.join(name).display().to_string();
+    let scan = |file: &str, method: &str, shard: &str| {
+        run(&[
+            "scan",
+            "stiffness",
+            "systems/two-spring.toml",
+            "--method",
+            method,
+            "--param",
+            "omega1",
+            "--range",
+            "0:32",
+            "--n",
+            "4",
+            "--h",
+            "0.5",
+            "--t-end",
+            "2",
+            "--quiet",
+            "--out",
+            &out(file),
+            "--shard",
+            shard,
+        ]);
+    };
+    scan("a.csv", "impulse", "1/2");
+    scan("b.csv", "long-average", "2/2");
+    let (code, stderr) = status_of(&["merge", &out("a.csv"), &out("b.csv"), "--out", &out("m")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("method"), "{stderr}");
+}

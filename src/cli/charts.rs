@@ -10,12 +10,13 @@ use clap::{Args, Subcommand};
 
 use super::studies::{check_methods, parse_shard, parse_steps, progress_bar};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
+use crate::analysis::stability::map::Shard;
 use crate::analysis::work_precision::{
     CostWeights, StudySetup, measure_cost_weights, reference, run_points, sample_times,
 };
 use crate::error::{Error, Result};
 use crate::io::scene::load_scene;
-use crate::io::study_csv::{StudyTable, merge};
+use crate::io::study_csv::{StudyTable, differing_setting, merge};
 use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, Series, SeriesStyle};
 use crate::settings::{RunSpec, Value, whole_ratio};
 
@@ -96,6 +97,11 @@ const WORK_PRECISION: &str = "work-precision.csv";
 const WALL_TIME: &str = "wall-time.csv";
 const SCAN_STEPS: &str = "scan.csv";
 const SCAN_STIFFNESS: &str = "scan-stiffness.csv";
+
+/// A setting for a study table's first line: its value, or `default` when not given.
+pub fn or_default<T: std::fmt::Display>(value: Option<T>) -> String {
+    value.map_or("default".into(), |v| v.to_string())
+}
 
 fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
     pairs
@@ -207,7 +213,7 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
             "reference",
             format!("{} h = {reference_h}", args.reference_method),
         ),
-        ("inner_steps", format!("{:?}", args.inner_steps)),
+        ("inner_steps", or_default(args.inner_steps)),
         (
             "weights",
             format!(
@@ -508,46 +514,87 @@ pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
 const MAP_HEADER: &str = "gamma1,gamma2,spectral_radius,type";
 
 /// Stability-map shards are contiguous slices of the grid, which runs Γ1-major: the whole
-/// map's rows are the shards' rows in (Γ1, Γ2) order, each point once.
-fn merge_maps(maps: &[(PathBuf, String)], out: &Path) -> Result<()> {
-    let mut rows: Vec<(f64, f64, &str)> = Vec::new();
-    for (path, text) in maps {
-        for (n, line) in text.lines().skip(1).enumerate() {
-            let mut fields = line.split(',');
-            let mut coordinate = || -> Result<f64> {
-                fields
-                    .next()
-                    .and_then(|x| x.parse::<f64>().ok())
-                    .ok_or_else(|| Error::Structure {
-                        path: path.clone(),
-                        message: format!("row {} is not a map row", n + 1),
-                    })
-            };
-            rows.push((coordinate()?, coordinate()?, line));
+/// map's rows are the shards' rows in shard order. Each shard's first line names its map's
+/// settings and its `k/n`: the shards must agree on every setting and hold every slice
+/// 1..n once, each with the rows its slice has.
+fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
+    let (first_path, first) = &maps[0];
+    let points = first.points()?;
+    let mut slices: Vec<Option<&(PathBuf, StudyTable)>> = Vec::new();
+    for entry in maps {
+        let (path, table) = entry;
+        if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
+            return Err(Error::input(format!(
+                "the map shards differ in {key}: {theirs} in {}, {ours} in {}",
+                path.display(),
+                first_path.display()
+            )));
         }
+        let shard = table
+            .meta
+            .get("shard")
+            .map(|s| Shard::parse(s))
+            .transpose()?
+            .ok_or_else(|| Error::Structure {
+                path: path.clone(),
+                message: "a stability-map table without its `shard`".into(),
+            })?;
+        if slices.is_empty() {
+            slices = vec![None; shard.count];
+        }
+        if shard.count != slices.len() {
+            return Err(Error::input(format!(
+                "{} is shard {}/{} but {} is one of {}: give the shards of one --shard split",
+                path.display(),
+                shard.index,
+                shard.count,
+                first_path.display(),
+                slices.len()
+            )));
+        }
+        if let Some((other, _)) = slices[shard.index - 1] {
+            return Err(Error::input(format!(
+                "shard {}/{} appears twice: {} and {}",
+                shard.index,
+                shard.count,
+                other.display(),
+                path.display()
+            )));
+        }
+        let expected = shard.range(points).len();
+        if table.rows.len() != expected {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "shard {}/{} of {points} points holds {} rows, not its {expected}",
+                    shard.index,
+                    shard.count,
+                    table.rows.len()
+                ),
+            });
+        }
+        slices[shard.index - 1] = Some(entry);
     }
-    rows.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-    if let Some(pair) = rows
-        .windows(2)
-        .find(|w| (w[0].0, w[0].1) == (w[1].0, w[1].1))
-    {
+    if let Some(k) = slices.iter().position(Option::is_none) {
         return Err(Error::input(format!(
-            "the map shards overlap: the point ({}, {}) appears twice",
-            pair[0].0, pair[0].1
+            "the map shards do not cover its {points} points: shard {}/{} is missing",
+            k + 1,
+            slices.len()
         )));
     }
-    let mut text = format!("{MAP_HEADER}\n");
-    for (_, _, line) in &rows {
-        text += line;
-        text += "\n";
+    let mut text = format!("{}\n", first.header.join(","));
+    for (_, table) in slices.iter().flatten() {
+        for row in &table.rows {
+            text += &row.join(",");
+            text += "\n";
+        }
     }
     let path = out.join("stability-map.csv");
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
     eprintln!(
-        "merged {} map shards ({} points) into {}",
+        "merged {} map shards ({points} points) into {}",
         maps.len(),
-        rows.len(),
         path.display()
     );
     Ok(())
@@ -556,8 +603,8 @@ fn merge_maps(maps: &[(PathBuf, String)], out: &Path) -> Result<()> {
 /// `longstep merge DIR…`: combine shard outputs into what a single run writes.
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
     // Tables are grouped by the study they name, so shard files may be called anything.
-    let mut by_study: BTreeMap<String, Vec<StudyTable>> = BTreeMap::new();
-    let mut maps: Vec<(PathBuf, String)> = Vec::new();
+    let mut by_study: BTreeMap<String, Vec<(String, StudyTable)>> = BTreeMap::new();
+    let mut maps: Vec<(PathBuf, StudyTable)> = Vec::new();
     for input in &args.inputs {
         let files: Vec<PathBuf> = if input.is_dir() {
             [WORK_PRECISION, WALL_TIME, SCAN_STEPS, SCAN_STIFFNESS]
@@ -577,11 +624,23 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
         for file in files {
             let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
             if text.starts_with(MAP_HEADER) {
-                maps.push((file.clone(), text));
-                continue;
+                return Err(Error::Structure {
+                    path: file.clone(),
+                    message: "a whole stability map (written without --shard): merge takes \
+                              the shards of one map"
+                        .into(),
+                });
             }
             let table = StudyTable::read(&file)?;
-            by_study.entry(table.study.clone()).or_default().push(table);
+            if table.study == "stability-map" {
+                maps.push((file.clone(), table));
+                continue;
+            }
+            let name = file.display().to_string();
+            by_study
+                .entry(table.study.clone())
+                .or_default()
+                .push((name, table));
         }
     }
     if !maps.is_empty() {

@@ -14,6 +14,7 @@ use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::io::csv::CsvWriter;
+use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Category, Colouring, HeatMap};
 use crate::settings::MethodSettings;
 
@@ -276,7 +277,17 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
             grid.len()
         )));
     }
-    let mut csv = CsvWriter::create(&args.out, &["gamma1", "gamma2", "spectral_radius", "type"])?;
+    // A shard names its map's settings, so `longstep merge` can check that shards belong
+    // together and cover the map exactly once.
+    let first_line = match &args.shard {
+        Some(_) => Some(shard_line(args, &grid, shard)?),
+        None => None,
+    };
+    let mut csv = CsvWriter::create_after(
+        &args.out,
+        first_line.as_deref(),
+        &["gamma1", "gamma2", "spectral_radius", "type"],
+    )?;
     let progress = if !args.quiet && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(range.len() as u64);
         if let Ok(style) = ProgressStyle::with_template(
@@ -354,6 +365,51 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
         eprintln!("wrote {}", written.join(", "));
     }
     Ok(())
+}
+
+/// The first line of a shard's CSV: `# longstep stability-map, gamma1 = 0:6.5, h = 0.5, …,
+/// points = N, shard = k/n` (the study-table form of `src/io/study_csv.rs`): every setting
+/// that changes the map's values, numbers evaluated.
+fn shard_line(args: &StabilityMapArgs, grid: &Grid, shard: Shard) -> Result<String> {
+    let model = &args.model;
+    let optional = |text: &Option<String>, what: &str| -> Result<String> {
+        Ok(match text {
+            Some(t) => number(t, what)?.to_string(),
+            None => "default".into(),
+        })
+    };
+    let axis = |a: &Axis| format!("{}:{}", a.start, a.end);
+    let settings = vec![
+        ("method", model.method.clone()),
+        ("mode", format!("{:?}", model.mode).to_lowercase()),
+        ("h", number(&model.h, "--h")?.to_string()),
+        ("gamma1", axis(&grid.gamma1)),
+        ("gamma2", axis(&grid.gamma2)),
+        ("n", args.n.to_string()),
+        ("alpha1", optional(&model.alpha1, "--alpha1")?),
+        ("alpha2", optional(&model.alpha2, "--alpha2")?),
+        ("beta", optional(&model.beta, "--beta")?),
+        (
+            "inner",
+            model
+                .inner_steps
+                .map_or("default".into(), |k| k.to_string()),
+        ),
+        (
+            "scene",
+            model
+                .scene
+                .as_ref()
+                .map_or("three-spring".into(), |p| p.display().to_string()),
+        ),
+        ("points", grid.len().to_string()),
+        ("shard", format!("{}/{}", shard.index, shard.count)),
+    ];
+    let meta = settings
+        .into_iter()
+        .map(|(key, value)| (key.to_string(), value.replace(',', ";")))
+        .collect();
+    Ok(StudyTable::new("stability-map", meta, &[]).first_line())
 }
 
 /// An axis of a map picture: in units of π for ranges of a radian or more, plain below,

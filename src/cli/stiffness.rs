@@ -8,10 +8,12 @@ use std::path::PathBuf;
 use clap::Args;
 use rayon::prelude::*;
 
+use super::charts::or_default;
 use super::studies::{parse_shard, progress_bar};
 use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
 use crate::error::{Error, Result};
 use crate::expr;
+use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, Series};
 use crate::settings::{RunSpec, Value};
 
@@ -188,14 +190,32 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
         "reference_steps",
         "status",
     ]);
-    // A comment line names the study and its size, so shards can be merged; then rows are
-    // written and flushed block by block as they finish.
+    // A comment line names the study, its size and settings, so shards can be checked and
+    // merged; then rows are written and flushed block by block as they finish.
+    let mut meta: BTreeMap<String, String> = [
+        ("points", study.total_points().to_string()),
+        ("scene", args.scene.display().to_string()),
+        ("set", args.set.join(" ")),
+        ("method", args.method.join(" ")),
+        ("param", args.param.clone()),
+        ("range", args.range.clone()),
+        ("n", args.n.to_string()),
+        ("h", args.h.join(" ")),
+        ("inner_steps", or_default(args.inner_steps)),
+        ("dt", or_default(args.dt.as_ref())),
+        ("jacobian", or_default(args.jacobian.as_ref())),
+        ("t_end", args.t_end.clone()),
+        ("reference_steps", or_default(args.reference_steps)),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
+    .collect();
+    if let Some(shard) = &args.shard {
+        meta.insert("shard".into(), shard.clone());
+    }
     let mut out = TextCsv::create(
         &args.out,
-        &format!(
-            "# longstep scan-stiffness, points = {}",
-            study.total_points()
-        ),
+        &StudyTable::new("scan-stiffness", meta, &[]).first_line(),
         &header,
     )?;
     let bar = progress_bar(units.len() as u64, args.quiet, "scan stiffness");

@@ -405,9 +405,9 @@ pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) ->
         ("points", total.to_string()),
         ("scene", args.scene.display().to_string()),
         ("set", args.set.join(" ")),
-        ("t_end", format!("{:?}", args.t_end)),
-        ("inner_steps", format!("{:?}", args.inner_steps)),
-        ("dt", format!("{:?}", args.dt)),
+        ("t_end", args.t_end.to_string()),
+        ("inner_steps", super::charts::or_default(args.inner_steps)),
+        ("dt", super::charts::or_default(args.dt.as_ref())),
         ("drift_bound", args.drift_bound.to_string()),
         ("blowup", args.blowup.to_string()),
     ]

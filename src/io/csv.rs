@@ -17,6 +17,11 @@ pub struct CsvWriter {
 
 impl CsvWriter {
     pub fn create(path: &Path, header: &[&str]) -> Result<Self> {
+        Self::create_after(path, None, header)
+    }
+
+    /// A table whose header follows a first line (a `# longstep …` study line).
+    pub fn create_after(path: &Path, first_line: Option<&str>, header: &[&str]) -> Result<Self> {
         let file = File::create(path).map_err(|e| Error::io(path, e))?;
         let mut writer = CsvWriter {
             path: path.to_path_buf(),
@@ -24,6 +29,9 @@ impl CsvWriter {
             columns: header.len(),
             last_flush: Instant::now(),
         };
+        if let Some(line) = first_line {
+            writeln!(writer.out, "{line}").map_err(|e| Error::io(path, e))?;
+        }
         writeln!(writer.out, "{}", header.join(",")).map_err(|e| Error::io(path, e))?;
         Ok(writer)
     }

@@ -56,13 +56,19 @@ impl StudyTable {
             .unwrap_or(f64::NAN)
     }
 
-    pub fn to_text(&self) -> String {
+    /// `# longstep <study>, key = value, …` in key order.
+    pub fn first_line(&self) -> String {
         let meta: Vec<String> = self
             .meta
             .iter()
             .map(|(key, value)| format!("{key} = {value}"))
             .collect();
-        let mut text = format!("# longstep {}, {}\n", self.study, meta.join(", "));
+        format!("# longstep {}, {}", self.study, meta.join(", "))
+    }
+
+    pub fn to_text(&self) -> String {
+        let mut text = self.first_line();
+        text += "\n";
         text += &self.header.join(",");
         text += "\n";
         for row in &self.rows {
@@ -124,25 +130,58 @@ impl StudyTable {
     }
 }
 
-/// Merge shards of one study: same study and metadata (but the shard), every index from 0
-/// to points − 1 exactly once. Returns the table a single run would have written.
-pub fn merge(tables: Vec<StudyTable>) -> Result<StudyTable> {
+/// The first setting (other than the shard) in which two shards' metadata differ, with
+/// both values: `("t_end", "20", "10")`.
+pub fn differing_setting(
+    a: &BTreeMap<String, String>,
+    b: &BTreeMap<String, String>,
+) -> Option<(String, String, String)> {
+    let missing = "(not given)".to_string();
+    a.keys()
+        .chain(b.keys())
+        .filter(|key| key.as_str() != "shard")
+        .find(|key| a.get(*key) != b.get(*key))
+        .map(|key| {
+            (
+                key.clone(),
+                a.get(key).unwrap_or(&missing).clone(),
+                b.get(key).unwrap_or(&missing).clone(),
+            )
+        })
+}
+
+/// Merge shards of one study, each with the name of its file: same study and metadata (but
+/// the shard), every index from 0 to points − 1 exactly once. Returns the table a single run
+/// would have written.
+pub fn merge(tables: Vec<(String, StudyTable)>) -> Result<StudyTable> {
     let mut tables = tables.into_iter();
-    let mut merged = tables
+    let (first_name, mut merged) = tables
         .next()
         .ok_or_else(|| Error::input("nothing to merge"))?;
-    merged.meta.remove("shard");
-    for table in tables {
-        let mut meta = table.meta.clone();
-        meta.remove("shard");
-        if table.study != merged.study || meta != merged.meta || table.header != merged.header {
+    for (name, table) in tables {
+        if table.study != merged.study {
             return Err(Error::input(format!(
-                "cannot merge a {} table with a {} table of other settings ({:?} vs {:?})",
-                table.study, merged.study, meta, merged.meta
+                "cannot merge a {} table ({name}) with a {} table ({first_name})",
+                table.study, merged.study
+            )));
+        }
+        if let Some((key, theirs, ours)) = differing_setting(&table.meta, &merged.meta) {
+            return Err(Error::input(format!(
+                "the shards of {} differ in {key}: {theirs} in {name}, {ours} in {first_name}",
+                merged.study
+            )));
+        }
+        if table.header != merged.header {
+            return Err(Error::input(format!(
+                "the shards of {} differ in their columns: {} in {name}, {} in {first_name}",
+                merged.study,
+                table.header.join(","),
+                merged.header.join(",")
             )));
         }
         merged.rows.extend(table.rows);
     }
+    merged.meta.remove("shard");
     let points = merged.points()?;
     let index = |row: &Vec<String>| row[0].parse::<usize>().unwrap_or(usize::MAX);
     merged.rows.sort_by_key(index);
@@ -187,9 +226,13 @@ mod tests {
         table
     }
 
+    fn named(table: StudyTable) -> (String, StudyTable) {
+        (table.meta["shard"].clone(), table)
+    }
+
     #[test]
     fn shards_merge_in_index_order_and_round_trip() {
-        let merged = merge(vec![shard(&[1, 3], 2), shard(&[0, 2], 1)]).unwrap();
+        let merged = merge(vec![named(shard(&[1, 3], 2)), named(shard(&[0, 2], 1))]).unwrap();
         let indices: Vec<&str> = merged.rows.iter().map(|r| r[0].as_str()).collect();
         assert_eq!(indices, ["0", "1", "2", "3"]);
         assert!(!merged.meta.contains_key("shard"));
@@ -200,9 +243,9 @@ mod tests {
 
     #[test]
     fn missing_or_doubled_points_are_refused() {
-        let error = merge(vec![shard(&[1, 3], 2), shard(&[0], 1)]).unwrap_err();
+        let error = merge(vec![named(shard(&[1, 3], 2)), named(shard(&[0], 1))]).unwrap_err();
         assert!(error.to_string().contains("point 2 is missing"), "{error}");
-        let error = merge(vec![shard(&[0, 1, 3], 2), shard(&[0, 2], 1)]).unwrap_err();
+        let error = merge(vec![named(shard(&[0, 1, 3], 2)), named(shard(&[0, 2], 1))]).unwrap_err();
         assert!(error.to_string().contains("appears twice"), "{error}");
     }
 }

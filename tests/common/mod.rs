@@ -37,9 +37,12 @@ pub fn max_abs_difference(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).fold(0.0, |m, (x, y)| m.max((x - y).abs()))
 }
 
-/// Path of the built `longstep` binary.
+/// Path of the built `longstep` binary; `LONGSTEP_BIN` runs the command-line tests against
+/// another build (for example an older one, to see a new test fail before its fix).
 pub fn longstep() -> std::process::Command {
-    std::process::Command::new(env!("CARGO_BIN_EXE_longstep"))
+    let binary =
+        std::env::var_os("LONGSTEP_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_longstep").into());
+    std::process::Command::new(binary)
 }
 
 /// A fresh empty directory under the target dir for a test's outputs.
