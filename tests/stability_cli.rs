@@ -111,8 +111,11 @@ fn shards_concatenate_to_the_whole_map() {
             "{}",
             String::from_utf8_lossy(&output.stderr)
         );
+        // A shard names its settings on a first `# longstep stability-map` line (for merge).
         let content = text(&part);
-        let body = content.split_once('\n').expect("header").1;
+        let (study, rest) = content.split_once('\n').expect("study line");
+        assert!(study.starts_with("# longstep stability-map, "), "{study}");
+        let body = rest.split_once('\n').expect("header").1;
         joined.push_str(body);
     }
     let content = text(&whole);
