@@ -219,7 +219,14 @@ fn scan_stiffness_writes_csv_and_pictures_and_shards_partition_it() {
     );
     assert!(output.status.success(), "{output:?}");
     let (first, all) = rows(&whole);
-    assert_eq!(first, "# longstep scan-stiffness, points = 28");
+    // The study line names the size and every setting (so merge can check shards).
+    assert!(
+        first.starts_with("# longstep scan-stiffness, ")
+            && first.contains(", points = 28, ")
+            && first.contains(", method = impulse long-average, ")
+            && !first.contains("shard"),
+        "{first}"
+    );
     assert_eq!(all.len(), 28);
     for (k, row) in all.iter().enumerate() {
         let fields: Vec<&str> = row.split(',').collect();
@@ -245,7 +252,10 @@ fn scan_stiffness_writes_csv_and_pictures_and_shards_partition_it() {
         );
         assert!(output.status.success(), "{output:?}");
         let (first, rows) = rows(&path);
-        assert_eq!(first, "# longstep scan-stiffness, points = 28");
+        assert!(
+            first.contains(", points = 28, ") && first.contains(&format!("shard = {shard}")),
+            "{first}"
+        );
         assert!(!rows.is_empty() && rows.len() < 28);
         merged.extend(rows);
     }
