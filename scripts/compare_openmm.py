@@ -86,7 +86,12 @@ def longstep_forces(scene, positions, workdir):
            "--parameters", params, "--positions", positions]
     res = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT)
     report = json.loads(res.stdout)
-    data = np.genfromtxt(out, delimiter=",", names=True, dtype=None, encoding=None)
+    # Column names carry their unit in brackets (`fx[kcal/mol/angstrom]`): name by what
+    # comes before it.
+    with open(out) as f:
+        names = [c.split("[")[0] for c in f.readline().strip().split(",")]
+    data = np.genfromtxt(out, delimiter=",", skip_header=1, names=names, dtype=None,
+                         encoding=None)
     total = np.stack([data["fx"], data["fy"], data["fz"]], axis=1)
     fast = np.stack([data["fx_fast"], data["fy_fast"], data["fz_fast"]], axis=1)
     slow = np.stack([data["fx_slow"], data["fy_slow"], data["fz_slow"]], axis=1)

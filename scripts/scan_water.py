@@ -43,6 +43,8 @@ def run(method, h, inner_dt, ps, extra, workdir):
     t, e, ke, em = [], [], [], []
     with open(os.path.join(out, "energy.csv")) as f:
         for row in csv.DictReader(f):
+            # Column names carry their unit in brackets (`t[fs]`): key by the name alone.
+            row = {key.split("[")[0]: value for key, value in row.items()}
             t.append(float(row["t"]))
             e.append(float(row["total"]))
             ke.append(float(row["kinetic"]))

@@ -1,5 +1,6 @@
 //! The run loop: step an integrator to the end time, record energies, stop on a blow-up.
 
+pub mod drift;
 pub mod monitor;
 
 use std::path::PathBuf;
@@ -8,10 +9,15 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
-use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status};
+use crate::io::scene::Scene;
+use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status, TemperatureSummary};
 use crate::io::trajectory::TrajectoryWriter;
+use crate::run::drift::{CONSERVED_COLUMNS, DriftFit};
 use crate::run::monitor::EnergyMonitor;
+use crate::settings::MethodSettings;
 use crate::system::System;
+use crate::system::velocities::{DEFAULT_SEED, DegreesOfFreedom, maxwell_boltzmann};
+use crate::units::Units;
 
 #[derive(Clone, Debug)]
 pub struct RunOptions {
@@ -22,10 +28,101 @@ pub struct RunOptions {
     pub blowup: f64,
     /// Where to write `energy.csv`; `None` writes nothing.
     pub energy_csv: Option<PathBuf>,
-    /// Keep `(t, kinetic, total)` of every recorded row in the summary (for drift fits).
-    pub keep_series: bool,
     /// Trajectory frames (the first, then every `every` steps and the last).
     pub trajectory: Option<TrajectoryOptions>,
+    /// The scene's units: the units of `energy.csv`'s columns ([`column_header`]).
+    pub units: Units,
+    /// Record the kinetic temperature over these degrees of freedom (a `temperature`
+    /// column and its mean in the summary).
+    pub temperature: Option<DegreesOfFreedom>,
+    /// Fit the energy drift over the rows from this time on (default: every row).
+    pub fit_from: Option<f64>,
+}
+
+/// Whether `method` is stochastic: its registry entry uses a seed
+/// ([`MethodInfo::uses`](crate::integrators::MethodInfo)).
+pub fn is_stochastic(method: &str) -> bool {
+    crate::integrators::METHODS
+        .iter()
+        .find(|m| m.name == method)
+        .is_some_and(|m| m.uses.contains(&"seed"))
+}
+
+/// A seed where nothing uses it (no temperature to draw start velocities at, and a method
+/// that is not stochastic) is a mistake worth stopping for: the user expects randomness
+/// that is not there. `source` names where the seed came from.
+pub fn check_seed_used(settings: &MethodSettings, source: &str) -> Result<()> {
+    match settings.seed {
+        Some(seed) if settings.temperature.is_none() && !is_stochastic(&settings.method) => {
+            Err(Error::input(format!(
+                "{source} {seed} is given, but nothing uses it: there is no temperature \
+                 (--temperature or the scene's [run] temperature) to draw start velocities \
+                 at, and {} is not a stochastic method; drop the seed or give a temperature",
+                settings.method
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// What a start at a temperature did, for the run header.
+pub struct StartReport {
+    /// The degrees of freedom the temperature is counted over.
+    pub degrees_of_freedom: DegreesOfFreedom,
+    /// Lines for the run header.
+    pub lines: Vec<String>,
+}
+
+/// Start velocities: with a temperature, a Maxwell–Boltzmann draw
+/// ([`maxwell_boltzmann`]) replacing the scene's momenta (and its velocity file), seeded
+/// by the settings' seed or [`DEFAULT_SEED`]; without one, the scene's momenta, with a
+/// notice when every particle starts at rest. Returns `None` without a temperature.
+pub fn start_velocities(
+    scene: &mut Scene,
+    settings: &MethodSettings,
+    notices: &mut Vec<String>,
+) -> Result<Option<StartReport>> {
+    let Some(kt) = settings.kt() else {
+        if scene.system.state.p.iter().all(|&p| p == 0.0) {
+            notices.push(
+                "every particle starts at rest and no temperature is given: the motion comes \
+                 from the potential alone (--temperature T draws Maxwell–Boltzmann velocities)"
+                    .into(),
+            );
+        }
+        return Ok(None);
+    };
+    let had_momenta = scene.system.state.p.iter().any(|&p| p != 0.0);
+    let seed = settings.seed.unwrap_or(DEFAULT_SEED);
+    let start = maxwell_boltzmann(&mut scene.system, kt, seed)?;
+    let units = scene.units;
+    let temperature = match units {
+        Units::None => format!("k_B T = {}", kt),
+        _ => format!(
+            "{} {}",
+            crate::io::summary::significant(kt / units.boltzmann(), 6),
+            units.temperature_name()
+        ),
+    };
+    let seed_text = match settings.seed {
+        Some(seed) => format!("seed {seed}"),
+        None => format!("seed {DEFAULT_SEED}, the default: give --seed N for another draw"),
+    };
+    let replaced = match &scene.velocities_file {
+        Some(path) => format!(", replacing the velocities of {}", path.display()),
+        None if had_momenta => ", replacing the scene's momenta".to_string(),
+        None => String::new(),
+    };
+    let dofs = start.degrees_of_freedom;
+    let lines = vec![format!(
+        "start      Maxwell–Boltzmann velocities at {temperature} ({seed_text}){replaced}; \
+         rescaled to exactly that over {}",
+        dofs.describe(scene.system.dim, scene.system.n_particles())
+    )];
+    Ok(Some(StartReport {
+        degrees_of_freedom: dofs,
+        lines,
+    }))
 }
 
 /// A trajectory file: positions through chemfiles, format by extension.
@@ -44,8 +141,10 @@ impl Default for RunOptions {
             energy_every: 1,
             blowup: 10.0,
             energy_csv: None,
-            keep_series: false,
             trajectory: None,
+            units: Units::None,
+            temperature: None,
+            fit_from: None,
         }
     }
 }
@@ -59,80 +158,12 @@ pub fn run(
     integrator: &mut dyn Integrator,
     options: &RunOptions,
 ) -> Result<RunSummary> {
-    if !integrator.handles_magnetic()
-        && let Some(term) = system
-            .forces
-            .terms()
-            .iter()
-            .find(|t| t.term.magnetic().is_some())
-    {
-        return Err(Error::input(format!(
-            "{} \"{}\" is a velocity-dependent (magnetic) term, which {} cannot integrate; \
-             use structural-zd or structural-zds",
-            term.term.kind(),
-            term.name,
-            integrator.name()
-        )));
-    }
-    if system.mass_matrix.is_some() && !integrator.supports_mass_matrix() {
-        return Err(Error::input(format!(
-            "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
-             --method pseudo-energy, or set lump = true in the scene's [mass_matrix]",
-            integrator.name()
-        )));
-    }
+    check_applicable(scene, system, integrator)?;
     system.forces.reset_counts();
     integrator.setup(system)?;
     let h = integrator.outer_step();
-
-    let n_levels = system.forces.n_levels();
-    let level_columns: Vec<String> = (0..n_levels)
-        .map(|level| {
-            format!(
-                "potential_{}",
-                system.forces.level_name(level).replace(' ', "_")
-            )
-        })
-        .collect();
-    let mut header = vec!["t", "kinetic", "potential", "total"];
-    header.extend(level_columns.iter().map(String::as_str));
-    let extra_columns = integrator.extra_columns();
-    header.extend(extra_columns.iter().copied());
-    let mut csv = match &options.energy_csv {
-        Some(path) => Some(CsvWriter::create(path, &header)?),
-        None => None,
-    };
-
-    let mut row = Vec::with_capacity(header.len());
-    let mut potentials = vec![0.0; n_levels];
-    let mut series = Vec::new();
-    let mut record = |system: &System,
-                      integrator: &dyn Integrator,
-                      csv: &mut Option<CsvWriter>|
-     -> Result<f64> {
-        let kinetic = system.kinetic_energy();
-        system.potential_energies_into(&mut potentials);
-        let potential: f64 = potentials.iter().sum();
-        let total = kinetic + potential;
-        if options.keep_series {
-            series.push([system.state.t, kinetic, total]);
-        }
-        if let Some(csv) = csv {
-            row.clear();
-            row.extend([system.state.t, kinetic, potential, total]);
-            row.extend(&potentials);
-            integrator.extra_values(system, &mut row);
-            csv.row(&row)?;
-        }
-        Ok(total)
-    };
-
-    let mut monitor = EnergyMonitor::new(
-        system.kinetic_energy(),
-        &system.potential_energies(),
-        options.blowup,
-    );
-    record(system, integrator, &mut csv)?;
+    let mut recorder = Recorder::new(system, integrator, options)?;
+    recorder.record(system, integrator)?;
     let mut trajectory = match &options.trajectory {
         Some(t) => {
             let mut writer =
@@ -169,8 +200,8 @@ pub fn run(
             writer.write(&system.state.q, steps, system.state.t)?;
         }
         if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
-            let total = record(system, integrator, &mut csv)?;
-            if let Err(reason) = monitor.record(total) {
+            let total = recorder.record(system, integrator)?;
+            if let Err(reason) = recorder.monitor.record(total) {
                 status = Status::Unstable;
                 message = Some(reason);
                 break;
@@ -178,11 +209,11 @@ pub fn run(
         }
     }
     let wall_seconds = started.elapsed().as_secs_f64();
-    if let Some(csv) = &mut csv {
+    if let Some(csv) = &mut recorder.csv {
         csv.flush()?;
     }
-
     let stopped_early = status != Status::Ok;
+    let monitor = &recorder.monitor;
     Ok(RunSummary {
         scene: scene.to_string(),
         method: integrator.name().to_string(),
@@ -201,12 +232,210 @@ pub fn run(
         status,
         unstable_at: stopped_early.then_some(system.state.t),
         message: message.map(|m| format!("{} stopped: {m}", integrator.name())),
-        energy_csv: csv.as_ref().map(|c| c.path().display().to_string()),
-        series,
+        energy_csv: recorder
+            .csv
+            .as_ref()
+            .map(|c| c.path().display().to_string()),
+        fit: recorder
+            .fit
+            .result(recorder.conserved.map(|(name, _)| name), system.state.t),
+        energy_reference: monitor.reference,
+        temperature: recorder.temperature.as_ref().map(|t| t.summary()),
         extra: integrator
             .report()
             .map(|(key, value)| (key.to_string(), value))
             .into_iter()
             .collect(),
+        ..RunSummary::default()
     })
+}
+
+/// Refuse a system the method cannot integrate (magnetic terms, a mass matrix).
+fn check_applicable(scene: &str, system: &System, integrator: &dyn Integrator) -> Result<()> {
+    if !integrator.handles_magnetic()
+        && let Some(term) = system
+            .forces
+            .terms()
+            .iter()
+            .find(|t| t.term.magnetic().is_some())
+    {
+        return Err(Error::input(format!(
+            "{} \"{}\" is a velocity-dependent (magnetic) term, which {} cannot integrate; \
+             use structural-zd or structural-zds",
+            term.term.kind(),
+            term.name,
+            integrator.name()
+        )));
+    }
+    if system.mass_matrix.is_some() && !integrator.supports_mass_matrix() {
+        return Err(Error::input(format!(
+            "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
+             --method pseudo-energy, or set lump = true in the scene's [mass_matrix]",
+            integrator.name()
+        )));
+    }
+    Ok(())
+}
+
+/// The unit of an `energy.csv` column by its name: energies (`kinetic`, `potential_*`,
+/// `total`, a method's `*_energy` or `*_total`), times (`t`, `h`, `dt`) and the kinetic
+/// temperature; counts and anything else have none.
+fn column_unit(name: &str, units: Units) -> Option<&'static str> {
+    if units == Units::None {
+        return None;
+    }
+    let energy = ["kinetic", "potential", "total"].contains(&name)
+        || name.starts_with("potential_")
+        || name.ends_with("_energy")
+        || name.ends_with("_total");
+    match name {
+        "t" | "h" | "dt" => Some(units.time_name()),
+        "temperature" => Some(units.temperature_name()),
+        _ if energy => Some(units.energy_name()),
+        _ => None,
+    }
+}
+
+/// An `energy.csv` header field: the name, with its unit in square brackets in a scene with
+/// real units (`t[fs]`, `kinetic[kcal/mol]`, `temperature[K]`); readers take the name
+/// before `[` ([`column_matches`](crate::io::energy_table::column_matches)).
+pub fn column_header(name: &str, units: Units) -> String {
+    match column_unit(name, units) {
+        Some(unit) => format!("{name}[{unit}]"),
+        None => name.to_string(),
+    }
+}
+
+/// Running statistics of the kinetic temperature.
+struct TemperatureRecord {
+    degrees_of_freedom: DegreesOfFreedom,
+    boltzmann: f64,
+    rows: usize,
+    initial: f64,
+    last: f64,
+    mean: f64,
+}
+
+impl TemperatureRecord {
+    fn add(&mut self, kinetic: f64) -> f64 {
+        let t = self.degrees_of_freedom.temperature(kinetic, self.boltzmann);
+        if self.rows == 0 {
+            self.initial = t;
+        }
+        self.rows += 1;
+        self.mean += (t - self.mean) / self.rows as f64;
+        self.last = t;
+        t
+    }
+
+    fn summary(&self) -> TemperatureSummary {
+        TemperatureSummary {
+            mean: self.mean,
+            initial: self.initial,
+            last: self.last,
+            rows: self.rows,
+            degrees_of_freedom: self.degrees_of_freedom.count,
+        }
+    }
+}
+
+/// What every recorded row goes through: `energy.csv`, the blow-up monitor, the drift fit
+/// and the temperature statistics. Its buffers are sized once.
+struct Recorder {
+    csv: Option<CsvWriter>,
+    row: Vec<f64>,
+    potentials: Vec<f64>,
+    extras: Vec<f64>,
+    monitor: EnergyMonitor,
+    fit: DriftFit,
+    fit_from: f64,
+    /// The conserved energy's column and its index among the method's extra columns.
+    conserved: Option<(&'static str, usize)>,
+    temperature: Option<TemperatureRecord>,
+}
+
+impl Recorder {
+    fn new(system: &System, integrator: &dyn Integrator, options: &RunOptions) -> Result<Self> {
+        let n_levels = system.forces.n_levels();
+        let mut names: Vec<String> = ["t", "kinetic", "potential", "total"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        names.extend((0..n_levels).map(|level| {
+            format!(
+                "potential_{}",
+                system.forces.level_name(level).replace(' ', "_")
+            )
+        }));
+        let extra_columns = integrator.extra_columns();
+        names.extend(extra_columns.iter().map(|s| s.to_string()));
+        if options.temperature.is_some() {
+            names.push("temperature".into());
+        }
+        let header: Vec<String> = names
+            .iter()
+            .map(|n| column_header(n, options.units))
+            .collect();
+        let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        let csv = match &options.energy_csv {
+            Some(path) => Some(CsvWriter::create(path, &header)?),
+            None => None,
+        };
+        let conserved = extra_columns
+            .iter()
+            .enumerate()
+            .find(|(_, c)| CONSERVED_COLUMNS.contains(c))
+            .map(|(i, c)| (*c, i));
+        Ok(Recorder {
+            csv,
+            row: Vec::with_capacity(header.len()),
+            potentials: vec![0.0; n_levels],
+            extras: Vec::with_capacity(extra_columns.len()),
+            monitor: EnergyMonitor::new(
+                system.kinetic_energy(),
+                &system.potential_energies(),
+                options.blowup,
+            ),
+            fit: DriftFit::default(),
+            fit_from: options.fit_from.unwrap_or(f64::NEG_INFINITY),
+            conserved,
+            temperature: options.temperature.map(|dofs| TemperatureRecord {
+                degrees_of_freedom: dofs,
+                boltzmann: options.units.boltzmann(),
+                rows: 0,
+                initial: 0.0,
+                last: 0.0,
+                mean: 0.0,
+            }),
+        })
+    }
+
+    /// Record the current state; returns the total energy.
+    fn record(&mut self, system: &System, integrator: &dyn Integrator) -> Result<f64> {
+        let kinetic = system.kinetic_energy();
+        system.potential_energies_into(&mut self.potentials);
+        let potential: f64 = self.potentials.iter().sum();
+        let total = kinetic + potential;
+        self.extras.clear();
+        if self.csv.is_some() || self.conserved.is_some() {
+            integrator.extra_values(system, &mut self.extras);
+        }
+        let t = system.state.t;
+        if t >= self.fit_from - 1e-9 * t.abs().max(1.0) {
+            let conserved = self
+                .conserved
+                .and_then(|(_, i)| self.extras.get(i).copied());
+            self.fit.add(t, kinetic, total, conserved);
+        }
+        let temperature = self.temperature.as_mut().map(|r| r.add(kinetic));
+        if let Some(csv) = &mut self.csv {
+            self.row.clear();
+            self.row.extend([t, kinetic, potential, total]);
+            self.row.extend(&self.potentials);
+            self.row.extend(&self.extras);
+            self.row.extend(temperature);
+            csv.row(&self.row)?;
+        }
+        Ok(total)
+    }
 }

@@ -87,6 +87,30 @@ impl Units {
         }
     }
 
+    /// The time unit's name (`fs`; empty in a dimensionless scene).
+    pub fn time_name(self) -> &'static str {
+        match self {
+            Units::None => "",
+            Units::Real => "fs",
+        }
+    }
+
+    /// The energy unit's name (`kcal/mol`; empty in a dimensionless scene).
+    pub fn energy_name(self) -> &'static str {
+        match self {
+            Units::None => "",
+            Units::Real => "kcal/mol",
+        }
+    }
+
+    /// The temperature unit's name (`K`; empty in a dimensionless scene).
+    pub fn temperature_name(self) -> &'static str {
+        match self {
+            Units::None => "",
+            Units::Real => "K",
+        }
+    }
+
     /// Internal mass for a mass given in the scene's mass unit.
     pub fn mass(self, given: f64) -> f64 {
         match self {

@@ -183,8 +183,8 @@ fn max_energy_error(system: &mut System, method: &mut dyn Integrator, t_end: f64
         energy_every: 1,
         blowup: 10.0,
         energy_csv: None,
-        keep_series: false,
         trajectory: None,
+        ..Default::default()
     };
     let summary = run("kepler", system, method, &options).unwrap();
     assert_eq!(summary.status, longstep::io::summary::Status::Ok);
@@ -246,8 +246,8 @@ fn three_body_close_encounter() {
         energy_every: 1,
         blowup: 10.0,
         energy_csv: None,
-        keep_series: false,
         trajectory: None,
+        ..Default::default()
     };
     let mut adaptive = AdaptiveVerlet::new(0.01, Control::Arclength, None, Some(1.0)).unwrap();
     let summary = run("three-body-hl97", &mut system, &mut adaptive, &options).unwrap();
@@ -290,8 +290,8 @@ fn bond_problem_wall() {
         energy_every: 1,
         blowup: 10.0,
         energy_csv: None,
-        keep_series: false,
         trajectory: None,
+        ..Default::default()
     };
     let mut system = scene("bond");
     let mut adaptive = AdaptiveVerlet::new(0.01, Control::Arclength, None, None).unwrap();
@@ -330,8 +330,8 @@ fn kepler_extreme_eccentricity() {
             energy_every: 1,
             blowup: 10.0,
             energy_csv: None,
-            keep_series: false,
             trajectory: None,
+            ..Default::default()
         };
         let summary = run("kepler", &mut system, &mut adaptive, &options).unwrap();
         let (smallest, largest) = adaptive.step_range();

@@ -204,8 +204,59 @@ fn water_box_runs_with_time_units_and_writes_a_trajectory() {
     assert!(stderr.contains("bond O-H ×432: k = 1059.162 (scene), r0 = 1.012 (scene)"));
     // Frames at steps 0, 10, …, 50.
     assert_eq!(frames(&out.join("trajectory.xyz")), 6);
+    // Every real-unit output carries its units: the CSV header (the unit in brackets after
+    // each name), the JSON's `units` object and the temperature it records.
     let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
-    assert!(csv.starts_with("t,kinetic,potential,total,potential_fast,potential_slow"));
+    assert!(
+        csv.starts_with(
+            "t[fs],kinetic[kcal/mol],potential[kcal/mol],total[kcal/mol],\
+             potential_fast[kcal/mol],potential_slow[kcal/mol],temperature[K]\n"
+        ),
+        "{}",
+        csv.lines().next().unwrap()
+    );
+    assert_eq!(summary["units"]["time"], "fs");
+    assert_eq!(summary["units"]["energy"], "kcal/mol");
+    assert_eq!(summary["units"]["temperature"], "K");
+    assert_eq!(summary["units"]["drift"], "kT/ns/dof");
+    assert_eq!(summary["temperature"]["degrees_of_freedom"], 3 * 648 - 3);
+    assert!(summary["ns_per_day"].as_f64().unwrap() > 0.0);
+    assert_eq!(summary["drift"]["unit"], "kT/ns/dof");
+    assert!(summary["warnings"].is_array());
+}
+
+#[test]
+fn the_text_summary_gives_times_and_energies_with_units() {
+    let out = scratch_dir("water-box-text");
+    let (code, stdout, stderr) = run_cli(&[
+        "run",
+        "systems/water-box/scene.toml",
+        "--method",
+        "impulse",
+        "--h",
+        "2fs",
+        "--inner",
+        "4",
+        "--t-end",
+        "1.2ps",
+        "--quiet",
+        "--plot",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    for fragment in [
+        "(h = 2 fs, inner_steps = 4, dt = 0.5 fs)",
+        "steps      600 to t = 1.2 ps",
+        "kcal/mol, max |dE| = ",
+        "temperature mean ",
+        " K over 61 rows",
+        " kT/ns/dof by the true energy; fitted over t = 0 fs–1.2 ps (61 rows)",
+        " ns/day)",
+    ] {
+        assert!(stdout.contains(fragment), "lacks \"{fragment}\":\n{stdout}");
+    }
+    assert!(out.join("energy.png").exists() && out.join("energy-error.svg").exists());
 }
 
 #[test]
@@ -273,7 +324,10 @@ fn forces_command_prints_groups_and_writes_forces() {
     assert_eq!(report["units"]["force"], "kcal/mol/angstrom");
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("index,element,fx,fy,fz"));
+    assert_eq!(
+        lines.next(),
+        Some("index,element,fx[kcal/mol/angstrom],fy[kcal/mol/angstrom],fz[kcal/mol/angstrom]")
+    );
     assert_eq!(lines.count(), 648);
     // Newton's third law: the forces of an isolated periodic system sum to zero (round-off
     // of 648 forces of size ≲ 100: ≲ 1e-11).

@@ -630,8 +630,8 @@ fn fixed_point_reports_iterations_and_fails_clearly() {
         energy_every: 1,
         blowup: 10.0,
         energy_csv: None,
-        keep_series: false,
         trajectory: None,
+        ..Default::default()
     };
     // Converging: ZDS R = 2, N = 480 on the pendulum.
     let mut system = scene("pendulum", &[]);
@@ -755,8 +755,8 @@ fn charged_particle_as_printed_needs_a_finer_grid() {
         energy_every: 1,
         blowup: 10.0,
         energy_csv: None,
-        keep_series: false,
         trajectory: None,
+        ..Default::default()
     };
     let mut system = scene("charged-particle", &[]);
     let mut coarse = Structural::new(StructuralKind::Zds, 1.0 / 12.0, 2, 1e-14, 100).unwrap();

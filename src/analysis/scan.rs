@@ -73,7 +73,7 @@ pub fn drift_rate(series: &[[f64; 3]]) -> f64 {
 
 /// The verdict on a finished run and its drift rate.
 pub fn classify(summary: &RunSummary, drift_bound: f64) -> (Verdict, f64) {
-    let drift = drift_rate(&summary.series);
+    let drift = summary.fit.as_ref().map_or(0.0, |d| d.true_rate());
     let verdict = match summary.status {
         Status::Unstable | Status::Failed => Verdict::Unstable,
         Status::Ok if drift.abs() > drift_bound => Verdict::Drifting,
@@ -141,8 +141,8 @@ pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Resul
         energy_every: setup.energy_every,
         blowup: settings.blowup,
         energy_csv: None,
-        keep_series: true,
         trajectory: None,
+        ..Default::default()
     };
     let summary = run(
         &scene.name,

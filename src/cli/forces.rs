@@ -2,8 +2,9 @@
 //!
 //! Prints the potential energy per group (bonds, angles, torsions, Lennard-Jones, Coulomb,
 //! other), per level (fast, slow) and in total, in the scene's units; `--out FILE` writes the
-//! per-atom forces `index,element,fx,fy,fz` (force = −gradient; `--by-level` adds the force
-//! of each level); `--json` prints `{"energy": {…}, "units": {…}}` instead of the table.
+//! per-atom forces `index,element,fx,fy,fz` (force = −gradient; in a real scene each force
+//! column carries its unit, `fx[kcal/mol/angstrom]`; `--by-level` adds the force of each
+//! level); `--json` prints `{"energy": {…}, "units": {…}}` instead of the table.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -112,12 +113,22 @@ pub fn forces_command(args: &ForcesArgs) -> Result<()> {
         let mut out = std::io::BufWriter::new(file);
         let dim = system.dim;
         let axes = ["x", "y", "z"];
+        // In a real scene each force column carries its unit (`fx[kcal/mol/angstrom]`), as
+        // in energy.csv.
+        let force_unit = match scene.units {
+            crate::units::Units::None => String::new(),
+            _ => format!("[{}]", unit("force")),
+        };
         let mut header: Vec<String> = vec!["index".into(), "element".into()];
-        header.extend(axes[..dim].iter().map(|a| format!("f{a}")));
+        header.extend(axes[..dim].iter().map(|a| format!("f{a}{force_unit}")));
         if args.by_level {
             for level in 0..n_levels {
                 let name = system.forces.level_name(level).replace(' ', "_");
-                header.extend(axes[..dim].iter().map(|a| format!("f{a}_{name}")));
+                header.extend(
+                    axes[..dim]
+                        .iter()
+                        .map(|a| format!("f{a}_{name}{force_unit}")),
+                );
             }
         }
         let io = |e| Error::io(path, e);
@@ -174,7 +185,7 @@ pub fn forces_command(args: &ForcesArgs) -> Result<()> {
         println!("  {:<15} {total:.10}", "total");
         if let Some(path) = &args.out {
             println!(
-                "forces     {} ({}; index,element,fx,fy,fz)",
+                "forces     {} ({}; columns index,element,fx,fy,fz)",
                 path.display(),
                 unit("force")
             );

@@ -1,15 +1,71 @@
 //! `longstep run` and `longstep check`.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
+
+use clap::Args;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
 use crate::error::{Error, Result};
 use crate::integrators;
+use crate::io::energy_table::column_matches;
 use crate::io::scene::load_scene;
-use crate::io::summary::Status;
-use crate::run::{RunOptions, TrajectoryOptions, run};
+use crate::io::summary::{RunSummary, Status};
+use crate::run::drift::judge;
+use crate::run::{
+    RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
+};
+use crate::settings::Value;
 use crate::split::ParticleClass;
 use crate::system::exact::position_error;
+use crate::system::velocities::DegreesOfFreedom;
+use crate::units::Units;
+
+/// How a run's energy drift is judged: fitted at the end of the run over the recorded
+/// rows (by the method's conserved energy when it reports one, else the true energy) and
+/// compared with a bound; beyond it the summary warns.
+#[derive(Args, Clone, Debug, Default)]
+pub struct DriftArgs {
+    /// Largest |energy drift| not warned about: in kT/ns/dof in a scene with real units
+    /// (default 0.05); in a dimensionless scene the fitted change of the energy over the
+    /// fitted span relative to |E0| (default 0.01).
+    #[arg(long, value_name = "BOUND", allow_negative_numbers = true)]
+    pub drift_bound: Option<f64>,
+    /// Fit the drift from this time on, skipping a re-equilibration window (e.g. 2ps).
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
+    pub fit_from: Option<Value>,
+}
+
+impl DriftArgs {
+    /// The bound, checked positive.
+    pub fn bound(&self) -> Result<Option<f64>> {
+        match self.drift_bound {
+            Some(b) if !(b.is_finite() && b > 0.0) => Err(Error::input(format!(
+                "--drift-bound must be positive and finite, got {b}"
+            ))),
+            other => Ok(other),
+        }
+    }
+
+    /// The start of the fit in scene time units, checked to lie in [0, t_end).
+    pub fn fit_from(
+        &self,
+        parameters: &BTreeMap<String, f64>,
+        units: Units,
+        t_end: f64,
+    ) -> Result<Option<f64>> {
+        let Some(value) = &self.fit_from else {
+            return Ok(None);
+        };
+        let t = value.evaluate_time(parameters, "--fit-from", units.time_units())?;
+        if !(0.0..t_end).contains(&t) {
+            return Err(Error::input(format!(
+                "--fit-from {t} is outside the run [0, {t_end}): the fit needs rows after it"
+            )));
+        }
+        Ok(Some(t))
+    }
+}
 
 /// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
 /// force loops then split their work from a worker thread, with no allocation per call.
@@ -33,9 +89,27 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     if energy_every == 0 {
         return Err(Error::input("--energy-every must be at least 1"));
     }
+    check_seed_used(
+        &settings,
+        if args.run.seed.is_some() {
+            "--seed"
+        } else {
+            "the scene's [run] seed"
+        },
+    )?;
+    let drift_bound = args.drift.bound()?;
+    let fit_from = args.drift.fit_from(&scene.parameters, scene.units, t_end)?;
 
     let mut notices = Vec::new();
     let mut integrator = integrators::build(&settings, &mut notices)?;
+    let start = start_velocities(&mut scene, &settings, &mut notices)?;
+    // The kinetic temperature is recorded in a real scene, and wherever a temperature is
+    // given; a dimensionless scene without one keeps its outputs.
+    let degrees_of_freedom = match &start {
+        Some(start) => Some(start.degrees_of_freedom),
+        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
+        None => None,
+    };
     if settings.method == "async-pseudo-energy" {
         // On a scratch copy: the check steps the scene.
         let mut scratch = load_scene(&args.scene, &args.set)?;
@@ -61,6 +135,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
             eprintln!("{line}");
         }
         eprintln!("{}", scene.system.forces.level_table());
+        for line in start.iter().flat_map(|s| &s.lines) {
+            eprintln!("{line}");
+        }
         for notice in &notices {
             eprintln!("notice: {notice}");
         }
@@ -86,7 +163,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
         trajectory,
-        ..Default::default()
+        units: scene.units,
+        temperature: degrees_of_freedom,
+        fit_from,
     };
     let mut summary = run(
         &scene.name,
@@ -94,6 +173,8 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         integrator.as_mut(),
         &options,
     )?;
+    summary.set_units(scene.units);
+    judge_drift(&mut summary, drift_bound);
     if let Some(exact) = &scene.exact {
         let error = position_error(exact.as_ref(), &scene.system.state)?;
         let value = serde_json::to_value(&error)
@@ -131,6 +212,21 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         return Ok(EXIT_UNSTABLE);
     }
     Ok(0)
+}
+
+/// Judge a finished run's energy drift against its bound; a drift beyond it is a warning.
+/// A thermostatted (stochastic) method exchanges energy with its bath by design, and a run
+/// that stopped early has already said why: neither is judged.
+fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
+    if summary.status != Status::Ok || is_stochastic(&summary.method) {
+        return;
+    }
+    let Some(fit) = &summary.fit else {
+        return;
+    };
+    let report = judge(fit, summary.scene_units, summary.energy_reference, bound);
+    summary.warnings.extend(report.warning());
+    summary.drift = Some(report);
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {
@@ -198,7 +294,7 @@ fn plot_energies(
     let text = std::fs::read_to_string(csv).map_err(|e| Error::io(csv, e))?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name);
+    let column = |name: &str| header.iter().position(|h| column_matches(h, name));
     let (Some(t), Some(k), Some(v), Some(e)) = (
         column("t"),
         column("kinetic"),
@@ -217,13 +313,37 @@ fn plot_energies(
                 .collect()
         })
         .collect();
-    let series =
-        |name: &str, c: usize| Series::line(name, rows.iter().map(|r| (r[t], r[c])).collect());
-    let title = format!("{}: {}, h = {}", summary.scene, summary.method, summary.h);
+    // In a real scene the axes carry units, time in ps beyond 1 ps of run.
+    let units = summary.scene_units;
+    let (time_scale, time_label, energy_label) = match units {
+        Units::None => (1.0, "time t".to_string(), "energy".to_string()),
+        _ if summary.t_end > 1e3 => (
+            1e3,
+            "time t (ps)".to_string(),
+            format!("energy ({})", units.energy_name()),
+        ),
+        _ => (
+            1.0,
+            format!("time t ({})", units.time_name()),
+            format!("energy ({})", units.energy_name()),
+        ),
+    };
+    let series = |name: &str, c: usize| {
+        Series::line(
+            name,
+            rows.iter().map(|r| (r[t] / time_scale, r[c])).collect(),
+        )
+    };
+    let title = format!(
+        "{}: {}, h = {}",
+        summary.scene,
+        summary.method,
+        crate::io::summary::format_time(summary.h, units)
+    );
     let mut chart = LineChart::new(
         &title,
-        AxisSpec::linear("time t"),
-        AxisSpec::linear("energy"),
+        AxisSpec::linear(&time_label),
+        AxisSpec::linear(&energy_label),
     );
     chart.series = vec![
         series("kinetic", k),
@@ -235,13 +355,13 @@ fn plot_energies(
     let scale = if initial != 0.0 { initial.abs() } else { 1.0 };
     let mut error = LineChart::new(
         &format!("{title}: energy error"),
-        AxisSpec::linear("time t"),
+        AxisSpec::linear(&time_label),
         AxisSpec::linear("(E − E0)/|E0|"),
     );
     error.series = vec![Series::line(
         "total",
         rows.iter()
-            .map(|r| (r[t], (r[e] - initial) / scale))
+            .map(|r| (r[t] / time_scale, (r[e] - initial) / scale))
             .collect(),
     )];
     for extension in ["png", "svg"] {

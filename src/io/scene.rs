@@ -65,6 +65,8 @@ pub struct Scene {
     pub forcefield_report: Vec<String>,
     /// Every force-field parameter per interaction (`None` without `[forcefield]`).
     pub forcefield_parameters: Option<serde_json::Value>,
+    /// The `[structure] velocities` file the start momenta came from, if any.
+    pub velocities_file: Option<PathBuf>,
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters.
@@ -211,6 +213,9 @@ impl Builder<'_> {
             elements: molecule.elements,
             forcefield_report: molecule.report,
             forcefield_parameters: molecule.parameters,
+            velocities_file: structure_spec
+                .and_then(|s| s.velocities.as_ref())
+                .map(|v| self.path.parent().unwrap_or(Path::new(".")).join(v)),
         })
     }
 

@@ -3,16 +3,26 @@
 //! The JSON keys are a contract with scripts and later commands: `method`, `h`, `steps`,
 //! `t_end`, `force_evaluations` (`fast`, `slow`, `hessian_vector`, …), `energy`
 //! (`initial`, `final`, `max_abs_error`, `max_relative_error`), `wall_seconds`, `status`
-//! (`"ok"`, `"unstable"` or `"failed"`) and `unstable_at` when not ok; methods and scenes
-//! may add objects of their own (`pseudo_energy`, `exact_error`).
+//! (`"ok"`, `"unstable"` or `"failed"`) and `unstable_at` when not ok, `drift` (the fitted
+//! energy drift and its bound, when the run was long enough to fit one), `warnings` (an
+//! array, empty when there is nothing to warn about), `temperature` (the kinetic
+//! temperature's `mean`, `initial`, `final` and `degrees_of_freedom`, when recorded); in a
+//! scene with real units `units` (the unit of every quantity: `time` `"fs"`, `energy`
+//! `"kcal/mol"`, `temperature` `"K"`, `drift` `"kT/ns/dof"`, …; `h`, `t_end` and
+//! `unstable_at` are in its time unit) and `ns_per_day`. Methods and scenes may add objects
+//! of their own (`pseudo_energy`, `exact_error`).
+//!
+//! The text form gives times in fs, ps or ns by their size in a scene with real units
+//! (`h = 4 fs`, `t = 10 ps`), and every energy with its unit.
 
 use std::collections::BTreeMap;
 
 use serde::Serialize;
 
 use crate::split::ForceCounts;
+use crate::units::Units;
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct ForceEvaluations {
     /// Gradient evaluations of level 0.
     pub fast: u64,
@@ -45,7 +55,7 @@ impl From<&ForceCounts> for ForceEvaluations {
     }
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct EnergySummary {
     pub initial: f64,
     #[serde(rename = "final")]
@@ -54,15 +64,202 @@ pub struct EnergySummary {
     pub max_relative_error: f64,
 }
 
-#[derive(Clone, Debug, Serialize, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum Status {
+    #[default]
     Ok,
     Unstable,
     Failed,
 }
 
-#[derive(Clone, Debug, Serialize)]
+/// The unit of a drift in a scene with real units.
+pub const REAL_DRIFT_UNIT: &str = "kT/ns/dof";
+
+/// The fit of a method's conserved energy.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Conserved {
+    /// Its `energy.csv` column.
+    pub name: String,
+    pub slope: f64,
+    pub fluctuation: f64,
+}
+
+/// A fitted drift.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Drift {
+    pub rows: usize,
+    /// The time span fitted.
+    pub from: f64,
+    pub to: f64,
+    pub mean_kinetic: f64,
+    /// Slope of the true energy `K + V`, energy per time.
+    pub true_slope: f64,
+    /// The standard deviation of the true energy about the fitted line.
+    pub true_fluctuation: f64,
+    /// The conserved energy's fit, when the method reports one.
+    pub conserved: Option<Conserved>,
+}
+
+impl Drift {
+    /// A slope in kT per unit time per degree of freedom, `slope / (2⟨K⟩)` (0 when nothing
+    /// moves).
+    pub fn rate(&self, slope: f64) -> f64 {
+        if self.mean_kinetic > 0.0 {
+            slope / (2.0 * self.mean_kinetic)
+        } else {
+            0.0
+        }
+    }
+
+    /// The drift rate of the true energy, kT per unit time per degree of freedom.
+    pub fn true_rate(&self) -> f64 {
+        self.rate(self.true_slope)
+    }
+
+    /// The drift rate of the conserved energy, when the method reports one.
+    pub fn conserved_rate(&self) -> Option<f64> {
+        self.conserved.as_ref().map(|c| self.rate(c.slope))
+    }
+
+    /// The energy a method is judged by: its conserved energy when it reports one, else
+    /// the true energy; with its name, slope and fluctuation about the line.
+    pub fn judged(&self) -> (&str, f64, f64) {
+        match &self.conserved {
+            Some(c) => (&c.name, c.slope, c.fluctuation),
+            None => ("total", self.true_slope, self.true_fluctuation),
+        }
+    }
+
+    /// Whether the judged energy's fitted change over the span, `slope × span`, exceeds
+    /// twice its fluctuation about the line: only then is the drift resolved. (With white
+    /// noise of deviation σ over n rows the fitted change has a standard error σ√(12/n),
+    /// so this is conservative; with oscillating energies, whose rows are correlated over
+    /// a period, it asks for a change beyond the oscillation itself. A short run of a
+    /// method whose energy oscillates cannot show a small drift, and is not said to.)
+    pub fn resolved(&self) -> bool {
+        let (_, slope, fluctuation) = self.judged();
+        (slope * (self.to - self.from)).abs() > 2.0 * fluctuation
+    }
+}
+
+/// A drift judged against its bound, for the summary and the JSON (`drift`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DriftReport {
+    /// The energy judged: the method's conserved energy (its `energy.csv` column), or
+    /// `total`.
+    pub energy: String,
+    /// Its drift, in `unit`.
+    pub value: f64,
+    /// The drift of the true energy `K + V`, in `unit`.
+    pub true_energy: f64,
+    /// The drift of the conserved energy, when the method reports one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub conserved_energy: Option<f64>,
+    /// `kT/ns/dof` in a scene with real units; `relative` (the fitted change over the
+    /// fitted span over `|E0|`) in a dimensionless one.
+    pub unit: String,
+    pub bound: f64,
+    /// `|value| > bound`.
+    pub exceeded: bool,
+    /// Whether the fitted change over the span exceeds twice the energy's fluctuation
+    /// ([`Drift::resolved`]); an unresolved drift beyond the bound is no warning.
+    pub resolved: bool,
+    /// The fitted change of the judged energy over the span, and its standard deviation
+    /// about the fitted line, in the scene's energy unit.
+    pub change: f64,
+    pub fluctuation: f64,
+    /// The time span fitted, in the scene's time unit, and the rows in it.
+    pub from: f64,
+    pub to: f64,
+    pub rows: usize,
+}
+
+impl DriftReport {
+    /// One line: the judged drift, the true one beside it, the span and the bound.
+    pub fn to_text(&self, units: Units) -> String {
+        let time = |t: f64| format_time(t, units);
+        let by = match &self.conserved_energy {
+            Some(_) => format!(
+                "by the conserved energy ({}); true energy {}",
+                self.energy,
+                signed(self.true_energy)
+            ),
+            None => "by the true energy".to_string(),
+        };
+        let unit = match units {
+            Units::None => "relative to |E0| over the fit".to_string(),
+            _ => self.unit.clone(),
+        };
+        let energy = match units {
+            Units::None => String::new(),
+            _ => format!(" {}", units.energy_name()),
+        };
+        let resolution = if self.resolved || !self.exceeded {
+            String::new()
+        } else {
+            format!(
+                "; not resolved: the fitted change {}{energy} is within twice the energy's \
+                 fluctuation ({:.3e}{energy} rms), a longer run would resolve it",
+                signed(self.change),
+                self.fluctuation
+            )
+        };
+        format!(
+            "{} {unit} {by}; fitted over t = {}–{} ({} rows); bound {}{resolution}",
+            signed(self.value),
+            time(self.from),
+            time(self.to),
+            self.rows,
+            self.bound
+        )
+    }
+
+    /// The warning of a drift beyond its bound.
+    pub fn warning(&self) -> Option<String> {
+        if !(self.exceeded && self.resolved) {
+            return None;
+        }
+        Some(format!(
+            "the energy drifts by {} {} ({}), beyond the bound {}: this run {} — not \
+             energy-conserving at this step; try a smaller outer step (`longstep scan steps` \
+             finds the largest safe one) or raise --drift-bound",
+            signed(self.value),
+            self.unit,
+            if self.conserved_energy.is_some() {
+                format!("conserved energy {}", self.energy)
+            } else {
+                "true energy".to_string()
+            },
+            self.bound,
+            if self.value > 0.0 { "heats" } else { "cools" }
+        ))
+    }
+}
+
+/// A signed number for reading: three significant digits, in exponent form when very
+/// large or small.
+fn signed(x: f64) -> String {
+    if x != 0.0 && (x.abs() < 1e-3 || x.abs() >= 1e5) {
+        format!("{x:+.2e}")
+    } else {
+        let text = significant(x, 3);
+        if x >= 0.0 { format!("+{text}") } else { text }
+    }
+}
+
+/// The kinetic temperature `2K / (n_dof k_B)` over the recorded rows.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct TemperatureSummary {
+    pub mean: f64,
+    pub initial: f64,
+    #[serde(rename = "final")]
+    pub last: f64,
+    pub rows: usize,
+    pub degrees_of_freedom: usize,
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct RunSummary {
     pub scene: String,
     pub method: String,
@@ -81,9 +278,27 @@ pub struct RunSummary {
     pub message: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub energy_csv: Option<String>,
-    /// `(t, kinetic, total)` per recorded row, when the run was asked to keep them.
+    /// The unit of every quantity, in a scene with real units.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units: Option<BTreeMap<&'static str, &'static str>>,
+    /// Simulated time per day of wall time, in a scene with real units.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ns_per_day: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<TemperatureSummary>,
+    /// The fitted energy drift judged against its bound ([`RunSummary::judge_drift`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drift: Option<DriftReport>,
+    pub warnings: Vec<String>,
+    /// The raw drift fit of the run loop.
     #[serde(skip)]
-    pub series: Vec<[f64; 3]>,
+    pub fit: Option<Drift>,
+    /// The run's energy scale (`|E0|`, or `K0 + Σ|V|` when `E0` is nearly zero).
+    #[serde(skip)]
+    pub energy_reference: f64,
+    /// The scene's units, for the text form.
+    #[serde(skip)]
+    pub scene_units: Units,
     /// Method- or scene-specific objects, each a top-level key of the JSON summary
     /// (`pseudo_energy` from the pseudo-energy methods, `exact_error` from scenes with an
     /// exact solution).
@@ -92,35 +307,82 @@ pub struct RunSummary {
 }
 
 impl RunSummary {
+    /// Set the scene's units: the JSON's `units` object and `ns_per_day` in a real scene.
+    pub fn set_units(&mut self, units: Units) {
+        self.scene_units = units;
+        if units == Units::Real {
+            let mut map: BTreeMap<&'static str, &'static str> =
+                units.labels().into_iter().collect();
+            map.insert("temperature", units.temperature_name());
+            map.insert("drift", REAL_DRIFT_UNIT);
+            self.units = Some(map);
+            self.ns_per_day = ns_per_day(self.t_end, self.wall_seconds, units);
+        }
+    }
+
     /// The one-screen text form.
     pub fn to_text(&self) -> String {
+        let units = self.scene_units;
+        let time = |t: f64| format_time(t, units);
+        let energy_unit = match units {
+            Units::None => String::new(),
+            _ => format!(" {}", units.energy_name()),
+        };
         let f = &self.force_evaluations;
         let mut lines = vec![
             format!("scene      {}", self.scene),
-            format!("method     {} ({})", self.method, self.parameters),
-            format!("steps      {} to t = {}", self.steps, self.t_end),
+            format!(
+                "method     {} ({})",
+                self.method,
+                annotate_times(&self.parameters, units)
+            ),
+            format!("steps      {} to t = {}", self.steps, time(self.t_end)),
             format!(
                 "forces     fast {}, slow {}, hessian-vector {}  (per level: {:?})",
                 f.fast, f.slow, f.hessian_vector, f.levels
             ),
             format!(
-                "energy     E0 = {:.10e}, final = {:.10e}, max |dE| = {:.3e}, max |dE|/|E0| = {:.3e}",
+                "energy     E0 = {:.10e}{energy_unit}, final = {:.10e}{energy_unit}, max |dE| = {:.3e}{energy_unit}, max |dE|/|E0| = {:.3e}",
                 self.energy.initial,
                 self.energy.last,
                 self.energy.max_abs_error,
                 self.energy.max_relative_error
             ),
-            format!("wall time  {:.3} s", self.wall_seconds),
         ];
+        if let Some(t) = &self.temperature {
+            let unit = match units {
+                Units::None => " (k_B T)".to_string(),
+                _ => format!(" {}", units.temperature_name()),
+            };
+            lines.push(format!(
+                "temperature mean {:.4}{unit} over {} rows (start {:.4}, final {:.4}; {} degrees of freedom)",
+                t.mean, t.rows, t.initial, t.last, t.degrees_of_freedom
+            ));
+        }
+        if let Some(drift) = &self.drift {
+            lines.push(format!("drift      {}", drift.to_text(units)));
+        }
+        lines.push(match self.ns_per_day {
+            Some(rate) => format!(
+                "wall time  {:.3} s ({} ns/day)",
+                self.wall_seconds,
+                significant(rate, 4)
+            ),
+            None => format!("wall time  {:.3} s", self.wall_seconds),
+        });
+        for warning in &self.warnings {
+            lines.push(format!("warning    {warning}"));
+        }
         let status = match (&self.status, self.unstable_at) {
             (Status::Ok, _) => "ok".to_string(),
             (status, Some(t)) => format!(
-                "{} at t = {t}: {}",
+                "{} at t = {}: {}",
                 if *status == Status::Unstable {
                     "UNSTABLE"
                 } else {
                     "FAILED"
                 },
+                time(t),
                 self.message.as_deref().unwrap_or("")
             ),
             (_, None) => "failed".to_string(),
@@ -140,6 +402,62 @@ impl RunSummary {
     }
 }
 
+/// Simulated ns per day of wall time for a run from t = 0 to `t_end` (scene time units).
+pub fn ns_per_day(t_end: f64, wall_seconds: f64, units: Units) -> Option<f64> {
+    let ns = units.time_units().iter().find(|(name, _)| *name == "ns")?.1;
+    (wall_seconds > 0.0).then(|| t_end / ns / (wall_seconds / 86_400.0))
+}
+
+/// A time for reading: in a scene with real units in fs, ps or ns by its size (`4 fs`,
+/// `10 ps`, `2.5 ns`; six significant digits); as the plain number otherwise.
+pub fn format_time(t: f64, units: Units) -> String {
+    if units != Units::Real || !t.is_finite() {
+        return format!("{t}");
+    }
+    let (scale, name) = match t.abs() {
+        x if x < 1e3 => (1.0, "fs"),
+        x if x < 1e6 => (1e3, "ps"),
+        _ => (1e6, "ns"),
+    };
+    format!("{} {name}", significant(t / scale, 6))
+}
+
+/// `x` with at most `digits` significant digits, without trailing zeros.
+pub fn significant(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+    let text = format!("{x:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
+/// A method's parameter line with units on its times in a real scene: `h = 4, dt = 0.5`
+/// → `h = 4 fs, dt = 0.5 fs` (the names of steps: `h`, `dt`, `h_slow`, `h_fast`, `h_min`,
+/// `h_max`, `tau`).
+pub fn annotate_times(parameters: &str, units: Units) -> String {
+    if units != Units::Real {
+        return parameters.to_string();
+    }
+    const TIMES: &[&str] = &["h", "dt", "h_slow", "h_fast", "h_min", "h_max", "tau"];
+    parameters
+        .split(", ")
+        .map(|part| match part.split_once(" = ") {
+            Some((name, value)) if TIMES.contains(&name) => match value.parse::<f64>() {
+                Ok(t) => format!("{name} = {}", format_time(t, units)),
+                Err(_) => part.to_string(),
+            },
+            _ => part.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// A JSON object on one line, numbers in short exponent form: `a = 1.2e-13, b = "gl3"`.
 fn compact_json(value: &serde_json::Value) -> String {
     match value {
@@ -153,5 +471,25 @@ fn compact_json(value: &serde_json::Value) -> String {
             _ => n.to_string(),
         },
         other => other.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_read_in_fs_ps_or_ns() {
+        assert_eq!(format_time(4.0, Units::Real), "4 fs");
+        assert_eq!(format_time(0.5, Units::Real), "0.5 fs");
+        assert_eq!(format_time(10_000.0, Units::Real), "10 ps");
+        assert_eq!(format_time(2_500.000_000_01, Units::Real), "2.5 ps");
+        assert_eq!(format_time(3e6, Units::Real), "3 ns");
+        assert_eq!(format_time(0.25, Units::None), "0.25");
+        assert_eq!(
+            annotate_times("h = 4, inner_steps = 8, dt = 0.5", Units::Real),
+            "h = 4 fs, inner_steps = 8, dt = 0.5 fs"
+        );
+        assert_eq!(annotate_times("h = 4", Units::None), "h = 4");
     }
 }

@@ -9,6 +9,7 @@
 
 pub mod exact;
 mod mass;
+pub mod velocities;
 
 pub use crate::forces::PeriodicBox;
 pub use mass::{MAX_BANDWIDTH, MassMatrix};

@@ -1,0 +1,139 @@
+//! A run whose energy drifts beyond its bound says so: a warning line, a `warnings` array
+//! and the `drift` object in the JSON; a run within its bound does not.
+
+mod common;
+
+use common::{longstep, scratch_dir};
+
+fn run_json(args: &[&str]) -> serde_json::Value {
+    let output = longstep().args(args).output().expect("longstep runs");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(0), "{args:?}: {stderr}");
+    serde_json::from_slice(&output.stdout).expect("JSON summary")
+}
+
+/// Butane at 300 K (seed 7) with impulse for 10 ps at outer step `h`, K = 2h/fs.
+fn butane(h: u32, extra: &[&str]) -> serde_json::Value {
+    let out = scratch_dir(&format!("heating-butane-{h}"));
+    let (h_text, inner) = (format!("{h}fs"), (2 * h).to_string());
+    let mut args = vec![
+        "run",
+        "systems/molecules/butane.toml",
+        "--method",
+        "impulse",
+        "--h",
+        &h_text,
+        "--inner",
+        &inner,
+        "--t-end",
+        "10ps",
+        "--temperature",
+        "300K",
+        "--seed",
+        "7",
+        "--json",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    run_json(&args)
+}
+
+#[test]
+fn a_heating_run_warns_and_a_safe_one_does_not() {
+    // At h = 4 fs impulse drives butane's C–H stretch (period ≈ 11 fs) near its half-period
+    // resonance: the energy climbs by far more than its fluctuation over 10 ps. At 3 fs
+    // it does not.
+    let heating = butane(4, &[]);
+    assert_eq!(heating["status"], "ok", "it ran: {heating}");
+    let drift = &heating["drift"];
+    assert_eq!(drift["energy"], "total");
+    assert_eq!(drift["unit"], "kT/ns/dof");
+    assert_eq!(drift["bound"], 0.05);
+    assert!(drift["value"].as_f64().unwrap() > 0.05, "{drift}");
+    assert_eq!(drift["resolved"], true, "{drift}");
+    let warnings = heating["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].as_str().unwrap().contains("this run heats"),
+        "{warnings:?}"
+    );
+    // The bound is the user's: raised above the drift, the same run passes.
+    let value = drift["value"].as_f64().unwrap();
+    let loose = butane(4, &["--drift-bound", &(2.0 * value).to_string()]);
+    assert!(loose["warnings"].as_array().unwrap().is_empty(), "{loose}");
+
+    let safe = butane(3, &[]);
+    assert!(
+        safe["drift"]["value"].as_f64().unwrap().abs() <= 0.05,
+        "{safe}"
+    );
+    assert!(safe["warnings"].as_array().unwrap().is_empty(), "{safe}");
+}
+
+#[test]
+fn a_mollified_method_is_judged_by_its_conserved_energy() {
+    let out = scratch_dir("heating-long-average");
+    let summary = run_json(&[
+        "run",
+        "systems/three-spring.toml",
+        "--method",
+        "long-average",
+        "--h",
+        "0.5",
+        "--inner",
+        "50",
+        "--t-end",
+        "200",
+        "--json",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let drift = &summary["drift"];
+    assert_eq!(drift["energy"], "mollified_total", "{drift}");
+    assert_eq!(drift["unit"], "relative");
+    assert!(drift["conserved_energy"].is_number() && drift["true_energy"].is_number());
+    assert_eq!(drift["value"], drift["conserved_energy"]);
+    // A dimensionless scene keeps its energy.csv: no units, no temperature column.
+    let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "t,kinetic,potential,total,potential_fast,potential_slow,mollified_total"
+    );
+    assert!(summary.get("units").is_none() && summary.get("temperature").is_none());
+}
+
+#[test]
+fn a_fit_window_skips_the_start_and_a_bad_one_is_refused() {
+    // The fit starts at the first recorded row at or after 2 ps: rows come every 10 steps
+    // of 3 fs (the scene's energy_every).
+    let from = butane(3, &["--fit-from", "2ps"]);
+    let start = from["drift"]["from"].as_f64().unwrap();
+    assert!((2000.0..2030.0).contains(&start), "{from}");
+    let out = scratch_dir("heating-bad-window");
+    for (extra, fragment) in [
+        (
+            ["--fit-from", "20ps"],
+            "--fit-from 20000 is outside the run",
+        ),
+        (["--drift-bound", "0"], "--drift-bound must be positive"),
+    ] {
+        let mut args = vec![
+            "run",
+            "systems/molecules/butane.toml",
+            "--h",
+            "1fs",
+            "--t-end",
+            "10fs",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let output = longstep().args(&args).output().unwrap();
+        assert_eq!(output.status.code(), Some(1));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains(fragment), "{stderr}");
+    }
+}
