@@ -375,7 +375,7 @@ fn analyze_reports_the_energy_table_means_and_writes_its_tables() {
         .next()
         .unwrap()
         .split(',')
-        .position(|c| c == "potential")
+        .position(|c| longstep::io::energy_table::column_matches(c, "potential"))
         .unwrap();
     let rows: Vec<f64> = text
         .lines()
