@@ -277,17 +277,17 @@ fn check_applicable(scene: &str, system: &System, integrator: &dyn Integrator) -
     Ok(())
 }
 
-/// The unit of an `energy.csv` column by its name: energies (`kinetic`, `potential_*`,
+/// The unit of an `energy.csv` column by its name: energies (`kinetic*`, `potential*`,
 /// `total`, a method's `*_energy` or `*_total`), times (`t`, `h`, `dt`) and the kinetic
 /// temperature; counts and anything else have none.
 fn column_unit(name: &str, units: Units) -> Option<&'static str> {
     if units == Units::None {
         return None;
     }
-    let energy = ["kinetic", "potential", "total"].contains(&name)
-        || name.starts_with("potential_")
-        || name.ends_with("_energy")
-        || name.ends_with("_total");
+    let energy = name.starts_with("kinetic")
+        || name.starts_with("potential")
+        || name.ends_with("energy")
+        || name.ends_with("total");
     match name {
         "t" | "h" | "dt" => Some(units.time_name()),
         "temperature" => Some(units.temperature_name()),

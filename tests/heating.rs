@@ -40,12 +40,35 @@ fn butane(h: u32, extra: &[&str]) -> serde_json::Value {
     run_json(&args)
 }
 
+/// The water box from the kit's velocities with impulse at outer step `h`, dt = 0.5 fs.
+fn water(name: &str, h: &str, t_end: &str, extra: &[&str]) -> serde_json::Value {
+    let out = scratch_dir(name);
+    let mut args = vec![
+        "run",
+        "systems/water-box/scene.toml",
+        "--method",
+        "impulse",
+        "--h",
+        h,
+        "--dt",
+        "0.5fs",
+        "--t-end",
+        t_end,
+        "--json",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    run_json(&args)
+}
+
 #[test]
 fn a_heating_run_warns_and_a_safe_one_does_not() {
-    // At h = 4 fs impulse drives butane's C–H stretch (period ≈ 11 fs) near its half-period
-    // resonance: the energy climbs by far more than its fluctuation over 10 ps. At 3 fs
-    // it does not.
-    let heating = butane(4, &[]);
+    // At h = 4.5 fs impulse sits in the O–H resonance band of the water box (4.52–4.66 fs
+    // by `longstep modes`; docs/studies.md): the energy climbs by hundreds of kcal/mol in
+    // 1 ps, far beyond its fluctuation, without blowing up.
+    let heating = water("heating-water-4.5", "4.5fs", "1ps", &[]);
     assert_eq!(heating["status"], "ok", "it ran: {heating}");
     let drift = &heating["drift"];
     assert_eq!(drift["energy"], "total");
@@ -61,15 +84,39 @@ fn a_heating_run_warns_and_a_safe_one_does_not() {
     );
     // The bound is the user's: raised above the drift, the same run passes.
     let value = drift["value"].as_f64().unwrap();
-    let loose = butane(4, &["--drift-bound", &(2.0 * value).to_string()]);
+    let bound = (2.0 * value).to_string();
+    let loose = water(
+        "heating-water-loose",
+        "4.5fs",
+        "1ps",
+        &["--drift-bound", &bound],
+    );
     assert!(loose["warnings"].as_array().unwrap().is_empty(), "{loose}");
 
+    // Butane at 3 fs: within the bound.
     let safe = butane(3, &[]);
     assert!(
         safe["drift"]["value"].as_f64().unwrap().abs() <= 0.05,
         "{safe}"
     );
     assert!(safe["warnings"].as_array().unwrap().is_empty(), "{safe}");
+}
+
+#[test]
+fn a_drift_within_the_energys_fluctuation_is_not_called_heating() {
+    // Impulse at 4 fs heats the water box by ≈ 6 kT/ns/dof, but over 2 ps its true energy
+    // swings by ±30 kcal/mol about the fitted line, more than the fitted change: the
+    // drift is reported beyond the bound, unresolved, and no warning is raised.
+    let short = water("heating-water-4-short", "4fs", "2ps", &[]);
+    let drift = &short["drift"];
+    assert_eq!(drift["exceeded"], true, "{drift}");
+    assert_eq!(drift["resolved"], false, "{drift}");
+    let (change, fluctuation) = (
+        drift["change"].as_f64().unwrap(),
+        drift["fluctuation"].as_f64().unwrap(),
+    );
+    assert!(change.abs() <= 2.0 * fluctuation, "{drift}");
+    assert!(short["warnings"].as_array().unwrap().is_empty(), "{short}");
 }
 
 #[test]

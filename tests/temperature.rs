@@ -195,7 +195,7 @@ fn without_a_seed_the_default_one_is_named() {
         None,
     );
     assert_eq!(code, 0, "{stderr}");
-    assert!(stderr.contains("(seed 1, the default"), "{stderr}");
+    assert!(stderr.contains("(seed 2013, the default"), "{stderr}");
     assert!(!stderr.contains("replacing"), "{stderr}");
     assert!(!stderr.contains("starts at rest"), "{stderr}");
 }
