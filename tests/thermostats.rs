@@ -64,20 +64,6 @@ fn sample(
     burn: usize,
     steps: usize,
 ) -> (Vec<f64>, Vec<f64>) {
-    let (x2, kinetic, _) = sample_with_extra(scene, integrator, burn, steps);
-    (x2, kinetic)
-}
-
-/// [`sample`], with the method's first extra column over the coordinates (langevin-respa:
-/// `2 kinetic_middle / n`, the mean of p²/m in the middle of the BAOAB step).
-fn sample_with_extra(
-    scene: &mut Scene,
-    integrator: &mut dyn Integrator,
-    burn: usize,
-    steps: usize,
-) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let mut extra = Vec::with_capacity(steps);
-    let mut values = Vec::new();
     integrator.setup(&mut scene.system).unwrap();
     for _ in 0..burn {
         integrator.step(&mut scene.system).unwrap();
@@ -96,13 +82,8 @@ fn sample_with_extra(
             .map(|(p, w)| p * p * w)
             .sum();
         kinetic.push(twice_kinetic / n);
-        values.clear();
-        integrator.extra_values(s, &mut values);
-        if let Some(v) = values.first() {
-            extra.push(2.0 * v / n);
-        }
     }
-    (x2, kinetic, extra)
+    (x2, kinetic)
 }
 
 /// Mean of `series` and its standard error from [`BLOCKS`] block means.
@@ -195,11 +176,12 @@ fn baoab_samples_the_harmonic_configuration_exactly() {
     let mut settings = settings("langevin-respa", 0.5, 1, kt);
     settings.friction = Some(1.0);
     let mut method = build(&settings);
-    let (x2, kinetic, middle) = sample_with_extra(&mut s, method.as_mut(), 200, 250 * BLOCKS);
+    let (x2, kinetic) = sample(&mut s, method.as_mut(), 200, 250 * BLOCKS);
     let (mean, error) = block_mean(&x2);
     assert_within("BAOAB <x²>", mean, error, kt / k);
     // The exact stationary law of the discrete scheme: ⟨x²⟩ = kT/k (LM13), and at step ends
-    // ⟨p²⟩ = m kT (1 − (ω dt)²/4), low by 1/16 here; in the middle (after O) it is m kT.
+    // ⟨p²⟩ = m kT (1 − (ω dt)²/4), low by 1/16 here: the kinetic temperature from step-end
+    // momenta runs cold on stiff modes (on the water box, 0.5 fs inner steps make it ~1 %).
     let (exact, momentum) = baoab_respa_variance(k, 0.0, 0.5, 1, 1.0, kt);
     assert!((exact - kt / k).abs() < 1e-12, "{exact}");
     assert!(
@@ -208,8 +190,6 @@ fn baoab_samples_the_harmonic_configuration_exactly() {
     );
     let (mean, error) = block_mean(&kinetic);
     assert_within("BAOAB <p²> at step ends", mean, error, momentum);
-    let (mean, error) = block_mean(&middle);
-    assert_within("BAOAB <p²> after O (kinetic_middle)", mean, error, kt);
 }
 
 #[test]
@@ -338,7 +318,7 @@ fn one_level_langevin_respa_is_baoab_bit_for_bit() {
     let mut reference = scene(TRIANGLE);
     let system = &mut reference.system;
     let mut langevin = Langevin::new(kt, gamma, seed);
-    langevin.setup(h, &system.inverse_mass, &system.state.p);
+    langevin.setup(h, &system.inverse_mass);
     let mut gradient = vec![0.0; system.n_dofs()];
     system.forces.gradient(0, &system.state.q, &mut gradient);
     for _ in 0..steps {

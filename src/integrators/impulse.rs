@@ -210,9 +210,7 @@ impl Impulse {
     fn setup_thermostat(&mut self, system: &mut System) -> Result<()> {
         let dt = self.h / self.substeps[1..].iter().product::<usize>() as f64;
         match &mut self.thermostat {
-            Some(Thermostat::Langevin(langevin)) => {
-                langevin.setup(dt, &system.inverse_mass, &system.state.p)
-            }
+            Some(Thermostat::Langevin(langevin)) => langevin.setup(dt, &system.inverse_mass),
             Some(Thermostat::Sinr(sinr)) => sinr.setup(dt, system)?,
             None => {}
         }
@@ -356,6 +354,13 @@ impl Integrator for Impulse {
         Ok(())
     }
 
+    fn notices(&self, _system: &System) -> Vec<String> {
+        match &self.thermostat {
+            Some(Thermostat::Sinr(sinr)) => vec![sinr.notice()],
+            _ => Vec::new(),
+        }
+    }
+
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         match &self.thermostat {
             Some(Thermostat::Langevin(langevin)) => Some(("langevin", langevin.report())),
@@ -367,15 +372,10 @@ impl Integrator for Impulse {
     /// A mollified method is the impulse method for the mollified potential
     /// `W(q) + U(A(h; q))` (GSS98 section 2): `mollified_total = K + W(q) + U(A(h; q))` is
     /// the energy it conserves (up to O(h²) oscillation, with no drift while stable).
-    /// langevin-respa adds `kinetic_middle`, the kinetic energy right after the last O step
-    /// (at the start, the start's): its momenta are the canonical ones (LM13).
     fn extra_columns(&self) -> Vec<&'static str> {
         let mut columns = Vec::new();
         if self.mollifier.is_some() {
             columns.push("mollified_total");
-        }
-        if let Some(Thermostat::Langevin(_)) = self.thermostat {
-            columns.push("kinetic_middle");
         }
         columns
     }
@@ -389,9 +389,6 @@ impl Integrator for Impulse {
             }
             energy += system.forces.energy(top, mollifier.averaged_positions());
             out.push(energy);
-        }
-        if let Some(Thermostat::Langevin(langevin)) = &self.thermostat {
-            out.push(langevin.kinetic_middle());
         }
     }
 }

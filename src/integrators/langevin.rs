@@ -78,9 +78,6 @@ pub struct Langevin {
     decay: f64,
     /// `√((1 − a²) kT m)` per coordinate.
     noise: Vec<f64>,
-    inverse_mass: Vec<f64>,
-    /// `Σ p² /(2m)` right after the latest O step.
-    kinetic_middle: f64,
 }
 
 impl Langevin {
@@ -93,8 +90,6 @@ impl Langevin {
             gaussian: Gaussian::new(seed, SALT),
             decay: 1.0,
             noise: Vec::new(),
-            inverse_mass: Vec::new(),
-            kinetic_middle: f64::NAN,
         }
     }
 
@@ -150,17 +145,14 @@ impl Langevin {
     }
 
     /// Size the noise amplitudes for steps of `dt` and per-coordinate inverse masses, and
-    /// restart the stream (so a run set up twice draws the same numbers). Until the first O
-    /// step, [`Langevin::kinetic_middle`] is the kinetic energy of the momenta `p` given here.
-    pub fn setup(&mut self, dt: f64, inverse_mass: &[f64], p: &[f64]) {
-        self.kinetic_middle = crate::system::kinetic_energy(p, inverse_mass);
+    /// restart the stream (so a run set up twice draws the same numbers).
+    pub fn setup(&mut self, dt: f64, inverse_mass: &[f64]) {
         self.decay = (-self.friction * dt).exp();
         let variance = -(-2.0 * self.friction * dt).exp_m1();
         self.noise = inverse_mass
             .iter()
             .map(|w| (variance * self.kt / w).sqrt())
             .collect();
-        self.inverse_mass = inverse_mass.to_vec();
         self.gaussian = Gaussian::new(self.seed, SALT);
     }
 
@@ -169,22 +161,11 @@ impl Langevin {
         self.decay
     }
 
-    /// The O step on the momenta: `p ← a p + √((1 − a²) kT m) ξ`; records the kinetic
-    /// energy it leaves ([`Langevin::kinetic_middle`]).
+    /// The O step on the momenta: `p ← a p + √((1 − a²) kT m) ξ`.
     pub fn apply(&mut self, p: &mut [f64]) {
         let a = self.decay;
-        let mut twice_kinetic = 0.0;
-        for ((pi, sigma), w) in p.iter_mut().zip(&self.noise).zip(&self.inverse_mass) {
+        for (pi, sigma) in p.iter_mut().zip(&self.noise) {
             *pi = a * *pi + sigma * self.gaussian.normal();
-            twice_kinetic += *pi * *pi * w;
         }
-        self.kinetic_middle = 0.5 * twice_kinetic;
-    }
-
-    /// The kinetic energy in the middle of the latest BAOAB step (right after O). For a
-    /// harmonic mode these momenta are exactly canonical, while those at the step's end
-    /// have `⟨p²⟩ = m kT (1 − (ω dt)²/4)` (LM13): the middle is the better thermometer.
-    pub fn kinetic_middle(&self) -> f64 {
-        self.kinetic_middle
     }
 }

@@ -358,6 +358,16 @@ impl Sinr {
         Ok(())
     }
 
+    /// What the user should know before the run: the kinetic temperature is not T.
+    pub fn notice(&self) -> String {
+        format!(
+            "sinr bounds each degree of freedom's kinetic energy by L kT: its kinetic \
+             temperature is L/(L+1) = {:.4} of the target (L = {}); its positions sample the \
+             target temperature, so judge it by configurational quantities (longstep analyze)",
+            self.ratio, self.thermostats
+        )
+    }
+
     /// The run header's part.
     pub fn describe(&self) -> String {
         format!(
