@@ -170,6 +170,12 @@ impl Builder<'_> {
             .map(|(index, spanned)| self.build_term(spanned, index, &scene))
             .collect::<Result<Terms>>()?;
         let molecule = self.apply_forcefield(file, &mut start, periodic_box, units, &mut terms)?;
+        if terms.is_empty() {
+            return Err(self.error(
+                "the scene has no force terms, so nothing acts on its particles: add \
+                 [[terms]] (docs/scenes.md) or a [forcefield]",
+            ));
+        }
         // Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.
         for m in &mut start.masses {
             *m = units.mass(*m);

@@ -65,6 +65,79 @@ fn structure_error(path: &Path, message: String) -> Error {
     }
 }
 
+/// Extensions of the text formats chemfiles reads.
+const TEXT_FORMATS: [&str; 16] = [
+    "xyz", "extxyz", "pdb", "ent", "gro", "mol2", "sdf", "sd", "cml", "cif", "mmcif", "arc",
+    "cssr", "smi", "lammpstrj", "molden",
+];
+
+/// A text structure file must be UTF-8 before chemfiles sees it: chemfiles turns the bytes
+/// of names and messages into Rust strings and panics (or, inside its warning callback,
+/// aborts) on anything else. The error names the line and the byte.
+fn check_text(path: &Path) -> Result<()> {
+    use std::io::BufRead;
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    if !TEXT_FORMATS.contains(&extension.as_str()) {
+        return Ok(());
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
+    let mut line = Vec::new();
+    for number in 1.. {
+        line.clear();
+        if reader
+            .read_until(b'\n', &mut line)
+            .map_err(|e| Error::io(path, e))?
+            == 0
+        {
+            return Ok(());
+        }
+        if let Err(e) = std::str::from_utf8(&line) {
+            let at = e.valid_up_to();
+            return Err(Error::Scene {
+                location: format!("{}:{number}", path.display()),
+                message: format!(
+                    "byte 0x{:02X} (column {}) is not UTF-8 text; a structure file must be \
+                     plain text (ASCII or UTF-8)",
+                    line[at],
+                    at + 1
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// chemfiles guesses bonds from van der Waals radii, which only elements have: name the
+/// first atom without one, and the two ways on.
+fn check_radii(path: &Path, frame: &chemfiles::Frame) -> Result<()> {
+    let Some(i) = (0..frame.size()).find(|&i| frame.atom(i).vdw_radius() <= 0.0) else {
+        return Ok(());
+    };
+    let xyz = path
+        .extension()
+        .is_some_and(|e| ["xyz", "extxyz"].contains(&e.to_string_lossy().to_lowercase().as_str()));
+    // In an XYZ file, atom i is on line i + 3 (after the count and the comment).
+    let line = if xyz {
+        format!(", line {}", i + 3)
+    } else {
+        String::new()
+    };
+    Err(structure_error(
+        path,
+        format!(
+            "atom {i} (\"{}\"{line}) is no known element, so bonds cannot be guessed (chemfiles \
+             needs the elements' van der Waals radii): write its element symbol, or list the \
+             bonds in the scene's [structure] section (`bonds = [[0, 1], …]` and \
+             `guess_bonds = false`)",
+            frame.atom(i).name()
+        ),
+    ))
+}
+
 /// Read the first frame of a structure file.
 pub fn read_structure(path: &Path) -> Result<Structure> {
     read_structure_with(path, false)
@@ -80,6 +153,7 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
             message: "no such file".into(),
         });
     }
+    check_text(path)?;
     collect_warnings();
     let mut trajectory = chemfiles::Trajectory::open(path, 'r')
         .map_err(|e| structure_error(path, format!("cannot open: {}", e.message)))?;
@@ -88,9 +162,13 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
         structure_error(path, format!("cannot read the first frame: {}", e.message))
     })?;
     if guess_bonds && frame.topology().bonds_count() == 0 {
-        frame
-            .guess_bonds()
-            .map_err(|e| structure_error(path, format!("cannot guess bonds: {}", e.message)))?;
+        if let Err(e) = frame.guess_bonds() {
+            check_radii(path, &frame)?;
+            return Err(structure_error(
+                path,
+                format!("cannot guess bonds: {}", e.message),
+            ));
+        }
     }
     let positions = frame.positions();
     let mut atoms = Vec::with_capacity(frame.size());

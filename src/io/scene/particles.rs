@@ -20,6 +20,10 @@ pub(super) struct Start {
     pub structure: Option<Structure>,
 }
 
+/// Most particles a scene may hold (about 100 bytes each before any force term's
+/// buffers): beyond it a scene is refused before anything is allocated.
+pub const MAX_PARTICLES: usize = 10_000_000;
+
 impl Builder<'_> {
     /// The particles: listed in `[[particles]]` or read through `[structure]`, not both.
     pub(super) fn particles(
@@ -69,6 +73,17 @@ impl Builder<'_> {
                     return Err(self.error_at(
                         offset,
                         format!("particle count must be a whole number ≥ 1, got {x}"),
+                    ));
+                }
+                // Every particle holds a name, a mass and 2·dim numbers before any force
+                // term sizes its buffers: refuse what memory cannot hold before allocating.
+                if x + start.masses.len() as f64 > MAX_PARTICLES as f64 {
+                    return Err(self.error_at(
+                        offset,
+                        format!(
+                            "particle count {x} would make more than the {MAX_PARTICLES} \
+                             particles a scene may hold"
+                        ),
                     ));
                 }
                 x as usize
@@ -151,8 +166,34 @@ impl Builder<'_> {
         let offset = spanned.span().start;
         let spec = spanned.get_ref();
         let structure_path = self.beside_scene(&spec.file);
+        if !structure_path.is_file() {
+            return Err(self.error_at(
+                offset,
+                format!("[structure] file {}: no such file", structure_path.display()),
+            ));
+        }
         let guess = spec.guess_bonds.unwrap_or(with_forcefield);
         let structure = read_structure_with(&structure_path, guess)?;
+        if structure.atoms.is_empty() {
+            return Err(self.error_at(
+                offset,
+                format!(
+                    "[structure] file {}: its first frame has no atoms",
+                    structure_path.display()
+                ),
+            ));
+        }
+        if structure.atoms.len() > MAX_PARTICLES {
+            return Err(self.error_at(
+                offset,
+                format!(
+                    "[structure] file {} has {} atoms, more than the {MAX_PARTICLES} particles \
+                     a scene may hold",
+                    structure_path.display(),
+                    structure.atoms.len()
+                ),
+            ));
+        }
         let uniform_mass = match &spec.mass {
             Some(mass) => {
                 let mass = self.evaluate(mass, parameters, "structure mass", offset)?;
@@ -225,6 +266,12 @@ impl Builder<'_> {
         };
         let n_particles = masses.len();
         let path = self.beside_scene(velocities);
+        if !path.is_file() {
+            return Err(self.error(format!(
+                "[structure] velocities {}: no such file",
+                path.display()
+            )));
+        }
         let file_velocities = read_structure(&path)?;
         if file_velocities.atoms.len() != n_particles {
             return Err(Error::Structure {
