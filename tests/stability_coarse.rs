@@ -93,8 +93,11 @@ fn past_gamma_2k_the_inner_verlet_itself_is_unstable() {
     // The reduced flow's fast springs are decoupled: at dt·Ω > 2 the inner Verlet has a real
     // eigenvalue of modulus μ = |c| + √(c² − 1), c = 1 − (dtΩ)²/2, per inner step, so one
     // outer step grows like μ^K. The slow kicks (and, for the mollified methods, averages
-    // over the growing inner trajectory) change that by a bounded factor: within 2 either
-    // way (observed: at most 16 %, LongAverage at K = 10).
+    // over the growing inner trajectory) change that by a bounded factor, ρ/μ^K =
+    // vᵀ(kicks)u / vᵀu for the dominant eigenvectors u, v of the inner flow — but we have
+    // no closed form of it with the averages in, so the window is a regression bound: the
+    // probe is deterministic and ρ/μ^K is 1.00003 (LongAverage, K = 5, Γ1 = 10.1) to 1.160
+    // (LongAverage, K = 10, Γ1 = 21); it must stay in [1, 1.17].
     for k in [5, 10] {
         for method in AnalyticMethod::ALL {
             let probe = probe(method, k);
@@ -112,7 +115,7 @@ fn past_gamma_2k_the_inner_verlet_itself_is_unstable() {
                 );
                 assert!(!point.kind.is_stable());
                 assert!(
-                    (0.5..=2.0).contains(&(point.spectral_radius / mu)),
+                    (1.0..=1.17).contains(&(point.spectral_radius / mu)),
                     "{method:?}: ρ = {} vs μ^K = {mu}",
                     point.spectral_radius
                 );
@@ -128,13 +131,18 @@ fn past_gamma_2k_the_inner_verlet_itself_is_unstable() {
     }
 }
 
-/// Integrator maps at K = 5, 10, 20, 200 on a 400 × 400 grid of [0, 2π]² against Lemma 4 at
-/// the inner Verlet's phase (the table of docs/stability.md, "What coarse inner steps
-/// change"). About five minutes on two cores, most of it at K = 200.
-#[test]
-#[ignore]
-fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
-    let n = 400;
+/// Integrator maps at K = 5, 10, 20, 200 on an `n × n` grid of [0, 2π]² against Lemma 4 at
+/// the inner Verlet's phase; returns, per method and K, the integrator-unstable points more
+/// than two cells from any unstable point of Lemma 4 at Γ_eff.
+///
+/// The counts are checked as a regression bound, not a derived one: Lemma 4 at Γ_eff
+/// leaves out what the coarse averages do to the filter and the inner Verlet to the metric
+/// (O((Γ/K)²) in ρ − 1, bounded at the worst cases by
+/// `the_worst_cases_of_propositions_1_to_3_move_with_the_inner_verlet_phase`), and nothing
+/// turns that into a number of grid points whose strips move by more than two cells or
+/// show on one grid and not the other. The maps are deterministic (each point on its own,
+/// the same bits at any thread count), so the counts are exact: they may fall, not rise.
+fn coarse_maps(n: usize) -> Vec<(AnalyticMethod, usize, usize)> {
     let axis = Axis::new(0.0, 2.0 * PI, n, "Γ").expect("axis");
     let grid = Grid {
         gamma1: axis,
@@ -151,6 +159,7 @@ fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
          > 2 cells from Lemma 4 at Γ_eff | largest ρ |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
+    let mut far_counts = Vec::new();
     for method in AnalyticMethod::ALL {
         let problem = LinearProblem::three_spring(method, H).expect("valid");
         // Integrator mode counts ρ − 1 ≤ 1e-6 as stable (its round-off); so do the Lemma 4
@@ -199,16 +208,57 @@ fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
                     points[p].kind
                 );
             }
-            // Beyond the phase shift, the coarse averages change the filter and the inner
-            // Verlet's metric changes ρ − 1 (previous test): strips widen or close their gaps
-            // by a cell or two. A handful of points in 160 000 more than two cells away is
-            // what that allows (we see at most 4, at K = 5); none at K = 200.
-            let allowed = if k == 200 { 0 } else { 10 };
-            assert!(
-                far_shifted <= allowed,
-                "{method:?} K = {k}: {far_shifted} unexplained points"
-            );
+            far_counts.push((method, k, far_shifted));
             assert!(points.iter().all(|p| p.kind != InstabilityType::Overflow));
         }
     }
+    far_counts
+}
+
+/// Check the far counts of [`coarse_maps`] against those observed (a regression bound, see
+/// there); `(method, K, count)` entries not listed are 0.
+fn check_far_counts(
+    far: &[(AnalyticMethod, usize, usize)],
+    observed: &[(AnalyticMethod, usize, usize)],
+) {
+    for &(method, k, count) in far {
+        let allowed = observed
+            .iter()
+            .find(|&&(m, kk, _)| m == method && kk == k)
+            .map_or(0, |o| o.2);
+        assert!(
+            count <= allowed,
+            "{method:?} K = {k}: {count} integrator-unstable points more than two cells from \
+             Lemma 4 at Γ_eff (observed before: {allowed})"
+        );
+    }
+}
+
+/// The table of docs/stability.md ("What coarse inner steps change") at its full size,
+/// 400 × 400. About five minutes of CPU, most of it at K = 200; `make test` runs the
+/// 100 × 100 version below.
+#[test]
+#[ignore = "400 × 400 maps at K up to 200, about five minutes of CPU; make test-all (make test runs 100 × 100)"]
+fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase() {
+    use AnalyticMethod::*;
+    let far = coarse_maps(400);
+    check_far_counts(
+        &far,
+        &[
+            (Impulse, 5, 2),
+            (ShortAverage, 5, 2),
+            (LinearAverage, 5, 4),
+            (LinearAverage, 20, 2),
+        ],
+    );
+}
+
+/// [`coarse_maps`] scaled to a 100 × 100 grid (cells 4× wider than the docs' table, the
+/// same K = 5, 10, 20, 200): about 20 s of CPU. The far points observed: 10 for Impulse at
+/// K = 5 (a thin type-2 band along Γi ≈ 3.05, just below π, that one grid row of the
+/// integrator map hits and the rows of the Γ_eff map miss), none elsewhere.
+#[test]
+fn coarse_maps_are_lemma_4_at_the_inner_verlet_phase_on_a_coarse_grid() {
+    let far = coarse_maps(100);
+    check_far_counts(&far, &[(AnalyticMethod::Impulse, 5, 10)]);
 }

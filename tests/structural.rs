@@ -426,11 +426,12 @@ fn mass_spring_reproduces_cfm25_table_2() {
 
 /// CFM25 Table 6 (pendulum, position error, maximum over block ends). ZD R = 4, 6, 8 and
 /// ZDS R = 1–4 reproduce to the three printed digits (1%) wherever the entry is above
-/// the double floor. ZD R = 2 does not: ours are 1.32, 3.61e-2, 2.43e-3, 1.53e-4,
-/// 9.63e-6 against CFM25's 8.27e-1, 3.36e-2, 2.45e-3, 1.58e-4, 9.80e-6 — fourth order
-/// with the same constant to 1–3% at N ≥ 480 (the mass-spring table matches exactly with
-/// the same code, so the cause is not found); checked within 5% at N ≥ 480 and left
-/// out at N = 120, 240. Entries below the floor (ZDS R = 3 at N = 1920, ZDS R = 4 at N =
+/// the double floor. ZD R = 2 does not, and is not compared (ERRATA.md: an independent
+/// implementation does not reproduce that column either): ours are 1.32, 3.61e-2,
+/// 2.43e-3, 1.53e-4, 9.63e-6 against CFM25's 8.27e-1, 3.36e-2, 2.45e-3, 1.58e-4, 9.80e-6
+/// (1.6× at N = 120, 1–3% at N ≥ 480; the mass-spring table matches exactly with the same
+/// code, so the cause is not found). Its fourth order is checked by `observed_orders`.
+/// Entries below the floor (ZDS R = 3 at N = 1920, ZDS R = 4 at N =
 /// 960 — CFM25's own "***" at 1920 — is 1.21e-13 in quad) are checked against the floor.
 #[test]
 fn pendulum_reproduces_cfm25_table_6() {
@@ -449,8 +450,8 @@ fn pendulum_reproduces_cfm25_table_6() {
                 Some(1.58e-4),
                 Some(9.80e-6),
             ],
-            0.05,
-            2,
+            0.0,
+            5, // not compared: ERRATA.md
         ),
         (
             Zd,
@@ -980,10 +981,15 @@ fn figure_eight_reproduces_cfm25_table_11() {
 }
 
 /// CFM25 Table 13 (outer solar system, T = 100 000 days, N = 480 and 1920): the maximum
-/// over block ends of |H − H₀|/|H₀|. Reproduced in magnitude only — ours are 1.0–1.6×
+/// over block ends of |H − H₀|/|H₀|. Reproduced in magnitude only — ours are 0.63–1.56×
 /// CFM25's (the Table 12 data as printed, rounded to 8 digits, may differ from what was
-/// run; the cause is not found) — so this checks a factor 2, not digits, or both values
-/// below our floor (ZDS R = 4 at N = 1920: CFM25 1.03e-14).
+/// run; the cause is not found). Without a cause there is no tolerance to derive, so the
+/// comparison with the paper is the claim the docs make, "the same magnitude": within a
+/// factor 2, or both values below our floor (ZDS R = 4 at N = 1920: CFM25 1.03e-14).
+/// What can be derived is checked on our own values: the error falls at the scheme's
+/// order from N = 480 to 1920 (as in `observed_orders`, where both errors are above 5×
+/// the floor: within 0.5; refining by 4 the next error term moves log₄ of the ratio less
+/// than the factor-2 refinement there).
 #[test]
 fn outer_solar_system_matches_cfm25_table_13_in_magnitude() {
     use StructuralKind::{Zd, Zds};
@@ -1015,6 +1021,14 @@ fn outer_solar_system_matches_cfm25_table_13_in_magnitude() {
             "Table 13 {kind:?} R = {block}: {:.3e} {:.3e} (CFM25 {:.2e} {:.2e})",
             ours[0], ours[1], paper[0], paper[1]
         );
+        if ours[1] > 5.0 * double_floor(steps[1]) {
+            let order = (ours[0] / ours[1]).ln() / 4f64.ln();
+            let expected = kind.order(block) as f64;
+            assert!(
+                (order - expected).abs() <= 0.5,
+                "{kind:?} R = {block}: order {order:.2}, expected {expected}"
+            );
+        }
         for i in 0..2 {
             let floor = double_floor(steps[i]);
             let ratio = ours[i] / paper[i];
