@@ -67,8 +67,22 @@ fn structure_error(path: &Path, message: String) -> Error {
 
 /// Extensions of the text formats chemfiles reads.
 const TEXT_FORMATS: [&str; 16] = [
-    "xyz", "extxyz", "pdb", "ent", "gro", "mol2", "sdf", "sd", "cml", "cif", "mmcif", "arc",
-    "cssr", "smi", "lammpstrj", "molden",
+    "xyz",
+    "extxyz",
+    "pdb",
+    "ent",
+    "gro",
+    "mol2",
+    "sdf",
+    "sd",
+    "cml",
+    "cif",
+    "mmcif",
+    "arc",
+    "cssr",
+    "smi",
+    "lammpstrj",
+    "molden",
 ];
 
 /// A text structure file must be UTF-8 before chemfiles sees it: chemfiles turns the bytes

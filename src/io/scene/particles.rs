@@ -169,7 +169,10 @@ impl Builder<'_> {
         if !structure_path.is_file() {
             return Err(self.error_at(
                 offset,
-                format!("[structure] file {}: no such file", structure_path.display()),
+                format!(
+                    "[structure] file {}: no such file",
+                    structure_path.display()
+                ),
             ));
         }
         let guess = spec.guess_bonds.unwrap_or(with_forcefield);
