@@ -175,14 +175,15 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
     trajectory.read(&mut frame).map_err(|e| {
         structure_error(path, format!("cannot read the first frame: {}", e.message))
     })?;
-    if guess_bonds && frame.topology().bonds_count() == 0 {
-        if let Err(e) = frame.guess_bonds() {
-            check_radii(path, &frame)?;
-            return Err(structure_error(
-                path,
-                format!("cannot guess bonds: {}", e.message),
-            ));
-        }
+    if guess_bonds
+        && frame.topology().bonds_count() == 0
+        && let Err(e) = frame.guess_bonds()
+    {
+        check_radii(path, &frame)?;
+        return Err(structure_error(
+            path,
+            format!("cannot guess bonds: {}", e.message),
+        ));
     }
     let positions = frame.positions();
     let mut atoms = Vec::with_capacity(frame.size());
