@@ -50,13 +50,20 @@ fn steps_allocate_nothing() {
         cases.push((name.into(), Some("forward")));
         cases.push((name.into(), Some("adjoint")));
     }
+    for jacobian in ["exact", "projection"] {
+        cases.push(("equilibrium-molly".into(), Some(jacobian)));
+    }
     for (name, jacobian) in cases {
         let mut scene = common::scene_file(chain, &[]);
         let mut settings = longstep::settings::MethodSettings::new(&name, 0.02);
         if name != "verlet" {
             settings.inner_steps = Some(4);
         }
-        settings.jacobian = jacobian.map(str::to_string);
+        if name == "equilibrium-molly" {
+            settings.molly_jacobian = jacobian.map(str::to_string);
+        } else {
+            settings.jacobian = jacobian.map(str::to_string);
+        }
         let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
         integrator.setup(&mut scene.system).unwrap();
         integrator.step(&mut scene.system).unwrap();

@@ -39,22 +39,56 @@ fn molecule_steps_allocate_nothing() {
         .num_threads(2)
         .build()
         .unwrap();
-    for (scene, method, h, inner) in [
-        ("systems/water-box/scene.toml", "impulse", 2.0, 4),
-        ("systems/water-box/scene.toml", "long-average", 4.0, 8),
+    let molly = "equilibrium-molly";
+    for (scene, method, h, inner, molly_settings) in [
+        ("systems/water-box/scene.toml", "impulse", 2.0, 4, None),
+        ("systems/water-box/scene.toml", "long-average", 4.0, 8, None),
         // Three levels with the distance split: its own pair list and gradient cache.
-        ("systems/water-box/three-level.toml", "impulse", 4.0, 2),
+        (
+            "systems/water-box/three-level.toml",
+            "impulse",
+            4.0,
+            2,
+            None,
+        ),
         (
             "systems/molecules/alanine-dipeptide.toml",
             "impulse",
             2.0,
             4,
+            None,
+        ),
+        // The equilibrium mollifier: a Schur solve per water, a banded KKT solve per chain.
+        (
+            "systems/water-box/scene.toml",
+            molly,
+            4.0,
+            8,
+            Some(("bonds-angles", "exact")),
+        ),
+        (
+            "systems/water-box/scene.toml",
+            molly,
+            4.0,
+            8,
+            Some(("bonds", "projection")),
+        ),
+        (
+            "systems/polymer-melt/scene.toml",
+            molly,
+            21.5,
+            2,
+            Some(("bonds", "exact")),
         ),
     ] {
         pool.install(|| {
             let mut scene = longstep::io::scene::load_scene(Path::new(scene), &[]).unwrap();
-            let settings =
+            let mut settings =
                 longstep::settings::MethodSettings::new(method, h).with_inner_steps(inner);
+            if let Some((constraints, jacobian)) = molly_settings {
+                settings.molly_constraints = Some(constraints.into());
+                settings.molly_jacobian = Some(jacobian.into());
+            }
             let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
             integrator.setup(&mut scene.system).unwrap();
             // Warm up past the first list rebuilds (their buffers keep 25 % room).

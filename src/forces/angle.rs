@@ -10,7 +10,9 @@
 
 use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
-use super::{ForceTerm, Site, TermClass, add_to_site, site_position, site_vector, with_dim};
+use super::{
+    ForceTerm, RestGeometry, Site, TermClass, add_to_site, site_position, site_vector, with_dim,
+};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AngleBend {
@@ -170,5 +172,16 @@ impl ForceTerm for HarmonicAngles {
 
     fn interaction_count(&self) -> usize {
         self.angles.len()
+    }
+
+    fn rest_geometry(&self) -> Vec<RestGeometry> {
+        self.angles
+            .iter()
+            .filter(|angle| angle.stiffness > 0.0)
+            .map(|angle| RestGeometry::Angle {
+                sites: angle.sites,
+                angle: angle.rest_angle,
+            })
+            .collect()
     }
 }

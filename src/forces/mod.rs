@@ -58,6 +58,16 @@ pub enum TermClass {
     Nonbonded,
 }
 
+/// A geometry at which a bonded term is at rest: what the equilibrium mollifier
+/// ([`crate::integrators::equilibrium_molly`]) holds fixed when it projects the positions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RestGeometry {
+    /// The distance between two sites is `length` at rest (a harmonic spring).
+    Distance { sites: [Site; 2], length: f64 },
+    /// The angle at the middle site is `angle` (radians) at rest (a harmonic angle).
+    Angle { sites: [Site; 3], angle: f64 },
+}
+
 /// A potential-energy term `V(q)` over the flat coordinate array `q` (`n × dim`).
 pub trait ForceTerm: Send + Sync {
     /// Short kind name for tables and messages (`"spring"`, `"lennard-jones"`).
@@ -84,6 +94,13 @@ pub trait ForceTerm: Send + Sync {
     /// for a term that is not made of pair interactions.
     fn min_distance(&self, _q: &[f64]) -> Option<f64> {
         None
+    }
+
+    /// The geometry of each interaction at rest, for terms whose energy has a strict
+    /// minimum there (harmonic springs of positive rest length and stiffness, harmonic
+    /// angles); empty for the others.
+    fn rest_geometry(&self) -> Vec<RestGeometry> {
+        Vec::new()
     }
 
     /// The vector potential of a velocity-dependent (magnetic) term, CFM25 5.7; `None`

@@ -11,7 +11,10 @@
 //! `χ`, `χ′`, `χ″` through [`PairPotential`].
 
 use super::PeriodicBox;
-use super::{ForceTerm, Site, TermClass, add_to_site, dot, site_position, site_vector, with_dim};
+use super::{
+    ForceTerm, RestGeometry, Site, TermClass, add_to_site, dot, site_position, site_vector,
+    with_dim,
+};
 
 /// A radial potential written in the squared distance `s`.
 pub trait PairPotential: Copy + Send + Sync {
@@ -21,6 +24,11 @@ pub trait PairPotential: Copy + Send + Sync {
     fn d1(&self, s: f64) -> f64;
     /// `(χ′(s), χ″(s))`.
     fn d1_d2(&self, s: f64) -> (f64, f64);
+    /// The distance at which the potential has a strict minimum, if it is a bond that
+    /// holds one ([`ForceTerm::rest_geometry`]).
+    fn rest_length(&self) -> Option<f64> {
+        None
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -153,6 +161,19 @@ impl<P: PairPotential> ForceTerm for PairTerm<P> {
 
     fn interaction_count(&self) -> usize {
         self.pairs.len()
+    }
+
+    fn rest_geometry(&self) -> Vec<RestGeometry> {
+        self.pairs
+            .iter()
+            .filter_map(|pair| {
+                let length = pair.potential.rest_length()?;
+                Some(RestGeometry::Distance {
+                    sites: [pair.a, pair.b],
+                    length,
+                })
+            })
+            .collect()
     }
 
     fn min_distance(&self, q: &[f64]) -> Option<f64> {

@@ -43,6 +43,11 @@ impl PairPotential for HarmonicBond {
             )
         }
     }
+
+    /// A spring of zero rest length or zero stiffness has no rest distance to hold.
+    fn rest_length(&self) -> Option<f64> {
+        (self.rest_length > 0.0 && self.stiffness > 0.0).then_some(self.rest_length)
+    }
 }
 
 /// Harmonic springs over the given site pairs.

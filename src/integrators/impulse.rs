@@ -13,13 +13,15 @@
 //! oscillate `h/2` (an even number of inner steps); same cost.
 //!
 //! **Mollified impulse** (GSS98 eq. (4)): the endpoint method with the impulse `F(q_n)`
-//! replaced by `A_q(h; q_n)ᵀ F(A(h; q_n))`, the average and its Jacobian from
-//! [`super::mollified`]. Two levels. Cost per outer step: `inner_steps` fast gradients for
-//! the oscillation, one averaging (⌈μ·inner_steps⌉ − 1 fast gradients and the Hessian-vector
-//! products of the chosen Jacobian mode) and one slow gradient, at `A(h; q)`.
+//! of the outermost level replaced by `A_q(q_n)ᵀ F(A(q_n))`, from a [`SlowMollifier`]: a
+//! time average and its Jacobian ([`super::mollified`], GSS98; two levels; cost per outer
+//! step `inner_steps` fast gradients for the oscillation, one averaging — ⌈μ·inner_steps⌉ − 1
+//! fast gradients and the Hessian-vector products of the chosen Jacobian mode — and one
+//! slow gradient, at `A(h; q)`), or the equilibrium projection of IRS99
+//! ([`super::equilibrium_molly`]; no extra force evaluation).
 //!
-//! Averaging and mollification are a hook around the slow-force call; the rest of the
-//! integrator does not know about them.
+//! Mollification is a hook around the slow-force call; the rest of the integrator does not
+//! know which kind it is.
 //!
 //! **Thermostatted r-RESPA** ([`Thermostat`]): the same recursion with another innermost
 //! step and, for SIN(R), another kick. `langevin-respa` (BAOAB-RESPA, OpenMM's
@@ -30,7 +32,7 @@
 //! Same cost in force evaluations as impulse.
 
 use super::langevin::Langevin;
-use super::mollified::{Average, JacobianChoice, Mollifier};
+use super::mollified::SlowMollifier;
 use super::sinr::Sinr;
 use super::{Integrator, StepFailure, drift, kick};
 use crate::error::{Error, Result};
@@ -63,16 +65,19 @@ pub struct Impulse {
     /// `A_qᵀ ∇U(A)`), one buffer per level.
     gradients: Vec<Vec<f64>>,
     empty: Vec<bool>,
-    mollifier: Option<Mollifier>,
+    mollifier: Option<Box<dyn SlowMollifier>>,
     thermostat: Option<Thermostat>,
+    /// A mollified force that could not be computed at the start: the first step reports
+    /// it, so the run stops at t₀ with its outputs written (exit 3), not as bad input.
+    pending_failure: Option<StepFailure>,
 }
 
 impl Impulse {
-    /// r-RESPA impulse (`mollify = None`) or a mollified impulse method.
+    /// r-RESPA impulse (`mollifier = None`) or a mollified impulse method.
     pub fn new(
         settings: &MethodSettings,
         variant: Variant,
-        mollify: Option<(Average, JacobianChoice)>,
+        mollifier: Option<Box<dyn SlowMollifier>>,
     ) -> Result<Self> {
         let h = settings.h;
         if !(h.is_finite() && h > 0.0) {
@@ -80,8 +85,8 @@ impl Impulse {
                 "outer step h must be positive and finite, got {h}"
             )));
         }
-        let name = match (&mollify, variant) {
-            (Some((average, _)), _) => average.name(),
+        let name = match (&mollifier, variant) {
+            (Some(mollifier), _) => mollifier.name(),
             (None, Variant::Endpoint) => "impulse",
             (None, Variant::Midpoint) => "impulse-midpoint",
         };
@@ -90,15 +95,6 @@ impl Impulse {
                 "{name} needs the inner step: give --inner K (dt = h/K) or --dt"
             )));
         }
-        let mollifier = match mollify {
-            Some((average, choice)) => {
-                let inner_steps = settings
-                    .inner_steps
-                    .ok_or_else(|| Error::input(format!("{name} needs --inner K (or --dt)")))?;
-                Some(Mollifier::new(average, choice, h, inner_steps))
-            }
-            None => None,
-        };
         Ok(Impulse {
             name,
             h,
@@ -110,16 +106,17 @@ impl Impulse {
             empty: Vec::new(),
             mollifier,
             thermostat: None,
+            pending_failure: None,
         })
     }
 
     /// A thermostatted r-RESPA method (endpoint form), optionally with a mollified slow force.
     pub fn thermostatted(
         settings: &MethodSettings,
-        mollify: Option<(Average, JacobianChoice)>,
+        mollifier: Option<Box<dyn SlowMollifier>>,
         thermostat: Thermostat,
     ) -> Result<Self> {
-        let mut method = Impulse::new(settings, Variant::Endpoint, mollify)?;
+        let mut method = Impulse::new(settings, Variant::Endpoint, mollifier)?;
         method.name = match &thermostat {
             Thermostat::Langevin(_) => "langevin-respa",
             Thermostat::Sinr(_) => "sinr",
@@ -134,8 +131,8 @@ impl Impulse {
     }
 
     /// The mollifier of a mollified method (for tests and studies).
-    pub fn mollifier(&self) -> Option<&Mollifier> {
-        self.mollifier.as_ref()
+    pub fn mollifier(&self) -> Option<&dyn SlowMollifier> {
+        self.mollifier.as_deref()
     }
 
     fn top(&self) -> usize {
@@ -143,9 +140,9 @@ impl Impulse {
     }
 
     /// Recompute the force of `level` at the current positions.
-    fn refresh(&mut self, level: usize, system: &mut System) {
+    fn refresh(&mut self, level: usize, system: &mut System) -> Result<(), StepFailure> {
         if self.empty[level] {
-            return;
+            return Ok(());
         }
         let top = self.top();
         let (lower, upper) = self.gradients.split_at_mut(level);
@@ -159,7 +156,10 @@ impl Impulse {
                 level,
                 gradient,
             ),
-            _ => system.forces.gradient(level, &system.state.q, gradient),
+            _ => {
+                system.forces.gradient(level, &system.state.q, gradient);
+                Ok(())
+            }
         }
     }
 
@@ -176,10 +176,14 @@ impl Impulse {
     }
 
     /// One step of length `h_level` of `level` (endpoint form).
-    fn advance(&mut self, level: usize, h_level: f64, system: &mut System) {
+    fn advance(
+        &mut self,
+        level: usize,
+        h_level: f64,
+        system: &mut System,
+    ) -> Result<(), StepFailure> {
         if level == 0 {
-            self.innermost(h_level, system);
-            return;
+            return self.innermost(h_level, system);
         }
         let n = self.substeps[level];
         let h_sub = h_level / n as f64;
@@ -187,22 +191,23 @@ impl Impulse {
             Variant::Endpoint => {
                 self.kick(level, system, 0.5 * h_level);
                 for _ in 0..n {
-                    self.advance(level - 1, h_sub, system);
+                    self.advance(level - 1, h_sub, system)?;
                 }
-                self.refresh(level, system);
+                self.refresh(level, system)?;
                 self.kick(level, system, 0.5 * h_level);
             }
             Variant::Midpoint => {
                 for _ in 0..n / 2 {
-                    self.advance(level - 1, h_sub, system);
+                    self.advance(level - 1, h_sub, system)?;
                 }
-                self.refresh(level, system);
+                self.refresh(level, system)?;
                 self.kick(level, system, h_level);
                 for _ in 0..n / 2 {
-                    self.advance(level - 1, h_sub, system);
+                    self.advance(level - 1, h_sub, system)?;
                 }
             }
         }
+        Ok(())
     }
 
     /// Size the thermostat for the innermost step `dt = h / Π level_steps` (SIN(R) also
@@ -219,7 +224,7 @@ impl Impulse {
 
     /// The innermost step: velocity Verlet, BAOAB, or SIN(R)'s
     /// `N(dt/2) V(dt/2) X(dt) OU(dt) V(dt/2) N(dt/2)`.
-    fn innermost(&mut self, dt: f64, system: &mut System) {
+    fn innermost(&mut self, dt: f64, system: &mut System) -> Result<(), StepFailure> {
         let half = 0.5 * dt;
         if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
             sinr.thermostat_flow(&mut system.state.p, half);
@@ -238,11 +243,12 @@ impl Impulse {
                 sinr.ornstein_uhlenbeck();
             }
         }
-        self.refresh(0, system);
+        self.refresh(0, system)?;
         self.kick(0, system, half);
         if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
             sinr.thermostat_flow(&mut system.state.p, half);
         }
+        Ok(())
     }
 }
 
@@ -265,11 +271,7 @@ impl Integrator for Impulse {
             text += &format!(", level_steps = {}", outer_first.join(","));
         }
         if let Some(mollifier) = &self.mollifier {
-            text += &format!(
-                ", jacobian = {}, {} auxiliary steps",
-                mollifier.mode().name(),
-                mollifier.auxiliary_steps()
-            );
+            text += &format!(", {}", mollifier.describe());
         }
         match &self.thermostat {
             Some(Thermostat::Langevin(langevin)) => text += &langevin.describe(),
@@ -314,16 +316,7 @@ impl Integrator for Impulse {
             )));
         }
         if let Some(mollifier) = &mut self.mollifier {
-            if levels != 2 {
-                return Err(Error::input(format!(
-                    "{} averages with the fast forces and mollifies the slow ones: it needs \
-                     exactly two force levels, the scene has {levels} (use impulse for \
-                     recursive r-RESPA)",
-                    self.name
-                )));
-            }
-            let components = system.forces.fast_components(system.n_particles());
-            mollifier.setup(system.dim, &components);
+            mollifier.setup(system)?;
         }
         if self.thermostat.is_some() {
             self.setup_thermostat(system)?;
@@ -339,14 +332,21 @@ impl Integrator for Impulse {
             Variant::Endpoint => levels,
             Variant::Midpoint => 1,
         };
+        self.pending_failure = None;
         for level in 0..needed {
-            self.refresh(level, system);
+            if let Err(failure) = self.refresh(level, system) {
+                self.pending_failure = Some(failure);
+                break;
+            }
         }
         Ok(())
     }
 
     fn step(&mut self, system: &mut System) -> Result<(), StepFailure> {
-        self.advance(self.top(), self.h, system);
+        if let Some(failure) = self.pending_failure.take() {
+            return Err(failure);
+        }
+        self.advance(self.top(), self.h, system)?;
         system.state.t += self.h;
         if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
             sinr.check(&system.state.p, system.state.t)?;
@@ -354,24 +354,29 @@ impl Integrator for Impulse {
         Ok(())
     }
 
-    fn notices(&self, _system: &System) -> Vec<String> {
-        match &self.thermostat {
-            Some(Thermostat::Sinr(sinr)) => vec![sinr.notice()],
-            _ => Vec::new(),
+    fn notices(&self, system: &System) -> Vec<String> {
+        let mut notices = match &self.mollifier {
+            Some(mollifier) => mollifier.notices(system),
+            None => Vec::new(),
+        };
+        if let Some(Thermostat::Sinr(sinr)) = &self.thermostat {
+            notices.push(sinr.notice());
         }
+        notices
     }
 
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         match &self.thermostat {
             Some(Thermostat::Langevin(langevin)) => Some(("langevin", langevin.report())),
             Some(Thermostat::Sinr(sinr)) => Some(("sinr", sinr.report())),
-            None => None,
+            None => Some(("mollifier", self.mollifier.as_ref()?.report()?)),
         }
     }
 
     /// A mollified method is the impulse method for the mollified potential
-    /// `W(q) + U(A(h; q))` (GSS98 section 2): `mollified_total = K + W(q) + U(A(h; q))` is
-    /// the energy it conserves (up to O(h²) oscillation, with no drift while stable).
+    /// `W(q) + U(A(q))` (GSS98 section 2; IRS99 for the equilibrium projection):
+    /// `mollified_total = K + W(q) + U(A(q))` is the energy it conserves (up to O(h²)
+    /// oscillation, with no drift while stable).
     fn extra_columns(&self) -> Vec<&'static str> {
         let mut columns = Vec::new();
         if self.mollifier.is_some() {
@@ -387,7 +392,7 @@ impl Integrator for Impulse {
             for level in 0..top {
                 energy += system.forces.energy(level, &system.state.q);
             }
-            energy += system.forces.energy(top, mollifier.averaged_positions());
+            energy += system.forces.energy(top, mollifier.mollified_positions());
             out.push(energy);
         }
     }

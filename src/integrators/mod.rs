@@ -9,6 +9,7 @@
 
 pub mod adaptive_verlet;
 pub mod async_pseudo_energy;
+pub mod equilibrium_molly;
 pub mod impulse;
 pub mod langevin;
 pub mod mollified;
@@ -137,6 +138,13 @@ const SINR: &[&str] = &[
     "mollifier",
     "jacobian",
 ];
+const EQUILIBRIUM_MOLLY: &[&str] = &[
+    "inner_steps",
+    "molly_constraints",
+    "molly_jacobian",
+    "tol",
+    "max_iter",
+];
 
 pub const METHODS: &[MethodInfo] = &[
     MethodInfo {
@@ -180,6 +188,13 @@ pub const METHODS: &[MethodInfo] = &[
         help: "SIN(R) stochastic isokinetic r-RESPA (LMT13): --temperature, --thermostats L, \
                --tau, --friction (on the thermostats), --seed; kinetic T is L/(L+1) T",
         uses: SINR,
+    },
+    MethodInfo {
+        name: "equilibrium-molly",
+        help: "mollified impulse with the equilibrium projection (IRS99): the slow force at the \
+               positions with fast bonds (--molly-constraints bonds|bonds-angles) at rest, \
+               --molly-jacobian exact|projection, Newton --tol, --max-iter",
+        uses: EQUILIBRIUM_MOLLY,
     },
     MethodInfo {
         name: "adaptive-verlet",
@@ -231,13 +246,26 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
         }
     }
     use impulse::Variant;
-    use mollified::{Average, JacobianChoice};
-    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
+    use mollified::{Average, JacobianChoice, Mollifier, SlowMollifier};
+    // A GSS98 average for the slow force, over the inner step's Verlet.
+    let averaging = |average: Average| -> Result<Box<dyn SlowMollifier>> {
         let choice = JacobianChoice::parse(settings.jacobian.as_deref())?;
+        let inner_steps = settings
+            .inner_steps
+            .ok_or_else(|| Error::input(format!("{} needs --inner K (or --dt)", average.name())))?;
+        Ok(Box::new(Mollifier::new(
+            average,
+            choice,
+            settings.h,
+            inner_steps,
+        )))
+    };
+    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
+        let mollifier = averaging(average)?;
         Ok(Box::new(Impulse::new(
             settings,
             Variant::Endpoint,
-            Some((average, choice)),
+            Some(mollifier),
         )?))
     };
     match info.name {
@@ -249,10 +277,7 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
         "linear-average" => mollified(Average::Linear),
         "langevin-respa" | "sinr" => {
             let mollify = match settings.mollifier.as_deref() {
-                Some(name) => Some((
-                    Average::parse(name)?,
-                    JacobianChoice::parse(settings.jacobian.as_deref())?,
-                )),
+                Some(name) => Some(averaging(Average::parse(name)?)?),
                 None => None,
             };
             let thermostat = if info.name == "sinr" {
@@ -262,6 +287,14 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
             };
             Ok(Box::new(Impulse::thermostatted(
                 settings, mollify, thermostat,
+            )?))
+        }
+        "equilibrium-molly" => {
+            let mollifier = equilibrium_molly::EquilibriumMolly::from_settings(settings)?;
+            Ok(Box::new(Impulse::new(
+                settings,
+                Variant::Endpoint,
+                Some(Box::new(mollifier)),
             )?))
         }
         "adaptive-verlet" => {

@@ -24,8 +24,57 @@
 
 use nalgebra::DMatrix;
 
+use super::StepFailure;
 use crate::error::{Error, Result};
 use crate::split::ForceSplit;
+use crate::system::System;
+
+/// The hook of the mollified impulse methods around the slow-force call: the impulse
+/// `F(q)` of r-RESPA becomes `A_q(q)ᵀ F(A(q))` (GSS98 eq. (4)), where `A` is a time
+/// average ([`Mollifier`], GSS98) or the projection onto the rest geometry of the fast
+/// bonded terms ([`super::equilibrium_molly::EquilibriumMolly`], IRS99). The integrator
+/// that kicks with it (impulse here; any r-RESPA-like scheme) does not know which.
+///
+/// Either way the mollified impulse is the gradient of `U(A(q))`, so the integrator is
+/// r-RESPA for `W(q) + U(A(q))` and conserves `K + W(q) + U(A(q))`.
+pub trait SlowMollifier: Send {
+    /// The method's name (`"long-average"`, `"equilibrium-molly"`).
+    fn name(&self) -> &'static str;
+
+    /// Its parameters for the run header (`"jacobian = adjoint, 4 auxiliary steps"`).
+    fn describe(&self) -> String;
+
+    /// What the user should know before the run (the constraints chosen, say).
+    fn notices(&self, _system: &System) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// Check that the mollifier applies to `system` (its levels, its bonded terms) and
+    /// size every buffer, so that [`SlowMollifier::mollified_gradient`] allocates nothing.
+    fn setup(&mut self, system: &System) -> Result<()>;
+
+    /// `out = A_q(q)ᵀ ∇U(A(q))`, `U` the level `slow_level` of `forces`: the gradient
+    /// whose negative is the mollified impulse force. `fast_gradient_at_q` is `∇W(q)`
+    /// (level 0) when the caller has it. Fails when `A(q)` cannot be computed (a
+    /// projection that does not converge).
+    fn mollified_gradient(
+        &mut self,
+        forces: &mut ForceSplit,
+        inverse_mass: &[f64],
+        q: &[f64],
+        fast_gradient_at_q: Option<&[f64]>,
+        slow_level: usize,
+        out: &mut [f64],
+    ) -> std::result::Result<(), StepFailure>;
+
+    /// `A(q)` of the last [`SlowMollifier::mollified_gradient`] call.
+    fn mollified_positions(&self) -> &[f64];
+
+    /// A method-specific object for the run summary (statistics of the projection).
+    fn report(&self) -> Option<serde_json::Value> {
+        None
+    }
+}
 
 /// The weight function φ of the average (GSS98 section 2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -490,6 +539,60 @@ impl Mollifier {
         let slow_gradient = std::mem::take(&mut self.slow_gradient);
         self.transpose_product(forces, inverse_mass, &slow_gradient, out);
         self.slow_gradient = slow_gradient;
+    }
+}
+
+impl SlowMollifier for Mollifier {
+    fn name(&self) -> &'static str {
+        self.average.name()
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "jacobian = {}, {} auxiliary steps",
+            self.mode.name(),
+            self.auxiliary_steps()
+        )
+    }
+
+    fn setup(&mut self, system: &System) -> Result<()> {
+        let levels = system.forces.n_levels();
+        if levels != 2 {
+            return Err(Error::input(format!(
+                "{} averages with the fast forces and mollifies the slow ones: it needs \
+                 exactly two force levels, the scene has {levels} (use impulse for \
+                 recursive r-RESPA)",
+                self.average.name()
+            )));
+        }
+        let components = system.forces.fast_components(system.n_particles());
+        Mollifier::setup(self, system.dim, &components);
+        Ok(())
+    }
+
+    fn mollified_gradient(
+        &mut self,
+        forces: &mut ForceSplit,
+        inverse_mass: &[f64],
+        q: &[f64],
+        fast_gradient_at_q: Option<&[f64]>,
+        slow_level: usize,
+        out: &mut [f64],
+    ) -> std::result::Result<(), StepFailure> {
+        Mollifier::mollified_gradient(
+            self,
+            forces,
+            inverse_mass,
+            q,
+            fast_gradient_at_q,
+            slow_level,
+            out,
+        );
+        Ok(())
+    }
+
+    fn mollified_positions(&self) -> &[f64] {
+        &self.averaged
     }
 }
 
