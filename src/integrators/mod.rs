@@ -250,9 +250,12 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
     // A GSS98 average for the slow force, over the inner step's Verlet.
     let averaging = |average: Average| -> Result<Box<dyn SlowMollifier>> {
         let choice = JacobianChoice::parse(settings.jacobian.as_deref())?;
-        let inner_steps = settings
-            .inner_steps
-            .ok_or_else(|| Error::input(format!("{} needs --inner K (or --dt)", average.name())))?;
+        let inner_steps = settings.inner_steps.ok_or_else(|| {
+            Error::input(format!(
+                "{} needs the inner step: give --inner K (dt = h/K) or --dt",
+                average.name()
+            ))
+        })?;
         Ok(Box::new(Mollifier::new(
             average,
             choice,
