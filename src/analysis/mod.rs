@@ -11,6 +11,7 @@ pub mod minimize;
 pub mod modes;
 pub mod rdf;
 pub mod run_analysis;
+pub mod sampling;
 pub mod scan;
 pub mod stability;
 pub mod stiffness;

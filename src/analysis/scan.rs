@@ -1,17 +1,27 @@
 //! Step-size safety scans: run each method at each outer step and classify the run.
 //!
 //! * **unstable** — the run blew up (non-finite energy, or |E − E₀| beyond the blow-up
-//!   factor); the time is reported;
-//! * **drifting** — it finished, but the energy drifts: the slope of a least-squares line
-//!   through E(t), in units of kT per unit time per degree of freedom, exceeds the bound;
+//!   factor) or its method failed; the time is reported;
+//! * **drifting** — it finished, but the energy drifts: the fitted slope of the energy the
+//!   method conserves (its `mollified_total` or `pseudo_energy` when it reports one, else
+//!   `K + V`; [`crate::run::drift`]) exceeds the bound;
 //! * **stable** — otherwise.
 //!
-//! kT is estimated from the mean kinetic energy by equipartition, `kT = 2⟨K⟩/n_dof`, so the
-//! drift rate is `slope / (2⟨K⟩)` and needs no thermostat or temperature in the scene. For a
-//! scene in femtoseconds, 0.05 kT/ns/dof (the criterion of the water-box comparisons) is
-//! 5e-8 per fs.
+//! In a scene with real units the drift is judged exactly as `longstep run` judges it
+//! ([`judge`]): kT/ns/dof, default bound 0.05. In a dimensionless scene it is the rate in kT
+//! per unit time per degree of freedom (default bound 1e-3): kT is estimated from the mean
+//! kinetic energy by equipartition, `kT = 2⟨K⟩/n_dof`, so the rate is `slope / (2⟨K⟩)` and
+//! needs no thermostat or temperature in the scene.
+//!
+//! A thermostatted method exchanges energy with its bath by design: it is never judged by
+//! drift, only by the sampling criterion ([`super::sampling`]), whose verdicts are
+//! **passes** and **fails**.
+//!
+//! The timings behind ns/day ([`time_point`]) are medians of repeated runs at one thread
+//! count, taken apart from the scan: the scan's own table holds only what is the same bit
+//! for bit on every machine.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -20,8 +30,17 @@ use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::{RunSummary, Status};
-use crate::run::{RunOptions, run};
-use crate::settings::{RunSpec, Value};
+use crate::run::drift::judge;
+use crate::run::{
+    RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
+};
+use crate::settings::{MethodSettings, RunSpec, Value};
+use crate::system::velocities::DegreesOfFreedom;
+use crate::units::Units;
+
+/// The default drift bound of a scan in a dimensionless scene, in kT per unit time per
+/// degree of freedom (in a scene with real units it is `run`'s, 0.05 kT/ns/dof).
+pub const DEFAULT_DIMENSIONLESS_BOUND: f64 = 1e-3;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -29,6 +48,10 @@ pub enum Verdict {
     Stable,
     Drifting,
     Unstable,
+    /// Within the sampling criterion's bounds.
+    Passes,
+    /// Outside them: the run samples another distribution.
+    Fails,
 }
 
 impl Verdict {
@@ -37,16 +60,26 @@ impl Verdict {
             Verdict::Stable => "stable",
             Verdict::Drifting => "drifting",
             Verdict::Unstable => "unstable",
+            Verdict::Passes => "passes",
+            Verdict::Fails => "fails",
         }
     }
 
     pub fn parse(text: &str) -> Option<Self> {
-        match text {
-            "stable" => Some(Verdict::Stable),
-            "drifting" => Some(Verdict::Drifting),
-            "unstable" => Some(Verdict::Unstable),
-            _ => None,
-        }
+        [
+            Verdict::Stable,
+            Verdict::Drifting,
+            Verdict::Unstable,
+            Verdict::Passes,
+            Verdict::Fails,
+        ]
+        .into_iter()
+        .find(|v| v.name() == text)
+    }
+
+    /// Whether the point is safe by its criterion.
+    pub fn is_safe(self) -> bool {
+        matches!(self, Verdict::Stable | Verdict::Passes)
     }
 }
 
@@ -71,12 +104,47 @@ pub fn drift_rate(series: &[[f64; 3]]) -> f64 {
     (covariance / variance) / (2.0 * mean_k)
 }
 
-/// The verdict on a finished run and its drift rate.
-pub fn classify(summary: &RunSummary, drift_bound: f64) -> (Verdict, f64) {
-    let drift = summary.fit.as_ref().map_or(0.0, |d| d.true_rate());
+/// A finished run's drift as a scan reports it: the judged energy's rate, the true
+/// energy's, and which energy was judged.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ScanDrift {
+    pub value: f64,
+    pub true_energy: f64,
+    pub energy: String,
+}
+
+/// The drift of a finished run in the scan's unit (kT/ns/dof with real units, kT per unit
+/// time per dof otherwise), judged by the energy the method conserves; `None` without a
+/// fit (too few rows).
+pub fn scan_drift(summary: &RunSummary) -> Option<ScanDrift> {
+    let fit = summary.fit.as_ref()?;
+    Some(match summary.scene_units {
+        Units::Real => {
+            let report = judge(fit, Units::Real, summary.energy_reference, None);
+            ScanDrift {
+                value: report.value,
+                true_energy: report.true_energy,
+                energy: report.energy,
+            }
+        }
+        Units::None => {
+            let (energy, slope, _) = fit.judged();
+            ScanDrift {
+                value: fit.rate(slope),
+                true_energy: fit.true_rate(),
+                energy: energy.to_string(),
+            }
+        }
+    })
+}
+
+/// The verdict on a finished run by the drift criterion, and its drift.
+pub fn classify(summary: &RunSummary, drift_bound: f64) -> (Verdict, Option<ScanDrift>) {
+    let drift = scan_drift(summary);
+    let value = drift.as_ref().map_or(0.0, |d| d.value);
     let verdict = match summary.status {
         Status::Unstable | Status::Failed => Verdict::Unstable,
-        Status::Ok if drift.abs() > drift_bound => Verdict::Drifting,
+        Status::Ok if value.abs() > drift_bound => Verdict::Drifting,
         Status::Ok => Verdict::Stable,
     };
     (verdict, drift)
@@ -89,7 +157,11 @@ pub struct StepResult {
     pub method: String,
     pub h: f64,
     pub verdict: Verdict,
+    /// The judged energy's drift (0 when the run had too few rows to fit one).
     pub drift: f64,
+    /// The true energy's drift, and the energy judged (`total` or the method's conserved
+    /// energy); `None` for a point judged by sampling.
+    pub drift_detail: Option<ScanDrift>,
     /// When an unstable run stopped.
     pub blowup_time: Option<f64>,
     pub max_relative_error: f64,
@@ -97,20 +169,25 @@ pub struct StepResult {
     pub slow_evaluations: u64,
     pub fast_evaluations: u64,
     pub hessian_vector: u64,
+    /// The sampling criterion's comparison, when a point is judged by it.
+    pub sampling: Option<super::sampling::Comparison>,
     #[serde(skip)]
     pub wall_seconds: f64,
 }
 
 /// What a scan runs: the scene, its parameter overrides, the method settings shared by every
-/// point (inner step, Jacobian, …), and the run length and criteria.
-#[derive(Clone, Debug)]
+/// point (inner step, Jacobian, temperature, …), and the run length and criteria.
+#[derive(Clone, Debug, Default)]
 pub struct ScanSetup {
     pub scene: PathBuf,
     pub set: Vec<String>,
     pub base: RunSpec,
     pub t_end: f64,
+    /// In the scan's drift unit (see the module documentation).
     pub drift_bound: f64,
     pub energy_every: usize,
+    /// Fit the drift from this time on (skipping a re-equilibration window).
+    pub fit_from: Option<f64>,
 }
 
 /// A scan's points, method-major: index = method × (number of steps) + step index.
@@ -124,49 +201,115 @@ pub fn scan_points(methods: &[String], steps: &[f64]) -> Vec<(usize, String, f64
     points
 }
 
-/// Run one point.
-pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Result<StepResult> {
-    let mut scene = load_scene(&setup.scene, &setup.set)?;
+/// What one run of a point writes: nothing (drift scans and timings), or `energy.csv` and a
+/// trajectory frame every `frame_every` steps into `dir` (the sampling criterion).
+#[derive(Clone, Debug, Default)]
+pub struct PointOutputs<'a> {
+    pub dir: Option<&'a Path>,
+    pub frame_every: usize,
+}
+
+/// The settings of one point.
+pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodSettings> {
+    let scene = load_scene(&setup.scene, &setup.set)?;
+    scene
+        .run
+        .overridden_by(&point_spec(setup, method, h))
+        .resolve_with_units(&scene.parameters, scene.units)
+        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
+}
+
+fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> RunSpec {
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
     spec.t_end = Some(Value::Number(setup.t_end));
+    spec
+}
+
+/// Run one point once (at the start velocities its settings give) and return the summary.
+pub fn run_once(
+    setup: &ScanSetup,
+    method: &str,
+    h: f64,
+    outputs: &PointOutputs,
+) -> Result<RunSummary> {
+    let mut scene = load_scene(&setup.scene, &setup.set)?;
     let settings = scene
         .run
-        .overridden_by(&spec)
+        .overridden_by(&point_spec(setup, method, h))
         .resolve_with_units(&scene.parameters, scene.units)?;
-    let mut integrator = integrators::build(&settings, &mut Vec::new())?;
+    check_seed_used(&settings, "--seed")?;
+    let mut notices = Vec::new();
+    let mut integrator = integrators::build(&settings, &mut notices)?;
+    let start = start_velocities(&mut scene, &settings, &mut notices)?;
+    let degrees_of_freedom = match &start {
+        Some(start) => Some(start.degrees_of_freedom),
+        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
+        None => None,
+    };
+    let trajectory = outputs.dir.map(|dir| TrajectoryOptions {
+        path: dir.join("trajectory.xyz"),
+        every: outputs.frame_every.max(1),
+        names: scene.elements.clone(),
+    });
+    if let Some(dir) = outputs.dir {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
     let options = RunOptions {
         t_end: setup.t_end,
         energy_every: setup.energy_every,
         blowup: settings.blowup,
-        energy_csv: None,
-        trajectory: None,
-        ..Default::default()
+        energy_csv: outputs.dir.map(|dir| dir.join("energy.csv")),
+        trajectory,
+        units: scene.units,
+        temperature: degrees_of_freedom,
+        fit_from: setup.fit_from,
     };
-    let summary = run(
+    let mut summary = run(
         &scene.name,
         &mut scene.system,
         integrator.as_mut(),
         &options,
-    )
-    .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+    )?;
+    summary.set_units(scene.units);
+    Ok(summary)
+}
+
+/// Run one point and judge it by drift.
+pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Result<StepResult> {
+    let summary = run_once(setup, method, h, &PointOutputs::default())
+        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
     let (verdict, drift) = classify(&summary, setup.drift_bound);
+    Ok(step_result(index, method, h, verdict, drift, &summary))
+}
+
+/// The table row of a finished point.
+pub fn step_result(
+    index: usize,
+    method: &str,
+    h: f64,
+    verdict: Verdict,
+    drift: Option<ScanDrift>,
+    summary: &RunSummary,
+) -> StepResult {
     let counts = &summary.force_evaluations;
-    Ok(StepResult {
+    StepResult {
         index,
         method: method.to_string(),
         h,
         verdict,
-        drift,
+        drift: drift.as_ref().map_or(0.0, |d| d.value),
+        drift_detail: drift,
         blowup_time: (verdict == Verdict::Unstable).then_some(summary.t_end),
         max_relative_error: summary.energy.max_relative_error,
         steps: summary.steps,
         slow_evaluations: counts.slow,
         fast_evaluations: counts.fast,
         hessian_vector: counts.hessian_vector,
+        sampling: None,
         wall_seconds: summary.wall_seconds,
-    })
+    }
 }
 
 /// Run the given points in parallel; `progress` is called once per finished point.
@@ -175,6 +318,9 @@ pub fn run_points(
     points: &[(usize, String, f64)],
     progress: &(dyn Fn() + Sync),
 ) -> Result<Vec<StepResult>> {
+    if let Some((_, method, _)) = points.iter().find(|(_, m, _)| is_stochastic(m)) {
+        return Err(thermostatted_by_drift(method));
+    }
     let mut results = points
         .par_iter()
         .map(|(index, method, h)| {
@@ -185,6 +331,61 @@ pub fn run_points(
         .collect::<Result<Vec<_>>>()?;
     results.sort_by_key(|r| r.index);
     Ok(results)
+}
+
+/// The refusal of a thermostatted method under the drift criterion.
+pub fn thermostatted_by_drift(method: &str) -> Error {
+    Error::input(format!(
+        "{method} is thermostatted: it exchanges energy with its heat bath by design, so an \
+         NVE energy drift cannot judge it; scan it with --criterion sampling --reference DIR \
+         (a reference run at the same temperature)"
+    ))
+}
+
+/// Most timed repetitions of one point (a bound on a user-given count).
+pub const MAX_REPEATS: usize = 100;
+
+/// The wall time of one point's integration (the run loop, as `run` reports it), as the
+/// median of `repeats` runs in a pool of `threads` threads (`None`: all cores).
+pub fn time_point(
+    setup: &ScanSetup,
+    method: &str,
+    h: f64,
+    threads: Option<usize>,
+    repeats: usize,
+) -> Result<f64> {
+    if !(1..=MAX_REPEATS).contains(&repeats) {
+        return Err(Error::input(format!(
+            "--repeats must be between 1 and {MAX_REPEATS}, got {repeats}"
+        )));
+    }
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = threads {
+        builder = builder.num_threads(threads);
+    }
+    let pool = builder
+        .build()
+        .map_err(|e| Error::input(format!("cannot start a thread pool: {e}")))?;
+    let mut walls = pool.install(|| {
+        (0..repeats)
+            .map(|_| run_once(setup, method, h, &PointOutputs::default()).map(|s| s.wall_seconds))
+            .collect::<Result<Vec<f64>>>()
+    })?;
+    Ok(median(&mut walls))
+}
+
+/// The median (the mean of the middle two for an even count); NaN for none.
+pub fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
 }
 
 /// For one method: the largest scanned step below which every scanned step is stable, and
@@ -210,7 +411,7 @@ pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
             let mut rows: Vec<&StepResult> =
                 results.iter().filter(|r| r.method == method).collect();
             rows.sort_by(|a, b| a.h.total_cmp(&b.h));
-            let failure = rows.iter().position(|r| r.verdict != Verdict::Stable);
+            let failure = rows.iter().position(|r| !r.verdict.is_safe());
             let safe_up_to = match failure {
                 Some(0) => None,
                 Some(i) => Some(rows[i - 1].h),
@@ -224,7 +425,7 @@ pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
                     .map(|i| {
                         rows[i..]
                             .iter()
-                            .filter(|r| r.verdict == Verdict::Stable)
+                            .filter(|r| r.verdict.is_safe())
                             .map(|r| r.h)
                             .collect()
                     })
@@ -263,12 +464,14 @@ mod tests {
             h,
             verdict,
             drift: 0.0,
+            drift_detail: None,
             blowup_time: None,
             max_relative_error: 0.0,
             steps: 0,
             slow_evaluations: 0,
             fast_evaluations: 0,
             hessian_vector: 0,
+            sampling: None,
             wall_seconds: 0.0,
         }
     }

@@ -138,7 +138,7 @@ fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {
 }
 
 /// The files of one run directory; missing ones are errors naming the directory.
-fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
+pub(super) fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
     if !dir.is_dir() {
         return Err(Error::Structure {
             path: dir.to_path_buf(),

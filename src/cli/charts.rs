@@ -427,9 +427,127 @@ pub fn draw_work_precision(
     Ok(())
 }
 
+/// The pictures of a scan's table: by its criterion.
+pub fn draw_scan(table: &StudyTable, out: &Path) -> Result<()> {
+    if table.meta.get("criterion").map(String::as_str) == Some("sampling") {
+        draw_scan_sampling(table, out)
+    } else {
+        draw_scan_steps(table, out)
+    }
+}
+
+/// The sampling criterion's differences to the reference against outer step, one chart per
+/// compared quantity (`scan-potential`, `scan-peak`), unstable runs as crosses.
+fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
+    let (method, h, status) = (
+        table.column("method")?,
+        table.column("h")?,
+        table.column("status")?,
+    );
+    let scene = scene_label(table);
+    let quantities = [
+        (
+            "potential_difference",
+            "Δ potential energy per molecule",
+            "scan-potential",
+        ),
+        ("peak_difference", "Δ g(r) first-peak height", "scan-peak"),
+    ];
+    for (column, label, name) in quantities {
+        let value = table.column(column)?;
+        let mut chart = LineChart::new(
+            &format!("Sampling against the reference, {scene}"),
+            AxisSpec::linear("outer step h"),
+            AxisSpec::linear(&format!("{label} (run − reference)")),
+        );
+        chart.legend = Corner::UpperLeft;
+        let mut methods: Vec<&str> = Vec::new();
+        for row in &table.rows {
+            if !methods.contains(&row[method].as_str()) {
+                methods.push(&row[method]);
+            }
+        }
+        let mut unstable = Vec::new();
+        for m in methods {
+            let mut points = Vec::new();
+            for row in table.rows.iter().filter(|r| r[method] == m) {
+                let (x, y) = (table.number(row, h), table.number(row, value));
+                if row[status] == "unstable" {
+                    unstable.push((x, 0.0));
+                } else if y.is_finite() {
+                    points.push((x, y));
+                }
+            }
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if !points.is_empty() {
+                let mut series = Series::line(m, points);
+                series.style = SeriesStyle::LineAndPoints;
+                chart.series.push(series);
+            }
+        }
+        if !unstable.is_empty() {
+            chart.markers.push(MarkerSet::unstable(unstable));
+        }
+        if chart.series.is_empty() && chart.markers.is_empty() {
+            continue;
+        }
+        for extension in ["png", "svg"] {
+            chart.save(&out.join(format!("{name}.{extension}")))?;
+        }
+    }
+    Ok(())
+}
+
+/// Simulated time per day at each method's largest safe step against the thread count,
+/// from the timing table.
+pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
+    let (method, h, threads) = (
+        timing.column("method")?,
+        timing.column("h")?,
+        timing.column("threads")?,
+    );
+    let (per_day, unit) = match timing.column("ns_per_day") {
+        Ok(c) => (c, "ns/day"),
+        Err(_) => (timing.column("time_per_day")?, "time units/day"),
+    };
+    let mut chart = LineChart::new(
+        &format!("Speed at the largest safe step, {}", scene_label(timing)),
+        AxisSpec::linear("threads"),
+        AxisSpec::log(&format!("simulated time per day ({unit})")),
+    );
+    chart.legend = Corner::UpperLeft;
+    let mut methods: Vec<(&str, &str)> = Vec::new();
+    for row in &timing.rows {
+        if !methods.contains(&(row[method].as_str(), row[h].as_str())) {
+            methods.push((&row[method], &row[h]));
+        }
+    }
+    for (m, step) in methods {
+        let points: Vec<(f64, f64)> = timing
+            .rows
+            .iter()
+            .filter(|r| r[method] == m)
+            .map(|r| (timing.number(r, threads), timing.number(r, per_day)))
+            .filter(|p| p.1.is_finite() && p.1 > 0.0)
+            .collect();
+        if !points.is_empty() {
+            let mut series = Series::line(&format!("{m}, h = {step}"), points);
+            series.style = SeriesStyle::LineAndPoints;
+            chart.series.push(series);
+        }
+    }
+    if chart.series.is_empty() {
+        return Ok(());
+    }
+    for extension in ["png", "svg"] {
+        chart.save(&out.join(format!("ns-per-day.{extension}")))?;
+    }
+    Ok(())
+}
+
 /// Drift against outer step for each method, unstable runs as crosses, and the resonances
 /// predicted from the fast normal modes as guide lines.
-pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
+fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     let method = table.column("method")?;
     let h = table.column("h")?;
     let status = table.column("status")?;
@@ -438,7 +556,13 @@ pub fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     let mut chart = LineChart::new(
         &format!("Step-size safety scan, {scene}"),
         AxisSpec::linear("outer step h"),
-        AxisSpec::log("|energy drift| (kT per unit time per degree of freedom)"),
+        AxisSpec::log(&format!(
+            "|energy drift| ({})",
+            table
+                .meta
+                .get("drift_unit")
+                .map_or("kT per unit time per dof", String::as_str)
+        )),
     );
     chart.legend = Corner::UpperLeft;
     let floor = 1e-16;
@@ -673,7 +797,7 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
         )?;
     }
     if let Some(table) = merged_tables.get("scan-steps") {
-        draw_scan_steps(table, &args.out)?;
+        draw_scan(table, &args.out)?;
     }
     if merged_tables.contains_key("scan-stiffness") {
         eprintln!(

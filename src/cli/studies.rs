@@ -7,12 +7,20 @@ use clap::{Args, Subcommand};
 
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
-use crate::analysis::scan::{ScanSetup, StepResult, run_points, safe_steps, scan_points};
+use crate::analysis::run_analysis::{Analyzer, RunAnalysis};
+use crate::analysis::sampling::{
+    SamplingCriterion, check_reference_temperature, run_sampling_points,
+};
+use crate::analysis::scan::{
+    MAX_REPEATS, SafeStep, ScanSetup, StepResult, point_settings, run_points, safe_steps,
+    scan_points, time_point,
+};
 use crate::error::{Error, Result};
 use std::collections::BTreeMap;
 
 use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
+use crate::io::summary::format_time;
 use crate::settings::{RunSpec, Value};
 use crate::units::Units;
 
@@ -49,48 +57,53 @@ pub enum ScanCommand {
     Growth(Box<super::growth::ScanGrowthArgs>),
 }
 
+/// What judges a point of `scan steps`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Criterion {
+    /// NVE energy drift (the default; NVE methods only).
+    Drift,
+    /// Potential energy per molecule and g(r) first-peak height against --reference.
+    Sampling,
+}
+
 #[derive(Args, Debug)]
+#[command(mut_arg("h", |a| a
+    .help("Outer steps to scan, as LO:HI:STEP (inclusive) or a comma-separated list; in a \
+           scene with real units they may carry time units (1fs:6fs:0.5fs)")
+    .value_name("LO:HI:STEP")))]
+#[command(mut_arg("method", |a| a.help("One method to scan (added to --methods)")))]
 pub struct ScanStepsArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Methods to scan, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true)]
+    /// Methods to scan, comma-separated (--method names one).
+    #[arg(long, value_delimiter = ',')]
     pub methods: Vec<String>,
-    /// Outer steps, as LO:HI:STEP (inclusive) or a comma-separated list.
-    #[arg(long = "h", value_name = "LO:HI:STEP")]
-    pub h: String,
-    /// Inner steps K per outer step (dt = h/K varies with h).
-    #[arg(long = "inner", value_name = "K")]
-    pub inner_steps: Option<usize>,
-    /// A fixed inner step dt (every h must be a multiple of it).
-    #[arg(long)]
-    pub dt: Option<Value>,
-    /// Jacobian mode of the mollified methods.
-    #[arg(long)]
-    pub jacobian: Option<String>,
-    /// Ratio K = h_slow / h_fast of the asynchronous pseudo-energy scheme (h is h_slow).
-    #[arg(long)]
-    pub ratio: Option<usize>,
-    /// Quadrature of the pseudo-energy schemes.
-    #[arg(long)]
-    pub quadrature: Option<String>,
-    /// Length of each run.
-    #[arg(long)]
-    pub t_end: Value,
-    /// Largest |drift| counted as stable, in kT per unit time per degree of freedom
-    /// (kT = 2⟨K⟩/n_dof). 5e-8 is 0.05 kT/ns/dof for a scene in femtoseconds.
-    #[arg(long, default_value_t = 1e-3)]
-    pub drift_bound: f64,
-    /// Stop a run as unstable when |E − E0| exceeds this many times the initial energy scale.
-    #[arg(long, default_value_t = 10.0)]
-    pub blowup: f64,
+    /// The method settings every point shares, as `longstep run` takes them (--h is the
+    /// list of outer steps; --t-end each run's length).
+    #[command(flatten)]
+    pub run: RunSpec,
+    /// How the drift criterion judges: in kT/ns/dof in a scene with real units (default
+    /// 0.05, as `run`); in kT per unit time per degree of freedom in a dimensionless one
+    /// (default 1e-3).
+    #[command(flatten)]
+    pub drift: super::run::DriftArgs,
+    /// What judges a point: drift (NVE methods; the default) or sampling (against
+    /// --reference; the only criterion for thermostatted methods).
+    #[arg(long, value_enum)]
+    pub criterion: Option<Criterion>,
+    #[command(flatten)]
+    pub sampling: SamplingArgs,
+    /// Timed runs of each method at its largest safe step, at 1 thread and at all threads:
+    /// their medians give ns/day (timing.csv). 0 takes no timings.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub repeats: usize,
     /// Record the energy every N steps for the drift fit.
     #[arg(long, default_value_t = 1)]
     pub energy_every: usize,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
-    /// Output directory (scan.csv, safe-steps.csv).
+    /// Output directory (scan.csv, timing.csv, charts; runs/ under --criterion sampling).
     #[arg(long, default_value = "out/scan-steps")]
     pub out: PathBuf,
     /// Run only the k-th of n deterministic slices of the points (1-based), for job arrays.
@@ -99,6 +112,37 @@ pub struct ScanStepsArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The options of `--criterion sampling`.
+#[derive(Args, Debug)]
+pub struct SamplingArgs {
+    /// Reference run directory (energy.csv and a trajectory) for --criterion sampling: a
+    /// BAOAB run at a small step at the scan's temperature, e.g. `longstep run SCENE
+    /// --method langevin-respa --inner 1 --h 0.5fs --friction 1/ps --temperature 300K
+    /// --trajectory-every 100`.
+    #[arg(long, value_name = "DIR")]
+    pub reference: Option<PathBuf>,
+    /// The element pair whose g(r) first-peak height is compared.
+    #[arg(long, default_value = "O-O", value_name = "A-B")]
+    pub pair: String,
+    /// Largest |Δ mean potential energy per molecule| that passes, in the scene's energy
+    /// unit (kcal/mol in a real scene).
+    #[arg(long, default_value_t = 0.1, value_name = "BOUND")]
+    pub potential_bound: f64,
+    /// Largest |Δ g(r) first-peak height| that passes.
+    #[arg(long, default_value_t = 0.05, value_name = "BOUND")]
+    pub peak_bound: f64,
+    /// Start of each run, and of the reference, left out as equilibration (default: a fifth
+    /// of the run length --t-end).
+    #[arg(long, value_name = "T")]
+    pub discard: Option<Value>,
+    /// Equal time blocks of the error bars.
+    #[arg(long, default_value_t = 10)]
+    pub blocks: usize,
+    /// Trajectory frames per run for g(r).
+    #[arg(long, default_value_t = 100, value_name = "N")]
+    pub frames: usize,
 }
 
 #[derive(Args, Debug)]
@@ -211,6 +255,7 @@ pub fn check_methods(
                 .resolve_with_units(&scene.parameters, scene.units)?;
             crate::integrators::build(&settings, &mut Vec::new())
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+            crate::run::check_seed_used(&settings, "--seed")?;
         }
     }
     Ok(scene)
@@ -312,83 +357,212 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
-    let units = load_scene(&args.scene, &args.set)?.units;
-    let steps = parse_steps(&args.h, units)?;
+/// The methods of a scan: `--methods` and `--method`, in order, at least one.
+fn scan_methods(args: &ScanStepsArgs) -> Result<Vec<String>> {
+    let mut methods = args.methods.clone();
+    if let Some(method) = &args.run.method {
+        methods.extend(method.split(',').map(|m| m.trim().to_string()));
+    }
+    methods.retain(|m| !m.is_empty());
+    if methods.is_empty() {
+        return Err(Error::input(
+            "scan steps needs the methods to scan: give --methods A,B (or --method A)",
+        ));
+    }
+    Ok(methods)
+}
+
+/// The scan's setup and its outer steps, from the arguments and the scene.
+fn scan_setup(
+    args: &ScanStepsArgs,
+    scene: &crate::io::scene::Scene,
+) -> Result<(ScanSetup, Vec<f64>)> {
+    let units = scene.units;
+    let h = args.run.h.as_ref().ok_or_else(|| {
+        Error::input("scan steps needs the outer steps to scan: give --h LO:HI:STEP or a list")
+    })?;
+    let steps = parse_steps(&h.to_string(), units)?;
     let t_end = args
+        .run
         .t_end
-        .evaluate_time(&Default::default(), "--t-end", units.time_units())?;
+        .as_ref()
+        .or(scene.run.t_end.as_ref())
+        .ok_or_else(|| Error::input("scan steps needs each run's length: give --t-end"))?
+        .evaluate_time(&scene.parameters, "--t-end", units.time_units())?;
     if t_end <= 0.0 {
         return Err(Error::input("--t-end must be positive"));
     }
     if args.energy_every == 0 {
         return Err(Error::input("--energy-every must be at least 1"));
     }
+    let drift_bound = args.drift.bound()?.unwrap_or(match units {
+        Units::Real => crate::run::drift::DEFAULT_REAL_BOUND,
+        Units::None => crate::analysis::scan::DEFAULT_DIMENSIONLESS_BOUND,
+    });
+    let base = RunSpec {
+        method: None,
+        h: None,
+        t_end: None,
+        blowup: Some(args.run.blowup.unwrap_or(10.0)),
+        ..args.run.clone()
+    };
     let setup = ScanSetup {
         scene: args.scene.clone(),
         set: args.set.clone(),
-        base: RunSpec {
-            inner_steps: args.inner_steps,
-            dt: args.dt.clone(),
-            jacobian: args.jacobian.clone(),
-            ratio: args.ratio,
-            quadrature: args.quadrature.clone(),
-            blowup: Some(args.blowup),
-            ..Default::default()
-        },
+        base,
         t_end,
-        drift_bound: args.drift_bound,
+        drift_bound,
         energy_every: args.energy_every,
+        fit_from: args.drift.fit_from(&scene.parameters, units, t_end)?,
     };
-    check_methods(&setup.scene, &setup.set, &setup.base, &args.methods, &steps)?;
-    // Warn before an asynchronous run enters an instability band (small linear scenes).
-    if args.methods.iter().any(|m| m == "async-pseudo-energy") && !args.quiet {
-        for &h in &steps {
-            let mut scene = load_scene(&setup.scene, &setup.set)?;
-            let mut spec = setup.base.clone();
-            spec.method = Some("async-pseudo-energy".into());
-            spec.h = Some(Value::Number(h));
-            let settings = scene
-                .run
-                .overridden_by(&spec)
-                .resolve_with_units(&scene.parameters, scene.units)?;
-            if let Some(warning) =
-                crate::analysis::async_stability::band_warning(&mut scene.system, &settings)
-            {
-                eprintln!("warning: {warning}");
-            }
+    Ok((setup, steps))
+}
+
+/// The criterion: drift for NVE methods unless sampling is asked for; a thermostatted
+/// method is never judged by drift, and sampling needs its reference.
+fn choose_criterion(args: &ScanStepsArgs, methods: &[String]) -> Result<Criterion> {
+    let thermostatted = methods.iter().find(|m| crate::run::is_stochastic(m));
+    match (args.criterion, thermostatted) {
+        (Some(Criterion::Drift) | None, Some(method)) => {
+            Err(crate::analysis::scan::thermostatted_by_drift(method))
         }
+        (Some(Criterion::Sampling), _) if args.sampling.reference.is_none() => Err(Error::input(
+            "--criterion sampling needs --reference DIR: a reference run (energy.csv and a \
+                 trajectory; BAOAB at a small step, at the scan's temperature) to compare with",
+        )),
+        (Some(criterion), _) => Ok(criterion),
+        (None, None) => Ok(Criterion::Drift),
     }
-    let mut points = scan_points(&args.methods, &steps);
+}
+
+/// The sampling criterion from the arguments, checked.
+fn sampling_criterion(
+    args: &ScanStepsArgs,
+    scene: &crate::io::scene::Scene,
+    t_end: f64,
+) -> Result<SamplingCriterion> {
+    let reference = args
+        .sampling
+        .reference
+        .clone()
+        .ok_or_else(|| Error::input("--criterion sampling needs --reference DIR"))?;
+    let discard = match &args.sampling.discard {
+        Some(value) => {
+            value.evaluate_time(&scene.parameters, "--discard", scene.units.time_units())?
+        }
+        None => t_end / 5.0,
+    };
+    let criterion = SamplingCriterion {
+        reference,
+        pair: crate::analysis::run_analysis::parse_pair(&args.sampling.pair).map_err(|_| {
+            Error::input(format!(
+                "--pair: \"{}\" is not an element pair like O-O",
+                args.sampling.pair
+            ))
+        })?,
+        potential_bound: args.sampling.potential_bound,
+        peak_bound: args.sampling.peak_bound,
+        discard,
+        blocks: args.sampling.blocks,
+        frames: args.sampling.frames,
+        runs: args.out.join("runs"),
+    };
+    criterion.check(t_end)?;
+    Ok(criterion)
+}
+
+/// Analyse the reference run and check that it was made at the scan's temperature.
+fn reference_analysis(
+    scene: &crate::io::scene::Scene,
+    criterion: &SamplingCriterion,
+    temperature: Option<f64>,
+) -> Result<RunAnalysis> {
+    let temperature = temperature.ok_or_else(|| {
+        Error::input(
+            "--criterion sampling compares at a temperature: give --temperature (or set \
+             temperature in the scene's [run] table)",
+        )
+    })?;
+    let trajectory = scene
+        .output
+        .trajectory
+        .clone()
+        .unwrap_or_else(|| "trajectory.xyz".into());
+    let files = super::analyze::run_files(&criterion.reference, &trajectory)?;
+    let analyzer = Analyzer::new(scene, criterion.analysis_options())?;
+    let analysis = analyzer.analyze(&files)?;
+    let unit = match scene.units {
+        Units::Real => " K",
+        Units::None => " (k_B T)",
+    };
+    check_reference_temperature(&analysis, temperature, unit, &criterion.reference)?;
+    Ok(analysis)
+}
+
+pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
+    let scene = load_scene(&args.scene, &args.set)?;
+    let methods = scan_methods(args)?;
+    let (setup, steps) = scan_setup(args, &scene)?;
+    let criterion = choose_criterion(args, &methods)?;
+    if args.repeats > MAX_REPEATS {
+        return Err(Error::input(format!(
+            "--repeats must be at most {MAX_REPEATS}, got {}",
+            args.repeats
+        )));
+    }
+    check_methods(&setup.scene, &setup.set, &setup.base, &methods, &steps)?;
+    if !args.quiet {
+        async_band_warnings(&setup, &methods, &steps)?;
+    }
+    let mut points = scan_points(&methods, &steps);
     let total = points.len();
     if let Some(shard) = &args.shard {
         let (k, n) = parse_shard(shard)?;
         points.retain(|(index, _, _)| index % n == k);
     }
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let sampling = match criterion {
+        Criterion::Drift => None,
+        Criterion::Sampling => {
+            let c = sampling_criterion(args, &scene, setup.t_end)?;
+            let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
+            let reference = reference_analysis(&scene, &c, temperature)?;
+            Some((c, reference))
+        }
+    };
     let bar = progress_bar(points.len() as u64, args.quiet, "scan steps");
-    let results = run_points(&setup, &points, &|| bar.inc(1))?;
+    let results = match &sampling {
+        None => run_points(&setup, &points, &|| bar.inc(1))?,
+        Some((c, reference)) => run_sampling_points(&setup, c, reference, &points, &|| bar.inc(1))?,
+    };
     bar.finish_and_clear();
 
-    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let path = args.out.join("scan.csv");
-    let table = scan_table(args, total, &results);
+    let meta = scan_meta(args, &setup, total, sampling.as_ref(), scene.units);
+    let table = match &sampling {
+        None => scan_table(meta.clone(), &results),
+        Some(_) => sampling_table(meta.clone(), &results),
+    };
     table.write(&path)?;
-    super::charts::draw_scan_steps(&table, &args.out)?;
+    super::charts::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
-    println!(
-        "{:<18} {:>12}  {:<24} stable again at",
-        "method", "safe up to", "first failure"
-    );
-    for s in &safe {
-        println!(
-            "{:<18} {:>12}  {:<24} {}",
-            s.method,
-            s.safe_up_to.map_or("none".to_string(), |h| format!("{h}")),
-            s.first_failure
-                .map_or("-".to_string(), |(h, v)| format!("{} at {h}", v.name())),
-            islands(&s.stable_beyond, &steps)
-        );
+    let timings = if args.shard.is_some() || args.repeats == 0 {
+        if args.shard.is_some() && !args.quiet && args.repeats > 0 {
+            eprintln!(
+                "notice: a shard takes no timings (the largest safe step needs every point); \
+                 run the scan whole for ns/day"
+            );
+        }
+        Vec::new()
+    } else {
+        take_timings(&setup, &safe, args.repeats)?
+    };
+    if !timings.is_empty() {
+        let timing = timing_table(meta, &timings, scene.units);
+        timing.write(&args.out.join("timing.csv"))?;
+        super::charts::draw_ns_per_day(&timing, &args.out)?;
     }
+    print_safe_steps(&safe, &steps, &timings, scene.units, criterion);
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
     eprintln!(
         "{} runs, {:.1} s of run time; results in {}",
@@ -399,24 +573,293 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     Ok(())
 }
 
-/// The scan's study table (see `src/io/study_csv.rs`): one row per point in index order.
-pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) -> StudyTable {
-    let mut meta: BTreeMap<String, String> = [
+/// Warn before an asynchronous run enters an instability band (small linear scenes).
+fn async_band_warnings(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<()> {
+    if !methods.iter().any(|m| m == "async-pseudo-energy") {
+        return Ok(());
+    }
+    for &h in steps {
+        let mut scene = load_scene(&setup.scene, &setup.set)?;
+        let settings = point_settings(setup, "async-pseudo-energy", h)?;
+        if let Some(warning) =
+            crate::analysis::async_stability::band_warning(&mut scene.system, &settings)
+        {
+            eprintln!("warning: {warning}");
+        }
+    }
+    Ok(())
+}
+
+/// The timing of one method at its largest safe step at one thread count.
+pub struct Timing {
+    pub method: String,
+    pub h: f64,
+    pub threads: usize,
+    pub repeats: usize,
+    pub median_seconds: f64,
+    pub t_end: f64,
+}
+
+/// Median wall times of every method that has a safe step, at 1 thread and at all threads.
+fn take_timings(setup: &ScanSetup, safe: &[SafeStep], repeats: usize) -> Result<Vec<Timing>> {
+    let all = rayon::current_num_threads();
+    let mut counts = vec![1, all];
+    counts.dedup();
+    let mut timings = Vec::new();
+    for s in safe {
+        let Some(h) = s.safe_up_to else { continue };
+        for &threads in &counts {
+            let median_seconds = time_point(setup, &s.method, h, Some(threads), repeats)?;
+            timings.push(Timing {
+                method: s.method.clone(),
+                h,
+                threads,
+                repeats,
+                median_seconds,
+                t_end: setup.t_end,
+            });
+        }
+    }
+    Ok(timings)
+}
+
+/// Simulated time per day of wall time: ns/day in a scene with real units, scene time
+/// units per day otherwise.
+fn per_day(t_end: f64, seconds: f64, units: Units) -> f64 {
+    crate::io::summary::ns_per_day(t_end, seconds, units)
+        .unwrap_or_else(|| t_end / (seconds / 86_400.0))
+}
+
+/// The unit of a scan's drift column.
+fn drift_unit(units: Units) -> &'static str {
+    match units {
+        Units::Real => crate::io::summary::REAL_DRIFT_UNIT,
+        Units::None => "kT per unit time per dof",
+    }
+}
+
+fn per_day_unit(units: Units) -> &'static str {
+    match units {
+        Units::Real => "ns/day",
+        Units::None => "time units/day",
+    }
+}
+
+/// The timing file: wall-clock medians, which no two machines share, apart from the
+/// deterministic scan table.
+fn timing_table(meta: BTreeMap<String, String>, timings: &[Timing], units: Units) -> StudyTable {
+    let per_day_column = match units {
+        Units::Real => "ns_per_day",
+        Units::None => "time_per_day",
+    };
+    let mut table = StudyTable::new(
+        "scan-steps-timing",
+        meta,
+        &[
+            "method",
+            "h",
+            "threads",
+            "repeats",
+            "median_wall_seconds",
+            per_day_column,
+        ],
+    );
+    for t in timings {
+        table.rows.push(vec![
+            t.method.clone(),
+            t.h.to_string(),
+            t.threads.to_string(),
+            t.repeats.to_string(),
+            t.median_seconds.to_string(),
+            per_day(t.t_end, t.median_seconds, units).to_string(),
+        ]);
+    }
+    table
+}
+
+fn print_safe_steps(
+    safe: &[SafeStep],
+    steps: &[f64],
+    timings: &[Timing],
+    units: Units,
+    criterion: Criterion,
+) {
+    let mut threads: Vec<usize> = timings.iter().map(|t| t.threads).collect();
+    threads.sort_unstable();
+    threads.dedup();
+    let unit = per_day_unit(units);
+    let heads: Vec<String> = threads
+        .iter()
+        .map(|n| format!("{unit} ({n} thr)"))
+        .collect();
+    let again = match criterion {
+        Criterion::Drift => "stable again at",
+        Criterion::Sampling => "passes again at",
+    };
+    let safe_head = match criterion {
+        Criterion::Drift => "safe up to",
+        Criterion::Sampling => "passes up to",
+    };
+    let mut head = format!(
+        "{:<18} {:>12}  {:<24}",
+        "method", safe_head, "first failure"
+    );
+    for h in &heads {
+        head += &format!(" {h:>20}");
+    }
+    println!("{head}  {again}");
+    for s in safe {
+        let mut line = format!(
+            "{:<18} {:>12}  {:<24}",
+            s.method,
+            s.safe_up_to
+                .map_or("none".to_string(), |h| format_time(h, units)),
+            s.first_failure.map_or("-".to_string(), |(h, v)| format!(
+                "{} at {}",
+                v.name(),
+                format_time(h, units)
+            )),
+        );
+        for &n in &threads {
+            let cell = timings
+                .iter()
+                .find(|t| t.method == s.method && t.threads == n)
+                .map_or("-".to_string(), |t| {
+                    crate::io::summary::significant(per_day(t.t_end, t.median_seconds, units), 4)
+                });
+            line += &format!(" {cell:>20}");
+        }
+        println!("{line}  {}", islands(&s.stable_beyond, steps));
+    }
+}
+
+/// The settings a scan's table records on its first line, so shards of different scans
+/// never merge: the run length and criteria, and every method setting given.
+fn scan_meta(
+    args: &ScanStepsArgs,
+    setup: &ScanSetup,
+    total: usize,
+    sampling: Option<&(SamplingCriterion, RunAnalysis)>,
+    units: Units,
+) -> BTreeMap<String, String> {
+    let run = &args.run;
+    let mut pairs: Vec<(&str, String)> = vec![
         ("points", total.to_string()),
         ("scene", args.scene.display().to_string()),
         ("set", args.set.join(" ")),
-        ("t_end", args.t_end.to_string()),
-        ("inner_steps", super::charts::or_default(args.inner_steps)),
-        ("dt", super::charts::or_default(args.dt.as_ref())),
-        ("drift_bound", args.drift_bound.to_string()),
-        ("blowup", args.blowup.to_string()),
-    ]
-    .into_iter()
-    .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
-    .collect();
+        (
+            "t_end",
+            run.t_end
+                .as_ref()
+                .map_or(setup.t_end.to_string(), |t| t.to_string()),
+        ),
+        ("inner_steps", super::charts::or_default(run.inner_steps)),
+        ("dt", super::charts::or_default(run.dt.as_ref())),
+        ("blowup", setup.base.blowup.unwrap_or(10.0).to_string()),
+    ];
+    let given = given_settings(run);
+    pairs.extend(given.iter().map(|(k, v)| (*k, v.clone())));
+    match sampling {
+        None => {
+            pairs.push(("drift_bound", setup.drift_bound.to_string()));
+            pairs.push(("drift_unit", drift_unit(units).to_string()));
+            if let Some(t) = setup.fit_from {
+                pairs.push(("fit_from", t.to_string()));
+            }
+        }
+        Some((c, reference)) => {
+            pairs.extend(sampling_meta(c, reference));
+        }
+    }
+    let mut meta: BTreeMap<String, String> = pairs
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
+        .collect();
     if let Some(shard) = &args.shard {
         meta.insert("shard".into(), shard.clone());
     }
+    meta
+}
+
+fn sampling_meta(c: &SamplingCriterion, reference: &RunAnalysis) -> Vec<(&'static str, String)> {
+    let peak = crate::analysis::sampling::peak_height(reference);
+    vec![
+        ("criterion", "sampling".into()),
+        ("reference", c.reference.display().to_string()),
+        ("pair", format!("{}-{}", c.pair.0, c.pair.1)),
+        ("potential_bound", c.potential_bound.to_string()),
+        ("peak_bound", c.peak_bound.to_string()),
+        ("discard", c.discard.to_string()),
+        ("blocks", c.blocks.to_string()),
+        ("frames", c.frames.to_string()),
+        (
+            "reference_potential",
+            format!(
+                "{} ± {}",
+                reference.potential_per_molecule.mean, reference.potential_per_molecule.error
+            ),
+        ),
+        (
+            "reference_peak",
+            peak.map_or("none".into(), |p| format!("{} ± {}", p.mean, p.error)),
+        ),
+    ]
+}
+
+/// The method settings given on the command line, in the user's terms.
+fn given_settings(run: &RunSpec) -> Vec<(&'static str, String)> {
+    let text = |v: &Option<Value>| v.as_ref().map(|v| v.to_string());
+    let string = |v: &Option<String>| v.clone();
+    let number = |v: Option<usize>| v.map(|v| v.to_string());
+    let candidates: [(&'static str, Option<String>); 20] = [
+        (
+            "level_steps",
+            run.level_steps.as_ref().map(|l| {
+                l.iter()
+                    .map(|x| x.to_string())
+                    .collect::<Vec<_>>()
+                    .join(";")
+            }),
+        ),
+        ("jacobian", string(&run.jacobian)),
+        ("quadrature", string(&run.quadrature)),
+        ("h_slow", text(&run.h_slow)),
+        ("h_fast", text(&run.h_fast)),
+        ("ratio", number(run.ratio)),
+        ("adaptive", text(&run.adaptive)),
+        ("control", string(&run.control)),
+        ("h_min", text(&run.h_min)),
+        ("h_max", text(&run.h_max)),
+        ("block", number(run.block)),
+        ("tol", text(&run.tol)),
+        ("max_iter", number(run.max_iter)),
+        ("temperature", text(&run.temperature)),
+        ("seed", run.seed.map(|s| s.to_string())),
+        ("friction", text(&run.friction)),
+        ("thermostats", number(run.thermostats)),
+        ("tau", text(&run.tau)),
+        ("mollifier", string(&run.mollifier)),
+        (
+            "molly",
+            string(&run.molly_constraints).map(|c| {
+                format!(
+                    "{c} {}",
+                    run.molly_jacobian
+                        .clone()
+                        .unwrap_or_else(|| "default".into())
+                )
+            }),
+        ),
+    ];
+    candidates
+        .into_iter()
+        .filter_map(|(k, v)| v.map(|v| (k, v)))
+        .collect()
+}
+
+/// The scan's study table by the drift criterion (see `src/io/study_csv.rs`): one row per
+/// point in index order.
+pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> StudyTable {
     let mut table = StudyTable::new(
         "scan-steps",
         meta,
@@ -426,6 +869,8 @@ pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) ->
             "h",
             "status",
             "drift",
+            "true_drift",
+            "judged_energy",
             "blowup_time",
             "max_relative_error",
             "steps",
@@ -435,12 +880,15 @@ pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) ->
         ],
     );
     for r in results {
+        let detail = r.drift_detail.as_ref();
         table.rows.push(vec![
             r.index.to_string(),
             r.method.clone(),
             r.h.to_string(),
             r.verdict.name().to_string(),
             r.drift.to_string(),
+            detail.map_or(String::new(), |d| d.true_energy.to_string()),
+            detail.map_or(String::new(), |d| d.energy.clone()),
             r.blowup_time.map_or(String::new(), |t| t.to_string()),
             r.max_relative_error.to_string(),
             r.steps.to_string(),
@@ -448,6 +896,69 @@ pub fn scan_table(args: &ScanStepsArgs, total: usize, results: &[StepResult]) ->
             r.fast_evaluations.to_string(),
             r.hessian_vector.to_string(),
         ]);
+    }
+    table
+}
+
+/// The scan's study table by the sampling criterion: each point's differences to the
+/// reference and their combined errors.
+pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> StudyTable {
+    let mut table = StudyTable::new(
+        "scan-steps",
+        meta,
+        &[
+            "index",
+            "method",
+            "h",
+            "status",
+            "potential_difference",
+            "potential_combined_error",
+            "peak_difference",
+            "peak_combined_error",
+            "potential_per_molecule",
+            "potential_error",
+            "peak_height",
+            "peak_error",
+            "kinetic_temperature",
+            "kinetic_temperature_error",
+            "blowup_time",
+            "steps",
+            "slow_evaluations",
+            "fast_evaluations",
+        ],
+    );
+    for r in results {
+        let mut row = vec![
+            r.index.to_string(),
+            r.method.clone(),
+            r.h.to_string(),
+            r.verdict.name().to_string(),
+        ];
+        match &r.sampling {
+            Some(c) => row.extend(
+                [
+                    c.potential_difference,
+                    c.potential_combined_error,
+                    c.peak_difference,
+                    c.peak_combined_error,
+                    c.potential,
+                    c.potential_error,
+                    c.peak,
+                    c.peak_error,
+                    c.kinetic_temperature,
+                    c.kinetic_temperature_error,
+                ]
+                .map(|x| x.to_string()),
+            ),
+            None => row.extend(std::iter::repeat_n(String::new(), 10)),
+        }
+        row.extend([
+            r.blowup_time.map_or(String::new(), |t| t.to_string()),
+            r.steps.to_string(),
+            r.slow_evaluations.to_string(),
+            r.fast_evaluations.to_string(),
+        ]);
+        table.rows.push(row);
     }
     table
 }

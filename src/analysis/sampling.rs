@@ -1,0 +1,276 @@
+//! The sampling criterion of the step-size scan (`scan steps --criterion sampling`): a
+//! thermostatted run is judged by what it samples, not by an energy it does not conserve.
+//!
+//! Each point's run and a reference run (BAOAB at a small step, e.g. 0.5 fs with γ = 1/ps,
+//! at the same temperature) are analysed with the estimators of `longstep analyze`
+//! ([`super::run_analysis`]): the mean potential energy per molecule and the first-peak
+//! height of one pair's g(r), each with its block-average standard error. A point **passes**
+//! when both differences to the reference are within their bounds (by default 0.1 kcal/mol
+//! per molecule and 0.05 in g); the combined error `√(σ_run² + σ_ref²)` is reported beside
+//! each difference so a reader can see whether the bound was resolved.
+//!
+//! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
+//! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
+
+use std::path::PathBuf;
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::block_average::Estimate;
+use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
+use super::scan::{PointOutputs, ScanSetup, StepResult, Verdict, run_once, step_result};
+use crate::error::{Error, Result};
+use crate::io::scene::load_scene;
+use crate::io::summary::Status;
+
+/// What the sampling criterion compares, and its bounds.
+#[derive(Clone, Debug)]
+pub struct SamplingCriterion {
+    /// The reference run directory (energy.csv and a trajectory).
+    pub reference: PathBuf,
+    /// The g(r) pair whose first-peak height is compared.
+    pub pair: (String, String),
+    /// Largest |ΔPE per molecule| that passes, in the scene's energy unit.
+    pub potential_bound: f64,
+    /// Largest |Δ g(r) first-peak height| that passes.
+    pub peak_bound: f64,
+    /// Start of each run left out (equilibration), in the scene's time unit.
+    pub discard: f64,
+    /// Blocks of the error bars.
+    pub blocks: usize,
+    /// Trajectory frames per run (about; one every `t_end / (frames h)` steps).
+    pub frames: usize,
+    /// Where each point's run directory is written.
+    pub runs: PathBuf,
+}
+
+/// Most trajectory frames per run (a bound on a user-given count).
+pub const MAX_FRAMES: usize = 100_000;
+
+impl SamplingCriterion {
+    /// The analysis both runs go through: the pair's g(r), the default bins and peak fit of
+    /// `longstep analyze`, no configurational temperature (not compared).
+    pub fn analysis_options(&self) -> AnalysisOptions {
+        AnalysisOptions {
+            pairs: vec![self.pair.clone()],
+            intramolecular: false,
+            skip: self.discard,
+            until: None,
+            blocks: self.blocks,
+            bin_width: 0.02,
+            r_max: None,
+            peak_window: 0.25,
+            peak_fit: 0.1,
+            probes: 1,
+            seed: 1,
+            configurational: false,
+            dof: None,
+            kinetic_column: "kinetic".into(),
+            stride: 1,
+        }
+    }
+
+    /// Check the user-given sizes and bounds.
+    pub fn check(&self, t_end: f64) -> Result<()> {
+        for (value, flag) in [
+            (self.potential_bound, "--potential-bound"),
+            (self.peak_bound, "--peak-bound"),
+        ] {
+            if !(value > 0.0 && value.is_finite()) {
+                return Err(Error::input(format!(
+                    "{flag} must be positive, got {value}"
+                )));
+            }
+        }
+        if !(1..=MAX_FRAMES).contains(&self.frames) {
+            return Err(Error::input(format!(
+                "--frames must be between 1 and {MAX_FRAMES}, got {}",
+                self.frames
+            )));
+        }
+        if !(0.0..t_end).contains(&self.discard) {
+            return Err(Error::input(format!(
+                "--discard {} is outside the run [0, {t_end}): nothing would be left to compare",
+                self.discard
+            )));
+        }
+        if self.frames < self.blocks {
+            return Err(Error::input(format!(
+                "--frames {} is fewer than --blocks {}: every block needs a trajectory frame",
+                self.frames, self.blocks
+            )));
+        }
+        Ok(())
+    }
+
+    /// Trajectory frame interval in steps of outer step `h` over a run of `t_end`.
+    pub fn frame_every(&self, t_end: f64, h: f64) -> usize {
+        let steps = (t_end / h).round().max(1.0);
+        ((steps / self.frames as f64).floor() as usize).max(1)
+    }
+}
+
+/// One point's run against the reference.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Comparison {
+    /// The run's mean potential energy per molecule and its standard error.
+    pub potential: f64,
+    pub potential_error: f64,
+    /// Run minus reference, and `√(σ_run² + σ_ref²)`.
+    pub potential_difference: f64,
+    pub potential_combined_error: f64,
+    /// The run's g(r) first-peak height and its standard error (NaN: no peak found).
+    pub peak: f64,
+    pub peak_error: f64,
+    pub peak_difference: f64,
+    pub peak_combined_error: f64,
+    /// The run's mean kinetic temperature and its standard error.
+    pub kinetic_temperature: f64,
+    pub kinetic_temperature_error: f64,
+    pub passes: bool,
+}
+
+/// The first-peak height of the analysed pair, `None` when no peak was found.
+pub fn peak_height(analysis: &RunAnalysis) -> Option<Estimate> {
+    analysis.rdf.first().and_then(|r| r.peak_height)
+}
+
+/// Compare a run's analysis with the reference's: passes when both differences are within
+/// their bounds (a run whose g(r) shows no first peak fails).
+pub fn compare(
+    reference: &RunAnalysis,
+    run: &RunAnalysis,
+    potential_bound: f64,
+    peak_bound: f64,
+) -> Comparison {
+    let combined = |a: &Estimate, b: &Estimate| a.error.hypot(b.error);
+    let (pe, pe_ref) = (
+        &run.potential_per_molecule,
+        &reference.potential_per_molecule,
+    );
+    let potential_difference = pe.mean - pe_ref.mean;
+    let (peak, peak_error, peak_difference, peak_combined_error) =
+        match (peak_height(run), peak_height(reference)) {
+            (Some(p), Some(r)) => (p.mean, p.error, p.mean - r.mean, combined(&p, &r)),
+            _ => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+        };
+    // NaN compares false: a missing peak fails.
+    let passes =
+        potential_difference.abs() <= potential_bound && peak_difference.abs() <= peak_bound;
+    Comparison {
+        potential: pe.mean,
+        potential_error: pe.error,
+        potential_difference,
+        potential_combined_error: combined(pe, pe_ref),
+        peak,
+        peak_error,
+        peak_difference,
+        peak_combined_error,
+        kinetic_temperature: run.kinetic_temperature.mean,
+        kinetic_temperature_error: run.kinetic_temperature.error,
+        passes,
+    }
+}
+
+/// Relative slack of the reference's temperature check: beyond five standard errors, a
+/// reference whose mean kinetic temperature is more than 2 % off the target was run at
+/// another temperature (a 0.5 fs BAOAB reference holds its target far closer than that).
+pub const TEMPERATURE_SLACK: f64 = 0.02;
+
+/// Refuse a reference run at another temperature than `target` (both in the scene's
+/// temperature unit; K in a real scene).
+pub fn check_reference_temperature(
+    reference: &RunAnalysis,
+    target: f64,
+    unit: &str,
+    dir: &std::path::Path,
+) -> Result<()> {
+    let t = &reference.kinetic_temperature;
+    let tolerance = 5.0 * t.error + TEMPERATURE_SLACK * target;
+    // A NaN mean or error (too few blocks to tell) is refused too.
+    let within = (t.mean - target).abs() <= tolerance;
+    if !within {
+        return Err(Error::input(format!(
+            "the reference run {} has a mean kinetic temperature of {:.2} ± {:.2}{unit}, not \
+             the scan's {target}{unit}: compare at equal temperature (give the reference's \
+             --temperature, or a reference run at {target}{unit})",
+            dir.display(),
+            t.mean,
+            t.error
+        )));
+    }
+    Ok(())
+}
+
+/// The directory of one point's run under the criterion's `runs` directory.
+pub fn point_dir(criterion: &SamplingCriterion, index: usize, method: &str, h: f64) -> PathBuf {
+    criterion.runs.join(format!("{index:04}-{method}-h{h}"))
+}
+
+/// Run one point with its outputs and judge it against the reference analysis.
+pub fn run_sampling_point(
+    setup: &ScanSetup,
+    criterion: &SamplingCriterion,
+    reference: &RunAnalysis,
+    (index, method, h): (usize, &str, f64),
+) -> Result<StepResult> {
+    let dir = point_dir(criterion, index, method, h);
+    let outputs = PointOutputs {
+        dir: Some(&dir),
+        frame_every: criterion.frame_every(setup.t_end, h),
+    };
+    let summary = run_once(setup, method, h, &outputs)
+        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+    if summary.status != Status::Ok {
+        return Ok(step_result(
+            index,
+            method,
+            h,
+            Verdict::Unstable,
+            None,
+            &summary,
+        ));
+    }
+    let scene = load_scene(&setup.scene, &setup.set)?;
+    let analyzer = Analyzer::new(&scene, criterion.analysis_options())?;
+    let analysis = analyzer.analyze(&RunFiles {
+        energy: dir.join("energy.csv"),
+        trajectory: dir.join("trajectory.xyz"),
+    })?;
+    let comparison = compare(
+        reference,
+        &analysis,
+        criterion.potential_bound,
+        criterion.peak_bound,
+    );
+    let verdict = if comparison.passes {
+        Verdict::Passes
+    } else {
+        Verdict::Fails
+    };
+    let mut result = step_result(index, method, h, verdict, None, &summary);
+    result.sampling = Some(comparison);
+    Ok(result)
+}
+
+/// Run the given points in parallel and judge each by sampling; `progress` is called once
+/// per finished point.
+pub fn run_sampling_points(
+    setup: &ScanSetup,
+    criterion: &SamplingCriterion,
+    reference: &RunAnalysis,
+    points: &[(usize, String, f64)],
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<StepResult>> {
+    let mut results = points
+        .par_iter()
+        .map(|(index, method, h)| {
+            let result = run_sampling_point(setup, criterion, reference, (*index, method, *h));
+            progress();
+            result
+        })
+        .collect::<Result<Vec<_>>>()?;
+    results.sort_by_key(|r| r.index);
+    Ok(results)
+}

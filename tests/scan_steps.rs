@@ -1,0 +1,311 @@
+//! `longstep scan steps`: the largest safe step where it is known, the timing file apart
+//! from the deterministic table, the drift bound in kT/ns/dof on real scenes, the sampling
+//! criterion against a reference run, and bad input.
+
+mod common;
+
+use std::path::Path;
+
+use common::{longstep, scratch_dir};
+
+/// Run `longstep`; returns (exit code, stdout, stderr).
+fn run(args: &[&str]) -> (i32, String, String) {
+    let output = longstep().args(args).output().unwrap();
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+fn ok(args: &[&str]) -> String {
+    let (code, stdout, stderr) = run(args);
+    assert_eq!(code, 0, "{args:?}: {stderr}");
+    stdout
+}
+
+fn path(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Rows of a study table (after its first line and header) as fields.
+fn rows(file: &Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(file)
+        .unwrap()
+        .lines()
+        .skip(2)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect()
+}
+
+#[test]
+fn verlets_largest_safe_step_is_its_linear_stability_limit() {
+    // Along x the three-spring system is linear (GSS98 eq. (27)): unit masses, stiffness
+    // matrix [[Ω1² + ½, −½], [−½, Ω2² + ½]] with Ω1 = 10, Ω2 = 14. Verlet is stable for
+    // h ω_max < 2 and grows by ρ = e^{acosh(hω/2)} per step beyond. At 1.005 h* that is
+    // e^{0.1} per step, e^{70} over 100 time units: far past any blow-up factor. Below h*
+    // the energy error stays bounded by 1/(1 − (hω/2)²) ≈ 100 times its scale at 0.995 h*,
+    // so a blow-up factor of 1e4 separates the two; the drift bound is taken out of play
+    // (this scan asks where the method is stable, not how well it conserves).
+    let (a, d) = (100.5f64, 196.5f64);
+    let omega_max = (0.5 * (a + d) + (0.25 * (a - d) * (a - d) + 0.25).sqrt()).sqrt();
+    let limit = 2.0 / omega_max;
+    let steps: Vec<f64> = [0.98, 0.995, 1.005, 1.02]
+        .iter()
+        .map(|f| f * limit)
+        .collect();
+    let list = steps
+        .iter()
+        .map(|h| format!("{h:.9}"))
+        .collect::<Vec<_>>()
+        .join(",");
+    let dir = scratch_dir("scan-verlet-limit");
+    let stdout = ok(&[
+        "scan",
+        "steps",
+        "systems/three-spring.toml",
+        "--method",
+        "verlet",
+        "--h",
+        &list,
+        "--t-end",
+        "100",
+        "--blowup",
+        "1e4",
+        "--drift-bound",
+        "1e9",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--out",
+        path(&dir),
+    ]);
+    let statuses: Vec<String> = rows(&dir.join("scan.csv"))
+        .into_iter()
+        .map(|r| r[3].clone())
+        .collect();
+    assert_eq!(
+        statuses,
+        ["stable", "stable", "unstable", "unstable"],
+        "{stdout}"
+    );
+    let line = stdout.lines().find(|l| l.starts_with("verlet")).unwrap();
+    let safe: f64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!((safe - steps[1]).abs() < 1e-8, "{line}");
+}
+
+#[test]
+fn timings_live_in_their_own_file_and_the_scan_table_is_deterministic() {
+    let (first, second, shard) = (
+        scratch_dir("scan-timing-1"),
+        scratch_dir("scan-timing-2"),
+        scratch_dir("scan-timing-shard"),
+    );
+    let args = |out: &Path, extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "scan",
+            "steps",
+            "systems/three-spring.toml",
+            "--methods",
+            "impulse,long-average",
+            "--h",
+            "0.1:0.3:0.1",
+            "--inner",
+            "10",
+            "--t-end",
+            "20",
+            "--quiet",
+            "--out",
+            path(out),
+        ]
+        .map(String::from)
+        .to_vec();
+        a.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let call = |a: Vec<String>| ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let stdout = call(args(&first, &["--repeats", "2"]));
+    call(args(&second, &["--repeats", "3"]));
+    // The table is the same bit for bit whatever the timings did.
+    let table = std::fs::read(first.join("scan.csv")).unwrap();
+    assert_eq!(table, std::fs::read(second.join("scan.csv")).unwrap());
+    let text = String::from_utf8(table).unwrap();
+    assert!(
+        !text.contains("wall") && !text.contains("per_day"),
+        "{text}"
+    );
+    // The timing file: each method at its largest safe step (the end of the scan, 0.3,
+    // where both are stable), at 1 thread and at all threads, medians of the repeats.
+    let timing = std::fs::read_to_string(first.join("timing.csv")).unwrap();
+    assert!(
+        timing.starts_with("# longstep scan-steps-timing, "),
+        "{timing}"
+    );
+    let header = timing.lines().nth(1).unwrap();
+    assert_eq!(
+        header,
+        "method,h,threads,repeats,median_wall_seconds,time_per_day"
+    );
+    let timed = rows(&first.join("timing.csv"));
+    for method in ["impulse", "long-average"] {
+        let mine: Vec<&Vec<String>> = timed.iter().filter(|r| r[0] == method).collect();
+        assert!(!mine.is_empty(), "{method}: {timing}");
+        assert_eq!(mine[0][2], "1", "{timing}");
+        for r in mine {
+            assert_eq!((r[1].as_str(), r[3].as_str()), ("0.3", "2"), "{timing}");
+            let (seconds, per_day): (f64, f64) = (r[4].parse().unwrap(), r[5].parse().unwrap());
+            // 20 time units per `seconds` of wall time, per day.
+            assert!(seconds > 0.0, "{timing}");
+            assert!((per_day * seconds / 86_400.0 / 20.0 - 1.0).abs() < 1e-9);
+        }
+    }
+    assert!(stdout.contains("time units/day (1 thr)"), "{stdout}");
+    assert!(first.join("ns-per-day.png").exists());
+    // A shard takes no timings: its safe step needs every point.
+    call(args(&shard, &["--shard", "1/2"]));
+    assert!(!shard.join("timing.csv").exists());
+}
+
+#[test]
+fn the_drift_bound_of_a_real_scene_is_run_s_in_kt_per_ns_per_dof() {
+    let dir = scratch_dir("scan-real-bound");
+    ok(&[
+        "scan",
+        "steps",
+        "systems/water-box/scene.toml",
+        "--methods",
+        "impulse",
+        "--h",
+        "2fs",
+        "--inner",
+        "4",
+        "--t-end",
+        "40fs",
+        "--temperature",
+        "300K",
+        "--seed",
+        "7",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--out",
+        path(&dir),
+    ]);
+    let text = std::fs::read_to_string(dir.join("scan.csv")).unwrap();
+    let first = text.lines().next().unwrap();
+    for needle in [
+        "drift_bound = 0.05",
+        "drift_unit = kT/ns/dof",
+        "temperature = 300K",
+        "seed = 7",
+    ] {
+        assert!(first.contains(needle), "{needle}: {first}");
+    }
+}
+
+fn reference_run(dir: &Path, temperature: &str, t_end: &str) {
+    ok(&[
+        "run",
+        "systems/water-box/scene.toml",
+        "--method",
+        "langevin-respa",
+        "--inner",
+        "1",
+        "--h",
+        "0.5fs",
+        "--friction",
+        "1/ps",
+        "--temperature",
+        temperature,
+        "--t-end",
+        t_end,
+        "--energy-every",
+        "1",
+        "--trajectory-every",
+        "8",
+        "--quiet",
+        "--out",
+        path(dir),
+    ]);
+}
+
+#[test]
+fn scans_refuse_bad_input_with_a_clear_message() {
+    let dir = scratch_dir("scan-bad-input");
+    let out = dir.join("out");
+    let water = [
+        "scan",
+        "steps",
+        "systems/water-box/scene.toml",
+        "--h",
+        "1fs",
+        "--inner",
+        "2",
+        "--t-end",
+        "20fs",
+        "--temperature",
+        "300K",
+        "--quiet",
+        "--out",
+        path(&out),
+    ];
+    let with = |extra: &[&str]| -> (i32, String) {
+        let mut a: Vec<&str> = water.to_vec();
+        a.extend(extra);
+        if !extra.contains(&"--repeats") {
+            a.extend(["--repeats", "0"]);
+        }
+        let (code, _, stderr) = run(&a);
+        (code, stderr)
+    };
+    // A thermostatted method is never judged by NVE drift.
+    for extra in [
+        &["--methods", "langevin-respa"][..],
+        &["--methods", "impulse,sinr", "--criterion", "drift"][..],
+    ] {
+        let (code, stderr) = with(extra);
+        assert_eq!(code, 1, "{stderr}");
+        assert!(
+            stderr.contains("thermostatted") && stderr.contains("--criterion sampling"),
+            "{stderr}"
+        );
+    }
+    let (code, stderr) = with(&["--methods", "langevin-respa", "--criterion", "sampling"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("needs --reference"), "{stderr}");
+    // A reference directory without energy.csv.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let sampling = [
+        "--methods",
+        "langevin-respa",
+        "--criterion",
+        "sampling",
+        "--blocks",
+        "2",
+        "--reference",
+    ];
+    let mut extra = sampling.to_vec();
+    extra.push(path(&empty));
+    let (code, stderr) = with(&extra);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("energy.csv"), "{stderr}");
+    // A reference at another temperature: refused, naming both.
+    let hot = dir.join("hot");
+    reference_run(&hot, "400K", "40fs");
+    let mut extra = sampling.to_vec();
+    extra.push(path(&hot));
+    let (code, stderr) = with(&extra);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("temperature") && stderr.contains("300 K"),
+        "{stderr}"
+    );
+    // Unbounded sizes are bounded.
+    let (code, stderr) = with(&["--methods", "impulse", "--repeats", "1000"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--repeats"), "{stderr}");
+    let (code, _, stderr) = run(&["scan", "steps", "systems/three-spring.toml", "--h", "0.1"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--methods"), "{stderr}");
+}
