@@ -309,3 +309,110 @@ fn scans_refuse_bad_input_with_a_clear_message() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--methods"), "{stderr}");
 }
+
+#[test]
+fn the_sampling_criterion_passes_the_reference_itself_and_fails_a_biased_sampler() {
+    // The reference: BAOAB (langevin-respa on one level) at 0.5 fs, γ = 1/ps, 300 K, 0.4 ps.
+    let dir = scratch_dir("scan-sampling");
+    let reference = dir.join("reference");
+    reference_run(&reference, "300K", "0.4ps");
+    let out = dir.join("scan");
+    ok(&[
+        "scan",
+        "steps",
+        "systems/water-box/scene.toml",
+        "--methods",
+        "langevin-respa",
+        "--h",
+        "0.5fs,2fs,4fs",
+        "--dt",
+        "0.5fs",
+        "--friction",
+        "1/ps",
+        "--temperature",
+        "300K",
+        "--t-end",
+        "0.4ps",
+        "--criterion",
+        "sampling",
+        "--reference",
+        path(&reference),
+        "--repeats",
+        "1",
+        "--quiet",
+        "--out",
+        path(&out),
+    ]);
+    // At 0.5 fs the point is the reference run itself (same seed, same frames): the same
+    // bits, so both differences are exactly zero.
+    assert_eq!(
+        std::fs::read(reference.join("energy.csv")).unwrap(),
+        std::fs::read(out.join("runs/0000-langevin-respa-h0.5/energy.csv")).unwrap()
+    );
+    let table = rows(&out.join("scan.csv"));
+    let number = |row: &[String], k: usize| -> f64 { row[k].parse().unwrap() };
+    assert_eq!(table[0][3], "passes");
+    assert_eq!((number(&table[0], 4), number(&table[0], 6)), (0.0, 0.0));
+    // Every point starts from the same velocities and draws the same noise, so a step's
+    // bias shows against small paired differences. At 4 fs langevin-respa's potential energy
+    // is biased (GSS98-type resonance heating of the O–H stretch, about 0.3 kcal/mol per
+    // molecule here); the criterion's 0.1 kcal/mol bound must catch it, beyond its combined
+    // standard error (≈ 0.02) many times over. At 2 fs the bias is well inside the bound.
+    let pe_4 = number(&table[2], 4);
+    let pe_4_error = number(&table[2], 5);
+    assert_eq!(table[2][3], "fails", "{table:?}");
+    assert!(pe_4 > 0.1 && pe_4 > 5.0 * pe_4_error, "{table:?}");
+    assert_eq!(table[1][3], "passes", "{table:?}");
+    // ns/day at the largest passing step, 2 fs, in the timing file.
+    let timing = rows(&out.join("timing.csv"));
+    assert!(!timing.is_empty());
+    for r in &timing {
+        assert_eq!((r[0].as_str(), r[1].as_str()), ("langevin-respa", "2"));
+        assert!(r[5].parse::<f64>().unwrap() > 0.0);
+    }
+}
+
+#[test]
+fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
+    // Two BAOAB runs, one started at 300 K and one at 400 K. Half of the start's excess
+    // kinetic energy flows into the potential within a few vibrational periods, and the
+    // thermostat (γ = 1/ps) pulls the rest back only over picoseconds, so over 0.2 ps the warm
+    // run's water sits near 340 K against the cool run's 290 K, and its potential energy per
+    // molecule is higher by about 0.5 kcal/mol (≈ 0.01 kcal/mol/K per molecule for the
+    // potential of SPC/Fw water, times 50 K; `longstep analyze` of these runs gives
+    // +0.55 ± 0.05): beyond the bound of 0.1 and beyond three combined standard errors (a
+    // difference the statistics resolve). A run against itself passes with zero differences.
+    use longstep::analysis::run_analysis::{Analyzer, RunFiles};
+    use longstep::analysis::sampling::{SamplingCriterion, compare};
+    let dir = scratch_dir("scan-sampling-temperature");
+    let (cool, warm) = (dir.join("300"), dir.join("400"));
+    reference_run(&cool, "300K", "0.2ps");
+    reference_run(&warm, "400K", "0.2ps");
+    let scene = common::scene_file("systems/water-box/scene.toml", &[]);
+    let criterion = SamplingCriterion {
+        reference: cool.clone(),
+        pair: ("O".into(), "O".into()),
+        potential_bound: 0.1,
+        peak_bound: 0.05,
+        discard: 40.0,
+        blocks: 5,
+        frames: 50,
+        runs: dir.clone(),
+    };
+    let analyzer = Analyzer::new(&scene, criterion.analysis_options()).unwrap();
+    let files = |d: &Path| RunFiles {
+        energy: d.join("energy.csv"),
+        trajectory: d.join("trajectory.xyz"),
+    };
+    let reference = analyzer.analyze(&files(&cool)).unwrap();
+    let hot = analyzer.analyze(&files(&warm)).unwrap();
+    let same = compare(&reference, &reference, 0.1, 0.05);
+    assert!(same.passes && same.potential_difference == 0.0, "{same:?}");
+    let wrong = compare(&reference, &hot, 0.1, 0.05);
+    assert!(!wrong.passes, "{wrong:?}");
+    assert!(
+        wrong.potential_difference > 0.1
+            && wrong.potential_difference > 3.0 * wrong.potential_combined_error,
+        "{wrong:?}"
+    );
+}

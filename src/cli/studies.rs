@@ -536,6 +536,11 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         Some((c, reference)) => run_sampling_points(&setup, c, reference, &points, &|| bar.inc(1))?,
     };
     bar.finish_and_clear();
+    if let Some((c, _)) = &sampling
+        && !args.quiet
+    {
+        unresolved_notice(c, &results);
+    }
 
     let path = args.out.join("scan.csv");
     let meta = scan_meta(args, &setup, total, sampling.as_ref(), scene.units);
@@ -571,6 +576,26 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         path.display()
     );
     Ok(())
+}
+
+/// Say so when a bound lies within the statistical error of its difference: such a verdict
+/// says more about the run length than about the step.
+fn unresolved_notice(c: &SamplingCriterion, results: &[StepResult]) {
+    let unresolved = results
+        .iter()
+        .filter_map(|r| r.sampling.as_ref())
+        .filter(|s| {
+            !(s.potential_combined_error < c.potential_bound
+                && s.peak_combined_error < c.peak_bound)
+        })
+        .count();
+    if unresolved > 0 {
+        eprintln!(
+            "notice: at {unresolved} points a combined standard error is as large as its bound \
+             (potential {}, peak {}): longer runs (--t-end) or more blocks resolve them",
+            c.potential_bound, c.peak_bound
+        );
+    }
 }
 
 /// Warn before an asynchronous run enters an instability band (small linear scenes).
