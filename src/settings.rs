@@ -156,7 +156,8 @@ pub struct RunSpec {
     #[arg(long, allow_negative_numbers = true)]
     pub tau: Option<Value>,
     /// Mollified slow force of the thermostatted r-RESPA methods (langevin-respa, sinr):
-    /// short-average, long-average or linear-average (GSS98).
+    /// short-average, long-average or linear-average (GSS98), or equilibrium-molly (IRS99,
+    /// with --molly-constraints, --molly-jacobian).
     #[arg(long)]
     pub mollifier: Option<String>,
     /// What the equilibrium mollifier holds at rest: bonds, or bonds-angles.

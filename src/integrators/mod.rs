@@ -126,6 +126,10 @@ const LANGEVIN: &[&str] = &[
     "friction",
     "mollifier",
     "jacobian",
+    "molly_constraints",
+    "molly_jacobian",
+    "tol",
+    "max_iter",
 ];
 const SINR: &[&str] = &[
     "inner_steps",
@@ -137,6 +141,10 @@ const SINR: &[&str] = &[
     "tau",
     "mollifier",
     "jacobian",
+    "molly_constraints",
+    "molly_jacobian",
+    "tol",
+    "max_iter",
 ];
 const EQUILIBRIUM_MOLLY: &[&str] = &[
     "inner_steps",
@@ -279,7 +287,11 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
         "long-average" => mollified(Average::Long),
         "linear-average" => mollified(Average::Linear),
         "langevin-respa" | "sinr" => {
-            let mollify = match settings.mollifier.as_deref() {
+            // The same hook as the NVE methods: a GSS98 average or the IRS99 projection.
+            let mollify: Option<Box<dyn SlowMollifier>> = match settings.mollifier.as_deref() {
+                Some("equilibrium-molly") => Some(Box::new(
+                    equilibrium_molly::EquilibriumMolly::from_settings(settings)?,
+                )),
                 Some(name) => Some(averaging(Average::parse(name)?)?),
                 None => None,
             };

@@ -103,8 +103,8 @@ impl Average {
             .find(|a| a.name() == name)
             .ok_or_else(|| {
                 Error::input(format!(
-                    "unknown mollifier \"{name}\"; use short-average, long-average or \
-                     linear-average"
+                    "unknown mollifier \"{name}\"; use short-average, long-average, \
+                     linear-average or equilibrium-molly"
                 ))
             })
     }
