@@ -1,0 +1,122 @@
+#!/usr/bin/env python3
+"""The equilibrium-mollifier study on the 216-water box (docs/performance.md).
+
+For each variant and outer step h (inner step 0.5 fs, NVE from the kit's velocities) run
+
+    longstep run systems/water-box/scene.toml --method M --h Hfs --inner K --t-end 20ps \\
+        --energy-every E --fit-from 2ps --json [--molly-constraints C --molly-jacobian J]
+
+and report longstep's own fitted drifts from its JSON summary (least-squares slope of the
+energy against time over the rows from 2 ps on, in kT/ns/dof with kT = 2<K>/dof over those
+rows): by the true energy K + V and by the conserved energy K + W(q) + U(A(q))
+(`mollified_total`) where the method has one; the time reached (a blow-up stops the run
+with exit 3 and its time), the mean temperature, and ns/day as the run measured it (wall
+clock, on whatever else the machine was doing). Stable = no blow-up and |drift| <= 0.05
+kT/ns/dof by the energy the method conserves (the true one for impulse).
+
+    python3 scripts/molly_water.py                                  # every variant, 3-8 fs
+    python3 scripts/molly_water.py --variants molly-bonds-exact --steps 4,5 --ps 20
+    python3 scripts/molly_water.py --scene systems/polymer-melt/scene.toml --inner-dt 1 ...
+
+Variants: impulse, long-average, molly-{bonds,bonds-angles}-{exact,projection}.
+Runs one simulation at a time. Needs a release build (or LONGSTEP=path).
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.abspath(os.path.join(HERE, ".."))
+BIN = os.environ.get("LONGSTEP", os.path.join(ROOT, "target", "release", "longstep"))
+VARIANTS = ["impulse", "long-average"] + [
+    "molly-%s-%s" % (c, j) for c in ("bonds", "bonds-angles") for j in ("exact", "projection")
+]
+
+
+def method_flags(variant):
+    if not variant.startswith("molly-"):
+        return ["--method", variant]
+    rest = variant[len("molly-"):]
+    constraints, jacobian = rest.rsplit("-", 1)
+    return ["--method", "equilibrium-molly", "--molly-constraints", constraints,
+            "--molly-jacobian", jacobian]
+
+
+def run(scene, variant, h, inner_dt, ps, fit_from, workdir):
+    k = round(h / inner_dt)
+    every = max(1, round(40.0 / h))
+    out = os.path.join(workdir, "%s-%g" % (variant, h))
+    cmd = [BIN, "run", scene] + method_flags(variant) + [
+        "--h", "%gfs" % h, "--inner", str(k), "--t-end", "%gps" % ps,
+        "--energy-every", str(every), "--fit-from", "%gps" % fit_from,
+        "--quiet", "--json", "--out", out]
+    res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    try:
+        summary = json.loads(res.stdout)
+    except json.JSONDecodeError:
+        sys.exit("no JSON from %s:\n%s" % (" ".join(cmd), res.stderr))
+    drift = summary.get("drift") or {}
+    t_reached = summary["steps"] * summary["h"] / 1000.0
+    conserved = drift.get("conserved_energy")
+    true = drift.get("true_energy")
+    judged = conserved if conserved is not None else true
+    ok = summary["status"] == "ok"
+    return {
+        "variant": variant, "h_fs": h, "inner_steps": k, "ps": t_reached,
+        "status": summary["status"], "exit": res.returncode,
+        "true_drift": true if ok else None,
+        "conserved_drift": conserved if ok else None,
+        "T_mean": (summary.get("temperature") or {}).get("mean"),
+        "ns_per_day": summary.get("ns_per_day"),
+        "mean_newton": (summary.get("mollifier") or {}).get("mean_newton_iterations"),
+        "stable": ok and judged is not None and abs(judged) <= 0.05,
+        "command": " ".join(["longstep"] + cmd[1:-2]),
+    }
+
+
+def fmt(x, spec="%.3g"):
+    return "—" if x is None else spec % x
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scene", default="systems/water-box/scene.toml")
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--steps", default="3,4,5,6,8")
+    ap.add_argument("--inner-dt", type=float, default=0.5)
+    ap.add_argument("--ps", type=float, default=20.0)
+    ap.add_argument("--fit-from", type=float, default=2.0, help="ps")
+    ap.add_argument("--json", help="also write the rows to this file")
+    args = ap.parse_args()
+    rows = []
+    print("| variant | h (fs) | ps reached | true drift | conserved drift | ⟨T⟩ (K) "
+          "| ns/day (noisy) | Newton its | stable |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as workdir:
+        for variant in args.variants.split(","):
+            for h in [float(x) for x in args.steps.split(",")]:
+                r = run(args.scene, variant, h, args.inner_dt, args.ps, args.fit_from, workdir)
+                rows.append(r)
+                status = "yes" if r["stable"] else (
+                    "no" if r["status"] == "ok" else "blew up at %.2f ps" % r["ps"])
+                print("| %s | %g | %.2f | %s | %s | %s | %s | %s | %s |" % (
+                    variant, h, r["ps"], fmt(r["true_drift"]), fmt(r["conserved_drift"]),
+                    fmt(r["T_mean"], "%.0f"), fmt(r["ns_per_day"], "%.0f"),
+                    fmt(r["mean_newton"], "%.2f"), status), flush=True)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    for variant in args.variants.split(","):
+        largest = None
+        for r in sorted((r for r in rows if r["variant"] == variant), key=lambda r: r["h_fs"]):
+            if not r["stable"]:
+                break
+            largest = r["h_fs"]
+        print("largest stable h (contiguous from the smallest), %s: %s fs" % (variant, largest))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
