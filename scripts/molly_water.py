@@ -9,7 +9,8 @@ For each variant and outer step h (inner step 0.5 fs, NVE from the kit's velocit
 and report longstep's own fitted drifts from its JSON summary (least-squares slope of the
 energy against time over the rows from 2 ps on, in kT/ns/dof with kT = 2<K>/dof over those
 rows): by the true energy K + V and by the conserved energy K + W(q) + U(A(q))
-(`mollified_total`) where the method has one; the time reached (a blow-up stops the run
+(`mollified_total`) where the method has one, and that drift fitted on each half of the
+window separately (a rough error bar); the time reached (a blow-up stops the run
 with exit 3 and its time), the mean temperature, and ns/day as the run measured it (wall
 clock, on whatever else the machine was doing). Stable = no blow-up and |drift| <= 0.05
 kT/ns/dof by the energy the method conserves (the true one for impulse).
@@ -22,6 +23,7 @@ Variants: impulse, long-average, molly-{bonds,bonds-angles}-{exact,projection}.
 Runs one simulation at a time. Needs a release build (or LONGSTEP=path).
 """
 import argparse
+import csv
 import json
 import os
 import subprocess
@@ -45,13 +47,35 @@ def method_flags(variant):
             "--molly-jacobian", jacobian]
 
 
+def halves(path, fit_from, dof):
+    """Conserved-energy drift (kT/ns/dof) fitted separately on the two halves after
+    fit_from: their spread is a rough error bar of the whole fit."""
+    rows = []
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            row = {key.split("[")[0]: float(value) for key, value in row.items()}
+            if row["t"] >= fit_from * 1000.0:
+                rows.append((row["t"], row.get("mollified_total", row["total"]), row["kinetic"]))
+    out = []
+    for part in (rows[: len(rows) // 2], rows[len(rows) // 2:]):
+        n = len(part)
+        if n < 3:
+            return None
+        tm = sum(r[0] for r in part) / n
+        em = sum(r[1] for r in part) / n
+        kt = 2.0 * sum(r[2] for r in part) / n / dof
+        slope = sum((r[0] - tm) * (r[1] - em) for r in part) / sum((r[0] - tm) ** 2 for r in part)
+        out.append(slope * 1e6 / kt / dof)  # per fs -> per ns
+    return out
+
+
 def run(scene, variant, h, inner_dt, ps, fit_from, workdir):
     k = round(h / inner_dt)
     every = max(1, round(40.0 / h))
     out = os.path.join(workdir, "%s-%g" % (variant, h))
     cmd = [BIN, "run", scene] + method_flags(variant) + [
         "--h", "%gfs" % h, "--inner", str(k), "--t-end", "%gps" % ps,
-        "--energy-every", str(every), "--fit-from", "%gps" % fit_from,
+        "--energy-every", str(every), "--trajectory-every", "1000000000", "--fit-from", "%gps" % fit_from,
         "--quiet", "--json", "--out", out]
     res = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     try:
@@ -64,11 +88,14 @@ def run(scene, variant, h, inner_dt, ps, fit_from, workdir):
     true = drift.get("true_energy")
     judged = conserved if conserved is not None else true
     ok = summary["status"] == "ok"
+    dof = (summary.get("temperature") or {}).get("degrees_of_freedom")
+    split = halves(os.path.join(out, "energy.csv"), fit_from, dof) if ok and dof else None
     return {
         "variant": variant, "h_fs": h, "inner_steps": k, "ps": t_reached,
         "status": summary["status"], "exit": res.returncode,
         "true_drift": true if ok else None,
         "conserved_drift": conserved if ok else None,
+        "conserved_drift_halves": split,
         "T_mean": (summary.get("temperature") or {}).get("mean"),
         "ns_per_day": summary.get("ns_per_day"),
         "mean_newton": (summary.get("mollifier") or {}).get("mean_newton_iterations"),
@@ -92,9 +119,9 @@ def main():
     ap.add_argument("--json", help="also write the rows to this file")
     args = ap.parse_args()
     rows = []
-    print("| variant | h (fs) | ps reached | true drift | conserved drift | ⟨T⟩ (K) "
-          "| ns/day (noisy) | Newton its | stable |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| variant | h (fs) | ps reached | true drift | conserved drift | its halves "
+          "| ⟨T⟩ (K) | ns/day (noisy) | Newton its | stable |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as workdir:
         for variant in args.variants.split(","):
             for h in [float(x) for x in args.steps.split(",")]:
@@ -102,8 +129,10 @@ def main():
                 rows.append(r)
                 status = "yes" if r["stable"] else (
                     "no" if r["status"] == "ok" else "blew up at %.2f ps" % r["ps"])
-                print("| %s | %g | %.2f | %s | %s | %s | %s | %s | %s |" % (
+                split = r["conserved_drift_halves"]
+                print("| %s | %g | %.2f | %s | %s | %s | %s | %s | %s | %s |" % (
                     variant, h, r["ps"], fmt(r["true_drift"]), fmt(r["conserved_drift"]),
+                    "—" if split is None else "%.3g, %.3g" % tuple(split),
                     fmt(r["T_mean"], "%.0f"), fmt(r["ns_per_day"], "%.0f"),
                     fmt(r["mean_newton"], "%.2f"), status), flush=True)
     if args.json:
