@@ -416,3 +416,48 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
         "{wrong:?}"
     );
 }
+
+#[test]
+fn level_dt_holds_the_inner_levels_fixed_while_h_varies() {
+    // Three levels (bonded, short-range non-bonded, the rest): with --level-dt 2fs,0.5fs
+    // the point at h has level steps h/2fs and 4, so h/0.5fs innermost (bonded) steps per
+    // outer step: over 24 fs, 6 steps of 4 fs and 4 of 6 fs each take 48 bonded steps,
+    // 48 + 1 bonded evaluations (the first step's start is the one more), and one slow
+    // evaluation per outer step plus the first.
+    let dir = scratch_dir("scan-level-dt");
+    let args = |h: &str| -> Vec<String> {
+        [
+            "scan",
+            "steps",
+            "systems/water-box/three-level.toml",
+            "--methods",
+            "impulse",
+            "--h",
+            h,
+            "--level-dt",
+            "2fs,0.5fs",
+            "--t-end",
+            "24fs",
+            "--repeats",
+            "0",
+            "--quiet",
+            "--out",
+            path(&dir),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let a = args("4fs,6fs");
+    ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let table = rows(&dir.join("scan.csv"));
+    for (row, steps) in table.iter().zip([6u64, 4]) {
+        assert_eq!(row[9], steps.to_string(), "{row:?}");
+        assert_eq!(row[10], (steps + 1).to_string(), "{row:?}");
+        assert_eq!(row[11], "49", "{row:?}");
+    }
+    // A step that the fixed level does not divide is refused before any run.
+    let a = args("5fs");
+    let (code, _, stderr) = run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--level-dt step 1") && stderr.contains("5"), "{stderr}");
+}

@@ -22,7 +22,7 @@ fn setup(scene: &str, inner: usize, t_end: f64, blowup: f64) -> ScanSetup {
         t_end,
         drift_bound: 1e-3,
         energy_every: 1,
-        fit_from: None,
+        ..Default::default()
     }
 }
 

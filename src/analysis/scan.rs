@@ -34,7 +34,7 @@ use crate::run::drift::judge;
 use crate::run::{
     RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
 };
-use crate::settings::{MethodSettings, RunSpec, Value};
+use crate::settings::{MethodSettings, RunSpec, Value, whole_ratio};
 use crate::system::velocities::DegreesOfFreedom;
 use crate::units::Units;
 
@@ -188,6 +188,9 @@ pub struct ScanSetup {
     pub energy_every: usize,
     /// Fit the drift from this time on (skipping a re-equilibration window).
     pub fit_from: Option<f64>,
+    /// The steps of the inner levels, outermost first, held fixed while `h` varies: each
+    /// point's `level_steps` are `h/T1, T1/T2, …` (empty: the base's `level_steps`).
+    pub level_dts: Vec<f64>,
 }
 
 /// A scan's points, method-major: index = method × (number of steps) + step index.
@@ -214,17 +217,38 @@ pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodS
     let scene = load_scene(&setup.scene, &setup.set)?;
     scene
         .run
-        .overridden_by(&point_spec(setup, method, h))
+        .overridden_by(&point_spec(setup, method, h)?)
         .resolve_with_units(&scene.parameters, scene.units)
         .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
 }
 
-fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> RunSpec {
+fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> Result<RunSpec> {
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
     spec.t_end = Some(Value::Number(setup.t_end));
-    spec
+    if !setup.level_dts.is_empty() {
+        spec.level_steps = Some(level_steps_of(h, &setup.level_dts)?);
+    }
+    Ok(spec)
+}
+
+/// `level_steps` for outer step `h` and fixed inner-level steps `dts` (outermost first):
+/// `h/T1, T1/T2, …`, each a whole number.
+pub fn level_steps_of(h: f64, dts: &[f64]) -> Result<Vec<usize>> {
+    let mut outer = h;
+    let mut steps = Vec::with_capacity(dts.len());
+    for (k, &dt) in dts.iter().enumerate() {
+        let name = format!("--level-dt step {}", k + 1);
+        let above = if k == 0 {
+            "outer step h".to_string()
+        } else {
+            format!("--level-dt step {k}")
+        };
+        steps.push(whole_ratio(outer, dt, &name, &above)?);
+        outer = dt;
+    }
+    Ok(steps)
 }
 
 /// Run one point once (at the start velocities its settings give) and return the summary.
@@ -237,7 +261,7 @@ pub fn run_once(
     let mut scene = load_scene(&setup.scene, &setup.set)?;
     let settings = scene
         .run
-        .overridden_by(&point_spec(setup, method, h))
+        .overridden_by(&point_spec(setup, method, h)?)
         .resolve_with_units(&scene.parameters, scene.units)?;
     check_seed_used(&settings, "--seed")?;
     let mut notices = Vec::new();

@@ -599,7 +599,20 @@ fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     if !unstable.is_empty() {
         chart.markers.push(MarkerSet::unstable(unstable));
     }
-    // Resonances predicted from the scene's fast modes, within the scanned range.
+    chart.guides.extend(resonance_guides(table, h));
+    if chart.series.is_empty() && chart.markers.is_empty() {
+        return Ok(());
+    }
+    for extension in ["png", "svg"] {
+        chart.save(&out.join(format!("scan.{extension}")))?;
+    }
+    Ok(())
+}
+
+/// Guide lines at the resonances predicted from the scene's fast modes, within the scanned
+/// range of a scan table's `h` column.
+fn resonance_guides(table: &StudyTable, h: usize) -> Vec<Guide> {
+    let mut guides = Vec::new();
     let hs: Vec<f64> = table.rows.iter().map(|r| table.number(r, h)).collect();
     let (lo, hi) = (
         hs.iter().copied().fold(f64::INFINITY, f64::min),
@@ -619,20 +632,14 @@ fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
         if let Ok(mut scene) = load_scene(Path::new(path), &set) {
             let modes = fast_modes(&mut scene.system);
             for r in predicted_resonances(&modes, lo, hi, 3) {
-                chart.guides.push(Guide {
+                guides.push(Guide {
                     x: r.h,
                     label: format!("{:?} k={}", r.kind, r.k).to_lowercase(),
                 });
             }
         }
     }
-    if chart.series.is_empty() && chart.markers.is_empty() {
-        return Ok(());
-    }
-    for extension in ["png", "svg"] {
-        chart.save(&out.join(format!("scan.{extension}")))?;
-    }
-    Ok(())
+    guides
 }
 
 const MAP_HEADER: &str = "gamma1,gamma2,spectral_radius,type";

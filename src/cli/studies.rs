@@ -87,6 +87,10 @@ pub struct ScanStepsArgs {
     /// (default 1e-3).
     #[command(flatten)]
     pub drift: super::run::DriftArgs,
+    /// The steps of the inner levels, outermost first, held fixed while --h varies (e.g.
+    /// 2fs,0.5fs for a three-level split): each point's --level-steps are h/T1, T1/T2, ….
+    #[arg(long, value_delimiter = ',', value_name = "T1,T2,…")]
+    pub level_dt: Vec<Value>,
     /// What judges a point: drift (NVE methods; the default) or sampling (against
     /// --reference; the only criterion for thermostatted methods).
     #[arg(long, value_enum)]
@@ -261,6 +265,20 @@ pub fn check_methods(
     Ok(scene)
 }
 
+/// Build every point of a scan once, so a bad combination fails before any time is spent
+/// on runs.
+fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<()> {
+    for method in methods {
+        for &h in steps {
+            let settings = point_settings(setup, method, h)?;
+            crate::integrators::build(&settings, &mut Vec::new())
+                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+            crate::run::check_seed_used(&settings, "--seed")?;
+        }
+    }
+    Ok(())
+}
+
 /// A progress bar on a terminal, nothing otherwise.
 pub fn progress_bar(total: u64, quiet: bool, label: &str) -> indicatif::ProgressBar {
     if quiet || !std::io::stderr().is_terminal() {
@@ -406,6 +424,28 @@ fn scan_setup(
         blowup: Some(args.run.blowup.unwrap_or(10.0)),
         ..args.run.clone()
     };
+    if !args.level_dt.is_empty() && args.run.level_steps.is_some() {
+        return Err(Error::input(
+            "give the inner levels either as --level-steps or as --level-dt, not both",
+        ));
+    }
+    if args.level_dt.len() > 16 {
+        return Err(Error::input("--level-dt takes at most 16 steps"));
+    }
+    let level_dts = args
+        .level_dt
+        .iter()
+        .map(|v| {
+            let t = v.evaluate_time(&scene.parameters, "--level-dt", units.time_units())?;
+            if t > 0.0 {
+                Ok(t)
+            } else {
+                Err(Error::input(format!(
+                    "--level-dt steps must be positive, got {t}"
+                )))
+            }
+        })
+        .collect::<Result<Vec<f64>>>()?;
     let setup = ScanSetup {
         scene: args.scene.clone(),
         set: args.set.clone(),
@@ -414,6 +454,7 @@ fn scan_setup(
         drift_bound,
         energy_every: args.energy_every,
         fit_from: args.drift.fit_from(&scene.parameters, units, t_end)?,
+        level_dts,
     };
     Ok((setup, steps))
 }
@@ -510,7 +551,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
             args.repeats
         )));
     }
-    check_methods(&setup.scene, &setup.set, &setup.base, &methods, &steps)?;
+    check_points(&setup, &methods, &steps)?;
     if !args.quiet {
         async_band_warnings(&setup, &methods, &steps)?;
     }
@@ -551,22 +592,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     table.write(&path)?;
     super::charts::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
-    let timings = if args.shard.is_some() || args.repeats == 0 {
-        if args.shard.is_some() && !args.quiet && args.repeats > 0 {
-            eprintln!(
-                "notice: a shard takes no timings (the largest safe step needs every point); \
-                 run the scan whole for ns/day"
-            );
-        }
-        Vec::new()
-    } else {
-        take_timings(&setup, &safe, args.repeats)?
-    };
-    if !timings.is_empty() {
-        let timing = timing_table(meta, &timings, scene.units);
-        timing.write(&args.out.join("timing.csv"))?;
-        super::charts::draw_ns_per_day(&timing, &args.out)?;
-    }
+    let timings = write_timings(args, &setup, &safe, meta, scene.units)?;
     print_safe_steps(&safe, &steps, &timings, scene.units, criterion);
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
     eprintln!(
@@ -613,6 +639,36 @@ fn async_band_warnings(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> 
         }
     }
     Ok(())
+}
+
+/// Time every method at its largest safe step (not in a shard, nor with `--repeats 0`) and
+/// write `timing.csv` and its chart.
+fn write_timings(
+    args: &ScanStepsArgs,
+    setup: &ScanSetup,
+    safe: &[SafeStep],
+    meta: BTreeMap<String, String>,
+    units: Units,
+) -> Result<Vec<Timing>> {
+    if args.repeats == 0 {
+        return Ok(Vec::new());
+    }
+    if args.shard.is_some() {
+        if !args.quiet {
+            eprintln!(
+                "notice: a shard takes no timings (the largest safe step needs every point); \
+                 run the scan whole for ns/day"
+            );
+        }
+        return Ok(Vec::new());
+    }
+    let timings = take_timings(setup, safe, args.repeats)?;
+    if !timings.is_empty() {
+        let timing = timing_table(meta, &timings, units);
+        timing.write(&args.out.join("timing.csv"))?;
+        super::charts::draw_ns_per_day(&timing, &args.out)?;
+    }
+    Ok(timings)
 }
 
 /// The timing of one method at its largest safe step at one thread count.
@@ -784,6 +840,10 @@ fn scan_meta(
     ];
     let given = given_settings(run);
     pairs.extend(given.iter().map(|(k, v)| (*k, v.clone())));
+    if !args.level_dt.is_empty() {
+        let dts: Vec<String> = args.level_dt.iter().map(|v| v.to_string()).collect();
+        pairs.push(("level_dt", dts.join(";")));
+    }
     match sampling {
         None => {
             pairs.push(("drift_bound", setup.drift_bound.to_string()));
