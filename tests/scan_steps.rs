@@ -200,7 +200,43 @@ fn the_drift_bound_of_a_real_scene_is_run_s_in_kt_per_ns_per_dof() {
         "seed = 7",
     ] {
         assert!(first.contains(needle), "{needle}: {first}");
-    }
+    } // The equilibrium mollifier's options reach every point, and the table records them.
+    ok(&[
+        "scan",
+        "steps",
+        "systems/water-box/scene.toml",
+        "--methods",
+        "equilibrium-molly",
+        "--molly-constraints",
+        "bonds",
+        "--molly-jacobian",
+        "projection",
+        "--h",
+        "2fs",
+        "--inner",
+        "4",
+        "--t-end",
+        "20fs",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--out",
+        path(&dir),
+    ]);
+    let text = std::fs::read_to_string(dir.join("scan.csv")).unwrap();
+    assert!(
+        text.lines()
+            .next()
+            .unwrap()
+            .contains("molly = bonds projection"),
+        "{text}"
+    );
+    // Its conserved energy is what it is judged by.
+    assert_eq!(
+        rows(&dir.join("scan.csv"))[0][6],
+        "mollified_total",
+        "{text}"
+    );
 }
 
 fn reference_run(dir: &Path, temperature: &str, t_end: &str) {
@@ -459,5 +495,8 @@ fn level_dt_holds_the_inner_levels_fixed_while_h_varies() {
     let a = args("5fs");
     let (code, _, stderr) = run(&a.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(code, 1, "{stderr}");
-    assert!(stderr.contains("--level-dt step 1") && stderr.contains("5"), "{stderr}");
+    assert!(
+        stderr.contains("--level-dt step 1") && stderr.contains("5"),
+        "{stderr}"
+    );
 }
