@@ -259,15 +259,10 @@ fn neighbour_list_gives_the_brute_force_sum_through_rebuilds() {
                     }
                 }
             }
+            // Moves of up to 0.3 per coordinate add up to more than the skin (1) within a
+            // few rounds: the list must have been rebuilt on the way.
             let (_, _, builds) = term.list_statistics();
-            if side > 20.0 {
-                // Reach 6 in a box of 23: a cell list, rebuilt as atoms move.
-                assert!(builds >= 2, "the list was never rebuilt ({builds} builds)");
-            } else {
-                // Reach 6 in a box of 11 (the sphere is 68 % of the box): every pair listed
-                // once, minimum image in the loop, never rebuilt.
-                assert_eq!(builds, 1, "an all-pairs list is built once");
-            }
+            assert!(builds >= 2, "the list was never rebuilt ({builds} builds)");
         }
     }
 }

@@ -13,6 +13,7 @@
 //! `χ`, `χ′` and `χ″`.
 
 pub mod angle;
+pub mod clusters;
 pub mod coulomb;
 pub mod distance_split;
 pub mod dual;
@@ -22,12 +23,12 @@ pub mod gravity;
 pub mod inverse_power;
 pub mod lennard_jones;
 pub mod magnetic;
-pub mod neighbour_list;
 pub mod nonbonded;
 pub mod pair;
 pub mod pendulum;
 mod periodic_box;
 pub mod quartic;
+pub mod simd;
 pub mod spring;
 pub mod string;
 pub mod torsion;
@@ -66,6 +67,34 @@ pub enum RestGeometry {
     Distance { sites: [Site; 2], length: f64 },
     /// The angle at the middle site is `angle` (radians) at rest (a harmonic angle).
     Angle { sites: [Site; 3], angle: f64 },
+}
+
+/// The floating-point precision of a term's arithmetic.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// f64 throughout.
+    #[default]
+    Double,
+    /// f32 pair arithmetic with f64 accumulation, where a term supports it (the non-bonded
+    /// term); f64 elsewhere.
+    Mixed,
+}
+
+impl Precision {
+    pub fn parse(name: &str) -> Option<Precision> {
+        match name {
+            "double" => Some(Precision::Double),
+            "mixed" => Some(Precision::Mixed),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::Double => "double",
+            Precision::Mixed => "mixed",
+        }
+    }
 }
 
 /// A potential-energy term `V(q)` over the flat coordinate array `q` (`n × dim`).
@@ -116,6 +145,18 @@ pub trait ForceTerm: Send + Sync {
     /// each. By default one part named after [`ForceTerm::kind`].
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
         vec![(self.kind(), self.energy(q))]
+    }
+
+    /// Compute in `precision` from now on; whether the term has that choice (terms
+    /// without one stay in double precision and say `false`).
+    fn set_precision(&self, _precision: Precision) -> bool {
+        false
+    }
+
+    /// The concrete term, for term-specific settings and reports (tests, benchmarks):
+    /// `term.as_any().and_then(|t| t.downcast_ref::<Nonbonded>())`. `None` by default.
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        None
     }
 }
 

@@ -23,14 +23,20 @@
 //! Excluded pairs (1-2, 1-3 and scaled 1-4 pairs, which live in their own terms) are not in
 //! the list at all: no energy, no shift term, no force.
 //!
-//! **Speed.** Pairs are sorted at list build into three classes (LJ and charge, charge
-//! only, LJ only) with a branch-free loop each; the 216-water box has O–O pairs in the first
-//! class and the 8/9 of pairs that involve a hydrogen in the second. The loops run over
-//! fixed chunks of rows, in parallel (rayon) for large systems, each chunk into its own
-//! gradient buffer; buffers are summed in chunk order, so results are bit-for-bit the same
-//! for any thread count. Nothing is allocated after the list has grown to its size. A
-//! gradient evaluation also computes the energy and keeps it with a copy of the positions, so
-//! the energy monitor at the same positions costs a comparison, not a second pass.
+//! **Speed.** Pairs come from a cluster-pair list ([`super::clusters`]: clusters of four
+//! atoms, a buffered list rebuilt only when atoms have moved far enough to need it, pruned
+//! between rebuilds) and go through a SIMD kernel over the 4 × 4 pairs of each cluster pair
+//! (`nonbonded/kernel.rs`, AVX-512, AVX2 or portable lanes chosen at run time, the same
+//! bits on each). Chunks of the list run in parallel (rayon) for large systems, each into
+//! its own gradient buffer, summed in chunk order: bit-for-bit the same results for any
+//! thread count. Nothing is allocated once the buffers have grown to their size. A gradient
+//! evaluation computes the energy too when the previous one's energy was asked for, and
+//! keeps it with a copy of the positions, so an energy monitor at the same positions costs
+//! a comparison, not a second pass.
+//!
+//! **Precision.** Double by default; mixed ([`Precision::Mixed`], as GROMACS and OpenMM
+//! run): f32 pair arithmetic, f64 accumulation of every cluster pair's forces and energies,
+//! f64 integration.
 //!
 //! **Hessian-vector product.** For a radial `V(r)`, `∇²V = V″ r̂r̂ᵀ + (V′/r)(I − r̂r̂ᵀ)`, so
 //! `(∇²V v)_j = a Δv + b (d·Δv) d` with `Δv = v_j − v_i`, `a = V′/r`, `b = (V″ − V′/r)/r²`.
@@ -38,10 +44,13 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use rayon::prelude::*;
-
-use super::neighbour_list::{Chunk, N_CLASSES, NeighbourList, PARALLEL_MIN_PARTICLES, unpack};
+use super::simd::Isa;
 use super::{ForceTerm, TermClass};
+
+mod engine;
+mod kernel;
+
+pub use super::Precision;
 
 /// `2/√π`.
 const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;
@@ -91,10 +100,6 @@ impl LjPair {
             0.0
         };
         LjPair { c12, c6, shift }
-    }
-
-    fn is_zero(&self) -> bool {
-        self.c12 == 0.0 && self.c6 == 0.0
     }
 }
 
@@ -287,61 +292,58 @@ impl CoulombPair {
     }
 }
 
-/// Partners per block of the pair loop (see [`Nonbonded::block`]).
-const BLOCK: usize = 64;
-
-/// One block of partners of particle `i` and what locating them needs.
-#[derive(Clone, Copy)]
-struct Pairs<'a> {
-    i: usize,
-    block: &'a [u32],
-    shifts: &'a [[f64; 3]; 27],
-    /// Box lengths when the list is all-pairs (minimum image taken in the loop).
-    image: Option<[f64; 3]>,
-    x: &'a [f64],
+/// Lennard-Jones coefficients that factor per type, `c₁₂(a, b) = A_a A_b` and `c₆(a, b) =
+/// B_a B_b` (one Lennard-Jones type, or geometric mixing): the kernel then multiplies
+/// per-atom factors instead of gathering from the table.
+#[derive(Clone, Debug)]
+struct Factored {
+    /// `[A, B]` per type.
+    per_type: Vec<[f64; 2]>,
+    /// `r_c⁻⁶` when the energy is shifted, else 0.
+    inverse_cutoff6: f64,
 }
 
-/// Pair classes of the list.
-const NO_CLASS: u8 = u8::MAX;
-const LJ_AND_CHARGE: usize = 0;
-const CHARGE_ONLY: usize = 1;
-const LJ_ONLY: usize = 2;
-
-/// What the neighbour list, chunk buffers and cached energy need; behind a mutex because
-/// `ForceTerm` methods take `&self` (the list is rebuilt when particles have moved).
-struct Workspace {
-    list: NeighbourList,
-    wrapped: Vec<f64>,
-    /// `[x, y, z, q√k_e]` per particle (from `wrapped`): one 32-byte read per partner.
-    packed: Vec<f64>,
-    /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
-    buffers: Vec<Vec<f64>>,
-    /// (Lennard-Jones, Coulomb) energy of each chunk.
-    energies: Vec<(f64, f64)>,
-    /// Positions of the last gradient evaluation and the energies found there.
-    cached_q: Vec<f64>,
-    cached: Option<(f64, f64)>,
+impl Factored {
+    /// The factors if they give every table entry (shift included) to 1e-12 relative.
+    fn find(lj: &[LjPair], n_types: usize, cutoff: f64) -> Option<Factored> {
+        let per_type: Vec<[f64; 2]> = (0..n_types)
+            .map(|t| {
+                let p = lj[t * n_types + t];
+                [p.c12.sqrt(), p.c6.sqrt()]
+            })
+            .collect();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+        let shifted = lj.iter().any(|p| p.shift != 0.0);
+        let inverse_cutoff6 = if shifted { cutoff.powi(-6) } else { 0.0 };
+        if !inverse_cutoff6.is_finite() || per_type.iter().flatten().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let fits = (0..n_types * n_types).all(|k| {
+            let (a, b) = (per_type[k / n_types], per_type[k % n_types]);
+            let (c12, c6) = (a[0] * b[0], a[1] * b[1]);
+            let shift = (c12 * inverse_cutoff6 - c6) * inverse_cutoff6;
+            close(c12, lj[k].c12) && close(c6, lj[k].c6) && close(shift, lj[k].shift)
+        });
+        fits.then_some(Factored {
+            per_type,
+            inverse_cutoff6,
+        })
+    }
 }
 
 pub struct Nonbonded {
     n: usize,
-    cutoff_squared: f64,
+    cutoff: f64,
     electrostatics: Electrostatics,
     kernel: Kernel,
     n_types: usize,
     types: Vec<u32>,
     /// `n_types × n_types` coefficients.
     lj: Vec<LjPair>,
+    factored: Option<Factored>,
     /// `q_i √k_e`, so the product of two is `k_e q_i q_j`.
     scaled_charges: Vec<f64>,
-    /// Excluded partners of each particle (CSR: `excluded_start[i]..excluded_start[i + 1]`).
-    excluded_start: Vec<u32>,
-    excluded_partners: Vec<u32>,
-    /// Pair class by particle kind (type and whether charged): `n_kinds × n_kinds`.
-    kind: Vec<u32>,
-    n_kinds: usize,
-    class_table: Vec<u8>,
-    workspace: Mutex<Workspace>,
+    workspace: Mutex<engine::Workspace>,
     listed_pairs: AtomicUsize,
 }
 
@@ -366,7 +368,7 @@ pub struct NonbondedSpec {
 }
 
 impl Nonbonded {
-    /// Build the term and its first neighbour list at positions `q`.
+    /// Build the term and its first list at positions `q`.
     pub fn new(spec: NonbondedSpec, q: &[f64]) -> Result<Self, String> {
         let n = spec.types.len();
         if q.len() != 3 * n || spec.charges.len() != n {
@@ -386,112 +388,37 @@ impl Nonbonded {
                 ));
             }
         }
-        let kernel = match spec.electrostatics {
-            Electrostatics::None | Electrostatics::Plain => {
-                if spec.electrostatics == Electrostatics::Plain && cutoff.is_finite() {
-                    return Err(
-                        "plain Coulomb has no cutoff form: use coulomb = \"dsf\" or \
-                         \"reaction-field\" with a cutoff, or no cutoff"
-                            .into(),
-                    );
-                }
-                Kernel::Plain(Plain)
-            }
-            Electrostatics::DampedShiftedForce { alpha } => {
-                if !cutoff.is_finite() {
-                    return Err("damped shifted force Coulomb needs a cutoff".into());
-                }
-                if alpha == 0.0 {
-                    Kernel::ShiftedForce(ShiftedForce {
-                        two_over_rc: 2.0 / cutoff,
-                        inv_rc2: 1.0 / (cutoff * cutoff),
-                    })
-                } else {
-                    Kernel::Damped(DampedShiftedForce::new(alpha, cutoff))
-                }
-            }
-            Electrostatics::ReactionField { dielectric } => {
-                if !cutoff.is_finite() {
-                    return Err("reaction-field Coulomb needs a cutoff".into());
-                }
-                let k = (dielectric - 1.0) / ((2.0 * dielectric + 1.0) * cutoff.powi(3));
-                Kernel::ReactionField(ReactionField {
-                    k,
-                    c: 1.0 / cutoff + k * cutoff * cutoff,
-                })
-            }
-        };
+        let kernel = coulomb_kernel(spec.electrostatics, cutoff)?;
         let root_ke = spec.coulomb_constant.sqrt();
         let scaled_charges: Vec<f64> = if spec.electrostatics == Electrostatics::None {
             vec![0.0; n]
         } else {
             spec.charges.iter().map(|q| q * root_ke).collect()
         };
-        let mut excluded = vec![Vec::new(); n];
-        for &(i, j) in &spec.excluded {
-            if i >= n || j >= n {
-                return Err(format!("excluded pair ({i}, {j}) names a missing particle"));
-            }
-            excluded[i].push(j as u32);
-            excluded[j].push(i as u32);
-        }
-        for list in &mut excluded {
-            list.sort_unstable();
-            list.dedup();
-        }
-        let mut excluded_start = vec![0u32; n + 1];
-        for (i, list) in excluded.iter().enumerate() {
-            excluded_start[i + 1] = excluded_start[i] + list.len() as u32;
-        }
-        let excluded_partners: Vec<u32> = excluded.concat();
-        let kind: Vec<u32> = (0..n)
-            .map(|i| 2 * spec.types[i] + (scaled_charges[i] != 0.0) as u32)
-            .collect();
-        let n_kinds = 2 * n_types;
-        let mut class_table = vec![NO_CLASS; n_kinds * n_kinds];
-        for a in 0..n_kinds {
-            for b in 0..n_kinds {
-                let has_lj = !spec.lj[(a / 2) * n_types + b / 2].is_zero();
-                let has_charge = a % 2 == 1 && b % 2 == 1;
-                class_table[a * n_kinds + b] = match (has_lj, has_charge) {
-                    (true, true) => LJ_AND_CHARGE as u8,
-                    (false, true) => CHARGE_ONLY as u8,
-                    (true, false) => LJ_ONLY as u8,
-                    (false, false) => NO_CLASS,
-                };
-            }
-        }
-        let list = NeighbourList::new(n, cutoff, spec.skin, spec.box_lengths);
-        let chunks = list.chunks.len();
+        let (excluded_start, excluded) = exclusion_lists(n, &spec.excluded)?;
+        let factored = Factored::find(&spec.lj, n_types, cutoff);
+        let list = super::clusters::ClusterList::new(
+            cutoff,
+            spec.skin,
+            spec.box_lengths,
+            excluded_start,
+            excluded,
+            scaled_charges.clone(),
+        );
         let term = Nonbonded {
             n,
-            cutoff_squared: cutoff * cutoff,
+            cutoff,
             electrostatics: spec.electrostatics,
             kernel,
             n_types,
             types: spec.types,
             lj: spec.lj,
+            factored,
             scaled_charges,
-            excluded_start,
-            excluded_partners,
-            kind,
-            n_kinds,
-            class_table,
-            workspace: Mutex::new(Workspace {
-                list,
-                wrapped: vec![0.0; 3 * n],
-                packed: vec![0.0; 4 * n],
-                buffers: vec![vec![0.0; 3 * n]; chunks],
-                energies: vec![(0.0, 0.0); chunks],
-                cached_q: vec![f64::NAN; 3 * n],
-                cached: None,
-            }),
+            workspace: Mutex::new(engine::Workspace::new(list)),
             listed_pairs: AtomicUsize::new(0),
         };
-        {
-            let mut workspace = term.lock();
-            term.refresh_list(&mut workspace, q);
-        }
+        term.refresh(&mut term.lock(), q);
         Ok(term)
     }
 
@@ -499,400 +426,68 @@ impl Nonbonded {
         self.electrostatics
     }
 
-    /// Cutoff, skin and how many times the list has been built.
+    /// Cutoff, outer list buffer (the scene's skin) and how many times the list was built.
     pub fn list_statistics(&self) -> (f64, f64, u64) {
         let workspace = self.lock();
         (
             workspace.list.cutoff(),
-            workspace.list.skin(),
+            workspace.list.buffers().0,
             workspace.list.builds(),
         )
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, Workspace> {
+    /// How often the list was built and pruned, and its atom pairs (outer, inner).
+    pub fn list_counts(&self) -> ListCounts {
+        let workspace = self.lock();
+        let list = &workspace.list;
+        ListCounts {
+            builds: list.builds(),
+            prunes: list.prunes(),
+            clusters: list.clusters(),
+            outer_pairs: list.outer_pairs(),
+            inner_pairs: list.inner_pairs(),
+        }
+    }
+
+    /// (outer, inner) list buffers.
+    pub fn list_buffers(&self) -> (f64, f64) {
+        self.lock().list.buffers()
+    }
+
+    /// Outer and inner list buffers (lengths; the outer defaults to the skin, the inner to
+    /// half of it). The next evaluation rebuilds.
+    pub fn set_list_buffers(&self, outer: f64, inner: f64) {
+        self.lock().list.set_buffers(outer, inner);
+    }
+
+    /// The instruction set of the kernel (default: the widest available). Panics if the
+    /// processor does not have it.
+    pub fn set_isa(&self, isa: Isa) {
+        assert!(isa.is_available(), "{} is not available", isa.name());
+        let mut workspace = self.lock();
+        workspace.isa = isa;
+        workspace.list.isa = isa;
+        workspace.cached = None;
+    }
+
+    pub fn isa(&self) -> Isa {
+        self.lock().isa
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, engine::Workspace> {
         // A panic elsewhere while the lock was held leaves a list that is rebuilt anyway.
         self.workspace.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The list class of the pair `i < j`, or `None` (excluded, or nothing to compute).
-    #[inline(always)]
-    fn classify(&self, i: usize, j: usize) -> Option<usize> {
-        let class = self.class_table[self.kind[i] as usize * self.n_kinds + self.kind[j] as usize];
-        if class == NO_CLASS {
-            return None;
-        }
-        let excluded = &self.excluded_partners
-            [self.excluded_start[i] as usize..self.excluded_start[i + 1] as usize];
-        if excluded.contains(&(j as u32)) {
-            return None;
-        }
-        Some(class as usize)
-    }
-
-    /// Rebuild the list if needed and set `wrapped` for `q`.
-    fn refresh_list(&self, workspace: &mut Workspace, q: &[f64]) {
-        if workspace.list.needs_rebuild(q) {
-            workspace.list.build(q, |i, j| self.classify(i, j));
-            self.listed_pairs
-                .store(workspace.list.pair_count(), Ordering::Relaxed);
-        }
-        let Workspace {
-            list,
-            wrapped,
-            packed,
-            ..
-        } = workspace;
-        list.wrap_positions(q, wrapped);
-        for ((p, x), &c) in packed
-            .chunks_exact_mut(4)
-            .zip(wrapped.chunks_exact(3))
-            .zip(&self.scaled_charges)
-        {
-            p[..3].copy_from_slice(x);
-            p[3] = c;
-        }
-    }
-
-    /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += ∇V`.
-    fn evaluate(&self, q: &[f64], gradient: Option<&mut [f64]>) -> (f64, f64) {
-        let mut guard = self.lock();
-        let workspace = &mut *guard;
-        if gradient.is_none()
-            && let Some(cached) = workspace.cached
-            && workspace.cached_q == q
-        {
-            return cached;
-        }
-        self.refresh_list(workspace, q);
-        let with_gradient = gradient.is_some();
-        let energies = match self.kernel {
-            Kernel::Plain(c) => self.run_chunks(workspace, c, with_gradient),
-            Kernel::ShiftedForce(c) => self.run_chunks(workspace, c, with_gradient),
-            Kernel::Damped(c) => self.run_chunks(workspace, c, with_gradient),
-            Kernel::ReactionField(c) => self.run_chunks(workspace, c, with_gradient),
-        };
-        if let Some(gradient) = gradient {
-            reduce(&workspace.buffers, gradient, self.n);
-            workspace.cached_q.copy_from_slice(q);
-            workspace.cached = Some(energies);
-        }
-        energies
-    }
-
-    fn run_chunks<C: CoulombForm>(
-        &self,
-        workspace: &mut Workspace,
-        coulomb: C,
-        with_gradient: bool,
-    ) -> (f64, f64) {
-        let Workspace {
-            list,
-            wrapped,
-            packed,
-            buffers,
-            energies,
-            ..
-        } = workspace;
-        let shifts = &list.shifts;
-        let _ = wrapped;
-        let positions: &[f64] = packed;
-        let image = list.all_pairs.then(|| list.lengths());
-        let work = |(chunk, buffer): (&Chunk, &mut Vec<f64>)| -> (f64, f64) {
-            if with_gradient {
-                buffer.fill(0.0);
-                self.chunk_kernel::<C, true>(chunk, shifts, image, positions, coulomb, buffer)
-            } else {
-                self.chunk_kernel::<C, false>(chunk, shifts, image, positions, coulomb, buffer)
-            }
-        };
-        if self.n >= PARALLEL_MIN_PARTICLES && list.chunks.len() > 1 {
-            list.chunks
-                .par_iter()
-                .zip(buffers.par_iter_mut())
-                .zip(energies.par_iter_mut())
-                .for_each(|(pair, energy)| *energy = work(pair));
-        } else {
-            for (pair, energy) in list
-                .chunks
-                .iter()
-                .zip(buffers.iter_mut())
-                .zip(energies.iter_mut())
-            {
-                *energy = work(pair);
-            }
-        }
-        // Summed in chunk order: the same result for any thread count.
-        energies
-            .iter()
-            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
-    }
-
-    /// The pairs of one chunk: energies, and the gradient into `buffer` when `GRADIENT`.
-    /// Uses AVX2 when the processor has it (the same operations in the same order, so the
-    /// same bits as the portable path).
-    fn chunk_kernel<C: CoulombForm, const GRADIENT: bool>(
-        &self,
-        chunk: &Chunk,
-        shifts: &[[f64; 3]; 27],
-        image: Option<[f64; 3]>,
-        x: &[f64],
-        coulomb: C,
-        buffer: &mut [f64],
-    ) -> (f64, f64) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor supports AVX2, checked just above.
-                return unsafe {
-                    self.chunk_kernel_avx2::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
-                };
-            }
-        }
-        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn chunk_kernel_avx2<C: CoulombForm, const GRADIENT: bool>(
-        &self,
-        chunk: &Chunk,
-        shifts: &[[f64; 3]; 27],
-        image: Option<[f64; 3]>,
-        x: &[f64],
-        coulomb: C,
-        buffer: &mut [f64],
-    ) -> (f64, f64) {
-        self.chunk_kernel_body::<C, GRADIENT>(chunk, shifts, image, x, coulomb, buffer)
-    }
-
-    #[inline(always)]
-    fn chunk_kernel_body<C: CoulombForm, const GRADIENT: bool>(
-        &self,
-        chunk: &Chunk,
-        shifts: &[[f64; 3]; 27],
-        image: Option<[f64; 3]>,
-        x: &[f64],
-        coulomb: C,
-        buffer: &mut [f64],
-    ) -> (f64, f64) {
-        let mut energies = (0.0, 0.0);
-        for (row, i) in chunk.rows.clone().enumerate() {
-            let mut gi = [0.0; 3];
-            for class in 0..N_CLASSES {
-                let range =
-                    chunk.starts[class][row] as usize..chunk.starts[class][row + 1] as usize;
-                let entries = &chunk.entries[class][range];
-                for block in entries.chunks(BLOCK) {
-                    let pairs = Pairs {
-                        i,
-                        block,
-                        shifts,
-                        image,
-                        x,
-                    };
-                    match (class, image.is_some()) {
-                        (LJ_AND_CHARGE, false) => self.block::<C, GRADIENT, true, true, false>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                        (CHARGE_ONLY, false) => self.block::<C, GRADIENT, false, true, false>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                        (_, false) => self.block::<C, GRADIENT, true, false, false>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                        (LJ_AND_CHARGE, true) => self.block::<C, GRADIENT, true, true, true>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                        (CHARGE_ONLY, true) => self.block::<C, GRADIENT, false, true, true>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                        (_, true) => self.block::<C, GRADIENT, true, false, true>(
-                            &pairs,
-                            coulomb,
-                            buffer,
-                            &mut gi,
-                            &mut energies,
-                        ),
-                    }
-                }
-            }
-            if GRADIENT {
-                buffer[3 * i] += gi[0];
-                buffer[3 * i + 1] += gi[1];
-                buffer[3 * i + 2] += gi[2];
-            }
-        }
-        energies
-    }
-
-    /// Up to `BLOCK` partners of particle `i`: gather their displacements and parameters,
-    /// compute every pair in a loop free of indirect access and branches (the cutoff is a
-    /// mask), so it vectorises, then sum the energies and scatter the forces in list order.
-    /// `MIN_IMAGE`: an all-pairs list (no stored images): take the minimum image here.
-    #[inline(always)]
-    fn block<
-        C: CoulombForm,
-        const GRADIENT: bool,
-        const LJ: bool,
-        const CHARGE: bool,
-        const MIN_IMAGE: bool,
-    >(
-        &self,
-        pairs: &Pairs,
-        coulomb: C,
-        buffer: &mut [f64],
-        gi: &mut [f64; 3],
-        energies: &mut (f64, f64),
-    ) {
-        let Pairs {
-            i,
-            block,
-            shifts,
-            image,
-            x,
-        } = *pairs;
-        let lengths = image.unwrap_or([1.0; 3]);
-        let inverse = [1.0 / lengths[0], 1.0 / lengths[1], 1.0 / lengths[2]];
-        let m = block.len();
-        let xi = [x[4 * i], x[4 * i + 1], x[4 * i + 2]];
-        let qi = self.scaled_charges[i];
-        let nt = self.n_types;
-        let lj_row = &self.lj[self.types[i] as usize * nt..(self.types[i] as usize + 1) * nt];
-        let mut dx = [0.0; BLOCK];
-        let mut dy = [0.0; BLOCK];
-        let mut dz = [0.0; BLOCK];
-        let mut qq = [0.0; BLOCK];
-        let mut c12 = [0.0; BLOCK];
-        let mut c6 = [0.0; BLOCK];
-        let mut lj_shift = [0.0; BLOCK];
-        for (k, &entry) in block.iter().enumerate() {
-            let (j, s) = unpack(entry);
-            let xj = &x[4 * j..4 * j + 4];
-            if MIN_IMAGE {
-                // All-pairs lists store no image (shift 0): the minimum image comes below.
-                dx[k] = xj[0] - xi[0];
-                dy[k] = xj[1] - xi[1];
-                dz[k] = xj[2] - xi[2];
-            } else {
-                let shift = &shifts[s];
-                dx[k] = xj[0] + shift[0] - xi[0];
-                dy[k] = xj[1] + shift[1] - xi[1];
-                dz[k] = xj[2] + shift[2] - xi[2];
-            }
-            if CHARGE {
-                qq[k] = qi * xj[3];
-            }
-            if LJ {
-                let p = lj_row[self.types[j] as usize];
-                c12[k] = p.c12;
-                c6[k] = p.c6;
-                lj_shift[k] = p.shift;
-            }
-        }
-        let rc2 = self.cutoff_squared;
-        let mut f = [0.0; BLOCK];
-        let mut e_lj = [0.0; BLOCK];
-        let mut e_q = [0.0; BLOCK];
-        if MIN_IMAGE {
-            for k in 0..m {
-                dx[k] -= lengths[0] * (dx[k] * inverse[0]).round();
-                dy[k] -= lengths[1] * (dy[k] * inverse[1]).round();
-                dz[k] -= lengths[2] * (dz[k] * inverse[2]).round();
-            }
-        }
-        // Distances, then the pairs inside the cutoff packed to the front without branches:
-        // the costly part (division, square root) runs on those only, as a dense loop.
-        let mut r2 = [0.0; BLOCK];
-        for k in 0..m {
-            r2[k] = dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k];
-        }
-        let mut index = [0u8; BLOCK];
-        let mut count = 0;
-        for (k, &distance) in r2[..m].iter().enumerate() {
-            index[count] = k as u8;
-            count += (distance < rc2) as usize;
-        }
-        let mut s = [0.0; BLOCK];
-        for t in 0..count {
-            let k = index[t] as usize;
-            s[t] = r2[k];
-            if LJ {
-                c12[t] = c12[k];
-                c6[t] = c6[k];
-                lj_shift[t] = lj_shift[k];
-            }
-            if CHARGE {
-                qq[t] = qq[k];
-            }
-        }
-        for t in 0..count {
-            let inv_r2 = 1.0 / s[t];
-            let mut force = 0.0;
-            if LJ {
-                let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-                e_lj[t] = inv_r6 * (c12[t] * inv_r6 - c6[t]) - lj_shift[t];
-                force += inv_r2 * inv_r6 * (12.0 * c12[t] * inv_r6 - 6.0 * c6[t]);
-            }
-            if CHARGE {
-                let (e, fq) = coulomb.energy_force(qq[t], s[t], inv_r2.sqrt());
-                e_q[t] = e;
-                force += fq;
-            }
-            f[t] = force;
-        }
-        for t in 0..count {
-            energies.0 += e_lj[t];
-            energies.1 += e_q[t];
-        }
-        if GRADIENT {
-            for t in 0..count {
-                let k = index[t] as usize;
-                let (j, _) = unpack(block[k]);
-                // ∂V/∂r_j = V′ d/r = −f d.
-                let g = [f[t] * dx[k], f[t] * dy[k], f[t] * dz[k]];
-                gi[0] += g[0];
-                gi[1] += g[1];
-                gi[2] += g[2];
-                buffer[3 * j] -= g[0];
-                buffer[3 * j + 1] -= g[1];
-                buffer[3 * j + 2] -= g[2];
-            }
-        }
-    }
-
-    /// `(V′, V″)` of the pair `i, j` at distance `r` (both zero beyond the cutoff).
-    fn pair_derivatives(&self, class: usize, i: usize, j: usize, r: f64) -> (f64, f64) {
-        let mut d1 = 0.0;
-        let mut d2 = 0.0;
-        if class != CHARGE_ONLY {
-            let p = self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize];
-            let inv_r = 1.0 / r;
-            let inv6 = inv_r.powi(6);
-            d1 += inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
-            d2 += inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
-        }
-        if class != LJ_ONLY {
-            let qq = self.scaled_charges[i] * self.scaled_charges[j];
+    /// `(V′, V″)` of the pair `i, j` at distance `r < r_c`.
+    fn pair_derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64) {
+        let p = self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize];
+        let inv_r = 1.0 / r;
+        let inv6 = inv_r.powi(6);
+        let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
+        let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        if qq != 0.0 {
             let (_, a, b) = match self.kernel {
                 Kernel::Plain(c) => c.derivatives(qq, r),
                 Kernel::ShiftedForce(c) => c.derivatives(qq, r),
@@ -906,26 +501,76 @@ impl Nonbonded {
     }
 }
 
-/// `gradient += Σ_c buffers[c]`, chunk by chunk in order (deterministic), split over
-/// coordinates in parallel for large systems.
-fn reduce(buffers: &[Vec<f64>], gradient: &mut [f64], n: usize) {
-    let add = |(offset, out): (usize, &mut [f64])| {
-        for buffer in buffers {
-            for (o, b) in out.iter_mut().zip(&buffer[offset..]) {
-                *o += b;
+/// Counters of the cluster-pair list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ListCounts {
+    pub builds: u64,
+    pub prunes: u64,
+    pub clusters: usize,
+    /// Atom pairs of the outer (buffered) list.
+    pub outer_pairs: usize,
+    /// Atom pairs the kernel computes (the pruned list).
+    pub inner_pairs: usize,
+}
+
+/// The Coulomb kernel of `electrostatics` at `cutoff`.
+fn coulomb_kernel(electrostatics: Electrostatics, cutoff: f64) -> Result<Kernel, String> {
+    Ok(match electrostatics {
+        Electrostatics::None | Electrostatics::Plain => {
+            if electrostatics == Electrostatics::Plain && cutoff.is_finite() {
+                return Err(
+                    "plain Coulomb has no cutoff form: use coulomb = \"dsf\" or \
+                            \"reaction-field\" with a cutoff, or no cutoff"
+                        .into(),
+                );
+            }
+            Kernel::Plain(Plain)
+        }
+        Electrostatics::DampedShiftedForce { alpha } => {
+            if !cutoff.is_finite() {
+                return Err("damped shifted force Coulomb needs a cutoff".into());
+            }
+            if alpha == 0.0 {
+                Kernel::ShiftedForce(ShiftedForce {
+                    two_over_rc: 2.0 / cutoff,
+                    inv_rc2: 1.0 / (cutoff * cutoff),
+                })
+            } else {
+                Kernel::Damped(DampedShiftedForce::new(alpha, cutoff))
             }
         }
-    };
-    const BLOCK: usize = 3 * 1024;
-    if n >= PARALLEL_MIN_PARTICLES * 8 {
-        gradient
-            .par_chunks_mut(BLOCK)
-            .enumerate()
-            .map(|(k, out)| (k * BLOCK, out))
-            .for_each(add);
-    } else {
-        add((0, gradient));
+        Electrostatics::ReactionField { dielectric } => {
+            if !cutoff.is_finite() {
+                return Err("reaction-field Coulomb needs a cutoff".into());
+            }
+            let k = (dielectric - 1.0) / ((2.0 * dielectric + 1.0) * cutoff.powi(3));
+            Kernel::ReactionField(ReactionField {
+                k,
+                c: 1.0 / cutoff + k * cutoff * cutoff,
+            })
+        }
+    })
+}
+
+/// Excluded partners per particle, sorted (CSR: `start[i]..start[i + 1]`).
+fn exclusion_lists(n: usize, pairs: &[(usize, usize)]) -> Result<(Vec<u32>, Vec<u32>), String> {
+    let mut excluded = vec![Vec::new(); n];
+    for &(i, j) in pairs {
+        if i >= n || j >= n {
+            return Err(format!("excluded pair ({i}, {j}) names a missing particle"));
+        }
+        if i != j {
+            excluded[i].push(j as u32);
+            excluded[j].push(i as u32);
+        }
     }
+    let mut start = vec![0u32; n + 1];
+    for (i, list) in excluded.iter_mut().enumerate() {
+        list.sort_unstable();
+        list.dedup();
+        start[i + 1] = start[i] + list.len() as u32;
+    }
+    Ok((start, excluded.concat()))
 }
 
 impl ForceTerm for Nonbonded {
@@ -947,82 +592,14 @@ impl ForceTerm for Nonbonded {
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let mut guard = self.lock();
-        let workspace = &mut *guard;
-        self.refresh_list(workspace, q);
-        let Workspace {
-            list,
-            wrapped,
-            buffers,
-            ..
-        } = workspace;
-        let x: &[f64] = wrapped;
-        let rc2 = self.cutoff_squared;
-        let image = list.all_pairs.then(|| list.lengths());
-        let work = |(chunk, buffer): (&Chunk, &mut Vec<f64>)| {
-            buffer.fill(0.0);
-            for (row, i) in chunk.rows.clone().enumerate() {
-                for class in 0..N_CLASSES {
-                    let range =
-                        chunk.starts[class][row] as usize..chunk.starts[class][row + 1] as usize;
-                    for &entry in &chunk.entries[class][range] {
-                        let (j, s) = unpack(entry);
-                        let shift = &list.shifts[s];
-                        let d: [f64; 3] = std::array::from_fn(|a| {
-                            let d = x[3 * j + a] + shift[a] - x[3 * i + a];
-                            match image {
-                                Some(l) => d - l[a] * (d / l[a]).round(),
-                                None => d,
-                            }
-                        });
-                        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                        if r2 >= rc2 {
-                            continue;
-                        }
-                        let r = r2.sqrt();
-                        let (d1, d2) = self.pair_derivatives(class, i, j, r);
-                        let a = d1 / r;
-                        let b = (d2 - a) / r2;
-                        let dv: [f64; 3] = std::array::from_fn(|k| v[3 * j + k] - v[3 * i + k]);
-                        let along = b * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]);
-                        for k in 0..3 {
-                            let h = a * dv[k] + along * d[k];
-                            buffer[3 * j + k] += h;
-                            buffer[3 * i + k] -= h;
-                        }
-                    }
-                }
-            }
-        };
-        if self.n >= PARALLEL_MIN_PARTICLES && list.chunks.len() > 1 {
-            list.chunks
-                .par_iter()
-                .zip(buffers.par_iter_mut())
-                .for_each(work);
-        } else {
-            list.chunks.iter().zip(buffers.iter_mut()).for_each(work);
-        }
-        reduce(buffers, out, self.n);
+        self.hessian_vector(q, v, out);
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
-        let workspace = self.lock();
-        let mut pairs = Vec::new();
-        for chunk in &workspace.list.chunks {
-            for (row, i) in chunk.rows.clone().enumerate() {
-                for class in 0..N_CLASSES {
-                    let range =
-                        chunk.starts[class][row] as usize..chunk.starts[class][row + 1] as usize;
-                    for &entry in &chunk.entries[class][range] {
-                        let (j, _) = unpack(entry);
-                        pairs.push([i.min(j), i.max(j)]);
-                    }
-                }
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
-        pairs.into_iter().map(|p| p.to_vec()).collect()
+        self.coupled_pairs()
+            .into_iter()
+            .map(|p| p.to_vec())
+            .collect()
     }
 
     fn interaction_count(&self) -> usize {
@@ -1032,5 +609,16 @@ impl ForceTerm for Nonbonded {
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
         let (lj, coulomb) = self.evaluate(q, None);
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
+    }
+
+    fn set_precision(&self, precision: Precision) -> bool {
+        let mut workspace = self.lock();
+        workspace.precision = precision;
+        workspace.cached = None;
+        true
+    }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
     }
 }

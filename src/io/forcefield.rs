@@ -36,7 +36,7 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 
 use crate::forces::ForceTerm;
-use crate::forces::neighbour_list::NeighbourList;
+use crate::forces::clusters::ClusterList;
 use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded};
 use crate::split::Assignment;
 use crate::system::PeriodicBox;
@@ -389,26 +389,23 @@ pub fn closest_overlap(
     limit: f64,
 ) -> Option<(usize, usize, f64)> {
     let n = q.len() / 3;
-    let mut list = NeighbourList::new(n, limit, 0.0, periodic_box.map(|b| b.lengths));
-    list.build(q, |_, _| Some(0));
-    let mut wrapped = vec![0.0; q.len()];
-    list.wrap_positions(q, &mut wrapped);
+    let none = vec![0u32; n + 1];
+    let mut list = ClusterList::new(
+        limit,
+        0.0,
+        periodic_box.map(|b| b.lengths),
+        none,
+        Vec::new(),
+        vec![0.0; n],
+    );
+    list.update(q);
     let mut worst: Option<(usize, usize, f64)> = None;
-    for chunk in &list.chunks {
-        for (row, i) in chunk.rows.clone().enumerate() {
-            let range = chunk.starts[0][row] as usize..chunk.starts[0][row + 1] as usize;
-            for &entry in &chunk.entries[0][range] {
-                let (j, s) = crate::forces::neighbour_list::unpack(entry);
-                let shift = list.shifts[s];
-                let d: [f64; 3] =
-                    std::array::from_fn(|a| wrapped[3 * j + a] + shift[a] - wrapped[3 * i + a]);
-                let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                if r < limit && worst.is_none_or(|w| r < w.2) {
-                    worst = Some((i.min(j), i.max(j), r));
-                }
-            }
+    list.for_each_pair(false, |i, j, d| {
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if r < limit && worst.is_none_or(|w| r < w.2) {
+            worst = Some((i.min(j), i.max(j), r));
         }
-    }
+    });
     worst
 }
 

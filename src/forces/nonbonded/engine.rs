@@ -1,0 +1,422 @@
+//! Evaluation of the non-bonded term over its cluster-pair list: list refresh, per-slot
+//! parameters after a build, the kernel over the chunks (in parallel for large systems),
+//! the reduction of the chunks' gradient buffers in chunk order, and the Hessian-vector
+//! product.
+
+use std::sync::atomic::Ordering;
+
+use rayon::prelude::*;
+
+use super::kernel::{self, Gradient4, Job, KernelReal, LjData, Out};
+use super::{Electrostatics, Kernel, Nonbonded, Precision};
+use crate::forces::clusters::{
+    CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, Refresh,
+};
+use crate::forces::simd::{Isa, Real};
+
+/// The list, the kernel's inputs in both precisions, the chunks' buffers and the cached
+/// energy; behind a mutex because `ForceTerm` methods take `&self`.
+pub struct Workspace {
+    pub list: ClusterList,
+    pub isa: Isa,
+    pub precision: Precision,
+    clusters32: Vec<Cluster<f32>>,
+    /// Per-slot Lennard-Jones factors (factored parameters) or types (table).
+    factors64: Vec<[f64; 8]>,
+    factors32: Vec<[f32; 8]>,
+    types: Vec<[u32; 4]>,
+    table64: Vec<[f64; 3]>,
+    table32: Vec<[f32; 3]>,
+    /// One gradient buffer per chunk, by cluster.
+    buffers: Vec<Vec<Gradient4>>,
+    /// (Lennard-Jones, Coulomb) energy of each chunk.
+    energies: Vec<(f64, f64)>,
+    reduced: Vec<Gradient4>,
+    /// Positions of the last evaluation and its energies, if computed.
+    cached_q: Vec<f64>,
+    pub cached: Option<(f64, f64)>,
+    /// Whether gradients compute the energy too (the last one's energy was asked for).
+    energy_wanted: bool,
+    energy_used: bool,
+}
+
+impl Workspace {
+    pub fn new(list: ClusterList) -> Self {
+        let chunks = list.chunks.len();
+        Workspace {
+            list,
+            isa: Isa::best(),
+            precision: Precision::Double,
+            clusters32: Vec::new(),
+            factors64: Vec::new(),
+            factors32: Vec::new(),
+            types: Vec::new(),
+            table64: Vec::new(),
+            table32: Vec::new(),
+            buffers: vec![Vec::new(); chunks],
+            energies: vec![(0.0, 0.0); chunks],
+            reduced: Vec::new(),
+            cached_q: Vec::new(),
+            cached: None,
+            energy_wanted: false,
+            energy_used: false,
+        }
+    }
+}
+
+/// `len ≥ n`, growing with room so that later builds rarely allocate.
+fn ensure<T: Clone + Default>(v: &mut Vec<T>, n: usize) {
+    if v.len() < n {
+        v.resize(n + n / 8 + 16, T::default());
+    }
+}
+
+/// The cyclic window `(start, len)` of `n` clusters as two ranges.
+fn window_ranges(window: (usize, usize), n: usize) -> [std::ops::Range<usize>; 2] {
+    let (start, len) = (window.0.min(n), window.1.min(n));
+    let end = start + len;
+    if end <= n {
+        [start..end, 0..0]
+    } else {
+        [start..n, 0..end - n]
+    }
+}
+
+impl Nonbonded {
+    /// Make the list valid at `q` and the kernel's inputs current.
+    pub(super) fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
+        let refresh = workspace.list.update(q);
+        if refresh == Refresh::Built {
+            self.slot_parameters(workspace);
+        }
+        if refresh != Refresh::Kept {
+            self.listed_pairs
+                .store(workspace.list.inner_pairs(), Ordering::Relaxed);
+        }
+        if workspace.precision == Precision::Mixed {
+            let Workspace {
+                list, clusters32, ..
+            } = workspace;
+            clusters32.clear();
+            clusters32.extend(list.positions.iter().map(|c| Cluster {
+                x: c.x.map(|v| v as f32),
+                y: c.y.map(|v| v as f32),
+                z: c.z.map(|v| v as f32),
+                q: c.q.map(|v| v as f32),
+            }));
+        }
+    }
+
+    /// Lennard-Jones data by slot (after a build), the tables, and buffers of the size.
+    fn slot_parameters(&self, workspace: &mut Workspace) {
+        let clusters = workspace.list.clusters();
+        let slots = &workspace.list.grid.slots;
+        workspace.factors64.clear();
+        workspace.types.clear();
+        for c in 0..clusters {
+            let atoms = &slots[c * CLUSTER..(c + 1) * CLUSTER];
+            let type_of = |k: usize| match atoms[k] {
+                PAD => None,
+                atom => Some(self.types[atom as usize] as usize),
+            };
+            workspace
+                .types
+                .push(std::array::from_fn(|k| type_of(k).unwrap_or(0) as u32));
+            if let Some(factored) = &self.factored {
+                workspace.factors64.push(std::array::from_fn(|k| {
+                    type_of(k % 4).map_or(0.0, |t| factored.per_type[t][k / 4])
+                }));
+            }
+        }
+        let factors32 = workspace.factors64.iter().map(|f| f.map(|v| v as f32));
+        workspace.factors32.clear();
+        workspace.factors32.extend(factors32);
+        if workspace.table64.is_empty() {
+            // Padding has type 0 but a zero mask, so its table entries never count.
+            workspace.table64 = self.lj.iter().map(|p| [p.c12, p.c6, p.shift]).collect();
+            workspace.table32 = self
+                .lj
+                .iter()
+                .map(|p| [p.c12, p.c6, p.shift].map(|v| v as f32))
+                .collect();
+        }
+        for buffer in &mut workspace.buffers {
+            ensure(buffer, clusters);
+        }
+        ensure(&mut workspace.reduced, clusters);
+    }
+
+    /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += ∇V`.
+    pub(super) fn evaluate(&self, q: &[f64], gradient: Option<&mut [f64]>) -> (f64, f64) {
+        let mut guard = self.lock();
+        let workspace = &mut *guard;
+        let same = workspace.cached_q == q;
+        if gradient.is_none() && same {
+            if let Some(cached) = workspace.cached {
+                workspace.energy_used = true;
+                return cached;
+            }
+            // The last gradient was here without its energy: compute it with the next ones.
+            workspace.energy_wanted = true;
+        }
+        if gradient.is_some() && workspace.cached.is_some() && !workspace.energy_used {
+            workspace.energy_wanted = false;
+        }
+        self.refresh(workspace, q);
+        let with_energy = gradient.is_none() || workspace.energy_wanted;
+        let energies = match workspace.precision {
+            Precision::Double => self.run_chunks::<f64>(workspace, with_energy),
+            Precision::Mixed => self.run_chunks::<f32>(workspace, with_energy),
+        };
+        if let Some(gradient) = gradient {
+            self.reduce(workspace, gradient);
+        }
+        if workspace.cached_q.len() != q.len() {
+            workspace.cached_q = vec![f64::NAN; q.len()];
+        }
+        workspace.cached_q.copy_from_slice(q);
+        workspace.cached = with_energy.then_some(energies);
+        workspace.energy_used = false;
+        energies
+    }
+
+    /// The kernel over every chunk; the chunks' energies summed in chunk order.
+    fn run_chunks<R: KernelReal>(&self, workspace: &mut Workspace, energy: bool) -> (f64, f64)
+    where
+        Workspace: Inputs<R>,
+    {
+        let isa = workspace.isa;
+        let inverse_cutoff6 = self.factored.as_ref().map_or(0.0, |f| f.inverse_cutoff6);
+        let (inputs, chunks, buffers, energies) = Inputs::<R>::split(workspace, inverse_cutoff6);
+        let n = inputs.clusters.len();
+        let work = |((chunk, buffer), result): ((&Chunk, &mut Vec<Gradient4>), &mut (f64, f64))| {
+            for range in window_ranges(chunk.window, n) {
+                buffer[range].fill(Gradient4::default());
+            }
+            let job = Job {
+                list: &chunk.inner,
+                ..inputs
+            };
+            let mut out = Out {
+                gradient: buffer,
+                lj: [0.0; 4],
+                coulomb: [0.0; 4],
+            };
+            if energy {
+                self.dispatch::<R, true>(isa, &job, &mut out);
+            } else {
+                self.dispatch::<R, false>(isa, &job, &mut out);
+            }
+            let total = |e: [f64; 4]| (e[0] + e[2]) + (e[1] + e[3]);
+            *result = (total(out.lj), total(out.coulomb));
+        };
+        if self.n >= PARALLEL_MIN_ATOMS && chunks.len() > 1 {
+            chunks
+                .par_iter()
+                .zip(buffers.par_iter_mut())
+                .zip(energies.par_iter_mut())
+                .for_each(work);
+        } else {
+            chunks
+                .iter()
+                .zip(buffers.iter_mut())
+                .zip(energies.iter_mut())
+                .for_each(work);
+        }
+        energies
+            .iter()
+            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+
+    /// The kernel with this term's Coulomb form.
+    fn dispatch<R: KernelReal, const ENERGY: bool>(&self, isa: Isa, job: &Job<R>, out: &mut Out) {
+        if self.electrostatics == Electrostatics::None {
+            return R::evaluate::<kernel::NoCoulomb, ENERGY>(isa, job, kernel::NoCoulomb, out);
+        }
+        match self.kernel {
+            Kernel::Plain(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+            Kernel::ShiftedForce(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+            Kernel::Damped(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+            Kernel::ReactionField(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+        }
+    }
+
+    /// `gradient += Σ_c buffer_c`, chunk by chunk in order over each chunk's window
+    /// (deterministic), in parallel over blocks of clusters for large systems; then from
+    /// cluster slots to atoms.
+    fn reduce(&self, workspace: &mut Workspace, gradient: &mut [f64]) {
+        let Workspace {
+            list,
+            buffers,
+            reduced,
+            ..
+        } = workspace;
+        let n = list.clusters();
+        let chunks = &list.chunks;
+        const BLOCK: usize = 256;
+        let add = |(block, out): (usize, &mut [Gradient4])| {
+            let first = block * BLOCK;
+            out.fill(Gradient4::default());
+            for (chunk, buffer) in chunks.iter().zip(buffers.iter()) {
+                for range in window_ranges(chunk.window, n) {
+                    let from = range.start.max(first);
+                    let to = range.end.min(first + out.len());
+                    for k in from..to.max(from) {
+                        let (o, b) = (&mut out[k - first], &buffer[k]);
+                        for l in 0..4 {
+                            o.x[l] += b.x[l];
+                            o.y[l] += b.y[l];
+                            o.z[l] += b.z[l];
+                        }
+                    }
+                }
+            }
+        };
+        let reduced = &mut reduced[..n];
+        if self.n >= 8 * PARALLEL_MIN_ATOMS {
+            reduced.par_chunks_mut(BLOCK).enumerate().for_each(add);
+        } else {
+            reduced.chunks_mut(BLOCK).enumerate().for_each(add);
+        }
+        for (c, g) in reduced.iter().enumerate() {
+            for l in 0..CLUSTER {
+                let atom = list.grid.slots[c * CLUSTER + l];
+                if atom != PAD {
+                    let a = 3 * atom as usize;
+                    gradient[a] += g.x[l];
+                    gradient[a + 1] += g.y[l];
+                    gradient[a + 2] += g.z[l];
+                }
+            }
+        }
+    }
+
+    /// `out += ∇²V v` over the pruned list (pairs within the cutoff): for a radial `V`,
+    /// `(∇²V v)_j = a Δv + b (d·Δv) d` with `a = V′/r`, `b = (V″ − V′/r)/r²`.
+    pub(super) fn hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let mut guard = self.lock();
+        self.refresh(&mut guard, q);
+        let list = &guard.list;
+        let cutoff2 = self.cutoff * self.cutoff;
+        list.for_each_pair(false, |i, j, d| {
+            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            if r2 >= cutoff2 {
+                return;
+            }
+            let r = r2.sqrt();
+            let (d1, d2) = self.pair_derivatives(i, j, r);
+            let a = d1 / r;
+            let b = (d2 - a) / r2;
+            let dv: [f64; 3] = std::array::from_fn(|k| v[3 * j + k] - v[3 * i + k]);
+            let along = b * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]);
+            for k in 0..3 {
+                let h = a * dv[k] + along * d[k];
+                out[3 * j + k] += h;
+                out[3 * i + k] -= h;
+            }
+        });
+    }
+
+    /// Every atom pair of the outer list, `[min, max]`, sorted, once each.
+    pub(super) fn coupled_pairs(&self) -> Vec<[usize; 2]> {
+        let guard = self.lock();
+        let mut pairs = Vec::new();
+        guard
+            .list
+            .for_each_pair(true, |i, j, _| pairs.push([i.min(j), i.max(j)]));
+        pairs.sort_unstable();
+        pairs.dedup();
+        pairs
+    }
+}
+
+/// The kernel's inputs in precision `R` and the mutable parts, borrowed apart.
+pub trait Inputs<R: Real> {
+    #[allow(clippy::type_complexity)]
+    fn split(
+        &mut self,
+        inverse_cutoff6: f64,
+    ) -> (
+        Job<'_, R>,
+        &[Chunk],
+        &mut [Vec<Gradient4>],
+        &mut [(f64, f64)],
+    );
+}
+
+/// The Lennard-Jones data: per-slot factors when the term has them, else types and table.
+fn lj_data<'a, R>(
+    factors: &'a [[R; 8]],
+    types: &'a [[u32; 4]],
+    table: &'a [[R; 3]],
+) -> LjData<'a, R> {
+    if factors.is_empty() {
+        LjData::Table {
+            types,
+            table,
+            n_types: (table.len() as f64).sqrt().round() as usize,
+        }
+    } else {
+        LjData::Geometric(factors)
+    }
+}
+
+/// A job over `list`'s geometry with j-clusters `clusters` (its list set per chunk).
+fn job<'a, R>(
+    list: &'a ClusterList,
+    clusters: &'a [Cluster<R>],
+    lj: LjData<'a, R>,
+    inverse_cutoff6: f64,
+) -> Job<'a, R> {
+    Job {
+        list: &list.chunks[0].inner,
+        clusters,
+        clusters64: &list.positions,
+        shifts: &list.geometry.shifts,
+        cutoff2: list.cutoff() * list.cutoff(),
+        inverse_cutoff6,
+        lj,
+    }
+}
+
+impl Inputs<f64> for Workspace {
+    fn split(
+        &mut self,
+        inverse_cutoff6: f64,
+    ) -> (
+        Job<'_, f64>,
+        &[Chunk],
+        &mut [Vec<Gradient4>],
+        &mut [(f64, f64)],
+    ) {
+        let lj = lj_data(&self.factors64, &self.types, &self.table64);
+        let job = job(&self.list, &self.list.positions, lj, inverse_cutoff6);
+        (
+            job,
+            &self.list.chunks,
+            &mut self.buffers,
+            &mut self.energies,
+        )
+    }
+}
+
+impl Inputs<f32> for Workspace {
+    fn split(
+        &mut self,
+        inverse_cutoff6: f64,
+    ) -> (
+        Job<'_, f32>,
+        &[Chunk],
+        &mut [Vec<Gradient4>],
+        &mut [(f64, f64)],
+    ) {
+        let lj = lj_data(&self.factors32, &self.types, &self.table32);
+        let job = job(&self.list, &self.clusters32, lj, inverse_cutoff6);
+        (
+            job,
+            &self.list.chunks,
+            &mut self.buffers,
+            &mut self.energies,
+        )
+    }
+}

@@ -1,0 +1,600 @@
+//! The cluster-pair kernel: energies and gradients of the 16 atom pairs of each listed
+//! cluster pair, SIMD over the pairs (see [`crate::forces::simd`] for the lanes and why
+//! every instruction set gives the same bits), no branch on the pair: the cutoff, padding,
+//! exclusions and `j > i` are lane masks.
+//!
+//! Per cluster pair and row of four lanes: `d = x_i − x_j`, `r² = d·d`, the mask, `1/r`
+//! by Newton's iteration ([`Simd::rsqrt`]; masked lanes take `r² = 1`, so nothing
+//! divides by zero), Lennard-Jones and the
+//! Coulomb form as functions of `1/r`, `1/r²` and `r²`, and the scalar force `f = −V′/r`
+//! (zero where masked): the i-gradient gains `−f d`, the j-gradient `+f d`. The i-gradients
+//! stay in registers over an entry's j-clusters; the j-gradients go to the gradient buffer
+//! once per cluster pair. Energies (when asked) are summed per lane in f64.
+//!
+//! Mixed precision: the same code with `f32` lanes. The i-positions (with their image
+//! shift) are formed in f64 and rounded once, the j-positions are rounded once per
+//! evaluation; every cluster pair's contributions go into f64 buffers.
+
+use super::{CoulombForm, DampedShiftedForce, Plain, ReactionField, ShiftedForce};
+use crate::forces::clusters::{CLUSTER, Cluster, Entry, PairList};
+use crate::forces::simd::{Isa, Portable, Real, Simd, row, row_lanes};
+
+/// Gradient of a cluster's four atoms, in f64.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(32))]
+pub struct Gradient4 {
+    pub x: [f64; 4],
+    pub y: [f64; 4],
+    pub z: [f64; 4],
+}
+
+/// Lennard-Jones parameters of the clusters.
+#[derive(Clone, Copy, Debug)]
+pub enum LjData<'a, R> {
+    /// `c₁₂ = a_i a_j`, `c₆ = b_i b_j`: per slot `[a₀..a₃, b₀..b₃]`.
+    Geometric(&'a [[R; 8]]),
+    /// Type per slot and the `n × n` table of `[c₁₂, c₆, shift]`.
+    Table {
+        types: &'a [[u32; 4]],
+        table: &'a [[R; 3]],
+        n_types: usize,
+    },
+}
+
+/// One chunk's work: its list and what the kernel reads.
+#[derive(Clone, Copy)]
+pub struct Job<'a, R> {
+    pub list: &'a PairList,
+    /// j-side positions and charges in the lanes' precision.
+    pub clusters: &'a [Cluster<R>],
+    /// i-side positions and charges in f64 (shifted, then rounded).
+    pub clusters64: &'a [Cluster<f64>],
+    pub shifts: &'a [[f64; 3]; 27],
+    pub cutoff2: f64,
+    /// `r_c⁻⁶` when the Lennard-Jones energy is shifted, else 0 (geometric parameters).
+    pub inverse_cutoff6: f64,
+    pub lj: LjData<'a, R>,
+}
+
+/// Where a chunk's results go: the gradient buffer (indexed by cluster) and the
+/// Lennard-Jones and Coulomb energies per lane.
+pub struct Out<'a> {
+    pub gradient: &'a mut [Gradient4],
+    pub lj: [f64; 4],
+    pub coulomb: [f64; 4],
+}
+
+/// A Coulomb form in lanes: `(V, −V′/r)` at `r²` with `1/r`, `1/r²` and `Q = k_e q_i q_j`.
+pub trait Coulomb: Copy + Send + Sync {
+    /// The energy lanes are only meaningful when `ENERGY`.
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V);
+}
+
+/// No Coulomb term.
+#[derive(Clone, Copy)]
+pub struct NoCoulomb;
+
+impl Coulomb for NoCoulomb {
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        _: S::V,
+        _: S::V,
+        _: S::V,
+        _: S::V,
+    ) -> (S::V, S::V) {
+        let zero = s.splat(S::R::of(0.0));
+        (zero, zero)
+    }
+}
+
+impl Coulomb for Plain {
+    /// `V = Q/r`, `−V′/r = V/r²`.
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        _: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V) {
+        let e = s.mul(qq, rinv);
+        (e, s.mul(e, rinv2))
+    }
+}
+
+impl Coulomb for ShiftedForce {
+    /// `V = Q (1/r − 2/r_c + r/r_c²)`, `−V′/r = (Q/r)(1/r² − 1/r_c²)`.
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V) {
+        let inv_rc2 = s.splat(S::R::of(self.inv_rc2));
+        let f = s.mul(s.mul(qq, rinv), s.sub(rinv2, inv_rc2));
+        let mut e = f;
+        if ENERGY {
+            let two_over_rc = s.splat(S::R::of(self.two_over_rc));
+            let r = s.mul(r2, rinv);
+            e = s.mul(qq, s.fma(r, inv_rc2, s.sub(rinv, two_over_rc)));
+        }
+        (e, f)
+    }
+}
+
+impl Coulomb for ReactionField {
+    /// `V = Q (1/r + k r² − c)`, `−V′/r = Q (1/r³ − 2k)`.
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V) {
+        let k = s.splat(S::R::of(self.k));
+        let c = s.splat(S::R::of(self.c));
+        let two_k = s.splat(S::R::of(2.0 * self.k));
+        let e = s.mul(qq, s.sub(s.add(rinv, s.mul(k, r2)), c));
+        let f = s.mul(qq, s.sub(s.mul(rinv, rinv2), two_k));
+        (e, f)
+    }
+}
+
+impl Coulomb for DampedShiftedForce {
+    /// Lane by lane in f64 through the scalar form (erfc has no SIMD form here).
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        _: S::V,
+    ) -> (S::V, S::V) {
+        let (mut q, mut r, mut i) = (
+            [S::R::default(); 16],
+            [S::R::default(); 16],
+            [S::R::default(); 16],
+        );
+        s.store(qq, &mut q);
+        s.store(r2, &mut r);
+        s.store(rinv, &mut i);
+        let (mut e, mut f) = ([S::R::default(); 16], [S::R::default(); 16]);
+        for k in 0..S::WIDTH {
+            let (ek, fk) = self.energy_force(q[k].to_f64(), r[k].to_f64(), i[k].to_f64());
+            e[k] = S::R::of(ek);
+            f[k] = S::R::of(fk);
+        }
+        (s.load(&e), s.load(&f))
+    }
+}
+
+/// Lennard-Jones in lanes: per-group i data, per-cluster j data, and at `1/r²` the energy
+/// (when `ENERGY`) and `(r⁻⁸, 12 c₁₂ r⁻⁶ − 6 c₆)`, whose product is `−V′/r` (left to the
+/// caller to fuse with the Coulomb force).
+pub trait Lj<S: Simd>: Copy {
+    type I: Copy;
+    type J: Copy;
+    fn i(&self, s: S, ci: usize, group: usize) -> Self::I;
+    fn j(&self, s: S, cj: usize) -> Self::J;
+    fn lanes<const ENERGY: bool>(
+        &self,
+        s: S,
+        i: &Self::I,
+        j: &Self::J,
+        rinv2: S::V,
+    ) -> (S::V, S::V, S::V);
+}
+
+/// Geometric Lennard-Jones lanes: `12 c₁₂ = (12 A_i) A_j`, `6 c₆ = (6 B_i) B_j`.
+#[derive(Clone, Copy)]
+struct Geometric<'a, S: Simd> {
+    params: &'a [[S::R; 8]],
+    inverse_cutoff6: S::V,
+    twelve: S::V,
+    six: S::V,
+}
+
+impl<S: Simd> Lj<S> for Geometric<'_, S> {
+    /// `(12 A_i, 6 B_i)` lanes.
+    type I = (S::V, S::V);
+    type J = (S::V, S::V);
+    #[inline(always)]
+    fn i(&self, s: S, ci: usize, group: usize) -> (S::V, S::V) {
+        let p = &self.params[ci];
+        let mut a = [S::R::default(); 16];
+        let mut b = [S::R::default(); 16];
+        for k in 0..S::WIDTH {
+            a[k] = p[row::<S>(group, k)];
+            b[k] = p[4 + row::<S>(group, k)];
+        }
+        (s.mul(self.twelve, s.load(&a)), s.mul(self.six, s.load(&b)))
+    }
+    #[inline(always)]
+    fn j(&self, s: S, cj: usize) -> (S::V, S::V) {
+        let p = &self.params[cj];
+        let (a, b) = p.split_at(4);
+        (
+            s.load4(a.try_into().expect("four")),
+            s.load4(b.try_into().expect("four")),
+        )
+    }
+    #[inline(always)]
+    fn lanes<const ENERGY: bool>(
+        &self,
+        s: S,
+        i: &Self::I,
+        j: &Self::J,
+        rinv2: S::V,
+    ) -> (S::V, S::V, S::V) {
+        let c12x12 = s.mul(i.0, j.0);
+        let c6x6 = s.mul(i.1, j.1);
+        let (rinv8, rinv6, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
+        let mut energy = rinv8;
+        if ENERGY {
+            let c12 = s.div(c12x12, self.twelve);
+            let c6 = s.div(c6x6, self.six);
+            let shift = s.mul(
+                s.sub(s.mul(c12, self.inverse_cutoff6), c6),
+                self.inverse_cutoff6,
+            );
+            energy = lennard_jones_energy(s, c12, c6, shift, rinv6);
+        }
+        (energy, rinv8, bracket)
+    }
+}
+
+/// `(r⁻⁸, r⁻⁶, 12 c₁₂ r⁻⁶ − 6 c₆)`: `−V′/r` is the product of the first and last.
+#[inline(always)]
+fn lennard_jones_force<S: Simd>(s: S, c12x12: S::V, c6x6: S::V, rinv2: S::V) -> (S::V, S::V, S::V) {
+    let rinv4 = s.mul(rinv2, rinv2);
+    let rinv6 = s.mul(rinv4, rinv2);
+    let rinv8 = s.mul(rinv4, rinv4);
+    (rinv8, rinv6, s.fms(c12x12, rinv6, c6x6))
+}
+
+/// `V = r⁻⁶(c₁₂ r⁻⁶ − c₆) − shift`.
+#[inline(always)]
+fn lennard_jones_energy<S: Simd>(s: S, c12: S::V, c6: S::V, shift: S::V, rinv6: S::V) -> S::V {
+    s.sub(s.mul(rinv6, s.sub(s.mul(c12, rinv6), c6)), shift)
+}
+
+/// Tabulated Lennard-Jones lanes (gathered per pair).
+#[derive(Clone, Copy)]
+struct Table<'a, S: Simd> {
+    types: &'a [[u32; 4]],
+    table: &'a [[S::R; 3]],
+    n_types: usize,
+    twelve: S::V,
+    six: S::V,
+}
+
+impl<S: Simd> Lj<S> for Table<'_, S> {
+    /// Table row offset of each lane's i-atom.
+    type I = [usize; 16];
+    type J = [u32; 4];
+    #[inline(always)]
+    fn i(&self, _s: S, ci: usize, group: usize) -> [usize; 16] {
+        std::array::from_fn(|k| {
+            self.types[ci][row::<S>(group, k % S::WIDTH)] as usize * self.n_types
+        })
+    }
+    #[inline(always)]
+    fn j(&self, _s: S, cj: usize) -> [u32; 4] {
+        self.types[cj]
+    }
+    #[inline(always)]
+    fn lanes<const ENERGY: bool>(
+        &self,
+        s: S,
+        i: &Self::I,
+        j: &Self::J,
+        rinv2: S::V,
+    ) -> (S::V, S::V, S::V) {
+        let mut p = [[S::R::default(); 16]; 3];
+        for k in 0..S::WIDTH {
+            let entry = self.table[i[k] + j[k % 4] as usize];
+            for (c, &v) in entry.iter().enumerate() {
+                p[c][k] = v;
+            }
+        }
+        let (c12, c6) = (s.load(&p[0]), s.load(&p[1]));
+        let (c12x12, c6x6) = (s.mul(self.twelve, c12), s.mul(self.six, c6));
+        let (rinv8, rinv6, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
+        let mut energy = rinv8;
+        if ENERGY {
+            energy = lennard_jones_energy(s, c12, c6, s.load(&p[2]), rinv6);
+        }
+        (energy, rinv8, bracket)
+    }
+}
+
+/// The i-cluster of an entry in lanes: positions (shifted), charges, Lennard-Jones data, one
+/// register per group.
+struct Rows<S: Simd, I> {
+    x: [S::V; 4],
+    y: [S::V; 4],
+    z: [S::V; 4],
+    q: [S::V; 4],
+    lj: [I; 4],
+}
+
+/// Splatted constants.
+#[derive(Clone, Copy)]
+struct Constants<S: Simd> {
+    zero: S::V,
+    one: S::V,
+    cutoff2: S::V,
+}
+
+#[inline(always)]
+fn rows<S: Simd, L: Lj<S>>(s: S, job: &Job<S::R>, lj: &L, entry: &Entry) -> Rows<S, L::I> {
+    let c = &job.clusters64[entry.ci as usize];
+    let shift = &job.shifts[entry.shift as usize];
+    let ci = entry.ci as usize;
+    let last = 16 / S::WIDTH - 1;
+    let zero = s.splat(S::R::of(0.0));
+    let mut rows = Rows {
+        x: [zero; 4],
+        y: [zero; 4],
+        z: [zero; 4],
+        q: [zero; 4],
+        lj: [lj.i(s, ci, 0); 4],
+    };
+    for g in 0..4 {
+        rows.x[g] = row_lanes(s, &c.x, shift[0], g);
+        rows.y[g] = row_lanes(s, &c.y, shift[1], g);
+        rows.z[g] = row_lanes(s, &c.z, shift[2], g);
+        rows.q[g] = row_lanes(s, &c.q, 0.0, g);
+        rows.lj[g] = lj.i(s, ci, g.min(last));
+    }
+    rows
+}
+
+/// Add the i-gradients of an entry to the buffer: per row, lanes `(l₀ + l₂) + (l₁ + l₃)`.
+#[inline(always)]
+fn finish_rows<S: Simd>(s: S, gi: &[[S::V; 3]; 4], out: &mut Gradient4) {
+    for (g, components) in gi.iter().enumerate().take(16 / S::WIDTH) {
+        for (d, &v) in components.iter().enumerate() {
+            let mut lanes = [S::R::default(); 16];
+            s.store(v, &mut lanes);
+            for r in 0..S::WIDTH / 4 {
+                let l = |k: usize| lanes[4 * r + k].to_f64();
+                let sum = (l(0) + l(2)) + (l(1) + l(3));
+                let target = match d {
+                    0 => &mut out.x,
+                    1 => &mut out.y,
+                    _ => &mut out.z,
+                };
+                target[g * (S::WIDTH / 4) + r] += sum;
+            }
+        }
+    }
+}
+
+/// `acc[g % 2] (+)= v`: rows 0, 2 and 1, 3 apart (the canonical order, module doc of simd).
+#[inline(always)]
+fn gather<S: Simd>(s: S, acc: &mut [S::V; 2], group: usize, v: S::V) {
+    if group < 2 {
+        acc[group] = v;
+    } else {
+        acc[group % 2] = s.add(acc[group % 2], v);
+    }
+}
+
+#[inline(always)]
+fn combine<S: Simd>(s: S, acc: &[S::V; 2]) -> S::V {
+    if 16 / S::WIDTH == 1 {
+        acc[0]
+    } else {
+        s.add(acc[0], acc[1])
+    }
+}
+
+/// One cluster pair.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+fn pair<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
+    s: S,
+    k: &Constants<S>,
+    coulomb: C,
+    lj: &L,
+    rows: &Rows<S, L::I>,
+    j: &Cluster<S::R>,
+    lj_j: L::J,
+    mask: u16,
+    gi: &mut [[S::V; 3]; 4],
+    gj: &mut Gradient4,
+    energies: (&mut [f64; 4], &mut [f64; 4]),
+) {
+    let (xj, yj, zj, qj) = (s.load4(&j.x), s.load4(&j.y), s.load4(&j.z), s.load4(&j.q));
+    let lane_bits = if S::WIDTH >= 16 {
+        0xFFFF
+    } else {
+        (1u32 << S::WIDTH) - 1
+    };
+    let mut fj = [[k.zero; 2]; 3];
+    let mut ej = [[k.zero; 2]; 2];
+    for g in 0..16 / S::WIDTH {
+        let dx = s.sub(rows.x[g], xj);
+        let dy = s.sub(rows.y[g], yj);
+        let dz = s.sub(rows.z[g], zj);
+        let r2 = s.fma(dz, dz, s.fma(dy, dy, s.mul(dx, dx)));
+        let bits = (mask as u32 >> (g * S::WIDTH)) & lane_bits;
+        let m = s.and(s.mask(bits), s.less(r2, k.cutoff2));
+        let r2 = s.select(m, r2, k.one);
+        let rinv = s.rsqrt(r2);
+        let rinv2 = s.mul(rinv, rinv);
+        let (e_lj, rinv8, bracket) = lj.lanes::<ENERGY>(s, &rows.lj[g], &lj_j, rinv2);
+        let (e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, s.mul(rows.q[g], qj), r2, rinv, rinv2);
+        let f = s.select(m, s.fma(rinv8, bracket, f_q), k.zero);
+        let (fx, fy, fz) = (s.mul(f, dx), s.mul(f, dy), s.mul(f, dz));
+        gi[g][0] = s.sub(gi[g][0], fx);
+        gi[g][1] = s.sub(gi[g][1], fy);
+        gi[g][2] = s.sub(gi[g][2], fz);
+        gather(s, &mut fj[0], g, fx);
+        gather(s, &mut fj[1], g, fy);
+        gather(s, &mut fj[2], g, fz);
+        if ENERGY {
+            gather(s, &mut ej[0], g, s.select(m, e_lj, k.zero));
+            gather(s, &mut ej[1], g, s.select(m, e_q, k.zero));
+        }
+    }
+    s.fold4(combine(s, &fj[0]), &mut gj.x);
+    s.fold4(combine(s, &fj[1]), &mut gj.y);
+    s.fold4(combine(s, &fj[2]), &mut gj.z);
+    if ENERGY {
+        s.fold4(combine(s, &ej[0]), energies.0);
+        s.fold4(combine(s, &ej[1]), energies.1);
+    }
+}
+
+/// Every entry of the job's list.
+#[inline(always)]
+fn entries<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
+    s: S,
+    job: &Job<S::R>,
+    coulomb: C,
+    lj: L,
+    out: &mut Out,
+) {
+    let k = Constants::<S> {
+        zero: s.splat(S::R::of(0.0)),
+        one: s.splat(S::R::of(1.0)),
+        cutoff2: s.splat(S::R::of(job.cutoff2)),
+    };
+    let list = job.list;
+    for entry in &list.entries {
+        let rows = rows(s, job, &lj, entry);
+        let mut gi = [[k.zero; 3]; 4];
+        let range = entry.start as usize..entry.end as usize;
+        for (&cj, &mask) in list.j[range.clone()].iter().zip(&list.masks[range]) {
+            let cj = cj as usize;
+            pair::<S, C, L, ENERGY>(
+                s,
+                &k,
+                coulomb,
+                &lj,
+                &rows,
+                &job.clusters[cj],
+                lj.j(s, cj),
+                mask,
+                &mut gi,
+                &mut out.gradient[cj],
+                (&mut out.lj, &mut out.coulomb),
+            );
+        }
+        finish_rows(s, &gi, &mut out.gradient[entry.ci as usize]);
+    }
+}
+
+/// The job with the Lennard-Jones form of its data.
+#[inline(always)]
+fn run<S: Simd, C: Coulomb, const ENERGY: bool>(s: S, job: &Job<S::R>, coulomb: C, out: &mut Out) {
+    let twelve = s.splat(S::R::of(12.0));
+    let six = s.splat(S::R::of(6.0));
+    match job.lj {
+        LjData::Geometric(params) => {
+            let lj = Geometric::<S> {
+                params,
+                inverse_cutoff6: s.splat(S::R::of(job.inverse_cutoff6)),
+                twelve,
+                six,
+            };
+            entries::<S, C, _, ENERGY>(s, job, coulomb, lj, out)
+        }
+        LjData::Table {
+            types,
+            table,
+            n_types,
+        } => {
+            let lj = Table::<S> {
+                types,
+                table,
+                n_types,
+                twelve,
+                six,
+            };
+            entries::<S, C, _, ENERGY>(s, job, coulomb, lj, out)
+        }
+    }
+}
+
+/// The kernel for each precision: dispatch to the instruction set.
+pub trait KernelReal: Real {
+    fn evaluate<C: Coulomb, const ENERGY: bool>(
+        isa: Isa,
+        job: &Job<Self>,
+        coulomb: C,
+        out: &mut Out,
+    );
+}
+
+/// `$name`: the kernel compiled for `$features` with lanes `$lanes`.
+macro_rules! compiled {
+    ($name:ident, $features:literal, $lanes:ty, $real:ty) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<C: Coulomb, const ENERGY: bool>(job: &Job<$real>, coulomb: C, out: &mut Out) {
+            // SAFETY: called only after `Isa::is_available` (see `KernelReal::evaluate`).
+            let s = unsafe { <$lanes>::new_unchecked() };
+            run::<_, C, ENERGY>(s, job, coulomb, out)
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+use crate::forces::simd::{Avx2F32, Avx2F64, Avx512F32, Avx512F64};
+
+compiled!(avx2_f64, "avx2,fma", Avx2F64, f64);
+compiled!(avx2_f32, "avx2,fma", Avx2F32, f32);
+compiled!(avx512_f64, "avx512f,avx512vl,avx512dq", Avx512F64, f64);
+compiled!(avx512_f32, "avx512f,avx512vl,avx512dq", Avx512F32, f32);
+
+/// `$real`'s dispatch over the instruction sets.
+macro_rules! precision {
+    ($real:ty, $avx2:ident, $avx512:ident) => {
+        impl KernelReal for $real {
+            fn evaluate<C: Coulomb, const ENERGY: bool>(
+                isa: Isa,
+                job: &Job<Self>,
+                coulomb: C,
+                out: &mut Out,
+            ) {
+                assert!(isa.is_available(), "{} is not available", isa.name());
+                match isa {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: AVX2 is available (asserted above).
+                    Isa::Avx2 => unsafe { $avx2::<C, ENERGY>(job, coulomb, out) },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: AVX-512 F, VL and DQ are available (asserted above).
+                    Isa::Avx512 => unsafe { $avx512::<C, ENERGY>(job, coulomb, out) },
+                    _ => run::<_, C, ENERGY>(Portable::<$real>::new(), job, coulomb, out),
+                }
+            }
+        }
+    };
+}
+
+precision!(f64, avx2_f64, avx512_f64);
+precision!(f32, avx2_f32, avx512_f32);
+
+const _: () = assert!(
+    CLUSTER == 4,
+    "the kernel's rows and masks assume clusters of four"
+);

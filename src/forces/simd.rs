@@ -1,0 +1,764 @@
+//! SIMD lanes for the non-bonded cluster-pair kernel, chosen at run time.
+//!
+//! The kernel ([`super::nonbonded`]) is written once over the [`Simd`] trait and compiled
+//! for each instruction set: the portable path (plain arrays of four, any processor), AVX2
+//! (4 doubles or 8 floats per register) and AVX-512 (8 doubles or 16 floats). A register
+//! holds `WIDTH / 4` rows of a 4 × 4 cluster pair: one i-atom broadcast over four lanes
+//! against the four j-atoms of the j-cluster.
+//!
+//! **The same bits on every path.** Lane arithmetic is IEEE add, subtract, multiply and
+//! fused multiply-add (all correctly rounded; the portable path's `mul_add` is the same
+//! single rounding), and `1/√x` is Newton's iteration from a seed made by integer
+//! arithmetic on the bits (no approximate-reciprocal instruction, whose results differ
+//! between processors): each lane computes exactly what the portable path computes. The only
+//! cross-lane operation, [`Simd::fold4`], folds a register to four lanes by adding its
+//! upper half to its lower half until four remain; together with the kernel's order of
+//! rows (rows 0, 2 summed first, then 1, 3: `(r₀ + r₂) + (r₁ + r₃)`) every width sums a
+//! cluster pair's contributions in the same order. Results are therefore bit-for-bit the
+//! same on every path, which `tests/nonbonded_engine.rs` checks.
+//!
+//! A value of an implementing type is a token proving that the processor has the
+//! instructions: it is only made by [`Isa`] dispatch after detection, which is what makes
+//! the trait's methods safe to call.
+
+use std::marker::PhantomData;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// Seeds of `1/√x` (C. Lomont, "Fast inverse square root", 2003): relative error below
+/// 3.5 %, so four Newton steps reach double precision and three single.
+const RSQRT_MAGIC_F64: u64 = 0x5FE6_EB50_C7B5_37A9;
+const RSQRT_MAGIC_F32: u32 = 0x5F37_5A86;
+
+/// The floating-point type of the pair arithmetic (f64, or f32 in mixed precision).
+pub trait Real:
+    Copy
+    + Default
+    + PartialOrd
+    + Send
+    + Sync
+    + std::fmt::Debug
+    + 'static
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// Newton iterations from [`Real::rsqrt_seed`] to full precision (module doc).
+    const NEWTON: usize;
+    fn of(x: f64) -> Self;
+    fn to_f64(self) -> f64;
+    fn sqrt(self) -> Self;
+    /// `self · b + c`, rounded once.
+    fn mul_add(self, b: Self, c: Self) -> Self;
+    /// `1/√x` within 3.5 %: the exponent halved and negated by integer arithmetic on the
+    /// bits (Lomont's constants).
+    fn rsqrt_seed(self) -> Self;
+}
+
+impl Real for f64 {
+    const NEWTON: usize = 4;
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        f64::mul_add(self, b, c)
+    }
+    #[inline(always)]
+    fn rsqrt_seed(self) -> Self {
+        f64::from_bits(RSQRT_MAGIC_F64.wrapping_sub(self.to_bits() >> 1))
+    }
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+}
+
+impl Real for f32 {
+    const NEWTON: usize = 3;
+    #[inline(always)]
+    fn mul_add(self, b: Self, c: Self) -> Self {
+        f32::mul_add(self, b, c)
+    }
+    #[inline(always)]
+    fn rsqrt_seed(self) -> Self {
+        f32::from_bits(RSQRT_MAGIC_F32.wrapping_sub(self.to_bits() >> 1))
+    }
+    #[inline(always)]
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f32::sqrt(self)
+    }
+}
+
+/// Lanes of one instruction set and precision (see the module doc).
+pub trait Simd: Copy + Send + Sync {
+    type R: Real;
+    type V: Copy;
+    type M: Copy;
+    /// Lanes per register: 4, 8 or 16.
+    const WIDTH: usize;
+    fn splat(self, x: Self::R) -> Self::V;
+    /// The first `WIDTH` values.
+    fn load(self, values: &[Self::R; 16]) -> Self::V;
+    /// Four values repeated `WIDTH / 4` times.
+    fn load4(self, values: &[Self::R; 4]) -> Self::V;
+    /// Lanes into the first `WIDTH` values.
+    fn store(self, v: Self::V, out: &mut [Self::R; 16]);
+    fn add(self, a: Self::V, b: Self::V) -> Self::V;
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V;
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V;
+    fn div(self, a: Self::V, b: Self::V) -> Self::V;
+    fn sqrt(self, a: Self::V) -> Self::V;
+    /// `a · b + c`, rounded once.
+    fn fma(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `c − a · b`, rounded once.
+    fn fnma(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `a · b − c`, rounded once.
+    fn fms(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// [`Real::rsqrt_seed`] of each lane.
+    fn rsqrt_seed(self, x: Self::V) -> Self::V;
+    /// `1/√x` to about one unit in the last place: Newton's step `y ← y (3/2 − (x/2) y²)`
+    /// from the seed, the same operations on every path (no approximate-reciprocal
+    /// instruction, whose results differ between processors).
+    #[inline(always)]
+    fn rsqrt(self, x: Self::V) -> Self::V {
+        let three_halves = self.splat(Self::R::of(1.5));
+        let half_x = self.mul(x, self.splat(Self::R::of(0.5)));
+        let mut y = self.rsqrt_seed(x);
+        for _ in 0..Self::R::NEWTON {
+            y = self.mul(y, self.fnma(self.mul(half_x, y), y, three_halves));
+        }
+        y
+    }
+    /// Lanes where `a < b`.
+    fn less(self, a: Self::V, b: Self::V) -> Self::M;
+    /// Lane `k` set where bit `k` of `bits` is.
+    fn mask(self, bits: u32) -> Self::M;
+    fn and(self, a: Self::M, b: Self::M) -> Self::M;
+    /// `a` where `m`, else `b`.
+    fn select(self, m: Self::M, a: Self::V, b: Self::V) -> Self::V;
+    /// Bit `k` set where lane `k` of `m` is.
+    fn bits(self, m: Self::M) -> u32;
+    /// `out[l] += ` the lanes `l` of every row, folded as the module doc says, in f64.
+    fn fold4(self, v: Self::V, out: &mut [f64; 4]);
+}
+
+/// Row (atom of a cluster of four) of lane `k` in register group `group`: a register holds
+/// `WIDTH / 4` rows of four lanes.
+#[inline(always)]
+pub fn row<S: Simd>(group: usize, k: usize) -> usize {
+    group * (S::WIDTH / 4) + k / 4
+}
+
+/// The lanes of group `group`: each lane's row of `values`, plus `offset`, rounded to
+/// `S::R`. Groups past the last (`group ≥ 16 / WIDTH`) repeat the last one.
+#[inline(always)]
+pub fn row_lanes<S: Simd>(s: S, values: &[f64; 4], offset: f64, group: usize) -> S::V {
+    let group = group.min(16 / S::WIDTH - 1);
+    let mut a = [S::R::default(); 16];
+    for k in 0..S::WIDTH {
+        a[k] = S::R::of(values[row::<S>(group, k)] + offset);
+    }
+    s.load(&a)
+}
+
+/// The instruction set of the kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Isa {
+    /// Arrays of four, any processor.
+    Portable,
+    /// x86-64 AVX2 with FMA.
+    Avx2,
+    /// x86-64 AVX-512 (F, VL, DQ).
+    Avx512,
+}
+
+impl Isa {
+    /// Every instruction set this processor runs, portable first.
+    pub fn available() -> Vec<Isa> {
+        [Isa::Portable, Isa::Avx2, Isa::Avx512]
+            .into_iter()
+            .filter(|isa| isa.is_available())
+            .collect()
+    }
+
+    pub fn is_available(self) -> bool {
+        match self {
+            Isa::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => {
+                std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+            }
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => {
+                std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512vl")
+                    && std::is_x86_feature_detected!("avx512dq")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+
+    /// The widest available.
+    pub fn best() -> Isa {
+        *Isa::available().last().unwrap_or(&Isa::Portable)
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
+        }
+    }
+
+    pub fn parse(name: &str) -> Option<Isa> {
+        [Isa::Portable, Isa::Avx2, Isa::Avx512]
+            .into_iter()
+            .find(|isa| isa.name() == name)
+    }
+}
+
+/// Plain arrays of four: the reference path, on any processor.
+#[derive(Clone, Copy, Default)]
+pub struct Portable<R>(PhantomData<R>);
+
+impl<R: Real> Portable<R> {
+    pub fn new() -> Self {
+        Portable(PhantomData)
+    }
+}
+
+impl<R: Real> Simd for Portable<R> {
+    type R = R;
+    type V = [R; 4];
+    type M = [bool; 4];
+    const WIDTH: usize = 4;
+    #[inline(always)]
+    fn splat(self, x: R) -> [R; 4] {
+        [x; 4]
+    }
+    #[inline(always)]
+    fn load(self, values: &[R; 16]) -> [R; 4] {
+        [values[0], values[1], values[2], values[3]]
+    }
+    #[inline(always)]
+    fn load4(self, values: &[R; 4]) -> [R; 4] {
+        *values
+    }
+    #[inline(always)]
+    fn store(self, v: [R; 4], out: &mut [R; 16]) {
+        out[..4].copy_from_slice(&v);
+    }
+    #[inline(always)]
+    fn add(self, a: [R; 4], b: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k] + b[k])
+    }
+    #[inline(always)]
+    fn sub(self, a: [R; 4], b: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k] - b[k])
+    }
+    #[inline(always)]
+    fn mul(self, a: [R; 4], b: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k] * b[k])
+    }
+    #[inline(always)]
+    fn div(self, a: [R; 4], b: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k] / b[k])
+    }
+    #[inline(always)]
+    fn sqrt(self, a: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k].sqrt())
+    }
+    #[inline(always)]
+    fn fma(self, a: [R; 4], b: [R; 4], c: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k].mul_add(b[k], c[k]))
+    }
+    #[inline(always)]
+    fn fnma(self, a: [R; 4], b: [R; 4], c: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| (-a[k]).mul_add(b[k], c[k]))
+    }
+    #[inline(always)]
+    fn fms(self, a: [R; 4], b: [R; 4], c: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k].mul_add(b[k], -c[k]))
+    }
+    #[inline(always)]
+    fn rsqrt_seed(self, x: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| x[k].rsqrt_seed())
+    }
+    #[inline(always)]
+    fn less(self, a: [R; 4], b: [R; 4]) -> [bool; 4] {
+        std::array::from_fn(|k| a[k] < b[k])
+    }
+    #[inline(always)]
+    fn mask(self, bits: u32) -> [bool; 4] {
+        std::array::from_fn(|k| bits >> k & 1 == 1)
+    }
+    #[inline(always)]
+    fn and(self, a: [bool; 4], b: [bool; 4]) -> [bool; 4] {
+        std::array::from_fn(|k| a[k] & b[k])
+    }
+    #[inline(always)]
+    fn select(self, m: [bool; 4], a: [R; 4], b: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| if m[k] { a[k] } else { b[k] })
+    }
+    #[inline(always)]
+    fn bits(self, m: [bool; 4]) -> u32 {
+        (m[0] as u32) | (m[1] as u32) << 1 | (m[2] as u32) << 2 | (m[3] as u32) << 3
+    }
+    #[inline(always)]
+    fn fold4(self, v: [R; 4], out: &mut [f64; 4]) {
+        for k in 0..4 {
+            out[k] += v[k].to_f64();
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub use x86::{Avx2F32, Avx2F64, Avx512F32, Avx512F64};
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    //! AVX2 and AVX-512 lanes. Every intrinsic call is safe because a token exists only
+    //! after [`super::Isa::is_available`] said so (see the constructors).
+
+    use super::Simd;
+    use std::arch::x86_64::*;
+
+    /// AVX2, 4 doubles.
+    #[derive(Clone, Copy)]
+    pub struct Avx2F64(());
+    /// AVX2, 8 floats (two rows).
+    #[derive(Clone, Copy)]
+    pub struct Avx2F32(());
+    /// AVX-512, 8 doubles (two rows).
+    #[derive(Clone, Copy)]
+    pub struct Avx512F64(());
+    /// AVX-512, 16 floats (four rows).
+    #[derive(Clone, Copy)]
+    pub struct Avx512F32(());
+
+    impl Avx2F64 {
+        /// # Safety
+        /// The processor must have AVX2 and FMA.
+        pub unsafe fn new_unchecked() -> Self {
+            Avx2F64(())
+        }
+    }
+    impl Avx2F32 {
+        /// # Safety
+        /// The processor must have AVX2 and FMA.
+        pub unsafe fn new_unchecked() -> Self {
+            Avx2F32(())
+        }
+    }
+    impl Avx512F64 {
+        /// # Safety
+        /// The processor must have AVX-512 F, VL and DQ.
+        pub unsafe fn new_unchecked() -> Self {
+            Avx512F64(())
+        }
+    }
+    impl Avx512F32 {
+        /// # Safety
+        /// The processor must have AVX-512 F, VL and DQ.
+        pub unsafe fn new_unchecked() -> Self {
+            Avx512F32(())
+        }
+    }
+
+    /// The five arithmetic methods, the same for every type, from their intrinsics.
+    macro_rules! arithmetic {
+        ($v:ty, $add:ident, $sub:ident, $mul:ident, $div:ident, $sqrt:ident, $fma:ident, $fnma:ident, $fms:ident) => {
+            #[inline(always)]
+            fn fms(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: the token proves the instruction set (module doc).
+                unsafe { $fms(a, b, c) }
+            }
+            #[inline(always)]
+            fn fma(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: the token proves the instruction set (module doc).
+                unsafe { $fma(a, b, c) }
+            }
+            #[inline(always)]
+            fn fnma(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $fnma(a, b, c) }
+            }
+            #[inline(always)]
+            fn add(self, a: $v, b: $v) -> $v {
+                // SAFETY: the token proves the instruction set (module doc).
+                unsafe { $add(a, b) }
+            }
+            #[inline(always)]
+            fn sub(self, a: $v, b: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $sub(a, b) }
+            }
+            #[inline(always)]
+            fn mul(self, a: $v, b: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $mul(a, b) }
+            }
+            #[inline(always)]
+            fn div(self, a: $v, b: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $div(a, b) }
+            }
+            #[inline(always)]
+            fn sqrt(self, a: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $sqrt(a) }
+            }
+        };
+    }
+
+    impl Simd for Avx2F64 {
+        type R = f64;
+        type V = __m256d;
+        type M = __m256d;
+        const WIDTH: usize = 4;
+        arithmetic!(
+            __m256d,
+            _mm256_add_pd,
+            _mm256_sub_pd,
+            _mm256_mul_pd,
+            _mm256_div_pd,
+            _mm256_sqrt_pd,
+            _mm256_fmadd_pd,
+            _mm256_fnmadd_pd,
+            _mm256_fmsub_pd
+        );
+        #[inline(always)]
+        fn splat(self, x: f64) -> __m256d {
+            // SAFETY: the token proves AVX2.
+            unsafe { _mm256_set1_pd(x) }
+        }
+        #[inline(always)]
+        fn load(self, values: &[f64; 16]) -> __m256d {
+            // SAFETY: AVX2; 4 of the 16 values are read.
+            unsafe { _mm256_loadu_pd(values.as_ptr()) }
+        }
+        #[inline(always)]
+        fn load4(self, values: &[f64; 4]) -> __m256d {
+            // SAFETY: AVX2; exactly 4 values are read.
+            unsafe { _mm256_loadu_pd(values.as_ptr()) }
+        }
+        #[inline(always)]
+        fn store(self, v: __m256d, out: &mut [f64; 16]) {
+            // SAFETY: AVX2; 4 of the 16 values are written.
+            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) }
+        }
+        #[inline(always)]
+        fn rsqrt_seed(self, x: __m256d) -> __m256d {
+            // SAFETY: AVX2.
+            unsafe {
+                let magic = _mm256_set1_epi64x(super::RSQRT_MAGIC_F64 as i64);
+                let bits = _mm256_srli_epi64::<1>(_mm256_castpd_si256(x));
+                _mm256_castsi256_pd(_mm256_sub_epi64(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn less(self, a: __m256d, b: __m256d) -> __m256d {
+            // SAFETY: AVX2.
+            unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn mask(self, bits: u32) -> __m256d {
+            // SAFETY: AVX2. Lane k tests bit k.
+            unsafe {
+                let select = _mm256_set_epi64x(8, 4, 2, 1);
+                let b = _mm256_and_si256(_mm256_set1_epi64x(bits as i64), select);
+                _mm256_castsi256_pd(_mm256_cmpeq_epi64(b, select))
+            }
+        }
+        #[inline(always)]
+        fn and(self, a: __m256d, b: __m256d) -> __m256d {
+            // SAFETY: AVX2.
+            unsafe { _mm256_and_pd(a, b) }
+        }
+        #[inline(always)]
+        fn select(self, m: __m256d, a: __m256d, b: __m256d) -> __m256d {
+            // SAFETY: AVX2.
+            unsafe { _mm256_blendv_pd(b, a, m) }
+        }
+        #[inline(always)]
+        fn bits(self, m: __m256d) -> u32 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_movemask_pd(m) as u32 }
+        }
+        #[inline(always)]
+        fn fold4(self, v: __m256d, out: &mut [f64; 4]) {
+            // SAFETY: AVX2; 4 values read and written.
+            unsafe {
+                let o = _mm256_loadu_pd(out.as_ptr());
+                _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(o, v));
+            }
+        }
+    }
+
+    impl Simd for Avx2F32 {
+        type R = f32;
+        type V = __m256;
+        type M = __m256;
+        const WIDTH: usize = 8;
+        arithmetic!(
+            __m256,
+            _mm256_add_ps,
+            _mm256_sub_ps,
+            _mm256_mul_ps,
+            _mm256_div_ps,
+            _mm256_sqrt_ps,
+            _mm256_fmadd_ps,
+            _mm256_fnmadd_ps,
+            _mm256_fmsub_ps
+        );
+        #[inline(always)]
+        fn splat(self, x: f32) -> __m256 {
+            // SAFETY: the token proves AVX2.
+            unsafe { _mm256_set1_ps(x) }
+        }
+        #[inline(always)]
+        fn load(self, values: &[f32; 16]) -> __m256 {
+            // SAFETY: AVX2; 8 of the 16 values are read.
+            unsafe { _mm256_loadu_ps(values.as_ptr()) }
+        }
+        #[inline(always)]
+        fn load4(self, values: &[f32; 4]) -> __m256 {
+            // SAFETY: AVX2; exactly 4 values are read.
+            unsafe { _mm256_broadcast_ps(&*(values.as_ptr() as *const __m128)) }
+        }
+        #[inline(always)]
+        fn store(self, v: __m256, out: &mut [f32; 16]) {
+            // SAFETY: AVX2; 8 of the 16 values are written.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) }
+        }
+        #[inline(always)]
+        fn rsqrt_seed(self, x: __m256) -> __m256 {
+            // SAFETY: AVX2.
+            unsafe {
+                let magic = _mm256_set1_epi32(super::RSQRT_MAGIC_F32 as i32);
+                let bits = _mm256_srli_epi32::<1>(_mm256_castps_si256(x));
+                _mm256_castsi256_ps(_mm256_sub_epi32(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn less(self, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn mask(self, bits: u32) -> __m256 {
+            // SAFETY: AVX2. Lane k tests bit k.
+            unsafe {
+                let select = _mm256_set_epi32(128, 64, 32, 16, 8, 4, 2, 1);
+                let b = _mm256_and_si256(_mm256_set1_epi32(bits as i32), select);
+                _mm256_castsi256_ps(_mm256_cmpeq_epi32(b, select))
+            }
+        }
+        #[inline(always)]
+        fn and(self, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_and_ps(a, b) }
+        }
+        #[inline(always)]
+        fn select(self, m: __m256, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_blendv_ps(b, a, m) }
+        }
+        #[inline(always)]
+        fn bits(self, m: __m256) -> u32 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_movemask_ps(m) as u32 }
+        }
+        #[inline(always)]
+        fn fold4(self, v: __m256, out: &mut [f64; 4]) {
+            // SAFETY: AVX2; [r₀+r₂|r₁+r₃] → (r₀+r₂)+(r₁+r₃) in f32, then f64, added.
+            unsafe {
+                let low = _mm256_castps256_ps128(v);
+                let high = _mm256_extractf128_ps::<1>(v);
+                let sum = _mm256_cvtps_pd(_mm_add_ps(low, high));
+                let o = _mm256_loadu_pd(out.as_ptr());
+                _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(o, sum));
+            }
+        }
+    }
+
+    impl Simd for Avx512F64 {
+        type R = f64;
+        type V = __m512d;
+        type M = __mmask8;
+        const WIDTH: usize = 8;
+        arithmetic!(
+            __m512d,
+            _mm512_add_pd,
+            _mm512_sub_pd,
+            _mm512_mul_pd,
+            _mm512_div_pd,
+            _mm512_sqrt_pd,
+            _mm512_fmadd_pd,
+            _mm512_fnmadd_pd,
+            _mm512_fmsub_pd
+        );
+        #[inline(always)]
+        fn splat(self, x: f64) -> __m512d {
+            // SAFETY: the token proves AVX-512F.
+            unsafe { _mm512_set1_pd(x) }
+        }
+        #[inline(always)]
+        fn load(self, values: &[f64; 16]) -> __m512d {
+            // SAFETY: AVX-512F; 8 of the 16 values are read.
+            unsafe { _mm512_loadu_pd(values.as_ptr()) }
+        }
+        #[inline(always)]
+        fn load4(self, values: &[f64; 4]) -> __m512d {
+            // SAFETY: AVX-512F; exactly 4 values are read.
+            unsafe { _mm512_broadcast_f64x4(_mm256_loadu_pd(values.as_ptr())) }
+        }
+        #[inline(always)]
+        fn store(self, v: __m512d, out: &mut [f64; 16]) {
+            // SAFETY: AVX-512F; 8 of the 16 values are written.
+            unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) }
+        }
+        #[inline(always)]
+        fn rsqrt_seed(self, x: __m512d) -> __m512d {
+            // SAFETY: AVX-512F.
+            unsafe {
+                let magic = _mm512_set1_epi64(super::RSQRT_MAGIC_F64 as i64);
+                let bits = _mm512_srli_epi64::<1>(_mm512_castpd_si512(x));
+                _mm512_castsi512_pd(_mm512_sub_epi64(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn less(self, a: __m512d, b: __m512d) -> __mmask8 {
+            // SAFETY: AVX-512F.
+            unsafe { _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn mask(self, bits: u32) -> __mmask8 {
+            bits as __mmask8
+        }
+        #[inline(always)]
+        fn and(self, a: __mmask8, b: __mmask8) -> __mmask8 {
+            a & b
+        }
+        #[inline(always)]
+        fn select(self, m: __mmask8, a: __m512d, b: __m512d) -> __m512d {
+            // SAFETY: AVX-512F. Lanes with the mask bit set take the second operand.
+            unsafe { _mm512_mask_blend_pd(m, b, a) }
+        }
+        #[inline(always)]
+        fn bits(self, m: __mmask8) -> u32 {
+            m as u32
+        }
+        #[inline(always)]
+        fn fold4(self, v: __m512d, out: &mut [f64; 4]) {
+            // SAFETY: AVX-512F/DQ; [r₀+r₂|r₁+r₃] → (r₀+r₂)+(r₁+r₃), added to the 4 values.
+            unsafe {
+                let low = _mm512_castpd512_pd256(v);
+                let high = _mm512_extractf64x4_pd::<1>(v);
+                let o = _mm256_loadu_pd(out.as_ptr());
+                _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(o, _mm256_add_pd(low, high)));
+            }
+        }
+    }
+
+    impl Simd for Avx512F32 {
+        type R = f32;
+        type V = __m512;
+        type M = __mmask16;
+        const WIDTH: usize = 16;
+        arithmetic!(
+            __m512,
+            _mm512_add_ps,
+            _mm512_sub_ps,
+            _mm512_mul_ps,
+            _mm512_div_ps,
+            _mm512_sqrt_ps,
+            _mm512_fmadd_ps,
+            _mm512_fnmadd_ps,
+            _mm512_fmsub_ps
+        );
+        #[inline(always)]
+        fn splat(self, x: f32) -> __m512 {
+            // SAFETY: the token proves AVX-512F.
+            unsafe { _mm512_set1_ps(x) }
+        }
+        #[inline(always)]
+        fn load(self, values: &[f32; 16]) -> __m512 {
+            // SAFETY: AVX-512F; all 16 values are read.
+            unsafe { _mm512_loadu_ps(values.as_ptr()) }
+        }
+        #[inline(always)]
+        fn load4(self, values: &[f32; 4]) -> __m512 {
+            // SAFETY: AVX-512F; exactly 4 values are read.
+            unsafe { _mm512_broadcast_f32x4(_mm_loadu_ps(values.as_ptr())) }
+        }
+        #[inline(always)]
+        fn store(self, v: __m512, out: &mut [f32; 16]) {
+            // SAFETY: AVX-512F; all 16 values are written.
+            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), v) }
+        }
+        #[inline(always)]
+        fn rsqrt_seed(self, x: __m512) -> __m512 {
+            // SAFETY: AVX-512F.
+            unsafe {
+                let magic = _mm512_set1_epi32(super::RSQRT_MAGIC_F32 as i32);
+                let bits = _mm512_srli_epi32::<1>(_mm512_castps_si512(x));
+                _mm512_castsi512_ps(_mm512_sub_epi32(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn less(self, a: __m512, b: __m512) -> __mmask16 {
+            // SAFETY: AVX-512F.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn mask(self, bits: u32) -> __mmask16 {
+            bits as __mmask16
+        }
+        #[inline(always)]
+        fn and(self, a: __mmask16, b: __mmask16) -> __mmask16 {
+            a & b
+        }
+        #[inline(always)]
+        fn select(self, m: __mmask16, a: __m512, b: __m512) -> __m512 {
+            // SAFETY: AVX-512F. Lanes with the mask bit set take the second operand.
+            unsafe { _mm512_mask_blend_ps(m, b, a) }
+        }
+        #[inline(always)]
+        fn bits(self, m: __mmask16) -> u32 {
+            m as u32
+        }
+        #[inline(always)]
+        fn fold4(self, v: __m512, out: &mut [f64; 4]) {
+            // SAFETY: AVX-512F/DQ; [r₀|r₁|r₂|r₃] → [r₀+r₂|r₁+r₃] → (r₀+r₂)+(r₁+r₃).
+            unsafe {
+                let low = _mm512_castps512_ps256(v);
+                let high = _mm512_extractf32x8_ps::<1>(v);
+                let eight = _mm256_add_ps(low, high);
+                let four = _mm_add_ps(
+                    _mm256_castps256_ps128(eight),
+                    _mm256_extractf128_ps::<1>(eight),
+                );
+                let o = _mm256_loadu_pd(out.as_ptr());
+                _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(o, _mm256_cvtps_pd(four)));
+            }
+        }
+    }
+}
