@@ -123,6 +123,14 @@ impl ForceSplit {
         &self.terms
     }
 
+    /// Every term computes in `precision` where it has that choice; how many terms took it.
+    pub fn set_precision(&self, precision: crate::forces::Precision) -> usize {
+        self.terms
+            .iter()
+            .filter(|t| t.term.set_precision(precision))
+            .count()
+    }
+
     pub fn level_is_empty(&self, level: usize) -> bool {
         self.levels[level].is_empty()
     }

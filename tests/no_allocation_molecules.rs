@@ -40,9 +40,32 @@ fn molecule_steps_allocate_nothing() {
         .build()
         .unwrap();
     let molly = "equilibrium-molly";
-    for (scene, method, h, inner, molly_settings) in [
-        ("systems/water-box/scene.toml", "impulse", 2.0, 4, None),
-        ("systems/water-box/scene.toml", "long-average", 4.0, 8, None),
+    use longstep::forces::Precision::{Double, Mixed};
+    for (scene, method, h, inner, molly_settings, precision) in [
+        (
+            "systems/water-box/scene.toml",
+            "impulse",
+            2.0,
+            4,
+            None,
+            Double,
+        ),
+        (
+            "systems/water-box/scene.toml",
+            "impulse",
+            2.0,
+            4,
+            None,
+            Mixed,
+        ),
+        (
+            "systems/water-box/scene.toml",
+            "long-average",
+            4.0,
+            8,
+            None,
+            Double,
+        ),
         // Three levels with the distance split: its own pair list and gradient cache.
         (
             "systems/water-box/three-level.toml",
@@ -50,6 +73,7 @@ fn molecule_steps_allocate_nothing() {
             4.0,
             2,
             None,
+            Double,
         ),
         (
             "systems/molecules/alanine-dipeptide.toml",
@@ -57,6 +81,7 @@ fn molecule_steps_allocate_nothing() {
             2.0,
             4,
             None,
+            Double,
         ),
         // The equilibrium mollifier: a Schur solve per water, a banded KKT solve per chain.
         (
@@ -65,6 +90,7 @@ fn molecule_steps_allocate_nothing() {
             4.0,
             8,
             Some(("bonds-angles", "exact")),
+            Double,
         ),
         (
             "systems/water-box/scene.toml",
@@ -72,6 +98,7 @@ fn molecule_steps_allocate_nothing() {
             4.0,
             8,
             Some(("bonds", "projection")),
+            Double,
         ),
         (
             "systems/polymer-melt/scene.toml",
@@ -79,10 +106,13 @@ fn molecule_steps_allocate_nothing() {
             21.5,
             2,
             Some(("bonds", "exact")),
+            Double,
         ),
     ] {
+        let scene_path = scene;
         pool.install(|| {
-            let mut scene = longstep::io::scene::load_scene(Path::new(scene), &[]).unwrap();
+            let mut scene = longstep::io::scene::load_scene(Path::new(scene_path), &[]).unwrap();
+            scene.system.forces.set_precision(precision);
             let mut settings =
                 longstep::settings::MethodSettings::new(method, h).with_inner_steps(inner);
             if let Some((constraints, jacobian)) = molly_settings {
@@ -110,7 +140,10 @@ fn molecule_steps_allocate_nothing() {
                 integrator.step(&mut scene.system).unwrap();
             }
             let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
-            assert_eq!(during, 0, "{method}: {during} allocations in 40 steps");
+            assert_eq!(
+                during, 0,
+                "{scene_path} {method} {precision:?}: {during} allocations in 40 steps"
+            );
             if scene.name == "polymer-melt" {
                 // The list was rebuilt meanwhile (its pair count changed): rebuilds allocate
                 // nothing either.

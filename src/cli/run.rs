@@ -7,6 +7,7 @@ use clap::Args;
 
 use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
 use crate::error::{Error, Result};
+use crate::forces::Precision;
 use crate::integrators;
 use crate::io::energy_table::column_matches;
 use crate::io::scene::load_scene;
@@ -67,6 +68,28 @@ impl DriftArgs {
     }
 }
 
+/// `--precision`: every term that has the choice computes in it; a notice when none has.
+fn set_precision(
+    scene: &crate::io::scene::Scene,
+    name: Option<&str>,
+    notices: &mut Vec<String>,
+) -> Result<()> {
+    let Some(name) = name else {
+        return Ok(());
+    };
+    let precision = Precision::parse(name).ok_or_else(|| {
+        Error::input(format!(
+            "--precision must be double or mixed, got \"{name}\""
+        ))
+    })?;
+    if scene.system.forces.set_precision(precision) == 0 && precision != Precision::Double {
+        notices.push(format!(
+            "--precision {name}: no term of this scene has a {name}-precision form; all run in double"
+        ));
+    }
+    Ok(())
+}
+
 /// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
 /// force loops then split their work from a worker thread, with no allocation per call.
 pub fn run_command(args: &RunArgs) -> Result<i32> {
@@ -101,6 +124,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let fit_from = args.drift.fit_from(&scene.parameters, scene.units, t_end)?;
 
     let mut notices = Vec::new();
+    set_precision(&scene, args.precision.as_deref(), &mut notices)?;
     let mut integrator = integrators::build(&settings, &mut notices)?;
     let start = start_velocities(&mut scene, &settings, &mut notices)?;
     // The kinetic temperature is recorded in a real scene, and wherever a temperature is
@@ -174,6 +198,12 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         &options,
     )?;
     summary.set_units(scene.units);
+    if let Some(precision) = &args.precision {
+        summary.extra.insert(
+            "precision".into(),
+            serde_json::Value::from(precision.as_str()),
+        );
+    }
     judge_drift(&mut summary, drift_bound);
     if let Some(exact) = &scene.exact {
         let error = position_error(exact.as_ref(), &scene.system.state)?;

@@ -49,8 +49,10 @@ use super::{ForceTerm, TermClass};
 
 mod engine;
 mod kernel;
+mod reference;
 
 pub use super::Precision;
+pub use reference::BruteForce;
 
 /// `2/√π`.
 const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;

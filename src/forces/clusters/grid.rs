@@ -35,9 +35,22 @@ impl Grid {
         self.bounds.len()
     }
 
+    /// The most clusters `n` atoms can fill in this grid's columns: a column of `a` atoms
+    /// makes `⌈a/4⌉ ≤ (a + 3)/4` clusters, and at most `min(columns, n)` columns hold atoms.
+    pub fn max_clusters(&self, n: usize) -> usize {
+        let columns = (self.columns[0] * self.columns[1]).min(n);
+        (n + (CLUSTER - 1) * columns).div_ceil(CLUSTER)
+    }
+
     /// Bin the wrapped positions `x` (`n × 3`).
     pub fn build(&mut self, x: &[f64], geometry: &Geometry) {
         self.layout(x, geometry);
+        // Room for any later build in the same columns: the cluster count moves with the
+        // atoms, and a run's rebuilds must not allocate.
+        let most = self.max_clusters(x.len() / 3);
+        super::reserve_total(&mut self.slots, most * CLUSTER);
+        super::reserve_total(&mut self.filled, most);
+        super::reserve_total(&mut self.bounds, most);
         self.bin(x);
         self.cut();
         self.bound(x);

@@ -66,6 +66,13 @@ pub struct Cluster<R> {
     pub q: [R; 4],
 }
 
+/// Capacity for `total` elements in `v` (nothing happens when it has it already).
+pub fn reserve_total<T>(v: &mut Vec<T>, total: usize) {
+    if v.capacity() < total {
+        v.reserve_exact(total - v.len());
+    }
+}
+
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
@@ -331,6 +338,17 @@ impl ClusterList {
         self.grid.clusters()
     }
 
+    /// Whether the pair `i, j` is excluded.
+    pub fn is_excluded(&self, i: usize, j: usize) -> bool {
+        let range = self.excluded_start[i] as usize..self.excluded_start[i + 1] as usize;
+        self.excluded[range].binary_search(&(j as u32)).is_ok()
+    }
+
+    /// The most clusters a build in the current grid can make ([`Grid::max_clusters`]).
+    pub fn max_clusters(&self) -> usize {
+        self.grid.max_clusters(self.n)
+    }
+
     /// Atom pairs the kernel computes (masked pairs of the inner list).
     pub fn inner_pairs(&self) -> usize {
         self.chunks.iter().map(|c| c.inner.atom_pairs()).sum()
@@ -418,6 +436,11 @@ impl ClusterList {
             *w = x - offset;
         }
         self.grid.build(&self.wrapped, &self.geometry);
+        let most = self.max_clusters();
+        reserve_total(&mut self.positions, most);
+        for chunk in &mut self.chunks {
+            reserve_total(&mut chunk.excluded, most);
+        }
         self.fill_positions(q);
         let clusters = self.grid.clusters();
         let n_chunks = self.chunks.len();

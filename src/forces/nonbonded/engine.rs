@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::kernel::{self, Gradient4, Job, KernelReal, LjData, Out};
 use super::{Electrostatics, Kernel, Nonbonded, Precision};
 use crate::forces::clusters::{
-    CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, Refresh,
+    CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, Refresh, reserve_total,
 };
 use crate::forces::simd::{Isa, Real};
 
@@ -64,10 +64,11 @@ impl Workspace {
     }
 }
 
-/// `len ≥ n`, growing with room so that later builds rarely allocate.
-fn ensure<T: Clone + Default>(v: &mut Vec<T>, n: usize) {
+/// `len ≥ n`, with capacity for `most` (later builds of a run allocate nothing).
+fn ensure<T: Clone + Default>(v: &mut Vec<T>, n: usize, most: usize) {
+    reserve_total(v, most);
     if v.len() < n {
-        v.resize(n + n / 8 + 16, T::default());
+        v.resize(n, T::default());
     }
 }
 
@@ -110,6 +111,11 @@ impl Nonbonded {
     /// Lennard-Jones data by slot (after a build), the tables, and buffers of the size.
     fn slot_parameters(&self, workspace: &mut Workspace) {
         let clusters = workspace.list.clusters();
+        let most = workspace.list.max_clusters();
+        reserve_total(&mut workspace.factors64, most);
+        reserve_total(&mut workspace.factors32, most);
+        reserve_total(&mut workspace.types, most);
+        reserve_total(&mut workspace.clusters32, most);
         let slots = &workspace.list.grid.slots;
         workspace.factors64.clear();
         workspace.types.clear();
@@ -141,9 +147,9 @@ impl Nonbonded {
                 .collect();
         }
         for buffer in &mut workspace.buffers {
-            ensure(buffer, clusters);
+            ensure(buffer, clusters, most);
         }
-        ensure(&mut workspace.reduced, clusters);
+        ensure(&mut workspace.reduced, clusters, most);
     }
 
     /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += ∇V`.

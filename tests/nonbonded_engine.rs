@@ -1,0 +1,353 @@
+//! The cluster-pair non-bonded engine (`forces::clusters`, `forces::nonbonded`):
+//!
+//! * every instruction set this processor has gives the bits of the portable lanes, in
+//!   double and in mixed precision, with tabulated and with factored Lennard-Jones;
+//! * double precision is the brute-force sum (round-off apart) and mixed precision is
+//!   within its round-off bound, derived pair by pair below;
+//! * through a run of the water box the buffered, pruned list holds every pair within the
+//!   cutoff at every outer step, across list rebuilds and prunings (no pair missed);
+//! * the same bits at one and two threads on the 1728-water box, in both precisions.
+//!
+//! Brute force against the list in double precision: the same formulas summed in another
+//! order, so they agree to round-off: sums of ≲ 10³ terms of size ≲ 10³ differ by
+//! ≲ 10³·10³·1e-16 = 1e-10; we allow 1e-9·max(1, scale), as `molecule_terms.rs` does.
+
+mod common;
+
+use std::path::Path;
+
+use common::{TestRng, max_abs, max_abs_difference};
+use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use longstep::forces::simd::Isa;
+use longstep::forces::{ForceTerm, Precision};
+use longstep::io::scene::{Scene, load_scene};
+
+const FORMS: [Electrostatics; 4] = [
+    Electrostatics::DampedShiftedForce { alpha: 0.0 },
+    Electrostatics::DampedShiftedForce { alpha: 0.2 },
+    Electrostatics::ReactionField { dielectric: 78.3 },
+    Electrostatics::None,
+];
+const CUTOFF: f64 = 5.0;
+const KE: f64 = 332.06371;
+
+/// `n` atoms in a periodic cube of side `side`, at least 1.6 apart (minimum image).
+fn atoms(n: usize, side: f64, rng: &mut TestRng) -> Vec<f64> {
+    let mut q: Vec<f64> = Vec::with_capacity(3 * n);
+    while q.len() < 3 * n {
+        let x = [0, 1, 2].map(|_| rng.uniform(0.0, side));
+        let far = q.chunks_exact(3).all(|y| {
+            let r2: f64 = (0..3)
+                .map(|a| {
+                    let d = x[a] - y[a];
+                    let d = d - side * (d / side).round();
+                    d * d
+                })
+                .sum();
+            r2 >= 1.6 * 1.6
+        });
+        if far {
+            q.extend(x);
+        }
+    }
+    q
+}
+
+/// Three types; `factored` gives geometric coefficients (the kernel's per-atom factors),
+/// else a table that does not factor (the kernel's gathered table).
+fn spec(
+    n: usize,
+    side: f64,
+    form: Electrostatics,
+    factored: bool,
+    rng: &mut TestRng,
+) -> NonbondedSpec {
+    let eps: [f64; 3] = [0.25, 0.1, 0.0];
+    let sigma: [f64; 3] = [3.0, 2.5, 1.0];
+    let lj = (0..9)
+        .map(|k| {
+            let (a, b) = (k / 3, k % 3);
+            let epsilon = if factored || a == b {
+                (eps[a] * eps[b]).sqrt()
+            } else {
+                0.5 * (eps[a] + eps[b])
+            };
+            let sigma = if factored {
+                (sigma[a] * sigma[b]).sqrt()
+            } else {
+                0.5 * (sigma[a] + sigma[b])
+            };
+            LjPair::new(epsilon, sigma, CUTOFF, true)
+        })
+        .collect();
+    NonbondedSpec {
+        cutoff: CUTOFF,
+        skin: 1.0,
+        electrostatics: form,
+        coulomb_constant: KE,
+        box_lengths: Some([side; 3]),
+        types: (0..n).map(|i| (i % 3) as u32).collect(),
+        lj,
+        charges: (0..n)
+            .map(|i| {
+                if i % 5 == 4 {
+                    0.0
+                } else {
+                    rng.uniform(-0.8, 0.8)
+                }
+            })
+            .collect(),
+        excluded: (0..n / 4).map(|k| (4 * k, 4 * k + 1)).collect(),
+    }
+}
+
+fn gradient_and_energy(term: &Nonbonded, q: &[f64]) -> (Vec<f64>, f64) {
+    let mut g = vec![0.0; q.len()];
+    term.add_gradient(q, &mut g);
+    (g, term.energy(q))
+}
+
+fn bits(x: &[f64]) -> Vec<u64> {
+    x.iter().map(|v| v.to_bits()).collect()
+}
+
+#[test]
+fn every_instruction_set_gives_the_bits_of_the_portable_lanes() {
+    let mut rng = TestRng::new(71);
+    let available = Isa::available();
+    eprintln!("instruction sets here: {available:?}");
+    for precision in [Precision::Double, Precision::Mixed] {
+        for factored in [true, false] {
+            for form in FORMS {
+                let side = 14.0;
+                let q = atoms(150, side, &mut rng);
+                let term = Nonbonded::new(spec(150, side, form, factored, &mut rng), &q).unwrap();
+                term.set_precision(precision);
+                term.set_isa(Isa::Portable);
+                let (g0, e0) = gradient_and_energy(&term, &q);
+                for &isa in &available {
+                    term.set_isa(isa);
+                    let (g, e) = gradient_and_energy(&term, &q);
+                    let label = format!("{isa:?} {precision:?} {form:?} factored {factored}");
+                    assert_eq!(bits(&g), bits(&g0), "{label}: gradient");
+                    assert_eq!(e.to_bits(), e0.to_bits(), "{label}: energy");
+                }
+            }
+        }
+    }
+}
+
+/// The brute-force sum of `spec` at `q` and, per atom, the round-off bound of mixed
+/// precision on its gradient.
+///
+/// Mixed precision rounds positions to f32 (ε = 2⁻²⁴ relative): a displacement `d` from
+/// two coordinates of size ≤ 2L (wrapped position plus image shift) is off by
+/// `δ ≤ √3·2εL + ε r` in length. A pair force `φ(r) d` whose pieces fall at most like
+/// `r⁻¹⁴` (Lennard-Jones repulsion) then moves by at most `P·(15 δ/r + 32ε)` with `P` the
+/// sum of the pieces' magnitudes (so that cancellation between pieces cannot hide error):
+/// `14 δ/r` from `φ`, `δ/r` from the direction, and 32ε for the ≈ 30 rounded operations
+/// and the Newton `1/√r²`. A pair within `δ` of the cutoff may fall on the other side in
+/// f32: its whole `P` counts.
+fn brute_force_with_bound(spec: &NonbondedSpec, q: &[f64]) -> (f64, Vec<f64>, Vec<f64>) {
+    let n = spec.types.len();
+    let side = spec.box_lengths.unwrap()[0];
+    let eps = f32::EPSILON as f64 / 2.0;
+    let mut energy = 0.0;
+    let mut gradient = vec![0.0; q.len()];
+    let mut bound = vec![0.0; n];
+    for i in 0..n {
+        for j in i + 1..n {
+            if spec.excluded.contains(&(i, j)) {
+                continue;
+            }
+            let d: [f64; 3] = std::array::from_fn(|a| {
+                let d = q[3 * j + a] - q[3 * i + a];
+                d - side * (d / side).round()
+            });
+            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let delta = 3f64.sqrt() * 2.0 * eps * 2.0 * side + eps * r;
+            if r >= CUTOFF + delta {
+                continue;
+            }
+            let p = spec.lj[spec.types[i] as usize * 3 + spec.types[j] as usize];
+            let qq = KE * spec.charges[i] * spec.charges[j];
+            let (e, de, pieces) = pair(spec.electrostatics, p, qq, r);
+            let size = if r > CUTOFF - delta {
+                pieces
+            } else {
+                pieces * (15.0 * delta / r + 32.0 * eps)
+            };
+            bound[i] += size;
+            bound[j] += size;
+            if r >= CUTOFF {
+                continue;
+            }
+            energy += e;
+            for a in 0..3 {
+                gradient[3 * j + a] += de * d[a] / r;
+                gradient[3 * i + a] -= de * d[a] / r;
+            }
+        }
+    }
+    (energy, gradient, bound)
+}
+
+/// `(V, V′, Σ|force pieces|)` of one pair at distance `r`, straight from the formulas.
+fn pair(form: Electrostatics, p: LjPair, qq: f64, r: f64) -> (f64, f64, f64) {
+    let rc = CUTOFF;
+    let mut e = p.c12 / r.powi(12) - p.c6 / r.powi(6) - p.shift;
+    let mut de = -12.0 * p.c12 / r.powi(13) + 6.0 * p.c6 / r.powi(7);
+    let mut pieces = 12.0 * p.c12 / r.powi(13) + 6.0 * p.c6 / r.powi(7);
+    match form {
+        Electrostatics::DampedShiftedForce { alpha } => {
+            let erfc = libm::erfc;
+            let g = 2.0 * alpha / std::f64::consts::PI.sqrt();
+            let fshift = erfc(alpha * rc) / (rc * rc) + g * (-alpha * alpha * rc * rc).exp() / rc;
+            e += qq * (erfc(alpha * r) / r - erfc(alpha * rc) / rc + (r - rc) * fshift);
+            let near = erfc(alpha * r) / (r * r) + g * (-alpha * alpha * r * r).exp() / r;
+            de += qq * (fshift - near);
+            pieces += qq.abs() * (near + fshift);
+        }
+        Electrostatics::ReactionField { dielectric } => {
+            let k = (dielectric - 1.0) / ((2.0 * dielectric + 1.0) * rc.powi(3));
+            e += qq * (1.0 / r + k * r * r - (1.0 / rc + k * rc * rc));
+            de += qq * (-1.0 / (r * r) + 2.0 * k * r);
+            pieces += qq.abs() * (1.0 / (r * r) + 2.0 * k * r);
+        }
+        Electrostatics::Plain => {
+            e += qq / r;
+            de -= qq / (r * r);
+            pieces += qq.abs() / (r * r);
+        }
+        Electrostatics::None => {}
+    }
+    (e, de, pieces)
+}
+
+#[test]
+fn double_is_the_brute_force_sum_and_mixed_is_within_its_round_off() {
+    let mut rng = TestRng::new(72);
+    for factored in [true, false] {
+        for form in FORMS {
+            let side = 14.0;
+            let q = atoms(150, side, &mut rng);
+            let spec = spec(150, side, form, factored, &mut rng);
+            let (energy, gradient, bound) = brute_force_with_bound(&spec, &q);
+            let term = Nonbonded::new(spec, &q).unwrap();
+            let label = format!("{form:?} factored {factored}");
+            let (g, e) = gradient_and_energy(&term, &q);
+            let scale = max_abs(&gradient).max(1.0);
+            let error = max_abs_difference(&g, &gradient);
+            assert!(error <= 1e-9 * scale, "{label}: double off by {error:e}");
+            assert!(
+                (e - energy).abs() <= 1e-9 * energy.abs().max(1.0),
+                "{label}: {e} vs {energy}"
+            );
+            // The term's own brute force (used by the run test below) is the same sum.
+            let own = term.brute_force(&q);
+            assert!(
+                max_abs_difference(&own.gradient, &gradient) <= 1e-9 * scale,
+                "{label}"
+            );
+            term.set_precision(Precision::Mixed);
+            let (g, _) = gradient_and_energy(&term, &q);
+            for (atom, b) in bound.iter().enumerate() {
+                for a in 0..3 {
+                    let k = 3 * atom + a;
+                    let off = (g[k] - gradient[k]).abs();
+                    assert!(
+                        off <= *b,
+                        "{label}: mixed atom {atom} off by {off:e} > {b:e}"
+                    );
+                }
+            }
+            // Mixed differs from double (else this test checks nothing about f32 lanes).
+            assert_ne!(
+                bits(&g),
+                bits(&gradient),
+                "{label}: mixed gave double's bits"
+            );
+        }
+    }
+}
+
+fn nonbonded(scene: &Scene) -> &Nonbonded {
+    scene
+        .system
+        .forces
+        .terms()
+        .iter()
+        .find_map(|t| t.term.as_any().and_then(|a| a.downcast_ref::<Nonbonded>()))
+        .expect("the scene has a non-bonded term")
+}
+
+/// At every outer step of an impulse run (the steps at which the slow forces are taken),
+/// the term's gradient is the brute-force sum and its pruned list holds exactly the pairs
+/// within the cutoff. Smaller list buffers than the scene's (outer 1 Å, inner 0.3 Å) make
+/// rebuilds and prunings frequent, so the run crosses many of each.
+#[test]
+fn the_buffered_list_misses_no_pair_at_any_step_of_a_run() {
+    let mut scene = load_scene(Path::new("systems/water-box/scene.toml"), &[]).unwrap();
+    nonbonded(&scene).set_list_buffers(1.0, 0.3);
+    let mut integrator = common::method("impulse", 3.0, Some(6));
+    integrator.setup(&mut scene.system).unwrap();
+    for step in 0..120 {
+        integrator.step(&mut scene.system).unwrap();
+        let q = scene.system.state.q.clone();
+        let term = nonbonded(&scene);
+        let mut g = vec![0.0; q.len()];
+        term.add_gradient(&q, &mut g);
+        let reference = term.brute_force(&q);
+        assert_eq!(
+            term.listed_pairs_within_cutoff(),
+            reference.pairs,
+            "step {step}: pairs within the cutoff"
+        );
+        let error = max_abs_difference(&g, &reference.gradient);
+        let scale = max_abs(&reference.gradient).max(1.0);
+        assert!(
+            error <= 1e-9 * scale,
+            "step {step}: gradient off by {error:e}"
+        );
+    }
+    let counts = nonbonded(&scene).list_counts();
+    assert!(
+        counts.builds >= 4 && counts.prunes >= counts.builds + 10,
+        "too few rebuilds or prunings to test them: {counts:?}"
+    );
+}
+
+/// Gradient at the start and state after 10 impulse steps of the 1728-water box (5184
+/// atoms: 8 chunks, parallel search, kernel and reduction).
+fn water1728(threads: usize, precision: Precision) -> (Vec<u64>, Vec<u64>) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let mut scene = load_scene(Path::new("systems/water-box-1728/scene.toml"), &[]).unwrap();
+        assert_eq!(scene.system.forces.set_precision(precision), 1);
+        let q = scene.system.state.q.clone();
+        let mut g = vec![0.0; q.len()];
+        scene.system.forces.gradient(1, &q, &mut g);
+        let mut integrator = common::method("impulse", 4.0, Some(8));
+        integrator.setup(&mut scene.system).unwrap();
+        for _ in 0..10 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        (bits(&g), bits(&scene.system.state.q))
+    })
+}
+
+#[test]
+fn the_1728_water_box_gives_the_same_bits_on_one_and_two_threads() {
+    for precision in [Precision::Double, Precision::Mixed] {
+        let one = water1728(1, precision);
+        let two = water1728(2, precision);
+        assert!(one.0 == two.0, "{precision:?}: forces differ");
+        assert!(
+            one.1 == two.1,
+            "{precision:?}: positions after 10 steps differ"
+        );
+    }
+}
