@@ -253,6 +253,8 @@ pub(crate) struct Model {
     n_types: usize,
     types: Vec<u32>,
     lj: Vec<LjPair>,
+    /// Whether a type has Lennard-Jones with any type.
+    has_lj: Vec<bool>,
     /// `q_i √k_e`.
     scaled_charges: Vec<f64>,
     period: [f64; 3],
@@ -281,10 +283,12 @@ impl Model {
         self.typed_energy_force(self.lj(i, j), qq, s)
     }
 
-    /// The Lennard-Jones coefficients of types `a`, `b`.
+    /// The Lennard-Jones coefficients of type `a` with every type, or `None` when they are
+    /// all zero.
     #[inline(always)]
-    pub fn lj_types(&self, a: u32, b: u32) -> LjPair {
-        self.lj[a as usize * self.n_types + b as usize]
+    pub fn lj_row(&self, a: u32) -> Option<&[LjPair]> {
+        let row = &self.lj[a as usize * self.n_types..(a as usize + 1) * self.n_types];
+        self.has_lj[a as usize].then_some(row)
     }
 
     /// `(V, −V′/r)` of a pair with coefficients `p` and `k_e q_i q_j = qq` at `r² = s`.
@@ -303,6 +307,19 @@ impl Model {
             force += f;
         }
         (energy, force)
+    }
+
+    /// `(V, −V′/r)` of the Coulomb form for a block of pairs.
+    #[inline(always)]
+    pub fn coulomb_block(
+        &self,
+        qq: &[f64],
+        s: &[f64],
+        inv_r: &[f64],
+        energy: &mut [f64],
+        force: &mut [f64],
+    ) {
+        self.coulomb.energy_force_block(qq, s, inv_r, energy, force);
     }
 
     /// The periodic lengths (0 along an open axis) and the shortest of them (∞ for none).
@@ -390,6 +407,8 @@ struct Workspace {
     /// By molecule: `[x, y, z, q√k_e]` per atom in molecule order, each atom at the image
     /// nearest its reference atom (molecules made whole).
     packed: Vec<[f64; 4]>,
+    /// One scratch per chunk for the whole-molecule loop.
+    scratch: Vec<kernels::Scratch>,
     /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
     buffers: Vec<Vec<f64>>,
     energies: Vec<f64>,
@@ -488,6 +507,13 @@ impl ShortRange {
             n_types,
             types: spec.types.clone(),
             lj: spec.lj.clone(),
+            has_lj: (0..n_types)
+                .map(|a| {
+                    spec.lj[a * n_types..(a + 1) * n_types]
+                        .iter()
+                        .any(|p| p.c12 != 0.0 || p.c6 != 0.0 || p.shift != 0.0)
+                })
+                .collect(),
             scaled_charges,
             period,
             inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
@@ -526,6 +552,7 @@ impl ShortRange {
                     spec.box_lengths,
                 ),
                 packed: vec![[0.0; 4]; if split.by == SwitchBy::Molecule { n } else { 0 }],
+                scratch: (0..chunks).map(|_| kernels::Scratch::default()).collect(),
                 buffers: vec![vec![0.0; 3 * n]; chunks],
                 energies: vec![0.0; chunks],
                 cached_q: vec![f64::NAN; 3 * n],
@@ -617,6 +644,28 @@ impl ShortRange {
             SwitchBy::AtomPair => search.pairs.len(),
         };
         self.listed_atom_pairs.store(listed, Ordering::Relaxed);
+        if self.by == SwitchBy::Molecule {
+            let (partners, atoms) = self.largest_row(&workspace.search.pairs);
+            for scratch in &mut workspace.scratch {
+                scratch.reserve(partners, atoms);
+            }
+        }
+    }
+
+    /// The most partner molecules and partner atoms of one row molecule in `pairs`.
+    fn largest_row(&self, pairs: &[[u32; 2]]) -> (usize, usize) {
+        let (mut partners, mut atoms) = (0, 0);
+        let mut row = (u32::MAX, 0, 0);
+        for &[a, b] in pairs {
+            if a != row.0 {
+                row = (a, 0, 0);
+            }
+            row.1 += 1;
+            row.2 += self.molecules.atoms(b as usize).len();
+            partners = partners.max(row.1);
+            atoms = atoms.max(row.2);
+        }
+        (partners, atoms)
     }
 
     /// One evaluation into the chunk buffers; returns the energy (0 for a Hessian-vector
@@ -627,6 +676,7 @@ impl ShortRange {
         let Workspace {
             search,
             packed,
+            scratch,
             buffers,
             energies,
             ..
@@ -634,21 +684,27 @@ impl ShortRange {
         let pairs: &[[u32; 2]] = &search.pairs;
         let packed = whole.then_some(&packed[..]);
         let chunks = self.chunks;
-        let work = |(c, buffer): (usize, &mut Vec<f64>)| -> f64 {
+        let work = |((c, buffer), scratch): ((usize, &mut Vec<f64>), &mut kernels::Scratch)| {
             let part = &pairs[c * pairs.len() / chunks..(c + 1) * pairs.len() / chunks];
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
             }
-            self.evaluate(q, mode, part, self.by, packed, buffer)
+            self.evaluate(q, mode, part, self.by, packed, scratch, buffer)
         };
         if chunks > 1 {
             buffers
                 .par_iter_mut()
                 .enumerate()
+                .zip(scratch.par_iter_mut())
                 .zip(energies.par_iter_mut())
                 .for_each(|(chunk, energy)| *energy = work(chunk));
         } else {
-            for (chunk, energy) in buffers.iter_mut().enumerate().zip(energies.iter_mut()) {
+            for (chunk, energy) in buffers
+                .iter_mut()
+                .enumerate()
+                .zip(scratch.iter_mut())
+                .zip(energies.iter_mut())
+            {
                 *energy = work(chunk);
             }
         }
@@ -659,6 +715,7 @@ impl ShortRange {
             &self.intramolecular,
             SwitchBy::AtomPair,
             None,
+            &mut scratch[0],
             &mut buffers[0],
         );
         energies.iter().sum()
@@ -708,16 +765,17 @@ impl ShortRange {
         part: &[[u32; 2]],
         by: SwitchBy,
         packed: Option<&[[f64; 4]]>,
+        scratch: &mut kernels::Scratch,
         buffer: &mut [f64],
     ) -> f64 {
         #[cfg(target_arch = "x86_64")]
         {
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the processor supports AVX2, checked just above.
-                return unsafe { self.evaluate_avx2(q, mode, part, by, packed, buffer) };
+                return unsafe { self.evaluate_avx2(q, mode, part, by, packed, scratch, buffer) };
             }
         }
-        self.evaluate_body(q, mode, part, by, packed, buffer)
+        self.evaluate_body(q, mode, part, by, packed, scratch, buffer)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -729,9 +787,10 @@ impl ShortRange {
         part: &[[u32; 2]],
         by: SwitchBy,
         packed: Option<&[[f64; 4]]>,
+        scratch: &mut kernels::Scratch,
         buffer: &mut [f64],
     ) -> f64 {
-        self.evaluate_body(q, mode, part, by, packed, buffer)
+        self.evaluate_body(q, mode, part, by, packed, scratch, buffer)
     }
 
     #[inline(always)]
@@ -742,15 +801,16 @@ impl ShortRange {
         part: &[[u32; 2]],
         by: SwitchBy,
         packed: Option<&[[f64; 4]]>,
+        scratch: &mut kernels::Scratch,
         buffer: &mut [f64],
     ) -> f64 {
         use kernels::*;
         match (mode, by, packed) {
             (Mode::Energy, SwitchBy::Molecule, Some(x)) => {
-                whole_molecule_pairs::<false>(self, x, part, buffer)
+                whole_molecule_rows::<false>(self, x, part, scratch, buffer)
             }
             (Mode::Gradient, SwitchBy::Molecule, Some(x)) => {
-                whole_molecule_pairs::<true>(self, x, part, buffer)
+                whole_molecule_rows::<true>(self, x, part, scratch, buffer)
             }
             (Mode::Energy, SwitchBy::Molecule, None) => {
                 molecule_pairs::<false>(self, q, part, buffer)

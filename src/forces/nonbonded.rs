@@ -283,6 +283,42 @@ impl CoulombPair {
         }
     }
 
+    /// `(V, −V′/r)` of a block of pairs, `energy[t]`, `force[t]` from `charge_product[t]`,
+    /// `s[t] = r²` and `inv_r[t]`: one dispatch on the form for the whole block, so the loop
+    /// vectorises.
+    #[inline(always)]
+    pub fn energy_force_block(
+        &self,
+        charge_product: &[f64],
+        s: &[f64],
+        inv_r: &[f64],
+        energy: &mut [f64],
+        force: &mut [f64],
+    ) {
+        #[inline(always)]
+        fn block<C: CoulombForm>(
+            c: C,
+            qq: &[f64],
+            s: &[f64],
+            inv_r: &[f64],
+            energy: &mut [f64],
+            force: &mut [f64],
+        ) {
+            let n = qq.len();
+            let (s, inv_r) = (&s[..n], &inv_r[..n]);
+            let (energy, force) = (&mut energy[..n], &mut force[..n]);
+            for t in 0..n {
+                (energy[t], force[t]) = c.energy_force(qq[t], s[t], inv_r[t]);
+            }
+        }
+        match self.0 {
+            Kernel::Plain(c) => block(c, charge_product, s, inv_r, energy, force),
+            Kernel::ShiftedForce(c) => block(c, charge_product, s, inv_r, energy, force),
+            Kernel::Damped(c) => block(c, charge_product, s, inv_r, energy, force),
+            Kernel::ReactionField(c) => block(c, charge_product, s, inv_r, energy, force),
+        }
+    }
+
     /// `(V, V′, V″)` of a pair at distance `r`.
     pub fn derivatives(&self, charge_product: f64, r: f64) -> (f64, f64, f64) {
         match self.0 {

@@ -3,7 +3,7 @@
 //! by atom pair, each pair is switched on its own distance. Gradients and Hessian-vector
 //! products go into one chunk's buffer.
 
-use super::ShortRange;
+use super::{Model, ShortRange};
 
 #[inline(always)]
 fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -252,78 +252,323 @@ pub(super) fn energy_parts(
     parts
 }
 
+/// Scratch of one chunk for [`whole_molecule_rows`]: the partner molecules of one row
+/// molecule inside `r_out`, and their atoms laid out for a branch-free loop.
+#[derive(Default)]
+pub(super) struct Scratch {
+    partner_count: usize,
+    /// Per partner molecule: the reference displacement, `R`, `S`, `S′`, its energy sum.
+    partner: Vec<u32>,
+    partner_d: Vec<[f64; 3]>,
+    partner_r: Vec<f64>,
+    partner_s: Vec<f64>,
+    partner_s1: Vec<f64>,
+    /// Where each partner's atoms start among the partner atoms (one more entry: the end).
+    partner_start: Vec<u32>,
+    /// Per partner atom: position (shifted to the row molecule's image), scaled charge,
+    /// type, global index, switch weight.
+    x: [Vec<f64>; 3],
+    charge: Vec<f64>,
+    kind: Vec<u32>,
+    atom: Vec<u32>,
+    weight: Vec<f64>,
+    /// Per pair of the current row atom: LJ coefficients, displacement, energy, weighted
+    /// force factor.
+    c12: Vec<f64>,
+    c6: Vec<f64>,
+    lj_shift: Vec<f64>,
+    d: [Vec<f64>; 3],
+    r2: Vec<f64>,
+    inv_r: Vec<f64>,
+    qq: Vec<f64>,
+    coulomb_energy: Vec<f64>,
+    coulomb_force: Vec<f64>,
+    energy: Vec<f64>,
+    force: Vec<f64>,
+    /// Per partner atom, summed over the row molecule's atoms: pair energy and gradient.
+    energy_sum: Vec<f64>,
+    gradient_sum: [Vec<f64>; 3],
+}
+
+impl Scratch {
+    /// Room for `partners` molecules and `atoms` atoms per row (25 % more, so later list
+    /// builds rarely grow it).
+    pub(super) fn reserve(&mut self, partners: usize, atoms: usize) {
+        let grow = |n: usize| n + n / 4;
+        if self.partner.len() < partners {
+            let n = grow(partners);
+            self.partner.resize(n, 0);
+            self.partner_start.resize(n + 1, 0);
+            self.partner_d.resize(n, [0.0; 3]);
+            for v in [
+                &mut self.partner_r,
+                &mut self.partner_s,
+                &mut self.partner_s1,
+            ] {
+                v.resize(n, 0.0);
+            }
+        }
+        if self.charge.len() < atoms {
+            let n = grow(atoms);
+            for v in [&mut self.kind, &mut self.atom] {
+                v.resize(n, 0);
+            }
+            for v in self
+                .x
+                .iter_mut()
+                .chain(&mut self.d)
+                .chain(&mut self.gradient_sum)
+            {
+                v.resize(n, 0.0);
+            }
+            for v in [
+                &mut self.charge,
+                &mut self.weight,
+                &mut self.c12,
+                &mut self.c6,
+                &mut self.lj_shift,
+                &mut self.r2,
+                &mut self.inv_r,
+                &mut self.qq,
+                &mut self.coulomb_energy,
+                &mut self.coulomb_force,
+                &mut self.energy,
+                &mut self.force,
+                &mut self.energy_sum,
+            ] {
+                v.resize(n, 0.0);
+            }
+        }
+    }
+}
+
 /// Molecule pairs over whole molecules (`packed`: `[x, y, z, q√k_e]` in molecule order,
-/// each atom at the image nearest its reference): one image shift per molecule pair, the
-/// forces on the first molecule's atoms summed locally.
+/// each atom at the image nearest its reference), row by row: each run of list entries
+/// with the same first molecule is one row ([`whole_molecule_row`]).
 #[inline(always)]
-pub(super) fn whole_molecule_pairs<const GRADIENT: bool>(
+pub(super) fn whole_molecule_rows<const GRADIENT: bool>(
     short: &ShortRange,
     packed: &[[f64; 4]],
     pairs: &[[u32; 2]],
+    scratch: &mut Scratch,
+    buffer: &mut [f64],
+) -> f64 {
+    let mut energy = 0.0;
+    let mut start = 0;
+    while start < pairs.len() {
+        let a = pairs[start][0];
+        let end = start + pairs[start..].iter().take_while(|p| p[0] == a).count();
+        energy += whole_molecule_row::<GRADIENT>(
+            short,
+            packed,
+            a as usize,
+            &pairs[start..end],
+            scratch,
+            buffer,
+        );
+        start = end;
+    }
+    energy
+}
+
+/// One row molecule `a` against its listed partners: gather the partners inside `r_out`
+/// and their atoms; for each atom of `a` one branch-free pass over all partner atoms (the
+/// cutoff is a 0/1 factor, so it vectorises) that adds each pair's energy and gradient to
+/// the partner atom's sums; then the sums per partner molecule, the scatter of the partner
+/// atoms' forces (once per row molecule), and the switch's force on the reference atoms.
+#[inline(always)]
+fn whole_molecule_row<const GRADIENT: bool>(
+    short: &ShortRange,
+    packed: &[[f64; 4]],
+    a: usize,
+    group: &[[u32; 2]],
+    sc: &mut Scratch,
     buffer: &mut [f64],
 ) -> f64 {
     let model = &short.model;
     let molecules = &short.molecules;
-    let r_out2 = short.switch.r_out() * short.switch.r_out();
-    let rc2 = model.cutoff_squared;
+    let n = gather_partners(short, packed, a, group, sc);
+    let partners = sc.partner_count;
+    if partners == 0 {
+        return 0.0;
+    }
+    sc.energy_sum[..n].fill(0.0);
+    for g in &mut sc.gradient_sum {
+        g[..n].fill(0.0);
+    }
+    for k in molecules.start[a] as usize..molecules.start[a + 1] as usize {
+        // Atoms of a type without Lennard-Jones (water's H) skip its gather and arithmetic.
+        match model.lj_row(molecules.types[k]) {
+            Some(row) => {
+                let kind = &sc.kind[..n];
+                let (c12, c6) = (&mut sc.c12[..n], &mut sc.c6[..n]);
+                let lj_shift = &mut sc.lj_shift[..n];
+                for t in 0..n {
+                    let p = row[kind[t] as usize];
+                    (c12[t], c6[t], lj_shift[t]) = (p.c12, p.c6, p.shift);
+                }
+                pair_block::<true>(model, packed[k], n, sc);
+            }
+            None => pair_block::<false>(model, packed[k], n, sc),
+        }
+        let gi = accumulate::<GRADIENT>(sc, n);
+        if GRADIENT {
+            let i = molecules.atoms[k] as usize;
+            let out = &mut buffer[3 * i..3 * i + 3];
+            for c in 0..3 {
+                out[c] += gi[c];
+            }
+        }
+    }
     let mut energy = 0.0;
-    for &[a, b] in pairs {
-        let (a, b) = (a as usize, b as usize);
-        let (ka, kb) = (
-            molecules.reference_slot[a] as usize,
-            molecules.reference_slot[b] as usize,
-        );
-        let raw: [f64; 3] = std::array::from_fn(|k| packed[kb][k] - packed[ka][k]);
+    let reference_a = molecules.reference[a] as usize;
+    for p in 0..partners {
+        let slots = sc.partner_start[p] as usize..sc.partner_start[p + 1] as usize;
+        let pair_energy: f64 = sc.energy_sum[slots.clone()].iter().sum();
+        if GRADIENT {
+            let [gx, gy, gz] = &sc.gradient_sum;
+            let sums = gx[slots.clone()]
+                .iter()
+                .zip(&gy[slots.clone()])
+                .zip(&gz[slots.clone()]);
+            for (&j, ((x, y), z)) in sc.atom[slots].iter().zip(sums) {
+                let out = &mut buffer[3 * j as usize..3 * j as usize + 3];
+                out[0] += x;
+                out[1] += y;
+                out[2] += z;
+            }
+        }
+        energy += sc.partner_s[p] * pair_energy;
+        if GRADIENT && sc.partner_s1[p] != 0.0 {
+            let k = pair_energy * sc.partner_s1[p] / sc.partner_r[p];
+            let b = sc.partner[p] as usize;
+            let reference_b = molecules.reference[b] as usize;
+            add_pair(
+                buffer,
+                reference_a,
+                reference_b,
+                sc.partner_d[p].map(|x| k * x),
+            );
+        }
+    }
+    energy
+}
+
+/// The pairs of one row atom into the partner atoms' sums (vectorised: no reduction across
+/// partners); returns the row atom's gradient `−Σ_t g_t` (summed in order).
+#[inline(always)]
+fn accumulate<const GRADIENT: bool>(sc: &mut Scratch, n: usize) -> [f64; 3] {
+    let (energy, energy_sum) = (&sc.energy[..n], &mut sc.energy_sum[..n]);
+    for t in 0..n {
+        energy_sum[t] += energy[t];
+    }
+    let mut gi = [0.0; 3];
+    if !GRADIENT {
+        return gi;
+    }
+    let force = &sc.force[..n];
+    for c in 0..3 {
+        // ∂V/∂x_j = V′ d/r = −f d, weighted by S (in `force`); stored in `d` for the sum.
+        let (d, sum) = (&mut sc.d[c][..n], &mut sc.gradient_sum[c][..n]);
+        for t in 0..n {
+            d[t] *= -force[t];
+            sum[t] += d[t];
+        }
+        gi[c] = -d.iter().sum::<f64>();
+    }
+    gi
+}
+
+/// The partners of row molecule `a` inside `r_out` into `sc` (count in `partner_count`)
+/// and their atoms, shifted to `a`'s image; returns the number of partner atoms.
+#[inline(always)]
+fn gather_partners(
+    short: &ShortRange,
+    packed: &[[f64; 4]],
+    a: usize,
+    group: &[[u32; 2]],
+    sc: &mut Scratch,
+) -> usize {
+    let model = &short.model;
+    let molecules = &short.molecules;
+    let r_out2 = short.switch.r_out() * short.switch.r_out();
+    let xa = packed[molecules.reference_slot[a] as usize];
+    let (mut partners, mut atoms) = (0, 0);
+    for &[_, b] in group {
+        let b = b as usize;
+        let xb = packed[molecules.reference_slot[b] as usize];
+        let raw = [xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]];
         let d = model.image(raw);
         let big_r2 = dot(&d, &d);
         if big_r2 >= r_out2 {
             continue;
         }
-        let shift: [f64; 3] = std::array::from_fn(|k| d[k] - raw[k]);
         let big_r = big_r2.sqrt();
         let (s, s1) = short.switch.value_slope(big_r);
-        let atoms_b = molecules.start[b] as usize..molecules.start[b + 1] as usize;
-        let mut pair_energy = 0.0;
-        for k in molecules.start[a] as usize..molecules.start[a + 1] as usize {
-            let xi = packed[k];
-            let type_i = molecules.types[k];
-            let mut gi = [0.0; 3];
-            for l in atoms_b.clone() {
-                let xj = packed[l];
-                let dij: [f64; 3] = std::array::from_fn(|c| (xj[c] + shift[c]) - xi[c]);
-                let r2 = dot(&dij, &dij);
-                if r2 >= rc2 {
-                    continue;
-                }
-                let p = model.lj_types(type_i, molecules.types[l]);
-                let (v, f) = model.typed_energy_force(p, xi[3] * xj[3], r2);
-                pair_energy += v;
-                if GRADIENT {
-                    // ∂V/∂x_j = V′ d/r = −f d, weighted by S.
-                    let g = dij.map(|x| -s * f * x);
-                    let j = molecules.atoms[l] as usize;
-                    for c in 0..3 {
-                        buffer[3 * j + c] += g[c];
-                        gi[c] -= g[c];
-                    }
-                }
-            }
-            if GRADIENT {
-                let i = molecules.atoms[k] as usize;
-                for c in 0..3 {
-                    buffer[3 * i + c] += gi[c];
-                }
+        sc.partner[partners] = b as u32;
+        sc.partner_d[partners] = d;
+        sc.partner_r[partners] = big_r;
+        sc.partner_s[partners] = s;
+        sc.partner_s1[partners] = s1;
+        sc.partner_start[partners] = atoms as u32;
+        // The partner's atoms are contiguous in molecule order: copy them as blocks.
+        let source = molecules.start[b] as usize..molecules.start[b + 1] as usize;
+        let slots = atoms..atoms + source.len();
+        let from = &packed[source.clone()];
+        for c in 0..3 {
+            let shift = d[c] - raw[c];
+            for (x, xj) in sc.x[c][slots.clone()].iter_mut().zip(from) {
+                *x = xj[c] + shift;
             }
         }
-        energy += s * pair_energy;
-        if GRADIENT && s1 != 0.0 {
-            let k = pair_energy * s1 / big_r;
-            let (ra, rb) = (
-                molecules.reference[a] as usize,
-                molecules.reference[b] as usize,
-            );
-            add_pair(buffer, ra, rb, d.map(|x| k * x));
+        for (q, xj) in sc.charge[slots.clone()].iter_mut().zip(from) {
+            *q = xj[3];
         }
+        sc.kind[slots.clone()].copy_from_slice(&molecules.types[source.clone()]);
+        sc.atom[slots.clone()].copy_from_slice(&molecules.atoms[source]);
+        sc.weight[slots.clone()].fill(s);
+        atoms = slots.end;
+        partners += 1;
     }
-    energy
+    sc.partner_count = partners;
+    sc.partner_start[partners] = atoms as u32;
+    atoms
+}
+
+/// The pairs of one row atom at `xi` (`[x, y, z, q√k_e]`) with the `n` gathered partner
+/// atoms: energies and weighted force factors into `sc.energy`, `sc.force`, displacements
+/// into `sc.d`. Branch-free passes (the cutoff is a 0/1 factor), so they vectorise.
+#[inline(always)]
+fn pair_block<const LJ: bool>(model: &Model, xi: [f64; 4], n: usize, sc: &mut Scratch) {
+    let rc2 = model.cutoff_squared;
+    // Every slice cut to `n`, so the loops carry no bounds checks and vectorise.
+    let [dx, dy, dz] = &mut sc.d;
+    let (dx, dy, dz) = (&mut dx[..n], &mut dy[..n], &mut dz[..n]);
+    let (x, y, z) = (&sc.x[0][..n], &sc.x[1][..n], &sc.x[2][..n]);
+    let (r2, inv_r, qq) = (&mut sc.r2[..n], &mut sc.inv_r[..n], &mut sc.qq[..n]);
+    let charge = &sc.charge[..n];
+    for t in 0..n {
+        dx[t] = x[t] - xi[0];
+        dy[t] = y[t] - xi[1];
+        dz[t] = z[t] - xi[2];
+        r2[t] = dx[t] * dx[t] + dy[t] * dy[t] + dz[t] * dz[t];
+        inv_r[t] = 1.0 / r2[t].sqrt();
+        qq[t] = xi[3] * charge[t];
+    }
+    let (e_q, f_q) = (&mut sc.coulomb_energy[..n], &mut sc.coulomb_force[..n]);
+    model.coulomb_block(qq, r2, inv_r, e_q, f_q);
+    let (c12, c6, lj_shift) = (&sc.c12[..n], &sc.c6[..n], &sc.lj_shift[..n]);
+    let (weight, energy, force) = (&sc.weight[..n], &mut sc.energy[..n], &mut sc.force[..n]);
+    for t in 0..n {
+        let inside = if r2[t] < rc2 { 1.0 } else { 0.0 };
+        let (mut e, mut f) = (e_q[t], f_q[t]);
+        if LJ {
+            let inv_r2 = inv_r[t] * inv_r[t];
+            let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+            e += inv_r6 * (c12[t] * inv_r6 - c6[t]) - lj_shift[t];
+            f += inv_r2 * inv_r6 * (12.0 * c12[t] * inv_r6 - 6.0 * c6[t]);
+        }
+        energy[t] = inside * e;
+        force[t] = inside * weight[t] * f;
+    }
 }
