@@ -584,3 +584,76 @@ fn impulse_on_three_levels_gives_the_same_bits_at_one_and_two_threads() {
         "positions or momenta differ between 1 and 2 threads"
     );
 }
+
+/// Impulse on the three-level water box for `span` fs at outer step `h` (level steps 2, 2):
+/// the largest |E(t) − E(0)| over the outer steps.
+fn impulse_energy_error(h: f64, span: f64) -> f64 {
+    let mut scene = common::scene_file("systems/water-box/three-level.toml", &[]);
+    let mut settings = longstep::settings::MethodSettings::new("impulse", h);
+    settings.level_steps = Some(vec![2, 2]);
+    let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+    integrator.setup(&mut scene.system).unwrap();
+    let start = scene.system.total_energy();
+    let mut error: f64 = 0.0;
+    for _ in 0..(span / h).round() as usize {
+        integrator.step(&mut scene.system).unwrap();
+        error = error.max((scene.system.total_energy() - start).abs());
+    }
+    error
+}
+
+#[test]
+fn impulse_on_three_levels_conserves_energy_to_second_order() {
+    // Impulse is symplectic, so on a split whose forces are the gradients of its energies
+    // the energy error stays O(h²) (a modified Hamiltonian): halving every step (outer,
+    // middle, inner together) divides it by 4. A split force that is not the gradient of
+    // its energy (a missing switch term) gives an error that grows with time and does not
+    // shrink as h². Accepted: a ratio nearer 4 than 2 or 8 on a log scale, [2√2, 4√2].
+    // 60 fs, past the first remainder-list rebuild; h = 2 fs is stable (inner 0.5 fs).
+    let (coarse, fine) = (
+        impulse_energy_error(2.0, 60.0),
+        impulse_energy_error(1.0, 60.0),
+    );
+    let ratio = coarse / fine;
+    assert!(
+        (2.0 * 2f64.sqrt()..=4.0 * 2f64.sqrt()).contains(&ratio),
+        "energy error {coarse:e} at h = 2 fs, {fine:e} at 1 fs: ratio {ratio}, not ≈ 4"
+    );
+}
+
+#[test]
+fn langevin_respa_without_friction_is_impulse_on_three_levels() {
+    // langevin-respa uses the same three-level recursion as impulse: with γ = 1e-300 its O
+    // step is the identity below half an ulp, and only the drift taken as two halves
+    // differs, by ≤ 1 ulp u = ε max|q| of q per inner step (as in tests/thermostats.rs).
+    // Velocities then differ only through forces at positions that differ: per inner step
+    // δv dt ≤ (ω dt)² δq with ω dt ≈ 0.35 for the O–H stretch (period ≈ 9 fs) at
+    // dt = 0.5 fs, so over n = 12 inner steps δv dt ≤ (ω dt)² n² u/2 ≈ 9 u and
+    // δq ≤ n u + Σ δv dt: both stay below 10 n u.
+    let (h, steps, dt) = (2.0, 3, 0.5);
+    let mut finals = Vec::new();
+    let mut inverse_mass = Vec::new();
+    for method in ["impulse", "langevin-respa"] {
+        let mut scene = common::scene_file("systems/water-box/three-level.toml", &[]);
+        inverse_mass = scene.system.inverse_mass.clone();
+        let mut settings = longstep::settings::MethodSettings::new(method, h);
+        settings.level_steps = Some(vec![2, 2]);
+        settings.units = longstep::units::Units::Real;
+        settings.temperature = Some(300.0);
+        settings.friction = Some(1e-300);
+        let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+        finals.push(common::integrate(&mut scene, integrator.as_mut(), steps));
+    }
+    let ((q1, p1), (q2, p2)) = (&finals[0], &finals[1]);
+    let n = (h / dt) as usize * steps;
+    let bound = 10.0 * n as f64 * f64::EPSILON * max_abs(q1);
+    let dq = max_abs_difference(q1, q2);
+    let dv_dt = (0..p1.len())
+        .map(|i| (p1[i] - p2[i]).abs() * inverse_mass[i] * dt)
+        .fold(0.0, f64::max);
+    assert!(dq <= bound, "positions differ by {dq:e} > {bound:e}");
+    assert!(
+        dv_dt <= bound,
+        "velocities × dt differ by {dv_dt:e} > {bound:e}"
+    );
+}
