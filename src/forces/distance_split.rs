@@ -689,7 +689,8 @@ impl ShortRange {
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
             }
-            self.evaluate(q, mode, part, self.by, packed, scratch, buffer)
+            let whole = packed.map(|x| (x, scratch));
+            self.evaluate(q, mode, part, self.by, whole, buffer)
         };
         if chunks > 1 {
             buffers
@@ -715,7 +716,6 @@ impl ShortRange {
             &self.intramolecular,
             SwitchBy::AtomPair,
             None,
-            &mut scratch[0],
             &mut buffers[0],
         );
         energies.iter().sum()
@@ -755,8 +755,8 @@ impl ShortRange {
         reach < self.model.shortest_period() - self.model.cutoff_squared.sqrt()
     }
 
-    /// The pairs `part` of the list, switched `by` molecule or atom pair; `packed`: whole
-    /// molecules for the fast molecule loop. Uses AVX2 when the processor has it (the
+    /// The pairs `part` of the list, switched `by` molecule or atom pair; `whole`: whole
+    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Uses AVX2 when the processor has it (the
     /// same operations in the same order, so the same bits; `round` becomes inline).
     fn evaluate(
         &self,
@@ -764,18 +764,17 @@ impl ShortRange {
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
-        packed: Option<&[[f64; 4]]>,
-        scratch: &mut kernels::Scratch,
+        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
         buffer: &mut [f64],
     ) -> f64 {
         #[cfg(target_arch = "x86_64")]
         {
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the processor supports AVX2, checked just above.
-                return unsafe { self.evaluate_avx2(q, mode, part, by, packed, scratch, buffer) };
+                return unsafe { self.evaluate_avx2(q, mode, part, by, whole, buffer) };
             }
         }
-        self.evaluate_body(q, mode, part, by, packed, scratch, buffer)
+        self.evaluate_body(q, mode, part, by, whole, buffer)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -786,11 +785,10 @@ impl ShortRange {
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
-        packed: Option<&[[f64; 4]]>,
-        scratch: &mut kernels::Scratch,
+        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
         buffer: &mut [f64],
     ) -> f64 {
-        self.evaluate_body(q, mode, part, by, packed, scratch, buffer)
+        self.evaluate_body(q, mode, part, by, whole, buffer)
     }
 
     #[inline(always)]
@@ -800,16 +798,15 @@ impl ShortRange {
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
-        packed: Option<&[[f64; 4]]>,
-        scratch: &mut kernels::Scratch,
+        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
         buffer: &mut [f64],
     ) -> f64 {
         use kernels::*;
-        match (mode, by, packed) {
-            (Mode::Energy, SwitchBy::Molecule, Some(x)) => {
+        match (mode, by, whole) {
+            (Mode::Energy, SwitchBy::Molecule, Some((x, scratch))) => {
                 whole_molecule_rows::<false>(self, x, part, scratch, buffer)
             }
-            (Mode::Gradient, SwitchBy::Molecule, Some(x)) => {
+            (Mode::Gradient, SwitchBy::Molecule, Some((x, scratch))) => {
                 whole_molecule_rows::<true>(self, x, part, scratch, buffer)
             }
             (Mode::Energy, SwitchBy::Molecule, None) => {

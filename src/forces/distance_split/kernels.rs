@@ -396,9 +396,14 @@ fn whole_molecule_row<const GRADIENT: bool>(
     for g in &mut sc.gradient_sum {
         g[..n].fill(0.0);
     }
-    for k in molecules.start[a] as usize..molecules.start[a + 1] as usize {
+    let atoms_a = molecules.start[a] as usize..molecules.start[a + 1] as usize;
+    let row_atoms = packed[atoms_a.clone()]
+        .iter()
+        .zip(&molecules.types[atoms_a.clone()])
+        .zip(&molecules.atoms[atoms_a]);
+    for ((&xk, &type_k), &atom_k) in row_atoms {
         // Atoms of a type without Lennard-Jones (water's H) skip its gather and arithmetic.
-        match model.lj_row(molecules.types[k]) {
+        match model.lj_row(type_k) {
             Some(row) => {
                 let kind = &sc.kind[..n];
                 let (c12, c6) = (&mut sc.c12[..n], &mut sc.c6[..n]);
@@ -407,13 +412,13 @@ fn whole_molecule_row<const GRADIENT: bool>(
                     let p = row[kind[t] as usize];
                     (c12[t], c6[t], lj_shift[t]) = (p.c12, p.c6, p.shift);
                 }
-                pair_block::<true>(model, packed[k], n, sc);
+                pair_block::<true>(model, xk, n, sc);
             }
-            None => pair_block::<false>(model, packed[k], n, sc),
+            None => pair_block::<false>(model, xk, n, sc),
         }
         let gi = accumulate::<GRADIENT>(sc, n);
         if GRADIENT {
-            let i = molecules.atoms[k] as usize;
+            let i = atom_k as usize;
             let out = &mut buffer[3 * i..3 * i + 3];
             for c in 0..3 {
                 out[c] += gi[c];
@@ -467,14 +472,14 @@ fn accumulate<const GRADIENT: bool>(sc: &mut Scratch, n: usize) -> [f64; 3] {
         return gi;
     }
     let force = &sc.force[..n];
-    for c in 0..3 {
+    for (c, g) in gi.iter_mut().enumerate() {
         // ∂V/∂x_j = V′ d/r = −f d, weighted by S (in `force`); stored in `d` for the sum.
         let (d, sum) = (&mut sc.d[c][..n], &mut sc.gradient_sum[c][..n]);
         for t in 0..n {
             d[t] *= -force[t];
             sum[t] += d[t];
         }
-        gi[c] = -d.iter().sum::<f64>();
+        *g = -d.iter().sum::<f64>();
     }
     gi
 }
