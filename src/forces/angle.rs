@@ -10,6 +10,7 @@
 
 use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
+use super::scratch::{PARALLEL_MIN_INTERACTIONS, Scratch};
 use super::{
     ForceTerm, RestGeometry, Site, TermClass, add_to_site, site_position, site_vector, with_dim,
 };
@@ -26,6 +27,8 @@ pub struct HarmonicAngles {
     dim: usize,
     angles: Vec<AngleBend>,
     periodic_box: Option<PeriodicBox>,
+    /// Gradients on the end sites `i`, `k` per angle, for large systems ([`super::scratch`]).
+    scratch: Scratch<[f64; 6]>,
 }
 
 impl HarmonicAngles {
@@ -35,6 +38,7 @@ impl HarmonicAngles {
             dim,
             angles,
             periodic_box,
+            scratch: Scratch::default(),
         }
     }
 
@@ -97,12 +101,38 @@ impl HarmonicAngles {
             let (on_i, on_k) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
             let gi: [f64; D] = std::array::from_fn(|a| part(on_i[a]));
             let gk: [f64; D] = std::array::from_fn(|a| part(on_k[a]));
-            let gj: [f64; D] = std::array::from_fn(|a| -gi[a] - gk[a]);
-            add_to_site(&angle.sites[0], out, &gi);
-            add_to_site(&angle.sites[1], out, &gj);
-            add_to_site(&angle.sites[2], out, &gk);
+            add_sites(angle, out, gi, gk);
         }
     }
+
+    /// The gradient in two phases ([`super::scratch`]): the same bits as
+    /// [`HarmonicAngles::accumulate`].
+    fn gradient_two_phase<const D: usize>(&self, q: &[f64], out: &mut [f64]) {
+        let compute = |k: usize| {
+            let angle = &self.angles[k];
+            let (u, w) = self.arms::<f64, D>(angle, q, None);
+            let (on_i, on_k) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
+            let mut result = [0.0; 6];
+            result[..D].copy_from_slice(&on_i);
+            result[3..3 + D].copy_from_slice(&on_k);
+            result
+        };
+        self.scratch
+            .two_phase(self.angles.len(), compute, |k, result| {
+                let gi: [f64; D] = std::array::from_fn(|a| result[a]);
+                let gk: [f64; D] = std::array::from_fn(|a| result[3 + a]);
+                add_sites(&self.angles[k], out, gi, gk);
+            });
+    }
+}
+
+/// `out += ` the gradient of one angle: `gi`, `gk` on its end sites, `−gi − gk` on the middle.
+#[inline(always)]
+fn add_sites<const D: usize>(angle: &AngleBend, out: &mut [f64], gi: [f64; D], gk: [f64; D]) {
+    let gj: [f64; D] = std::array::from_fn(|a| -gi[a] - gk[a]);
+    add_to_site(&angle.sites[0], out, &gi);
+    add_to_site(&angle.sites[1], out, &gj);
+    add_to_site(&angle.sites[2], out, &gk);
 }
 
 #[inline(always)]
@@ -156,7 +186,12 @@ impl ForceTerm for HarmonicAngles {
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        with_dim!(self.dim, D => self.accumulate::<f64, D>(q, None, gradient, |x| x))
+        // One thread: the serial loop (the two phases give the same bits).
+        if self.angles.len() >= PARALLEL_MIN_INTERACTIONS && rayon::current_num_threads() > 1 {
+            with_dim!(self.dim, D => self.gradient_two_phase::<D>(q, gradient))
+        } else {
+            with_dim!(self.dim, D => self.accumulate::<f64, D>(q, None, gradient, |x| x))
+        }
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {

@@ -28,6 +28,7 @@ pub mod pair;
 pub mod pendulum;
 mod periodic_box;
 pub mod quartic;
+pub mod scratch;
 pub mod simd;
 pub mod spring;
 pub mod string;

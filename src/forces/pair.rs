@@ -11,6 +11,7 @@
 //! `χ`, `χ′`, `χ″` through [`PairPotential`].
 
 use super::PeriodicBox;
+use super::scratch::{PARALLEL_MIN_INTERACTIONS, Scratch};
 use super::{
     ForceTerm, RestGeometry, Site, TermClass, add_to_site, dot, site_position, site_vector,
     with_dim,
@@ -46,6 +47,8 @@ pub struct PairTerm<P> {
     dim: usize,
     pairs: Vec<Pair<P>>,
     periodic_box: Option<PeriodicBox>,
+    /// The gradient on site `b` per pair, for large systems ([`super::scratch`]).
+    scratch: Scratch<[f64; 3]>,
 }
 
 impl<P: PairPotential> PairTerm<P> {
@@ -63,6 +66,7 @@ impl<P: PairPotential> PairTerm<P> {
             dim,
             pairs,
             periodic_box,
+            scratch: Scratch::default(),
         }
     }
 
@@ -104,15 +108,35 @@ impl<P: PairPotential> PairTerm<P> {
             .sum()
     }
 
+    /// `∇_b V = 2χ′(s) d` of one pair.
+    #[inline(always)]
+    fn on_b<const D: usize>(&self, pair: &Pair<P>, q: &[f64]) -> [f64; D] {
+        let d = self.displacement::<D>(pair, q);
+        let scale = 2.0 * pair.potential.d1(dot(&d, &d));
+        std::array::from_fn(|k| scale * d[k])
+    }
+
     fn gradient_d<const D: usize>(&self, q: &[f64], gradient: &mut [f64]) {
         for pair in &self.pairs {
-            let d = self.displacement::<D>(pair, q);
-            let scale = 2.0 * pair.potential.d1(dot(&d, &d));
-            let on_b: [f64; D] = std::array::from_fn(|k| scale * d[k]);
-            let on_a: [f64; D] = std::array::from_fn(|k| -on_b[k]);
-            add_to_site(&pair.b, gradient, &on_b);
-            add_to_site(&pair.a, gradient, &on_a);
+            add_pair(pair, gradient, self.on_b::<D>(pair, q));
         }
+    }
+
+    /// The gradient in two phases ([`super::scratch`]): the same bits as
+    /// [`PairTerm::gradient_d`].
+    fn gradient_two_phase<const D: usize>(&self, q: &[f64], gradient: &mut [f64]) {
+        let compute = |k: usize| {
+            let on_b = self.on_b::<D>(&self.pairs[k], q);
+            std::array::from_fn(|a| if a < D { on_b[a] } else { 0.0 })
+        };
+        self.scratch
+            .two_phase(self.pairs.len(), compute, |k, on_b| {
+                add_pair(
+                    &self.pairs[k],
+                    gradient,
+                    std::array::from_fn::<f64, D, _>(|a| on_b[a]),
+                );
+            });
     }
 
     fn hessian_vector_d<const D: usize>(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
@@ -131,6 +155,14 @@ impl<P: PairPotential> PairTerm<P> {
     }
 }
 
+/// `gradient += ` one pair's gradient: `on_b` on site `b`, `−on_b` on site `a`.
+#[inline(always)]
+fn add_pair<P, const D: usize>(pair: &Pair<P>, gradient: &mut [f64], on_b: [f64; D]) {
+    let on_a: [f64; D] = std::array::from_fn(|k| -on_b[k]);
+    add_to_site(&pair.b, gradient, &on_b);
+    add_to_site(&pair.a, gradient, &on_a);
+}
+
 impl<P: PairPotential> ForceTerm for PairTerm<P> {
     fn kind(&self) -> &'static str {
         self.kind
@@ -145,7 +177,12 @@ impl<P: PairPotential> ForceTerm for PairTerm<P> {
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        with_dim!(self.dim, D => self.gradient_d::<D>(q, gradient))
+        // One thread: the serial loop (the two phases give the same bits).
+        if self.pairs.len() >= PARALLEL_MIN_INTERACTIONS && rayon::current_num_threads() > 1 {
+            with_dim!(self.dim, D => self.gradient_two_phase::<D>(q, gradient))
+        } else {
+            with_dim!(self.dim, D => self.gradient_d::<D>(q, gradient))
+        }
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
