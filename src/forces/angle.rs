@@ -10,7 +10,7 @@
 
 use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
-use super::scratch::{PARALLEL_MIN_INTERACTIONS, Scratch};
+use super::scratch::{Scratch, parallel};
 use super::{
     ForceTerm, RestGeometry, Site, TermClass, add_to_site, site_position, site_vector, with_dim,
 };
@@ -34,11 +34,12 @@ pub struct HarmonicAngles {
 impl HarmonicAngles {
     pub fn new(dim: usize, angles: Vec<AngleBend>, periodic_box: Option<PeriodicBox>) -> Self {
         assert!((2..=3).contains(&dim), "angles need dimension 2 or 3");
+        let scratch = Scratch::with_len(angles.len());
         HarmonicAngles {
             dim,
             angles,
             periodic_box,
-            scratch: Scratch::default(),
+            scratch,
         }
     }
 
@@ -187,7 +188,7 @@ impl ForceTerm for HarmonicAngles {
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
         // One thread: the serial loop (the two phases give the same bits).
-        if self.angles.len() >= PARALLEL_MIN_INTERACTIONS && rayon::current_num_threads() > 1 {
+        if parallel(self.angles.len()) {
             with_dim!(self.dim, D => self.gradient_two_phase::<D>(q, gradient))
         } else {
             with_dim!(self.dim, D => self.accumulate::<f64, D>(q, None, gradient, |x| x))

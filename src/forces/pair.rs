@@ -11,7 +11,7 @@
 //! `χ`, `χ′`, `χ″` through [`PairPotential`].
 
 use super::PeriodicBox;
-use super::scratch::{PARALLEL_MIN_INTERACTIONS, Scratch};
+use super::scratch::{Scratch, parallel};
 use super::{
     ForceTerm, RestGeometry, Site, TermClass, add_to_site, dot, site_position, site_vector,
     with_dim,
@@ -60,13 +60,14 @@ impl<P: PairPotential> PairTerm<P> {
         periodic_box: Option<PeriodicBox>,
     ) -> Self {
         assert!((1..=3).contains(&dim), "dimension must be 1, 2 or 3");
+        let scratch = Scratch::with_len(pairs.len());
         PairTerm {
             kind,
             class,
             dim,
             pairs,
             periodic_box,
-            scratch: Scratch::default(),
+            scratch,
         }
     }
 
@@ -178,7 +179,7 @@ impl<P: PairPotential> ForceTerm for PairTerm<P> {
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
         // One thread: the serial loop (the two phases give the same bits).
-        if self.pairs.len() >= PARALLEL_MIN_INTERACTIONS && rayon::current_num_threads() > 1 {
+        if parallel(self.pairs.len()) {
             with_dim!(self.dim, D => self.gradient_two_phase::<D>(q, gradient))
         } else {
             with_dim!(self.dim, D => self.gradient_d::<D>(q, gradient))

@@ -20,10 +20,11 @@ const TASK: usize = 256;
 #[derive(Default)]
 pub struct Scratch<T>(Mutex<Vec<T>>);
 
-impl<T> Clone for Scratch<T> {
-    /// An empty buffer: a copy of a term grows its own.
+impl<T: Copy + Default> Clone for Scratch<T> {
+    /// A buffer of the same length (its contents are overwritten before they are read).
     fn clone(&self) -> Self {
-        Scratch(Mutex::new(Vec::new()))
+        let len = self.0.lock().map_or(0, |b| b.len());
+        Scratch(Mutex::new(vec![T::default(); len]))
     }
 }
 
@@ -33,7 +34,22 @@ impl<T> std::fmt::Debug for Scratch<T> {
     }
 }
 
+/// Whether a term of `n` interactions takes the two phases: from the threshold on, on a
+/// worker of a rayon pool with more than one thread (outside a pool, rayon's hand-over of
+/// the work to its global pool allocates now and then: runs step inside a pool).
+pub fn parallel(n: usize) -> bool {
+    n >= PARALLEL_MIN_INTERACTIONS
+        && rayon::current_thread_index().is_some()
+        && rayon::current_num_threads() > 1
+}
+
 impl<T: Copy + Default + Send> Scratch<T> {
+    /// A buffer for `n` interactions, sized now so that no step allocates.
+    pub fn with_len(n: usize) -> Self {
+        let len = if n >= PARALLEL_MIN_INTERACTIONS { n } else { 0 };
+        Scratch(Mutex::new(vec![T::default(); len]))
+    }
+
     /// `compute(k)` for every interaction `k < n` in parallel, then `apply(k, result)` for
     /// each in order on this thread.
     pub fn two_phase(
