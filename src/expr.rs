@@ -24,6 +24,7 @@ pub fn evaluate_with_units(
     let mut parser = Parser {
         tokens: tokenize(text)?,
         position: 0,
+        depth: 0,
         parameters,
         units,
     };
@@ -143,9 +144,13 @@ fn constant(name: &str) -> Option<f64> {
     }
 }
 
+/// Deepest nesting an expression may have; far beyond any formula, far within the stack.
+const MAX_DEPTH: usize = 200;
+
 struct Parser<'a> {
     tokens: Vec<Token>,
     position: usize,
+    depth: usize,
     parameters: &'a BTreeMap<String, f64>,
     units: &'a [(&'a str, f64)],
 }
@@ -181,7 +186,21 @@ impl Parser<'_> {
         Ok(value)
     }
 
+    /// Every nesting (parentheses, calls, signs, powers) passes through here: the depth
+    /// is bounded so that a deeply nested expression is an error, not a stack overflow.
     fn unary(&mut self) -> Result<f64, String> {
+        if self.depth >= MAX_DEPTH {
+            return Err(format!(
+                "the expression nests deeper than {MAX_DEPTH} levels (parentheses, signs, powers)"
+            ));
+        }
+        self.depth += 1;
+        let value = self.unary_inner();
+        self.depth -= 1;
+        value
+    }
+
+    fn unary_inner(&mut self) -> Result<f64, String> {
         match self.peek() {
             Some(Token::Operator('-')) => {
                 self.position += 1;

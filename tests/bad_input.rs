@@ -219,3 +219,100 @@ fn no_argument_prints_help() {
     assert!(text.contains("Usage: longstep <COMMAND>"), "{text}");
     assert!(Path::new(env!("CARGO_BIN_EXE_longstep")).exists());
 }
+
+/// Run `longstep check` on scene text written to a scratch file.
+fn check_text(name: &str, text: &str) -> (i32, String) {
+    let dir = scratch_dir(name);
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    let (code, _, stderr) = run(&["check", path.to_str().unwrap()]);
+    (code, stderr)
+}
+
+#[test]
+fn deep_nesting_is_an_error_not_a_stack_overflow() {
+    let tail = "[[particles]]\nmass = \"a\"\nposition = [0]\n[[particles]]\nmass = 1\n\
+                position = [1]\n[[terms]]\ntype = \"spring\"\nbetween = [0, 1]\nstiffness = 1\n";
+    // 100 000 nested parentheses: the recursive parser would overflow the main stack.
+    let deep = format!("{}1{}", "(".repeat(100_000), ")".repeat(100_000));
+    let scene =
+        format!("version = 1\nname = \"deep\"\ndim = 1\n[parameters]\na = \"{deep}\"\n{tail}");
+    let (code, stderr) = check_text("deep-parentheses", &scene);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("nests deeper than 200 levels"), "{stderr}");
+    // So do 100 000 signs.
+    let signs = format!("{}1", "-".repeat(100_000));
+    let scene =
+        format!("version = 1\nname = \"deep\"\ndim = 1\n[parameters]\na = \"{signs}\"\n{tail}");
+    let (code, stderr) = check_text("deep-signs", &scene);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("nests deeper than 200 levels"), "{stderr}");
+    // A chain of 100 000 parameters, each referring to the next.
+    let mut chain = String::from("a = \"p1\"\n");
+    for k in 1..100_000 {
+        chain += &format!("p{k} = \"p{} + 1\"\n", k + 1);
+    }
+    chain += "p100000 = 1\n";
+    let scene = format!("version = 1\nname = \"deep\"\ndim = 1\n[parameters]\n{chain}{tail}");
+    let (code, stderr) = check_text("deep-chain", &scene);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("chain of more than 1000 parameters"),
+        "{stderr}"
+    );
+}
+
+/// `check` validates the scene's `[run]` table (item 9), with the file and the table's line;
+/// `run` blames the table for what the table alone gives.
+#[test]
+fn check_validates_the_run_table_with_file_and_line() {
+    let base = "version = 1\nname = \"r\"\ndim = 1\n[[particles]]\nmass = 1\nposition = [0]\n\
+                [[particles]]\nmass = 1\nposition = [1]\n[[terms]]\ntype = \"spring\"\n\
+                between = [0, 1]\nstiffness = 1\n[run]\n";
+    let cases = [
+        ("method = \"nope\"", "unknown method \"nope\""),
+        ("h = 0", "outer step h must be positive"),
+        ("t_end = -5", "end time t_end must be positive"),
+        ("inner_steps = 0", "inner steps must be at least 1"),
+    ];
+    for (k, (line, message)) in cases.iter().enumerate() {
+        let (code, stderr) = check_text(&format!("run-table-{k}"), &format!("{base}{line}\n"));
+        assert_eq!(code, 1, "{line}: {stderr}");
+        assert!(
+            stderr.contains("scene.toml:14: in [run]: ") && stderr.contains(message),
+            "{line}: {stderr}"
+        );
+    }
+    // The command line's own bad value is not blamed on the table.
+    let dir = scratch_dir("run-table-cli");
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, format!("{base}t_end = 1\n")).unwrap();
+    let (code, _, stderr) = run(&[
+        "run",
+        path.to_str().unwrap(),
+        "--h",
+        "0",
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        !stderr.contains("[run]") && stderr.contains("outer step h must be positive"),
+        "{stderr}"
+    );
+    // The table's bad value with the command line silent is blamed on the table.
+    std::fs::write(&path, format!("{base}t_end = -1\n")).unwrap();
+    let (code, _, stderr) = run(&[
+        "run",
+        path.to_str().unwrap(),
+        "--h",
+        "0.1",
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("scene.toml:14: in [run]: end time t_end"),
+        "{stderr}"
+    );
+}

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators;
 use crate::io::energy_table::column_matches;
-use crate::io::scene::load_scene;
+use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
 use crate::run::{
@@ -104,7 +104,12 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let settings = scene
         .run
         .overridden_by(&args.run)
-        .resolve_with_units(&scene.parameters, scene.units)?;
+        .resolve_with_units(&scene.parameters, scene.units)
+        .and_then(|settings| {
+            integrators::build(&settings, &mut Vec::new())?;
+            Ok(settings)
+        })
+        .map_err(|e| blame_run_table(&scene, e))?;
     let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
@@ -259,8 +264,49 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
     summary.drift = Some(report);
 }
 
+/// Check the scene's own `[run]` table as a run would use it; a missing `h` (it may come
+/// from the command line) is stood in for by the inner step or 1.
+fn check_run_table(scene: &Scene) -> Result<()> {
+    let mut spec = scene.run.clone();
+    if spec.h.is_none() {
+        spec.h = Some(spec.dt.clone().unwrap_or(Value::Number(1.0)));
+    }
+    let settings = spec
+        .resolve_with_units(&scene.parameters, scene.units)
+        .map_err(|e| run_table_error(scene, e))?;
+    integrators::build(&settings, &mut Vec::new()).map_err(|e| run_table_error(scene, e))?;
+    Ok(())
+}
+
+/// An error of the merged run settings, located at the scene's `[run]` table when the table
+/// alone gives it (when the command line is not to blame).
+fn blame_run_table(scene: &Scene, error: Error) -> Error {
+    match check_run_table(scene) {
+        Err(located) if located.to_string().ends_with(&error.to_string()) => located,
+        _ => error,
+    }
+}
+
+/// `path:line: in [run]: message`, the line of the table's header.
+fn run_table_error(scene: &Scene, error: Error) -> Error {
+    let line = std::fs::read_to_string(&scene.path).ok().and_then(|text| {
+        text.lines()
+            .position(|l| l.trim_start().starts_with("[run]"))
+            .map(|i| i + 1)
+    });
+    let location = match line {
+        Some(line) => format!("{}:{line}", scene.path.display()),
+        None => scene.path.display().to_string(),
+    };
+    Error::Scene {
+        location,
+        message: format!("in [run]: {error}"),
+    }
+}
+
 pub fn check_command(args: &CheckArgs) -> Result<()> {
     let scene = load_scene(&args.scene, &args.set)?;
+    check_run_table(&scene)?;
     let system = &scene.system;
     println!("scene      {} — {}", scene.name, scene.description);
     println!(

@@ -86,15 +86,55 @@ pub fn build_scene(text: &str, path: &Path, overrides: &[String]) -> Result<Scen
 pub fn parse_scene(text: &str, path: &Path) -> Result<SceneFile> {
     let builder = Builder { text, path };
     toml::from_str(text).map_err(|e| {
-        let location = match e.span() {
-            Some(span) => builder.location(span.start),
-            None => path.display().to_string(),
+        let (location, key) = match e.span() {
+            Some(span) => (builder.location(span.start), key_before(text, span.start)),
+            None => (path.display().to_string(), None),
         };
         Error::Scene {
             location,
-            message: e.message().to_string(),
+            message: plain_message(e.message(), key),
         }
     })
+}
+
+/// The key whose value starts at `offset`: the name before the last `=` on its line.
+fn key_before(text: &str, offset: usize) -> Option<&str> {
+    let before = text.get(..offset)?;
+    let line = &before[before.rfind('\n').map_or(0, |i| i + 1)..];
+    let key = line.rsplit_once('=')?.0.trim_end();
+    let start = key
+        .rfind(|c: char| !(c.is_alphanumeric() || c == '_' || c == '-'))
+        .map_or(0, |i| i + 1);
+    Some(&key[start..]).filter(|k| !k.is_empty())
+}
+
+/// serde's wording in the user's terms: "invalid type: string \"two\", expected usize"
+/// becomes "`dim` takes a whole number, got string \"two\"".
+fn plain_message(message: &str, key: Option<&str>) -> String {
+    let kind = |expected: &str| -> String {
+        match expected.trim() {
+            "usize" | "u64" | "u32" | "u16" | "u8" => "a whole number (0, 1, 2, …)".into(),
+            "i64" | "i32" => "a whole number".into(),
+            "f64" | "f32" => "a number".into(),
+            "a boolean" => "true or false".into(),
+            "a string" => "a string in quotes".into(),
+            "a sequence" => "a list [ … ]".into(),
+            other => other.to_string(),
+        }
+    };
+    let split = message
+        .strip_prefix("invalid type: ")
+        .or_else(|| message.strip_prefix("invalid value: "))
+        .and_then(|rest| rest.split_once(", expected "));
+    match split {
+        Some((got, expected)) => {
+            let what = key.map_or("a value in the table starting here".to_string(), |k| {
+                format!("`{k}`")
+            });
+            format!("{what} takes {}, got {got}", kind(expected))
+        }
+        None => message.trim_end().to_string(),
+    }
 }
 
 /// Build a scene from a file parsed by [`parse_scene`] from `text` (kept for the line

@@ -9,11 +9,37 @@ use crate::io::forcefield::ForcefieldSpec;
 use crate::settings::{RunSpec, Value};
 
 /// A particle by 0-based index or by name; a name may also be an anchor's.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Clone, Debug)]
 pub enum Reference {
     Index(usize),
     Name(String),
+}
+
+/// By hand, so a wrong type says what a reference is (not serde's "untagged enum").
+impl<'de> Deserialize<'de> for Reference {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Reference;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a particle index (0, 1, …) or a particle name in quotes")
+            }
+            fn visit_u64<E: serde::de::Error>(self, i: u64) -> Result<Reference, E> {
+                usize::try_from(i)
+                    .map(Reference::Index)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(i), &self))
+            }
+            fn visit_i64<E: serde::de::Error>(self, i: i64) -> Result<Reference, E> {
+                u64::try_from(i)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(i), &self))
+                    .and_then(|i| self.visit_u64(i))
+            }
+            fn visit_str<E>(self, name: &str) -> Result<Reference, E> {
+                Ok(Reference::Name(name.to_string()))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 impl std::fmt::Display for Reference {
@@ -25,11 +51,31 @@ impl std::fmt::Display for Reference {
     }
 }
 
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Group {
     Fast,
     Slow,
+}
+
+/// By hand, so a wrong value reads "expected \"fast\" or \"slow\"".
+impl<'de> Deserialize<'de> for Group {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = Group;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"fast\" or \"slow\" (a term's `group`)")
+            }
+            fn visit_str<E: serde::de::Error>(self, text: &str) -> Result<Group, E> {
+                match text {
+                    "fast" => Ok(Group::Fast),
+                    "slow" => Ok(Group::Slow),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(text), &self)),
+                }
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -78,11 +124,34 @@ pub struct MassMatrixSpec {
     pub lump: Option<bool>,
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Debug)]
 pub enum MassPairs {
     Keyword(String),
     List(Vec<[Reference; 2]>),
+}
+
+/// By hand, so a wrong type says what `pairs` takes.
+impl<'de> Deserialize<'de> for MassPairs {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = MassPairs;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"chain\" or a list of particle pairs such as [[0, 1], [1, 2]]")
+            }
+            fn visit_str<E>(self, keyword: &str) -> Result<MassPairs, E> {
+                Ok(MassPairs::Keyword(keyword.to_string()))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                seq: A,
+            ) -> Result<MassPairs, A::Error> {
+                Deserialize::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(MassPairs::List)
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
 }
 
 /// `[exact]`: an exact solution (see [`crate::system::exact`]).

@@ -8,6 +8,9 @@ use crate::error::{Error, Result};
 use crate::expr;
 use crate::settings::Value;
 
+/// Longest chain of parameters referring to one another (a → b → c …).
+const MAX_CHAIN: usize = 1000;
+
 impl Builder<'_> {
     /// `[parameters]` with the `--set` overrides applied, each evaluated once (they may
     /// refer to one another, without cycles).
@@ -59,6 +62,13 @@ impl Builder<'_> {
     ) -> Result<f64> {
         if let Some(&value) = resolved.get(name) {
             return Ok(value);
+        }
+        // Resolution recurses along a chain of references: bound it, as expressions are.
+        if stack.len() >= MAX_CHAIN {
+            return Err(self.error(format!(
+                "parameter \"{}\" depends on a chain of more than {MAX_CHAIN} parameters",
+                stack[0]
+            )));
         }
         if stack.iter().any(|n| n == name) {
             stack.push(name.to_string());
