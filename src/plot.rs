@@ -56,7 +56,20 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format by extension, checked before any work is done: a picture ends in .png or
+    /// .svg and goes into a directory that exists.
     pub fn of(path: &Path) -> Result<Format> {
+        let directory = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !directory.is_dir() {
+            return Err(Error::input(format!(
+                "{}: cannot write the picture there: the directory {} does not exist",
+                path.display(),
+                directory.display()
+            )));
+        }
         match path
             .extension()
             .and_then(|e| e.to_str())
@@ -852,6 +865,9 @@ trait Picture {
 /// Draw into a PNG or SVG file chosen by the extension.
 fn render<P: Picture>(path: &Path, size: (u32, u32), picture: &P) -> Result<()> {
     register_font()?;
+    // Open the file first, so a path that cannot be written reads as the system's reason
+    // rather than the plotting library's backend dump.
+    std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
     let failed = |message: String| Error::io(path, std::io::Error::other(message));
     match Format::of(path)? {
         Format::Png => {

@@ -37,6 +37,8 @@ pub struct RunOptions {
     pub temperature: Option<DegreesOfFreedom>,
     /// Fit the energy drift over the rows from this time on (default: every row).
     pub fit_from: Option<f64>,
+    /// Advanced by one per outer step (a terminal's progress bar; hidden by default).
+    pub progress: indicatif::ProgressBar,
 }
 
 /// Whether `method` is stochastic: its registry entry uses a seed
@@ -145,6 +147,7 @@ impl Default for RunOptions {
             units: Units::None,
             temperature: None,
             fit_from: None,
+            progress: indicatif::ProgressBar::hidden(),
         }
     }
 }
@@ -169,7 +172,7 @@ pub fn run(
             let mut writer =
                 TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
             writer.write(&system.state.q, 0, system.state.t)?;
-            Some((writer, t.every.max(1) as u64))
+            Some((writer, t.every.max(1) as u64, 0))
         }
         None => None,
     };
@@ -194,10 +197,12 @@ pub fn run(
         // The kinetic energy is cheap: check it every step so a blow-up is caught when
         // it happens, not at the next recorded row.
         let kinetic_finite = system.kinetic_energy().is_finite();
-        if let Some((writer, every)) = &mut trajectory
+        options.progress.inc(1);
+        if let Some((writer, every, written)) = &mut trajectory
             && (last || !kinetic_finite || steps.is_multiple_of(*every))
         {
             writer.write(&system.state.q, steps, system.state.t)?;
+            *written = steps;
         }
         if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
             let total = recorder.record(system, integrator)?;
@@ -209,6 +214,13 @@ pub fn run(
         }
     }
     let wall_seconds = started.elapsed().as_secs_f64();
+    options.progress.finish_and_clear();
+    // A run that stopped early keeps the state it stopped in, for the user to look at.
+    if let Some((writer, _, written)) = &mut trajectory
+        && *written != steps
+    {
+        writer.write(&system.state.q, steps, system.state.t)?;
+    }
     if let Some(csv) = &mut recorder.csv {
         csv.flush()?;
     }

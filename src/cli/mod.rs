@@ -136,6 +136,9 @@ pub struct RunArgs {
     /// Also draw the energies against time (energy.png and energy.svg in the output directory).
     #[arg(long)]
     pub plot: bool,
+    /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
+    #[arg(long)]
+    pub allow_large: bool,
     /// How the energy drift is judged at the end of the run.
     #[command(flatten)]
     pub drift: run::DriftArgs,

@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators;
 use crate::io::energy_table::column_matches;
+use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
@@ -150,6 +151,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     }
     notices.extend(integrator.notices(&scene.system));
 
+    let steps = check_size(args, &scene, &settings, t_end, energy_every)?;
     let out_dir = args
         .out
         .clone()
@@ -195,6 +197,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         units: scene.units,
         temperature: degrees_of_freedom,
         fit_from,
+        progress: run_progress(steps, args.quiet),
     };
     let mut summary = run(
         &scene.name,
@@ -247,6 +250,57 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         return Ok(EXIT_UNSTABLE);
     }
     Ok(0)
+}
+
+/// Most outer steps a run is allowed, and most bytes of output it writes, without
+/// `--allow-large`: beyond them a mistyped `--t-end 1e300` or `--h 1e-300` would run for
+/// ever or fill the disk.
+const MAX_STEPS: f64 = 1e10;
+const MAX_OUTPUT_BYTES: f64 = 2e9;
+
+/// The run's outer step count, estimated before anything is written, and the refusal of a
+/// run too long or too large to be meant (unless `--allow-large`).
+fn check_size(
+    args: &RunArgs,
+    scene: &Scene,
+    settings: &crate::settings::MethodSettings,
+    t_end: f64,
+    energy_every: usize,
+) -> Result<f64> {
+    let steps = ((t_end - scene.system.state.t) / settings.h)
+        .max(0.0)
+        .ceil();
+    // About 20 bytes a number: energy.csv's ~8 columns, a trajectory's 3 per particle.
+    let energy_bytes = steps / energy_every as f64 * 8.0 * 20.0;
+    let every = args.trajectory_every.or(scene.output.trajectory_every);
+    let frame_bytes = (scene.system.n_particles() * 3 * 20) as f64;
+    let trajectory_bytes = every.map_or(0.0, |e| steps / e as f64 * frame_bytes);
+    let bytes = energy_bytes + trajectory_bytes;
+    if args.allow_large || (steps <= MAX_STEPS && bytes <= MAX_OUTPUT_BYTES) {
+        return Ok(steps);
+    }
+    Err(Error::input(format!(
+        "this run would take {steps:.3e} outer steps (h = {}, t_end = {}) and write about {:.2e} bytes \
+         (limits {MAX_STEPS:.0e} steps, {MAX_OUTPUT_BYTES:.0e} bytes): check --h and --t-end, record less often \
+         (--energy-every, --trajectory-every), or give --allow-large",
+        Num(settings.h),
+        Num(t_end),
+        bytes,
+    )))
+}
+
+/// A progress bar on a terminal for runs long enough to wait for; hidden otherwise.
+fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
+    if steps < 1e5 {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = super::studies::progress_bar(steps as u64, quiet, "run");
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{msg} [{bar:40}] {pos}/{len} outer steps, {elapsed} elapsed, ~{eta} left",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }
 
 /// Judge a finished run's energy drift against its bound; a drift beyond it is a warning.

@@ -245,8 +245,29 @@ pub fn spectral_radius_command(args: &SpectralRadiusArgs) -> Result<()> {
 /// Largest grid a picture is drawn for (25 million points, about 225 MB of picture data).
 const MAX_PICTURE_POINTS: usize = 25_000_000;
 
+/// Most points per axis: a 100 000² map is 1e10 points, days of work and ~400 GB of CSV
+/// even when sharded.
+const MAX_POINTS_PER_AXIS: usize = 100_000;
+
+/// `--n` names itself when it is wrong, before the axes are parsed.
+fn check_points(args: &StabilityMapArgs) -> Result<()> {
+    if args.n == 0 {
+        return Err(Error::input("--n: a map needs at least one point per axis"));
+    }
+    if args.n > MAX_POINTS_PER_AXIS {
+        return Err(Error::input(format!(
+            "--n {}: more than {MAX_POINTS_PER_AXIS} points per axis ({:.1e} points) is more \
+             than a map can compute or store",
+            args.n,
+            (args.n as f64).powi(2)
+        )));
+    }
+    Ok(())
+}
+
 pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     let (evaluator, notices, description) = evaluator(&args.model)?;
+    check_points(args)?;
     let grid = Grid {
         gamma1: Axis::parse(&args.gamma1, args.n, "--gamma1")?,
         gamma2: Axis::parse(&args.gamma2, args.n, "--gamma2")?,

@@ -1,6 +1,7 @@
 //! `energy.csv` (and other tables): a header, then rows written as the run goes, flushed
 //! often enough that a run stopped by a blow-up or an error keeps everything before it.
 
+use crate::io::number::Num;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -51,7 +52,7 @@ impl CsvWriter {
                     .map_err(|e| Error::io(&self.path, e))?;
             }
             first = false;
-            write!(self.out, "{value}").map_err(|e| Error::io(&self.path, e))?;
+            write!(self.out, "{}", Num(*value)).map_err(|e| Error::io(&self.path, e))?;
         }
         self.out
             .write_all(b"\n")

@@ -15,6 +15,7 @@
 //! The text form gives times in fs, ps or ns by their size in a scene with real units
 //! (`h = 4 fs`, `t = 10 ps`), and every energy with its unit.
 
+use crate::io::number::{Num, shorten_numbers};
 use std::collections::BTreeMap;
 
 use serde::Serialize;
@@ -412,7 +413,7 @@ pub fn ns_per_day(t_end: f64, wall_seconds: f64, units: Units) -> Option<f64> {
 /// `10 ps`, `2.5 ns`; six significant digits); as the plain number otherwise.
 pub fn format_time(t: f64, units: Units) -> String {
     if units != Units::Real || !t.is_finite() {
-        return format!("{t}");
+        return Num(t).to_string();
     }
     let (scale, name) = match t.abs() {
         x if x < 1e3 => (1.0, "fs"),
@@ -442,7 +443,7 @@ pub fn significant(x: f64, digits: usize) -> String {
 /// `h_max`, `tau`).
 pub fn annotate_times(parameters: &str, units: Units) -> String {
     if units != Units::Real {
-        return parameters.to_string();
+        return shorten_numbers(parameters);
     }
     const TIMES: &[&str] = &["h", "dt", "h_slow", "h_fast", "h_min", "h_max", "tau"];
     parameters

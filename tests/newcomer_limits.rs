@@ -1,0 +1,144 @@
+//! What a newcomer tripped over (issue 14): sizes a user can ask for are bounded before any
+//! work or output (item 3), the state that blew up is in the trajectory (item 5), failed
+//! validation leaves no output directory (item 6), huge and tiny numbers print in exponent
+//! form (item 7), and `stability-map` names the flag that is wrong (item 11).
+
+mod common;
+
+use common::{longstep, scratch_dir};
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let output = longstep().args(args).output().expect("longstep runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_run_too_long_or_too_large_is_refused_before_it_writes() {
+    let dir = scratch_dir("huge-run");
+    for (flag, value) in [("--h", "1e-300"), ("--t-end", "1e300")] {
+        let out = dir.join(flag.trim_start_matches('-'));
+        let (code, _, stderr) = run(&[
+            "run",
+            "systems/two-spring.toml",
+            flag,
+            value,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{flag} {value}: {stderr}");
+        assert!(
+            stderr.contains("outer steps") && stderr.contains("--allow-large"),
+            "{stderr}"
+        );
+        assert!(!out.exists(), "{flag} {value} created {}", out.display());
+    }
+}
+
+#[test]
+fn tiny_and_huge_numbers_print_in_exponent_form() {
+    let out = scratch_dir("tiny-step");
+    let (code, stdout, stderr) = run(&[
+        "run",
+        "systems/two-spring.toml",
+        "--h",
+        "1e-300",
+        "--t-end",
+        "1e-298",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("h = 1e-300"), "{stdout}");
+    assert!(
+        stdout.contains("to t = 1") && stdout.contains("e-298\n"),
+        "{stdout}"
+    );
+    let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
+    for field in csv.lines().flat_map(|l| l.split(',')) {
+        assert!(field.len() <= 25, "long field {field}");
+    }
+    // Round trip: the times read back exactly.
+    let last_t: f64 = csv
+        .lines()
+        .last()
+        .and_then(|l| l.split(',').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap();
+    assert!((last_t / 1e-298 - 1.0).abs() < 1e-12, "{last_t}");
+}
+
+/// hΩ2 = 7 blows Verlet up within a few steps, long before the 1000th step at which the
+/// trajectory is next written: the last frame is the state at the stop.
+#[test]
+fn the_trajectory_keeps_the_state_that_blew_up() {
+    let out = scratch_dir("blow-up-frame");
+    let (code, stdout, stderr) = run(&[
+        "run",
+        "systems/three-spring.toml",
+        "--h",
+        "0.5",
+        "--t-end",
+        "1000",
+        "--trajectory-every",
+        "1000",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 3, "{stderr}");
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let at = summary["unstable_at"].as_f64().unwrap();
+    let steps = summary["steps"].as_u64().unwrap();
+    assert!(steps < 1000, "blew up only after {steps} steps");
+    let trajectory = std::fs::read_to_string(out.join("trajectory.xyz")).unwrap();
+    let comments: Vec<&str> = trajectory.lines().filter(|l| l.contains("time=")).collect();
+    assert_eq!(comments.len(), 2, "{trajectory}");
+    assert!(
+        comments[1].contains(&format!("time={at}")),
+        "last frame {} is not the stop at step {steps}, t = {at}",
+        comments[1]
+    );
+}
+
+#[test]
+fn stability_map_names_the_flag_and_the_path() {
+    let dir = scratch_dir("map-limits");
+    let csv = dir.join("m.csv");
+    let base = ["stability-map", "--method", "impulse", "--h", "1", "--out"];
+    let mut args: Vec<&str> = base.to_vec();
+    args.extend([csv.to_str().unwrap(), "--n", "0"]);
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("--n") && !stderr.contains("--gamma1"),
+        "{stderr}"
+    );
+    let mut args: Vec<&str> = base.to_vec();
+    args.extend([csv.to_str().unwrap(), "--n", "100000000"]);
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--n 100000000"), "{stderr}");
+    let missing = dir.join("no-such-dir").join("map.png");
+    let mut args: Vec<&str> = base.to_vec();
+    args.extend([
+        csv.to_str().unwrap(),
+        "--n",
+        "4",
+        "--png",
+        missing.to_str().unwrap(),
+    ]);
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("does not exist") && !stderr.contains("backend"),
+        "{stderr}"
+    );
+    assert!(
+        !csv.exists(),
+        "the map ran before the picture's path was checked"
+    );
+}
