@@ -142,3 +142,17 @@ fn stability_map_names_the_flag_and_the_path() {
         "the map ran before the picture's path was checked"
     );
 }
+
+/// Item 16: after `--minimize` the hint to minimise is not repeated; the warning says why a
+/// minimum of all forces can leave negative fast curvature.
+#[test]
+fn modes_after_minimize_do_not_ask_to_minimize() {
+    let (code, stdout, stderr) = run(&[
+        "modes",
+        "systems/molecules/alanine-dipeptide.toml",
+        "--minimize",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("minimised"), "{stdout}");
+    assert!(!stdout.contains("try --minimize"), "{stdout}");
+}

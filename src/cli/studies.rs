@@ -323,11 +323,18 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         );
         return Ok(());
     }
-    if let Some(report) = minimized {
+    if let Some(report) = &minimized {
         println!("minimised  {report}");
     }
     let unstable = modes.iter().filter(|m| m.unstable).count();
-    if unstable > 0 {
+    if unstable > 0 && minimized.is_some() {
+        // The minimiser minimises all forces; the modes are those of the fast ones alone.
+        println!(
+            "warning    {unstable} modes have negative curvature: the minimum of all forces \
+             is not a minimum of the fast forces alone (the slow forces hold it there); \
+             these modes do not oscillate and predict no resonance"
+        );
+    } else if unstable > 0 {
         println!(
             "warning    {unstable} modes have negative curvature: the geometry is not at a \
              minimum of the fast forces (try --minimize)"
