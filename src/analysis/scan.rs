@@ -289,6 +289,7 @@ pub fn run_once(
         units: scene.units,
         temperature: degrees_of_freedom,
         fit_from: setup.fit_from,
+        ..RunOptions::default()
     };
     let mut summary = run(
         &scene.name,
