@@ -156,3 +156,27 @@ fn modes_after_minimize_do_not_ask_to_minimize() {
     assert!(stdout.contains("minimised"), "{stdout}");
     assert!(!stdout.contains("try --minimize"), "{stdout}");
 }
+
+/// Item 15: a molecule without a torsion table says that its dihedrals get no term, and
+/// `check` prints the force-field report (as docs/molecules.md promises).
+#[test]
+fn check_reports_missing_torsions_and_default_charges() {
+    let dir = scratch_dir("no-torsions");
+    std::fs::copy("systems/molecules/butane.xyz", dir.join("butane.xyz")).unwrap();
+    let scene = std::fs::read_to_string("systems/molecules/butane.toml").unwrap();
+    let without: String = scene
+        .lines()
+        .filter(|l| !l.starts_with("\"X-C-") && !l.starts_with("[forcefield.torsions]"))
+        .filter(|l| !l.starts_with("charges =") && !l.starts_with("coulomb ="))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let path = dir.join("butane.toml");
+    std::fs::write(&path, without).unwrap();
+    let (code, stdout, stderr) = run(&["check", path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stdout.contains("torsions: none — the 27 proper dihedrals get no torsion term"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("charge 0 (default 0)"), "{stdout}");
+}

@@ -361,6 +361,9 @@ fn run_table_error(scene: &Scene, error: Error) -> Error {
 pub fn check_command(args: &CheckArgs) -> Result<()> {
     let scene = load_scene(&args.scene, &args.set)?;
     check_run_table(&scene)?;
+    for line in &scene.forcefield_report {
+        println!("{line}");
+    }
     let system = &scene.system;
     println!("scene      {} — {}", scene.name, scene.description);
     println!(

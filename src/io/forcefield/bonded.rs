@@ -225,6 +225,13 @@ pub(super) fn torsions(
     report: &mut Vec<String>,
 ) -> Result<Vec<Value>, String> {
     let Some(table) = &ctx.input.spec.torsions else {
+        if !dihedrals.is_empty() {
+            report.push(format!(
+                "torsions: none — the {} proper dihedrals get no torsion term (no \
+                 [forcefield.torsions] table; give one to include them)",
+                dihedrals.len()
+            ));
+        }
         return Ok(Vec::new());
     };
     let mut list = Vec::with_capacity(dihedrals.len());
