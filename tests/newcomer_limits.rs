@@ -180,3 +180,57 @@ fn check_reports_missing_torsions_and_default_charges() {
     );
     assert!(stdout.contains("charge 0 (default 0)"), "{stdout}");
 }
+
+/// Item 14: `minimize --save` writes the minimised structure and `run --start` starts from
+/// it, at the minimised energy; a structure of other atoms is refused.
+#[test]
+fn minimize_saves_and_run_starts_from_it() {
+    let dir = scratch_dir("minimize-save");
+    let saved = dir.join("min.xyz");
+    let (code, stdout, stderr) = run(&[
+        "minimize",
+        "systems/molecules/butane.toml",
+        "--save",
+        saved.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    // "N iterations, E before -> after, …": the minimised energy.
+    let after: f64 = stdout
+        .split("-> ")
+        .nth(1)
+        .and_then(|rest| rest.split(',').next())
+        .and_then(|e| e.trim().parse().ok())
+        .expect("the minimised energy in the report");
+    let (code, stdout, stderr) = run(&[
+        "run",
+        "systems/molecules/butane.toml",
+        "--start",
+        saved.to_str().unwrap(),
+        "--t-end",
+        "10fs",
+        "--json",
+        "--out",
+        dir.join("run").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let e0 = summary["energy"]["initial"].as_f64().unwrap();
+    // The file keeps positions to the 1e-6 Å or so chemfiles writes; at a minimum the
+    // energy changes to second order in that.
+    assert!(
+        (e0 - after).abs() < 1e-6,
+        "E0 {e0} against the minimum {after}"
+    );
+    let (code, _, stderr) = run(&[
+        "run",
+        "systems/molecules/hexane.toml",
+        "--start",
+        saved.to_str().unwrap(),
+        "--t-end",
+        "10fs",
+        "--out",
+        dir.join("other").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("has 14 atoms, the scene 20"), "{stderr}");
+}

@@ -136,6 +136,10 @@ pub struct RunArgs {
     /// Also draw the energies against time (energy.png and energy.svg in the output directory).
     #[arg(long)]
     pub plot: bool,
+    /// Start from the positions of this structure file (e.g. from `minimize --save`): same
+    /// atoms in the same order; the scene's force field, velocities and box are kept.
+    #[arg(long, value_name = "FILE")]
+    pub start: Option<PathBuf>,
     /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
     #[arg(long)]
     pub allow_large: bool,

@@ -102,6 +102,9 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
 
 fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let mut scene = load_scene(&args.scene, &args.set)?;
+    if let Some(path) = &args.start {
+        start_positions(&mut scene, path)?;
+    }
     let settings = scene
         .run
         .overridden_by(&args.run)
@@ -316,6 +319,38 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
     let report = judge(fit, summary.scene_units, summary.energy_reference, bound);
     summary.warnings.extend(report.warning());
     summary.drift = Some(report);
+}
+
+/// Replace the scene's positions by those of a structure file with the same atoms in the
+/// same order (the force field, built from the scene's own structure, is kept).
+fn start_positions(scene: &mut Scene, path: &std::path::Path) -> Result<()> {
+    let structure = crate::io::structure::read_structure_with(path, false)?;
+    let system = &mut scene.system;
+    let n = system.n_particles();
+    let mismatch = |message: String| Error::Structure {
+        path: path.to_path_buf(),
+        message,
+    };
+    if structure.atoms.len() != n {
+        return Err(mismatch(format!(
+            "--start: has {} atoms, the scene {n}",
+            structure.atoms.len()
+        )));
+    }
+    for (i, atom) in structure.atoms.iter().enumerate() {
+        if let Some(name) = scene.elements.get(i)
+            && !name.eq_ignore_ascii_case(&atom.name)
+        {
+            return Err(mismatch(format!(
+                "--start: atom {i} is {}, the scene's is {name}: the atoms must be the \
+                 scene's, in its order",
+                atom.name
+            )));
+        }
+        let dim = system.dim;
+        system.state.q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
+    }
+    Ok(())
 }
 
 /// Check the scene's own `[run]` table as a run would use it; a missing `h` (it may come

@@ -158,8 +158,13 @@ pub struct MinimizeArgs {
     /// Stop when the largest force component is below this.
     #[arg(long, default_value_t = 1e-6)]
     pub tolerance: f64,
+    /// Most FIRE iterations.
     #[arg(long, default_value_t = 100_000)]
     pub max_iterations: usize,
+    /// Save the minimised positions to this structure file (format by extension, e.g.
+    /// min.xyz); `longstep run SCENE --start min.xyz` starts a run from it.
+    #[arg(long, value_name = "FILE")]
+    pub save: Option<PathBuf>,
 }
 
 /// `LO:HI` → (lo, hi), in the scene's time units when it has them.
@@ -1095,5 +1100,21 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
         },
     );
     println!("{report}");
+    if let Some(path) = &args.save {
+        let system = &scene.system;
+        let mut writer = crate::io::trajectory::TrajectoryWriter::create(
+            path,
+            &scene.elements,
+            system.dim,
+            system.periodic_box,
+        )?;
+        writer.write(&system.state.q, 0, system.state.t)?;
+        println!(
+            "saved      {} (start a run from it: longstep run {} --start {})",
+            path.display(),
+            args.scene.display(),
+            path.display()
+        );
+    }
     Ok(())
 }
