@@ -722,8 +722,16 @@ impl LineChart {
                 SeriesStyle::Points | SeriesStyle::LineAndPoints
             );
             if line {
+                // One path per segment: a single wide polyline joins its segments with
+                // miters, and where a dense series turns back sharply (an oscillating
+                // energy at 2000 rows) a miter shoots far past the plotting area.
+                let style = colour.stroke_width(2);
                 chart
-                    .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                    .draw_series(
+                        points
+                            .windows(2)
+                            .map(move |w| PathElement::new(vec![w[0], w[1]], style)),
+                    )
                     .map_err(|e| e.to_string())?
                     .label(series.name.clone())
                     .legend(move |(x, y)| {

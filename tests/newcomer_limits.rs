@@ -234,3 +234,55 @@ fn minimize_saves_and_run_starts_from_it() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("has 14 atoms, the scene 20"), "{stderr}");
 }
+
+/// Item 12: a long run's energy picture (2000 rows of a fast oscillation) keeps every drawn
+/// pixel of its series inside the plotting area: none over the title or the tick labels.
+/// The layout (src/plot.rs, 900 × 600): a 14 px margin and the 22 px title above the plot,
+/// the 48 px x-label area and the margin below it, the 72 px y-label area left of it.
+#[test]
+fn a_long_runs_picture_stays_inside_its_axes() {
+    let out = scratch_dir("long-plot");
+    let (code, _, stderr) = run(&[
+        "run",
+        "systems/three-spring.toml",
+        "--method",
+        "impulse",
+        "--h",
+        "0.05",
+        "--inner",
+        "10",
+        "--t-end",
+        "100",
+        "--plot",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let decoder = png::Decoder::new(std::fs::File::open(out.join("energy.png")).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    let channels = info.color_type.samples();
+    let (width, height) = (info.width as usize, info.height as usize);
+    let (top, bottom, left) = (14 + 22, height - 14 - 48, 14 + 72);
+    let mut coloured = 0;
+    for y in 0..height {
+        for x in 0..width {
+            let at = (y * width + x) * channels;
+            let rgb = &pixels[at..at + 3];
+            // Series colours are saturated; text, grid and axes are grey.
+            let saturated = rgb.iter().max().unwrap() - rgb.iter().min().unwrap() > 60;
+            if saturated {
+                coloured += 1;
+                assert!(
+                    (top..=bottom).contains(&y) && x >= left,
+                    "a series pixel at ({x}, {y}) lies outside the plotting area"
+                );
+            }
+        }
+    }
+    assert!(
+        coloured > 10_000,
+        "only {coloured} series pixels: nothing drawn?"
+    );
+}
