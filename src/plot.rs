@@ -569,6 +569,17 @@ pub struct MarkerSet {
 }
 
 impl MarkerSet {
+    /// Crosses in a method's colour labelled "<method> unstable": unstable runs of several
+    /// methods stay told apart.
+    pub fn unstable_of(method: &str, colour: Colour, points: Vec<(f64, f64)>) -> Self {
+        MarkerSet {
+            name: format!("{method} unstable"),
+            points,
+            shape: MarkerShape::Cross,
+            colour,
+        }
+    }
+
     /// Red crosses labelled "unstable".
     pub fn unstable(points: Vec<(f64, f64)>) -> Self {
         MarkerSet {

@@ -286,3 +286,36 @@ fn a_long_runs_picture_stays_inside_its_axes() {
         "only {coloured} series pixels: nothing drawn?"
     );
 }
+
+/// Item 13: an unstable point is drawn in its method's colour under its method's name, not
+/// as an anonymous red cross. Verlet blows up at h = 0.5 on the three-spring system (hΩ2 =
+/// 7 > 2); impulse with 10 inner steps does not.
+#[test]
+fn unstable_points_carry_their_method() {
+    let out = scratch_dir("scan-unstable-method");
+    let (code, _, stderr) = run(&[
+        "scan",
+        "steps",
+        "systems/three-spring.toml",
+        "--methods",
+        "verlet,impulse",
+        "--h",
+        "0.1,0.5",
+        "--inner",
+        "10",
+        "--t-end",
+        "20",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let svg = std::fs::read_to_string(out.join("scan.svg")).unwrap();
+    assert!(svg.contains("verlet unstable"), "no verlet legend entry");
+    assert!(
+        !svg.contains(">unstable<"),
+        "an anonymous unstable legend entry"
+    );
+}

@@ -17,7 +17,7 @@ use crate::analysis::work_precision::{
 use crate::error::{Error, Result};
 use crate::io::scene::load_scene;
 use crate::io::study_csv::{StudyTable, differing_setting, merge};
-use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, Series, SeriesStyle};
+use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, PALETTE, Series, SeriesStyle};
 use crate::settings::{RunSpec, Value, whole_ratio};
 
 #[derive(Subcommand, Debug)]
@@ -397,25 +397,27 @@ pub fn draw_work_precision(
             AxisSpec::log(y_label),
         );
         chart.legend = Corner::LowerLeft;
-        let mut unstable = Vec::new();
-        for (method, stable, failed) in &groups {
+        for (k, (method, stable, failed)) in groups.iter().enumerate() {
+            let colour = PALETTE[k % PALETTE.len()];
             let points: Vec<(f64, f64)> = stable.iter().copied().filter(finite).collect();
             if !points.is_empty() {
                 let mut series = Series::line(method, points);
                 series.style = SeriesStyle::LineAndPoints;
+                series.colour = Some(colour);
                 chart.series.push(series);
             }
             // An unstable run has no meaningful error: it is drawn at the top of the plot.
             let ceiling = if top.is_finite() { 2.0 * top } else { 1.0 };
-            unstable.extend(
-                failed
-                    .iter()
-                    .filter(|p| p.0 > 0.0 && p.0.is_finite())
-                    .map(|p| (p.0, ceiling)),
-            );
-        }
-        if !unstable.is_empty() {
-            chart.markers.push(MarkerSet::unstable(unstable));
+            let unstable: Vec<(f64, f64)> = failed
+                .iter()
+                .filter(|p| p.0 > 0.0 && p.0.is_finite())
+                .map(|p| (p.0, ceiling))
+                .collect();
+            if !unstable.is_empty() {
+                chart
+                    .markers
+                    .push(MarkerSet::unstable_of(method, colour, unstable));
+            }
         }
         if chart.series.is_empty() && chart.markers.is_empty() {
             continue;
@@ -467,10 +469,10 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
                 methods.push(&row[method]);
             }
         }
-        let mut unstable = Vec::new();
-        for m in methods {
-            let mut points = Vec::new();
-            for row in table.rows.iter().filter(|r| r[method] == m) {
+        for (k, m) in methods.iter().enumerate() {
+            let colour = PALETTE[k % PALETTE.len()];
+            let (mut points, mut unstable) = (Vec::new(), Vec::new());
+            for row in table.rows.iter().filter(|r| r[method] == *m) {
                 let (x, y) = (table.number(row, h), table.number(row, value));
                 if row[status] == "unstable" {
                     unstable.push((x, 0.0));
@@ -482,11 +484,14 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
             if !points.is_empty() {
                 let mut series = Series::line(m, points);
                 series.style = SeriesStyle::LineAndPoints;
+                series.colour = Some(colour);
                 chart.series.push(series);
             }
-        }
-        if !unstable.is_empty() {
-            chart.markers.push(MarkerSet::unstable(unstable));
+            if !unstable.is_empty() {
+                chart
+                    .markers
+                    .push(MarkerSet::unstable_of(m, colour, unstable));
+            }
         }
         if chart.series.is_empty() && chart.markers.is_empty() {
             continue;
@@ -578,10 +583,10 @@ fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
         .map(|r| table.number(r, drift).abs())
         .filter(|d| d.is_finite())
         .fold(floor, f64::max);
-    let mut unstable = Vec::new();
-    for name in methods {
-        let mut points = Vec::new();
-        for row in table.rows.iter().filter(|r| r[method] == name) {
+    for (k, name) in methods.iter().enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        let (mut points, mut unstable) = (Vec::new(), Vec::new());
+        for row in table.rows.iter().filter(|r| r[method] == *name) {
             let x = table.number(row, h);
             if row[status] == "unstable" {
                 unstable.push((x, 10.0 * top));
@@ -593,11 +598,14 @@ fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
         if !points.is_empty() {
             let mut series = Series::line(name, points);
             series.style = SeriesStyle::LineAndPoints;
+            series.colour = Some(colour);
             chart.series.push(series);
         }
-    }
-    if !unstable.is_empty() {
-        chart.markers.push(MarkerSet::unstable(unstable));
+        if !unstable.is_empty() {
+            chart
+                .markers
+                .push(MarkerSet::unstable_of(name, colour, unstable));
+        }
     }
     chart.guides.extend(resonance_guides(table, h));
     if chart.series.is_empty() && chart.markers.is_empty() {
