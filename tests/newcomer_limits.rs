@@ -319,3 +319,33 @@ fn unstable_points_carry_their_method() {
         "an anonymous unstable legend entry"
     );
 }
+
+/// Item 17: every option of `minimize` has a help text (its `--set` had none), on the same
+/// line or, in clap's wide layout, on the next, deeper-indented line.
+#[test]
+fn minimize_options_all_have_help() {
+    let (code, stdout, _) = run(&["minimize", "-h"]);
+    assert_eq!(code, 0);
+    let lines: Vec<&str> = stdout.lines().collect();
+    let indent = |l: &str| l.len() - l.trim_start().len();
+    for (k, line) in lines.iter().enumerate() {
+        if !line.trim_start().starts_with('-') {
+            continue;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let flag_words = 1
+            + words
+                .iter()
+                .skip(1)
+                .take_while(|w| w.starts_with('<'))
+                .count()
+            + usize::from(words.first() == Some(&"-h,"));
+        let same_line = words.len() > flag_words;
+        let next_line = lines.get(k + 1).is_some_and(|next| {
+            !next.trim().is_empty()
+                && !next.trim_start().starts_with('-')
+                && indent(next) > indent(line)
+        });
+        assert!(same_line || next_line, "no help text: {line}");
+    }
+}

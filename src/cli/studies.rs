@@ -153,6 +153,7 @@ pub struct SamplingArgs {
 pub struct MinimizeArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
+    /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Stop when the largest force component is below this.
