@@ -349,3 +349,31 @@ fn minimize_options_all_have_help() {
         assert!(same_line || next_line, "no help text: {line}");
     }
 }
+
+/// Item 13: a map's axes in units of π carry π ticks, so their titles do not repeat
+/// "(units of π)".
+#[test]
+fn map_axes_do_not_repeat_units_of_pi() {
+    let dir = scratch_dir("map-pi-axes");
+    let svg = dir.join("map.svg");
+    let (code, _, stderr) = run(&[
+        "stability-map",
+        "--method",
+        "impulse",
+        "--h",
+        "1",
+        "--n",
+        "8",
+        "--out",
+        dir.join("map.csv").to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains('π'), "no π ticks");
+    assert!(
+        !text.contains("units of π"),
+        "the axis title repeats the π ticks' unit"
+    );
+}

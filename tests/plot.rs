@@ -108,8 +108,8 @@ fn heat_maps_continuous_and_categorical() {
         .collect();
     let continuous = HeatMap {
         title: "Continuous".into(),
-        x: AxisSpec::pi("Γ1 (units of π)"),
-        y: AxisSpec::pi("Γ2 (units of π)"),
+        x: AxisSpec::pi("Γ1"),
+        y: AxisSpec::pi("Γ2"),
         x_cells: (0.0, 2.0 * std::f64::consts::PI, n),
         y_cells: (0.0, 2.0 * std::f64::consts::PI, n),
         values: values.clone(),

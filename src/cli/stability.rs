@@ -439,7 +439,7 @@ fn map_axis(axis: &Axis, name: &str, meaning: &str) -> (AxisSpec, (f64, f64, usi
     let span = axis.end - axis.start;
     if span >= 1.0 {
         (
-            AxisSpec::pi(&format!("{name} = {meaning} (units of π)")),
+            AxisSpec::pi(&format!("{name} = {meaning}")),
             (axis.start, axis.end, axis.count),
         )
     } else if span < 1e-3 * axis.start.abs().max(1.0) {
