@@ -109,32 +109,32 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         .run
         .overridden_by(&args.run)
         .resolve_with_units(&scene.parameters, scene.units)
-        .and_then(|settings| {
-            integrators::build(&settings, &mut Vec::new())?;
-            Ok(settings)
-        })
         .map_err(|e| blame_run_table(&scene, e))?;
     let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
     let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
-    if energy_every == 0 {
-        return Err(Error::input("--energy-every must be at least 1"));
+    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
+    for (flag, every) in [
+        ("--energy-every", Some(energy_every)),
+        ("--trajectory-every", trajectory_every),
+    ] {
+        if every == Some(0) {
+            return Err(Error::input(format!("{flag} must be at least 1")));
+        }
     }
-    check_seed_used(
-        &settings,
-        if args.run.seed.is_some() {
-            "--seed"
-        } else {
-            "the scene's [run] seed"
-        },
-    )?;
+    let seed_source = match args.run.seed {
+        Some(_) => "--seed",
+        None => "the scene's [run] seed",
+    };
+    check_seed_used(&settings, seed_source)?;
     let drift_bound = args.drift.bound()?;
     let fit_from = args.drift.fit_from(&scene.parameters, scene.units, t_end)?;
 
     let mut notices = Vec::new();
     set_precision(&scene, args.precision.as_deref(), &mut notices)?;
-    let mut integrator = integrators::build(&settings, &mut notices)?;
+    let mut integrator =
+        integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
     let start = start_velocities(&mut scene, &settings, &mut notices)?;
     // The kinetic temperature is recorded in a real scene, and wherever a temperature is
     // given; a dimensionless scene without one keeps its outputs.
@@ -146,57 +146,25 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     if settings.method == "async-pseudo-energy" {
         // On a scratch copy: the check steps the scene.
         let mut scratch = load_scene(&args.scene, &args.set)?;
-        if let Some(warning) =
-            crate::analysis::async_stability::band_warning(&mut scratch.system, &settings)
-        {
-            notices.push(warning);
-        }
+        notices.extend(crate::analysis::async_stability::band_warning(
+            &mut scratch.system,
+            &settings,
+        ));
     }
     notices.extend(integrator.notices(&scene.system));
 
     let steps = check_size(args, &scene, &settings, t_end, energy_every)?;
-    let out_dir = args
-        .out
-        .clone()
-        .or_else(|| scene.output.dir.as_ref().map(PathBuf::from))
-        .unwrap_or_else(|| {
-            PathBuf::from("out").join(format!("{}-{}", scene.name, settings.method))
-        });
-    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-
+    let out_dir = output_dir(args, &scene, &settings.method)?;
     if !args.quiet {
-        for line in &scene.forcefield_report {
-            eprintln!("{line}");
-        }
-        eprintln!("{}", scene.system.forces.level_table());
-        for line in start.iter().flat_map(|s| &s.lines) {
-            eprintln!("{line}");
-        }
-        for notice in &notices {
-            eprintln!("notice: {notice}");
-        }
+        let start_lines = start.iter().flat_map(|s| &s.lines);
+        print_header(&scene, start_lines, &notices);
     }
-    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
-    if trajectory_every == Some(0) {
-        return Err(Error::input("--trajectory-every must be at least 1"));
-    }
-    let trajectory = trajectory_every.map(|every| TrajectoryOptions {
-        path: out_dir.join(
-            scene
-                .output
-                .trajectory
-                .as_deref()
-                .unwrap_or("trajectory.xyz"),
-        ),
-        every,
-        names: scene.elements.clone(),
-    });
     let options = RunOptions {
         t_end,
         energy_every,
         blowup: settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
-        trajectory,
+        trajectory: trajectory_every.map(|every| trajectory_options(&scene, &out_dir, every)),
         units: scene.units,
         temperature: degrees_of_freedom,
         fit_from,
@@ -208,20 +176,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         integrator.as_mut(),
         &options,
     )?;
-    summary.set_units(scene.units);
-    if let Some(precision) = &args.precision {
-        summary.extra.insert(
-            "precision".into(),
-            serde_json::Value::from(precision.as_str()),
-        );
-    }
-    judge_drift(&mut summary, drift_bound);
-    if let Some(exact) = &scene.exact {
-        let error = position_error(exact.as_ref(), &scene.system.state)?;
-        let value = serde_json::to_value(&error)
-            .map_err(|e| Error::input(format!("cannot write the exact error as JSON: {e}")))?;
-        summary.extra.insert("exact_error".into(), value);
-    }
+    complete_summary(args, &scene, &mut summary, drift_bound)?;
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
     }
@@ -230,29 +185,101 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     {
         eprintln!("trajectory {}", t.path.display());
     }
+    report(args, &summary)
+}
+
+/// `--out`, else the scene's `[output] dir`, else `out/<scene>-<method>`; created here,
+/// once every setting has been checked.
+fn output_dir(args: &RunArgs, scene: &Scene, method: &str) -> Result<PathBuf> {
+    let out_dir = args
+        .out
+        .clone()
+        .or_else(|| scene.output.dir.as_ref().map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from("out").join(format!("{}-{method}", scene.name)));
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    Ok(out_dir)
+}
+
+/// The lines before a run: force-field report, level table, start velocities, notices.
+fn print_header<'a>(
+    scene: &Scene,
+    start_lines: impl Iterator<Item = &'a String>,
+    notices: &[String],
+) {
+    for line in &scene.forcefield_report {
+        eprintln!("{line}");
+    }
+    eprintln!("{}", scene.system.forces.level_table());
+    for line in start_lines {
+        eprintln!("{line}");
+    }
+    for notice in notices {
+        eprintln!("notice: {notice}");
+    }
+}
+
+fn trajectory_options(scene: &Scene, out_dir: &std::path::Path, every: usize) -> TrajectoryOptions {
+    let name = scene
+        .output
+        .trajectory
+        .as_deref()
+        .unwrap_or("trajectory.xyz");
+    TrajectoryOptions {
+        path: out_dir.join(name),
+        every,
+        names: scene.elements.clone(),
+    }
+}
+
+/// What the summary learns after the run: units, precision, the drift verdict, the error
+/// against an exact solution.
+fn complete_summary(
+    args: &RunArgs,
+    scene: &Scene,
+    summary: &mut RunSummary,
+    drift_bound: Option<f64>,
+) -> Result<()> {
+    summary.set_units(scene.units);
+    if let Some(precision) = &args.precision {
+        summary.extra.insert(
+            "precision".into(),
+            serde_json::Value::from(precision.as_str()),
+        );
+    }
+    judge_drift(summary, drift_bound);
+    if let Some(exact) = &scene.exact {
+        let error = position_error(exact.as_ref(), &scene.system.state)?;
+        let value = serde_json::to_value(&error)
+            .map_err(|e| Error::input(format!("cannot write the exact error as JSON: {e}")))?;
+        summary.extra.insert("exact_error".into(), value);
+    }
+    Ok(())
+}
+
+/// Print the summary (text or JSON); the exit code: 0, or 3 for a run that stopped early.
+fn report(args: &RunArgs, summary: &RunSummary) -> Result<i32> {
     if args.json {
-        let json = serde_json::to_string_pretty(&summary)
+        let json = serde_json::to_string_pretty(summary)
             .map_err(|e| Error::input(format!("cannot write the summary as JSON: {e}")))?;
         println!("{json}");
     } else {
         println!("{}", summary.to_text());
     }
-    if summary.status != Status::Ok {
-        if args.json && !args.quiet {
-            eprintln!(
-                "{} at t = {}: {}",
-                if summary.status == Status::Unstable {
-                    "unstable"
-                } else {
-                    "failed"
-                },
-                summary.t_end,
-                summary.message.as_deref().unwrap_or("")
-            );
-        }
-        return Ok(EXIT_UNSTABLE);
+    if summary.status == Status::Ok {
+        return Ok(0);
     }
-    Ok(0)
+    if args.json && !args.quiet {
+        let what = match summary.status {
+            Status::Unstable => "unstable",
+            _ => "failed",
+        };
+        eprintln!(
+            "{what} at t = {}: {}",
+            summary.t_end,
+            summary.message.as_deref().unwrap_or("")
+        );
+    }
+    Ok(EXIT_UNSTABLE)
 }
 
 /// Most outer steps a run is allowed, and most bytes of output it writes, without
