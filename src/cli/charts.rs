@@ -12,7 +12,8 @@ use super::studies::{check_methods, parse_shard, parse_steps, progress_bar};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::stability::map::Shard;
 use crate::analysis::work_precision::{
-    CostWeights, StudySetup, measure_cost_weights, reference, run_points, sample_times,
+    CostWeights, PrecisionResult, Samples, StudySetup, measure_cost_weights, reference, run_points,
+    sample_times,
 };
 use crate::error::{Error, Result};
 use crate::io::scene::load_scene;
@@ -112,6 +113,49 @@ fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
 
 pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     let scene_units = load_scene(&args.scene, &args.set)?.units;
+    let times = study_times(args, scene_units)?;
+    let setup = study_setup(args, &times);
+    let mut scene = check_methods(
+        &setup.scene,
+        &setup.set,
+        &setup.base,
+        &args.methods,
+        &times.steps,
+    )?;
+    let weights = cost_weights(args, &mut scene.system)?;
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let reference = reference_samples(args, &setup, &times)?;
+    let (points, total) = study_points(args, &times.steps)?;
+    let bar = progress_bar(points.len() as u64, args.quiet, "work-precision");
+    let results = run_points(&setup, &points, &reference, weights, &|| bar.inc(1))?;
+    bar.finish_and_clear();
+
+    let meta = work_precision_meta(args, &times, total, weights);
+    let (table, wall) = work_precision_tables(meta, &results);
+    table.write(&args.out.join(WORK_PRECISION))?;
+    wall.write(&args.out.join(WALL_TIME))?;
+    draw_work_precision(&table, Some(&wall), &args.out)?;
+    if !args.quiet {
+        eprintln!(
+            "{} runs against {} (h = {}); tables and pictures in {}",
+            results.len(),
+            args.reference_method,
+            times.reference_h,
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The outer steps and times of a work-precision study, checked against each other.
+struct StudyTimes {
+    steps: Vec<f64>,
+    t_end: f64,
+    sample: f64,
+    reference_h: f64,
+}
+
+fn study_times(args: &WorkPrecisionArgs, scene_units: crate::units::Units) -> Result<StudyTimes> {
     let units = scene_units.time_units();
     let steps = parse_steps(&args.h_list, scene_units)?;
     let no_parameters = BTreeMap::new();
@@ -135,7 +179,16 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         None => sample / (64.0 * sample / smallest).ceil(),
     };
     whole_ratio(sample, reference_h, "reference step", "sample interval")?;
-    let setup = StudySetup {
+    Ok(StudyTimes {
+        steps,
+        t_end,
+        sample,
+        reference_h,
+    })
+}
+
+fn study_setup(args: &WorkPrecisionArgs, times: &StudyTimes) -> StudySetup {
+    StudySetup {
         scene: args.scene.clone(),
         set: args.set.clone(),
         base: RunSpec {
@@ -147,12 +200,18 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
             blowup: Some(args.blowup),
             ..Default::default()
         },
-        t_end,
-        sample,
+        t_end: times.t_end,
+        sample: times.sample,
         blowup: args.blowup,
-    };
-    let mut scene = check_methods(&setup.scene, &setup.set, &setup.base, &args.methods, &steps)?;
-    let weights = match &args.weights {
+    }
+}
+
+/// The --weights given, else the costs timed on the scene.
+fn cost_weights(
+    args: &WorkPrecisionArgs,
+    system: &mut crate::system::System,
+) -> Result<CostWeights> {
+    Ok(match &args.weights {
         Some(w) => {
             if w.len() != 3 || w.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
                 return Err(Error::input(
@@ -165,9 +224,15 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
                 hessian_vector: w[2],
             }
         }
-        None => measure_cost_weights(&mut scene.system),
-    };
-    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+        None => measure_cost_weights(system),
+    })
+}
+
+fn reference_samples(
+    args: &WorkPrecisionArgs,
+    setup: &StudySetup,
+    times: &StudyTimes,
+) -> Result<Samples> {
     // The reference takes only what its own method may need, never the studied methods'
     // inner steps.
     let reference_base = StudySetup {
@@ -182,15 +247,23 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     let reference = reference(
         &reference_base,
         &args.reference_method,
-        reference_h,
+        times.reference_h,
         &args.out.join("reference.csv"),
     )?;
-    if reference.times.len() != sample_times(sample, t_end).len() {
+    if reference.times.len() != sample_times(times.sample, times.t_end).len() {
         return Err(Error::input("the reference run does not reach --t-end"));
     }
+    Ok(reference)
+}
+
+/// One run of a study: its index, method and outer step h.
+type StudyPoint = (usize, String, f64);
+
+/// Every (index, method, h) of the study, kept to this shard's slice, and how many in all.
+fn study_points(args: &WorkPrecisionArgs, steps: &[f64]) -> Result<(Vec<StudyPoint>, usize)> {
     let mut points = Vec::new();
     for method in &args.methods {
-        for &h in &steps {
+        for &h in steps {
             points.push((points.len(), method.clone(), h));
         }
     }
@@ -199,19 +272,24 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     if let Some((k, n)) = shard {
         points.retain(|(index, _, _)| index % n == k);
     }
-    let bar = progress_bar(points.len() as u64, args.quiet, "work-precision");
-    let results = run_points(&setup, &points, &reference, weights, &|| bar.inc(1))?;
-    bar.finish_and_clear();
+    Ok((points, total))
+}
 
+fn work_precision_meta(
+    args: &WorkPrecisionArgs,
+    times: &StudyTimes,
+    total: usize,
+    weights: CostWeights,
+) -> BTreeMap<String, String> {
     let mut meta = meta_of(&[
         ("points", total.to_string()),
         ("scene", args.scene.display().to_string()),
         ("set", args.set.join(" ")),
-        ("t_end", t_end.to_string()),
-        ("sample", sample.to_string()),
+        ("t_end", times.t_end.to_string()),
+        ("sample", times.sample.to_string()),
         (
             "reference",
-            format!("{} h = {reference_h}", args.reference_method),
+            format!("{} h = {}", args.reference_method, times.reference_h),
         ),
         ("inner_steps", or_default(args.inner_steps)),
         (
@@ -225,6 +303,14 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     if let Some(shard) = &args.shard {
         meta.insert("shard".into(), shard.clone());
     }
+    meta
+}
+
+/// The work-precision table and its wall-time companion.
+fn work_precision_tables(
+    meta: BTreeMap<String, String>,
+    results: &[PrecisionResult],
+) -> (StudyTable, StudyTable) {
     let mut table = StudyTable::new(
         "work-precision",
         meta.clone(),
@@ -242,7 +328,7 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         ],
     );
     let mut wall = StudyTable::new("work-precision-wall-time", meta, &["index", "wall_seconds"]);
-    for r in &results {
+    for r in results {
         table.rows.push(vec![
             r.index.to_string(),
             r.method.clone(),
@@ -258,18 +344,7 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
         wall.rows
             .push(vec![r.index.to_string(), r.wall_seconds.to_string()]);
     }
-    table.write(&args.out.join(WORK_PRECISION))?;
-    wall.write(&args.out.join(WALL_TIME))?;
-    draw_work_precision(&table, Some(&wall), &args.out)?;
-    if !args.quiet {
-        eprintln!(
-            "{} runs against {} (h = {reference_h}); tables and pictures in {}",
-            results.len(),
-            args.reference_method,
-            args.out.display()
-        );
-    }
-    Ok(())
+    (table, wall)
 }
 
 /// The scene's file stem and its --set values, for titles.

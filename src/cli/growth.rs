@@ -19,7 +19,7 @@ use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::integrators;
-use crate::io::scene::load_scene;
+use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
 use crate::settings::{MethodSettings, RunSpec, Value};
 
@@ -102,6 +102,45 @@ struct GrowthRun {
 }
 
 pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
+    let (steps, t_end) = steps_and_end(args)?;
+    if args.window == Some(0) {
+        return Err(Error::input("--window must be at least 1 step"));
+    }
+    let fit_bounds = fit_bounds(args)?;
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        crate::plot::Format::of(path)?;
+    }
+    // Check the scene and every (method, h) before any run.
+    let scene = load_scene(&args.scene, &args.set)?;
+    let points = growth_points(args, &scene, &steps, t_end)?;
+    let probe_scene = ProbeScene::load(&args.scene)?;
+
+    let bar = progress_bar(points.len() as u64, args.quiet, "scan growth");
+    let runs = points
+        .par_iter()
+        .map(|(index, settings, n)| -> Result<GrowthRun> {
+            let run = growth_run(args, &probe_scene, *index, settings, *n, fit_bounds);
+            bar.inc(1);
+            run
+        })
+        .collect::<Result<Vec<_>>>()?;
+    bar.finish_and_clear();
+
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    write_summary(&args.out.join("growth.csv"), &runs)?;
+    write_envelopes(&args.out.join("envelope.csv"), &runs)?;
+    print_growth_table(&runs);
+    if !args.quiet {
+        print_notices(args, &runs);
+    }
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        chart(&scene.name, &runs).save(path)?;
+    }
+    Ok(())
+}
+
+/// The outer steps (--h) and the run length (--t-end), each checked positive.
+fn steps_and_end(args: &ScanGrowthArgs) -> Result<(Vec<f64>, f64)> {
     let steps = args
         .h
         .iter()
@@ -116,10 +155,12 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             "--t-end must be positive, got {t_end}"
         )));
     }
-    if args.window == Some(0) {
-        return Err(Error::input("--window must be at least 1 step"));
-    }
-    let fit_bounds = match &args.fit {
+    Ok((steps, t_end))
+}
+
+/// The --fit range LO:HI, if given.
+fn fit_bounds(args: &ScanGrowthArgs) -> Result<Option<(f64, f64)>> {
+    Ok(match &args.fit {
         Some(text) => {
             let parsed = text
                 .split_once(':')
@@ -135,21 +176,25 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             }
         }
         None => None,
-    };
-    for path in [&args.png, &args.svg].into_iter().flatten() {
-        crate::plot::Format::of(path)?;
-    }
+    })
+}
+
+/// Every (index, settings, outer steps) of the scan, each method checked at each h.
+fn growth_points(
+    args: &ScanGrowthArgs,
+    scene: &Scene,
+    steps: &[f64],
+    t_end: f64,
+) -> Result<Vec<(usize, MethodSettings, usize)>> {
     let base = RunSpec {
         inner_steps: args.inner_steps,
         dt: args.dt.clone(),
         jacobian: args.jacobian.clone(),
         ..Default::default()
     };
-    // Check the scene and every (method, h) before any run.
-    let scene = load_scene(&args.scene, &args.set)?;
     let mut points = Vec::new();
     for method in &args.method {
-        for &h in &steps {
+        for &h in steps {
             // Whole steps up to t_end (the last may stop short of it).
             let n = (t_end / h * (1.0 + 1e-12)).floor() as usize;
             if n == 0 {
@@ -176,27 +221,16 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             points.push((points.len(), settings, n));
         }
     }
-    let probe_scene = ProbeScene::load(&args.scene)?;
+    Ok(points)
+}
 
-    let bar = progress_bar(points.len() as u64, args.quiet, "scan growth");
-    let runs = points
-        .par_iter()
-        .map(|(index, settings, n)| -> Result<GrowthRun> {
-            let run = growth_run(args, &probe_scene, *index, settings, *n, fit_bounds);
-            bar.inc(1);
-            run
-        })
-        .collect::<Result<Vec<_>>>()?;
-    bar.finish_and_clear();
-
-    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
-    write_summary(&args.out.join("growth.csv"), &runs)?;
-    write_envelopes(&args.out.join("envelope.csv"), &runs)?;
+/// One line per run on stdout: the predicted and the measured growth rate.
+fn print_growth_table(runs: &[GrowthRun]) {
     println!(
         "{:<15} {:>8} {:>6} {:>14} {:>6} {:>12} {:>12} {:>12}",
         "method", "h", "K", "rho", "type", "2 ln rho", "measured", "max |dE|/E0"
     );
-    for run in &runs {
+    for run in runs {
         let (rho, kind, predicted) = match &run.linear {
             Ok(point) => (
                 format!("{:.8}", point.spectral_radius),
@@ -222,24 +256,22 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
             }
         );
     }
-    if !args.quiet {
-        for run in &runs {
-            if let Err(reason) = &run.linear {
-                eprintln!(
-                    "notice: {} at h = {}: no linear prediction ({reason})",
-                    run.method, run.h
-                );
-            }
+}
+
+/// The runs without a linear prediction, and where the results are, on stderr.
+fn print_notices(args: &ScanGrowthArgs, runs: &[GrowthRun]) {
+    for run in runs {
+        if let Err(reason) = &run.linear {
+            eprintln!(
+                "notice: {} at h = {}: no linear prediction ({reason})",
+                run.method, run.h
+            );
         }
-        eprintln!(
-            "results in {} (growth.csv, envelope.csv)",
-            args.out.display()
-        );
     }
-    for path in [&args.png, &args.svg].into_iter().flatten() {
-        chart(&scene.name, &runs).save(path)?;
-    }
-    Ok(())
+    eprintln!(
+        "results in {} (growth.csv, envelope.csv)",
+        args.out.display()
+    );
 }
 
 /// 2 ln ρ: the growth rate per step of the energy error of an unstable linear step, zero
