@@ -8,13 +8,15 @@
 
 use std::collections::BTreeMap;
 use std::io::Write;
+use std::path::Path;
 
 use serde_json::json;
 
 use super::ForcesArgs;
 use crate::error::{Error, Result};
-use crate::io::scene::load_scene;
+use crate::io::scene::{Scene, load_scene};
 use crate::io::structure::read_structure;
+use crate::system::System;
 
 /// The report group of an energy component named by its kind.
 fn group_of(component: &str) -> &'static str {
@@ -40,22 +42,46 @@ const GROUPS: [&str; 6] = [
 pub fn forces_command(args: &ForcesArgs) -> Result<()> {
     let mut scene = load_scene(&args.scene, &args.set)?;
     if !args.quiet {
-        for line in &scene.forcefield_report {
-            eprintln!("{line}");
-        }
-        eprintln!("{}", scene.system.forces.level_table());
+        report_forcefield(&scene);
     }
     if let Some(path) = &args.parameters {
-        let Some(parameters) = &scene.forcefield_parameters else {
-            return Err(Error::input(
-                "--parameters needs a scene with a [forcefield] section",
-            ));
-        };
-        let text = serde_json::to_string(parameters)
-            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
-        std::fs::write(path, text).map_err(|e| Error::io(path, e))?;
+        write_parameters(&scene, path)?;
     }
-    let system = &mut scene.system;
+    let q = positions(&scene.system, args)?;
+    let evaluation = Evaluation::at(&mut scene.system, &q);
+    if let Some(path) = &args.out {
+        write_forces_csv(path, &scene, &evaluation, args.by_level)?;
+    }
+    if args.json {
+        print_json(&scene, evaluation, args)
+    } else {
+        print_table(&scene, &evaluation, args);
+        Ok(())
+    }
+}
+
+/// The force-field report and level table on stderr.
+fn report_forcefield(scene: &Scene) {
+    for line in &scene.forcefield_report {
+        eprintln!("{line}");
+    }
+    eprintln!("{}", scene.system.forces.level_table());
+}
+
+/// `--parameters FILE`: the scene's force-field parameters as JSON.
+fn write_parameters(scene: &Scene, path: &Path) -> Result<()> {
+    let Some(parameters) = &scene.forcefield_parameters else {
+        return Err(Error::input(
+            "--parameters needs a scene with a [forcefield] section",
+        ));
+    };
+    let text = serde_json::to_string(parameters)
+        .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+    std::fs::write(path, text).map_err(|e| Error::io(path, e))
+}
+
+/// The positions to evaluate at: the scene's, or those of `--positions FILE`.
+fn positions(system: &System, args: &ForcesArgs) -> Result<Vec<f64>> {
     let mut q = system.state.q.clone();
     if let Some(path) = &args.positions {
         let structure = read_structure(path)?;
@@ -74,122 +100,175 @@ pub fn forces_command(args: &ForcesArgs) -> Result<()> {
             q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
         }
     }
-    let n_levels = system.forces.n_levels();
+    Ok(q)
+}
 
-    let mut groups: BTreeMap<&str, f64> = GROUPS.iter().map(|&g| (g, 0.0)).collect();
-    let mut terms = serde_json::Map::new();
-    for labelled in system.forces.terms() {
-        for (component, energy) in labelled.term.energy_components(&q) {
-            *groups.entry(group_of(component)).or_insert(0.0) += energy;
-            let key = if labelled.term.energy_components(&q).len() > 1 {
-                format!("{}/{component}", labelled.name)
-            } else {
-                labelled.name.clone()
-            };
-            terms.insert(key, json!(energy));
-        }
-    }
-    let level_energies: Vec<f64> = (0..n_levels)
-        .map(|level| system.forces.energy(level, &q))
-        .collect();
-    let total: f64 = level_energies.iter().sum();
+/// Energies per group, term and level, and the gradient of each level, at one point.
+struct Evaluation {
+    groups: BTreeMap<&'static str, f64>,
+    terms: serde_json::Map<String, serde_json::Value>,
+    level_energies: Vec<f64>,
+    total: f64,
+    level_gradients: Vec<Vec<f64>>,
+}
 
-    // Per-level gradients (forces are their negatives).
-    let mut level_gradients = vec![vec![0.0; q.len()]; n_levels];
-    for (level, gradient) in level_gradients.iter_mut().enumerate() {
-        system.forces.gradient(level, &q, gradient);
-    }
-    let units = scene.units.labels();
-    let unit = |name: &str| {
-        units
-            .iter()
-            .find(|(k, _)| *k == name)
-            .map(|(_, v)| *v)
-            .unwrap_or("scene")
-    };
-
-    if let Some(path) = &args.out {
-        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut out = std::io::BufWriter::new(file);
-        let dim = system.dim;
-        let axes = ["x", "y", "z"];
-        // In a real scene each force column carries its unit (`fx[kcal/mol/angstrom]`), as
-        // in energy.csv.
-        let force_unit = match scene.units {
-            crate::units::Units::None => String::new(),
-            _ => format!("[{}]", unit("force")),
-        };
-        let mut header: Vec<String> = vec!["index".into(), "element".into()];
-        header.extend(axes[..dim].iter().map(|a| format!("f{a}{force_unit}")));
-        if args.by_level {
-            for level in 0..n_levels {
-                let name = system.forces.level_name(level).replace(' ', "_");
-                header.extend(
-                    axes[..dim]
-                        .iter()
-                        .map(|a| format!("f{a}_{name}{force_unit}")),
-                );
+impl Evaluation {
+    fn at(system: &mut System, q: &[f64]) -> Self {
+        let n_levels = system.forces.n_levels();
+        let mut groups: BTreeMap<&'static str, f64> = GROUPS.iter().map(|&g| (g, 0.0)).collect();
+        let mut terms = serde_json::Map::new();
+        for labelled in system.forces.terms() {
+            for (component, energy) in labelled.term.energy_components(q) {
+                *groups.entry(group_of(component)).or_insert(0.0) += energy;
+                let key = if labelled.term.energy_components(q).len() > 1 {
+                    format!("{}/{component}", labelled.name)
+                } else {
+                    labelled.name.clone()
+                };
+                terms.insert(key, json!(energy));
             }
         }
-        let io = |e| Error::io(path, e);
-        writeln!(out, "{}", header.join(",")).map_err(io)?;
-        for i in 0..system.n_particles() {
-            write!(out, "{i},{}", scene.elements[i]).map_err(io)?;
-            for a in 0..dim {
-                let f: f64 = -level_gradients.iter().map(|g| g[i * dim + a]).sum::<f64>();
-                write!(out, ",{f}").map_err(io)?;
-            }
-            if args.by_level {
-                for gradient in &level_gradients {
-                    for a in 0..dim {
-                        write!(out, ",{}", -gradient[i * dim + a]).map_err(io)?;
-                    }
+        let level_energies: Vec<f64> = (0..n_levels)
+            .map(|level| system.forces.energy(level, q))
+            .collect();
+        let total: f64 = level_energies.iter().sum();
+
+        // Per-level gradients (forces are their negatives).
+        let mut level_gradients = vec![vec![0.0; q.len()]; n_levels];
+        for (level, gradient) in level_gradients.iter_mut().enumerate() {
+            system.forces.gradient(level, q, gradient);
+        }
+        Evaluation {
+            groups,
+            terms,
+            level_energies,
+            total,
+            level_gradients,
+        }
+    }
+}
+
+/// The label of one of the scene's units (`energy`, `force`, …), or "scene".
+fn unit(scene: &Scene, name: &str) -> &'static str {
+    scene
+        .units
+        .labels()
+        .iter()
+        .find(|(k, _)| *k == name)
+        .map(|(_, v)| *v)
+        .unwrap_or("scene")
+}
+
+/// `--out FILE`: the per-atom forces `index,element,fx,fy,fz` (and per level with
+/// `--by-level`).
+fn write_forces_csv(
+    path: &Path,
+    scene: &Scene,
+    evaluation: &Evaluation,
+    by_level: bool,
+) -> Result<()> {
+    let system = &scene.system;
+    let level_gradients = &evaluation.level_gradients;
+    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let mut out = std::io::BufWriter::new(file);
+    let dim = system.dim;
+    let io = |e| Error::io(path, e);
+    writeln!(out, "{}", forces_header(scene, by_level).join(",")).map_err(io)?;
+    for i in 0..system.n_particles() {
+        write!(out, "{i},{}", scene.elements[i]).map_err(io)?;
+        for a in 0..dim {
+            let f: f64 = -level_gradients.iter().map(|g| g[i * dim + a]).sum::<f64>();
+            write!(out, ",{f}").map_err(io)?;
+        }
+        if by_level {
+            for gradient in level_gradients {
+                for a in 0..dim {
+                    write!(out, ",{}", -gradient[i * dim + a]).map_err(io)?;
                 }
             }
-            writeln!(out).map_err(io)?;
         }
-        out.flush().map_err(io)?;
+        writeln!(out).map_err(io)?;
     }
+    out.flush().map_err(io)
+}
 
-    if args.json {
-        let mut energy = serde_json::Map::new();
-        for (group, value) in &groups {
-            energy.insert(group.to_string(), json!(value));
-        }
-        energy.insert("fast".into(), json!(level_energies.first().copied()));
-        energy.insert("slow".into(), json!(level_energies.last().copied()));
-        energy.insert("levels".into(), json!(level_energies));
-        energy.insert("total".into(), json!(total));
-        energy.insert("terms".into(), serde_json::Value::Object(terms));
-        let units: serde_json::Map<String, serde_json::Value> = units
-            .iter()
-            .map(|(k, v)| (k.to_string(), json!(v)))
-            .collect();
-        let mut report = json!({ "energy": energy, "units": units });
-        if let Some(path) = &args.out {
-            report["forces_csv"] = json!(path.display().to_string());
-        }
-        let text = serde_json::to_string_pretty(&report)
-            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
-        println!("{text}");
-    } else {
-        println!("scene      {}", scene.name);
-        println!("energy ({})", unit("energy"));
-        for group in GROUPS {
-            println!("  {group:<15} {:.10}", groups[group]);
-        }
-        for (level, energy) in level_energies.iter().enumerate() {
-            let name = format!("{} (level {level})", system.forces.level_name(level));
-            println!("  {name:<15} {energy:.10}");
-        }
-        println!("  {:<15} {total:.10}", "total");
-        if let Some(path) = &args.out {
-            println!(
-                "forces     {} ({}; columns index,element,fx,fy,fz)",
-                path.display(),
-                unit("force")
+/// The column names of the forces CSV.
+fn forces_header(scene: &Scene, by_level: bool) -> Vec<String> {
+    let system = &scene.system;
+    let dim = system.dim;
+    let axes = ["x", "y", "z"];
+    // In a real scene each force column carries its unit (`fx[kcal/mol/angstrom]`), as
+    // in energy.csv.
+    let force_unit = match scene.units {
+        crate::units::Units::None => String::new(),
+        _ => format!("[{}]", unit(scene, "force")),
+    };
+    let mut header: Vec<String> = vec!["index".into(), "element".into()];
+    header.extend(axes[..dim].iter().map(|a| format!("f{a}{force_unit}")));
+    if by_level {
+        for level in 0..system.forces.n_levels() {
+            let name = system.forces.level_name(level).replace(' ', "_");
+            header.extend(
+                axes[..dim]
+                    .iter()
+                    .map(|a| format!("f{a}_{name}{force_unit}")),
             );
         }
     }
+    header
+}
+
+/// `--json`: `{"energy": {…}, "units": {…}}` on stdout.
+fn print_json(scene: &Scene, evaluation: Evaluation, args: &ForcesArgs) -> Result<()> {
+    let Evaluation {
+        groups,
+        terms,
+        level_energies,
+        total,
+        ..
+    } = evaluation;
+    let mut energy = serde_json::Map::new();
+    for (group, value) in &groups {
+        energy.insert(group.to_string(), json!(value));
+    }
+    energy.insert("fast".into(), json!(level_energies.first().copied()));
+    energy.insert("slow".into(), json!(level_energies.last().copied()));
+    energy.insert("levels".into(), json!(level_energies));
+    energy.insert("total".into(), json!(total));
+    energy.insert("terms".into(), serde_json::Value::Object(terms));
+    let units: serde_json::Map<String, serde_json::Value> = scene
+        .units
+        .labels()
+        .iter()
+        .map(|(k, v)| (k.to_string(), json!(v)))
+        .collect();
+    let mut report = json!({ "energy": energy, "units": units });
+    if let Some(path) = &args.out {
+        report["forces_csv"] = json!(path.display().to_string());
+    }
+    let text = serde_json::to_string_pretty(&report)
+        .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+    println!("{text}");
     Ok(())
+}
+
+/// The energy table on stdout.
+fn print_table(scene: &Scene, evaluation: &Evaluation, args: &ForcesArgs) {
+    println!("scene      {}", scene.name);
+    println!("energy ({})", unit(scene, "energy"));
+    for group in GROUPS {
+        println!("  {group:<15} {:.10}", evaluation.groups[group]);
+    }
+    for (level, energy) in evaluation.level_energies.iter().enumerate() {
+        let name = format!("{} (level {level})", scene.system.forces.level_name(level));
+        println!("  {name:<15} {energy:.10}");
+    }
+    println!("  {:<15} {:.10}", "total", evaluation.total);
+    if let Some(path) = &args.out {
+        println!(
+            "forces     {} ({}; columns index,element,fx,fy,fz)",
+            path.display(),
+            unit(scene, "force")
+        );
+    }
 }

@@ -267,21 +267,7 @@ fn check_points(args: &StabilityMapArgs) -> Result<()> {
 
 pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     let (evaluator, notices, description) = evaluator(&args.model)?;
-    check_points(args)?;
-    let grid = Grid {
-        gamma1: Axis::parse(&args.gamma1, args.n, "--gamma1")?,
-        gamma2: Axis::parse(&args.gamma2, args.n, "--gamma2")?,
-    };
-    if grid.gamma1.start < 0.0 || grid.gamma2.start < 0.0 {
-        return Err(Error::input("Γ ranges must start at 0 or above"));
-    }
-    let shard = match &args.shard {
-        Some(text) => Shard::parse(text)?,
-        None => Shard::whole(),
-    };
-    for path in [&args.png, &args.svg].into_iter().flatten() {
-        crate::plot::Format::of(path)?;
-    }
+    let (grid, shard) = map_grid(args)?;
     if !args.quiet {
         for notice in &notices {
             eprintln!("notice: {notice}");
@@ -298,10 +284,72 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
             grid.len()
         )));
     }
+    let tally = compute_map(args, &evaluator, &grid, shard, range.clone(), drawing)?;
+
+    let shard_note = if shard.count > 1 {
+        format!(" (shard {}/{})", shard.index, shard.count)
+    } else {
+        String::new()
+    };
+    let title = format!("Spectral radius: {description}{shard_note}");
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        draw_map(
+            path,
+            &grid,
+            &tally.values,
+            &tally.kinds,
+            args.colour,
+            &title,
+        )?;
+    }
+    if !args.quiet {
+        report_map(args, range.len(), &shard_note, &tally);
+    }
+    Ok(())
+}
+
+/// The grid and shard the flags ask for, checked, and the picture formats checked.
+fn map_grid(args: &StabilityMapArgs) -> Result<(Grid, Shard)> {
+    check_points(args)?;
+    let grid = Grid {
+        gamma1: Axis::parse(&args.gamma1, args.n, "--gamma1")?,
+        gamma2: Axis::parse(&args.gamma2, args.n, "--gamma2")?,
+    };
+    if grid.gamma1.start < 0.0 || grid.gamma2.start < 0.0 {
+        return Err(Error::input("Γ ranges must start at 0 or above"));
+    }
+    let shard = match &args.shard {
+        Some(text) => Shard::parse(text)?,
+        None => Shard::whole(),
+    };
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        crate::plot::Format::of(path)?;
+    }
+    Ok((grid, shard))
+}
+
+/// What a map's points add up to: the picture's values and types (empty when nothing is
+/// drawn), the count of each type and the largest spectral radius.
+struct MapTally {
+    values: Vec<f64>,
+    kinds: Vec<Option<InstabilityType>>,
+    counts: [usize; 5],
+    largest: f64,
+}
+
+/// Evaluate the shard's points, streaming them to the CSV, and tally them.
+fn compute_map(
+    args: &StabilityMapArgs,
+    evaluator: &Evaluator,
+    grid: &Grid,
+    shard: Shard,
+    range: std::ops::Range<usize>,
+    drawing: bool,
+) -> Result<MapTally> {
     // A shard names its map's settings, so `longstep merge` can check that shards belong
     // together and cover the map exactly once.
     let first_line = match &args.shard {
-        Some(_) => Some(shard_line(args, &grid, shard)?),
+        Some(_) => Some(shard_line(args, grid, shard)?),
         None => None,
     };
     let mut csv = CsvWriter::create_after(
@@ -309,23 +357,15 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
         first_line.as_deref(),
         &["gamma1", "gamma2", "spectral_radius", "type"],
     )?;
-    let progress = if !args.quiet && std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(range.len() as u64);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
-        ) {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let progress = progress_bar(args.quiet, range.len());
     let picture_len = if drawing { grid.len() } else { 0 };
-    let mut values = vec![f64::NAN; picture_len];
-    let mut kinds = vec![None; picture_len];
-    let mut counts = [0usize; 5];
-    let mut largest = f64::NAN;
-    evaluate(&evaluator, &grid, range.clone(), |first, block| {
+    let mut tally = MapTally {
+        values: vec![f64::NAN; picture_len],
+        kinds: vec![None; picture_len],
+        counts: [0usize; 5],
+        largest: f64::NAN,
+    };
+    evaluate(evaluator, grid, range, |first, block| {
         for (offset, point) in block.iter().enumerate() {
             let k = first + offset;
             let (gamma1, gamma2) = grid.point(k);
@@ -336,13 +376,13 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
                 point.kind.code() as f64,
             ])?;
             if drawing {
-                values[k] = point.excess;
-                kinds[k] = Some(point.kind);
+                tally.values[k] = point.excess;
+                tally.kinds[k] = Some(point.kind);
             }
-            largest = largest.max(point.spectral_radius);
+            tally.largest = tally.largest.max(point.spectral_radius);
         }
         let block_counts = census(block);
-        for (total, count) in counts.iter_mut().zip(block_counts) {
+        for (total, count) in tally.counts.iter_mut().zip(block_counts) {
             *total += count;
         }
         progress.inc(block.len() as u64);
@@ -350,42 +390,51 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     })?;
     csv.flush()?;
     progress.finish_and_clear();
+    Ok(tally)
+}
 
-    let shard_note = if shard.count > 1 {
-        format!(" (shard {}/{})", shard.index, shard.count)
+/// A progress bar on a terminal's stderr, hidden when quiet or not a terminal.
+fn progress_bar(quiet: bool, len: usize) -> ProgressBar {
+    if !quiet && std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(len as u64);
+        if let Ok(style) = ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
+        ) {
+            bar.set_style(style);
+        }
+        bar
     } else {
-        String::new()
-    };
-    let title = format!("Spectral radius: {description}{shard_note}");
-    for path in [&args.png, &args.svg].into_iter().flatten() {
-        draw_map(path, &grid, &values, &kinds, args.colour, &title)?;
+        ProgressBar::hidden()
     }
-    if !args.quiet {
-        eprintln!(
-            "{} points{shard_note}: {} stable, {} type 1, {} type 2, {} type 3{}; largest \
-             spectral radius {}",
-            range.len(),
-            counts[0],
-            counts[1],
-            counts[2],
-            counts[3],
-            if counts[4] > 0 {
-                format!(", {} overflowed", counts[4])
-            } else {
-                String::new()
-            },
-            largest
-        );
-        let mut written = vec![args.out.display().to_string()];
-        written.extend(
-            [&args.png, &args.svg]
-                .into_iter()
-                .flatten()
-                .map(|p| p.display().to_string()),
-        );
-        eprintln!("wrote {}", written.join(", "));
-    }
-    Ok(())
+}
+
+/// The summary on stderr: the count of each type, the largest spectral radius and the
+/// files written.
+fn report_map(args: &StabilityMapArgs, points: usize, shard_note: &str, tally: &MapTally) {
+    let counts = &tally.counts;
+    eprintln!(
+        "{} points{shard_note}: {} stable, {} type 1, {} type 2, {} type 3{}; largest \
+         spectral radius {}",
+        points,
+        counts[0],
+        counts[1],
+        counts[2],
+        counts[3],
+        if counts[4] > 0 {
+            format!(", {} overflowed", counts[4])
+        } else {
+            String::new()
+        },
+        tally.largest
+    );
+    let mut written = vec![args.out.display().to_string()];
+    written.extend(
+        [&args.png, &args.svg]
+            .into_iter()
+            .flatten()
+            .map(|p| p.display().to_string()),
+    );
+    eprintln!("wrote {}", written.join(", "));
 }
 
 /// The first line of a shard's CSV: `# longstep stability-map, gamma1 = 0:6.5, h = 0.5, …,
