@@ -30,6 +30,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{Error, Result};
 
+mod labels;
+use labels::{PointText, TextBox, group_guides, log_ticks, place_point_labels, stack_in_rows};
+
 /// DejaVu Sans 2.37 (assets/fonts/README.md).
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
@@ -386,7 +389,10 @@ fn draw_colour_bar<DB: DrawingBackend>(
     let shade = |t: f64| viridis(t).filled();
     if log {
         let mut chart = builder
-            .build_cartesian_2d(0.0..1.0, (min..max).log_scale())
+            .build_cartesian_2d(
+                0.0..1.0,
+                (min..max).log_scale().with_key_points(log_ticks(min, max)),
+            )
             .map_err(|e| e.to_string())?;
         let (lmin, lmax) = (min.log10(), max.log10());
         chart
@@ -426,6 +432,89 @@ fn draw_colour_bar<DB: DrawingBackend>(
             .y_label_formatter(&|v| format_number(*v))
             .label_style(("sans-serif", 13))
             .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// Guide lines closer than this (pixels) share one label.
+const GUIDE_GROUP_GAP: i32 = 10;
+
+/// The labels of guide lines, hung below the top of the plot beside their line (on the
+/// side towards the middle, so they stay inside): lines too close to tell apart share one
+/// label, and a label that would overlap another moves down a row. Each has a pale
+/// backing so crosses and grid lines under it do not garble it.
+fn draw_guide_labels<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    guides: &[((i32, i32), String)],
+    x_middle: i32,
+) -> Result<(), String> {
+    let Some(top) = guides.iter().map(|g| g.0.1).min() else {
+        return Ok(());
+    };
+    let grey = BLACK.mix(0.7);
+    let style = TextStyle::from(("sans-serif", 12).into_font())
+        .color(&grey)
+        .pos(Pos::new(HPos::Left, VPos::Top));
+    let xs: Vec<(i32, String)> = guides.iter().map(|g| (g.0.0, g.1.clone())).collect();
+    let groups = group_guides(&xs, GUIDE_GROUP_GAP);
+    let mut first_row = Vec::with_capacity(groups.len());
+    for (x, text) in &groups {
+        let (w, h) = root
+            .estimate_text_size(text, &style)
+            .map_err(|e| e.to_string())?;
+        let (w, h) = (w as i32, h as i32);
+        let left = if *x > x_middle { x - 4 - w } else { x + 4 };
+        first_row.push(TextBox {
+            left,
+            top: top + 4,
+            width: w,
+            height: h,
+        });
+    }
+    for (place, (_, text)) in stack_in_rows(&first_row, 15, 2).iter().zip(&groups) {
+        let corners = [
+            (place.left - 1, place.top - 1),
+            (place.left + place.width + 1, place.top + place.height + 1),
+        ];
+        root.draw(&Rectangle::new(corners, WHITE.mix(0.8).filled()))
+            .map_err(|e| e.to_string())?;
+        root.draw(&Text::new(
+            text.clone(),
+            (place.left, place.top),
+            style.clone(),
+        ))
+        .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// Labels beside points, in their series' colour, placed so no two overlap (a label
+/// repeating the same text right beside it is left out).
+fn draw_point_labels<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    texts: &[((i32, i32), &str, Colour)],
+    area: TextBox,
+) -> Result<(), String> {
+    let font = ("sans-serif", 11).into_font();
+    let measure = TextStyle::from(font.clone());
+    let mut labels = Vec::with_capacity(texts.len());
+    for (at, text, _) in texts {
+        let (w, h) = root
+            .estimate_text_size(text, &measure)
+            .map_err(|e| e.to_string())?;
+        labels.push(PointText {
+            at: *at,
+            size: (w as i32, h as i32),
+            text,
+        });
+    }
+    for (place, (_, text, colour)) in place_point_labels(&labels, area, 5, 12).iter().zip(texts) {
+        let Some(place) = place else { continue };
+        let style = TextStyle::from(font.clone())
+            .color(colour)
+            .pos(Pos::new(HPos::Left, VPos::Top));
+        root.draw(&Text::new(text.to_string(), (place.left, place.top), style))
             .map_err(|e| e.to_string())?;
     }
     Ok(())
@@ -529,6 +618,9 @@ pub struct Series {
     pub style: SeriesStyle,
     /// Default: the palette colour of the series' position.
     pub colour: Option<Colour>,
+    /// Text beside each point, in the order of `points` (for example its step size);
+    /// empty for none.
+    pub point_labels: Vec<String>,
 }
 
 impl Series {
@@ -538,6 +630,7 @@ impl Series {
             points,
             style: SeriesStyle::Line,
             colour: None,
+            point_labels: Vec::new(),
         }
     }
 
@@ -547,6 +640,7 @@ impl Series {
             points,
             style: SeriesStyle::Points,
             colour: None,
+            point_labels: Vec::new(),
         }
     }
 }
@@ -694,7 +788,8 @@ impl LineChart {
         let (x_range, y_range) = (chart.x_range(), chart.y_range());
         let x_middle = chart.backend_coord(&(x_range.start, y_range.start)).0 / 2
             + chart.backend_coord(&(x_range.end, y_range.start)).0 / 2;
-        for (k, guide) in self.guides.iter().enumerate() {
+        let mut guide_pixels = Vec::with_capacity(self.guides.len());
+        for guide in &self.guides {
             let x = xc(guide.x);
             chart
                 .draw_series(LineSeries::new(
@@ -702,25 +797,17 @@ impl LineChart {
                     BLACK.mix(0.4).stroke_width(1),
                 ))
                 .map_err(|e| e.to_string())?;
-            // The label beside the line's top (staggered so neighbours do not overlap),
-            // on the side towards the middle so it stays inside the plot.
-            let (px, py) = chart.backend_coord(&(x, y_range.end));
-            let right_half = px > x_middle;
-            let anchor = if right_half { HPos::Right } else { HPos::Left };
-            let grey = BLACK.mix(0.7);
-            let style = TextStyle::from(("sans-serif", 12).into_font())
-                .color(&grey)
-                .pos(Pos::new(anchor, VPos::Top));
-            let offset = if right_half { -4 } else { 4 };
-            root.draw(&Text::new(
-                guide.label.clone(),
-                (px + offset, py + 4 + 14 * (k as i32 % 3)),
-                style,
-            ))
-            .map_err(|e| e.to_string())?;
+            guide_pixels.push((chart.backend_coord(&(x, y_range.end)), guide.label.clone()));
         }
+        draw_guide_labels(root, &guide_pixels, x_middle)?;
+        let mut point_texts: Vec<((i32, i32), &str, Colour)> = Vec::new();
         for (k, series) in self.series.iter().enumerate() {
             let colour = series.colour.unwrap_or(PALETTE[k % PALETTE.len()]);
+            for (&(x, y), text) in series.points.iter().zip(&series.point_labels) {
+                if x.is_finite() && y.is_finite() {
+                    point_texts.push((chart.backend_coord(&(xc(x), yc(y))), text, colour));
+                }
+            }
             let points: Vec<(f64, f64)> = series
                 .points
                 .iter()
@@ -798,6 +885,17 @@ impl LineChart {
                     }
                 });
         }
+        let plot_area = {
+            let (left, top) = chart.backend_coord(&(x_range.start, y_range.end));
+            let (right, bottom) = chart.backend_coord(&(x_range.end, y_range.start));
+            TextBox {
+                left,
+                top,
+                width: right - left,
+                height: bottom - top,
+            }
+        };
+        draw_point_labels(root, &point_texts, plot_area)?;
         if !self.series.is_empty() || !self.markers.is_empty() {
             chart
                 .configure_series_labels()

@@ -375,9 +375,15 @@ fn scene_label(table: &StudyTable) -> String {
 }
 
 /// A method's (cost, error) points: finished runs, then unstable or failed ones.
-type MethodPoints = (String, Vec<(f64, f64)>, Vec<(f64, f64)>);
+/// One method's runs on an error-against-cost chart: stable runs as (cost, error) with
+/// their outer step, unstable runs as (cost, error).
+struct MethodPoints {
+    method: String,
+    stable: Vec<((f64, f64), String)>,
+    failed: Vec<(f64, f64)>,
+}
 
-/// Points of one method as (cost, error) with unstable runs separated.
+/// Points of each method, unstable runs separated.
 fn method_points(
     table: &StudyTable,
     cost: &dyn Fn(&[String]) -> f64,
@@ -385,24 +391,40 @@ fn method_points(
 ) -> Result<Vec<MethodPoints>> {
     let method = table.column("method")?;
     let status = table.column("status")?;
+    let h = table.column("h")?;
     let mut groups: Vec<MethodPoints> = Vec::new();
     for row in &table.rows {
         let name = &row[method];
-        if !groups.iter().any(|g| &g.0 == name) {
-            groups.push((name.clone(), Vec::new(), Vec::new()));
-        }
-        let group = groups
-            .iter_mut()
-            .find(|g| &g.0 == name)
-            .expect("just added");
+        let k = match groups.iter().position(|g| &g.method == name) {
+            Some(k) => k,
+            None => {
+                groups.push(MethodPoints {
+                    method: name.clone(),
+                    stable: Vec::new(),
+                    failed: Vec::new(),
+                });
+                groups.len() - 1
+            }
+        };
         let point = (cost(row), table.number(row, error_column));
         if row[status] == "ok" {
-            group.1.push(point);
+            groups[k].stable.push((point, format!("h = {}", row[h])));
         } else {
-            group.2.push(point);
+            groups[k].failed.push(point);
         }
     }
     Ok(groups)
+}
+
+type CostFn<'a> = Box<dyn Fn(&[String]) -> f64 + 'a>;
+
+/// One picture of the work-precision set: its file name, axis labels and what it plots.
+struct WorkPrecisionChart<'a> {
+    name: &'static str,
+    x_label: &'static str,
+    cost: CostFn<'a>,
+    error_column: usize,
+    y_label: &'static str,
 }
 
 /// Error-against-cost pictures; unstable runs are drawn as crosses at the top of the plot.
@@ -423,85 +445,103 @@ pub fn draw_work_precision(
                 .collect()
         })
         .unwrap_or_default();
-    let scene = scene_label(table);
-    type CostFn<'a> = Box<dyn Fn(&[String]) -> f64 + 'a>;
-    let mut charts: Vec<(&str, &str, CostFn, usize, &str)> = vec![
-        (
-            "error-vs-slow-evaluations",
-            "slow-force evaluations",
-            Box::new(move |r: &[String]| table.number(r, slow)),
-            position,
-            "max position error",
-        ),
-        (
-            "error-vs-force-evaluations",
-            "force evaluations, weighted by measured cost (slow-force units)",
-            Box::new(move |r: &[String]| table.number(r, weighted)),
-            position,
-            "max position error",
-        ),
-        (
-            "energy-error-vs-force-evaluations",
-            "force evaluations, weighted by measured cost (slow-force units)",
-            Box::new(move |r: &[String]| table.number(r, weighted)),
-            energy,
-            "max relative energy error",
-        ),
+    let weighted_label = "force evaluations, weighted by measured cost (slow-force units)";
+    let mut charts = vec![
+        WorkPrecisionChart {
+            name: "error-vs-slow-evaluations",
+            x_label: "slow-force evaluations",
+            cost: Box::new(move |r: &[String]| table.number(r, slow)),
+            error_column: position,
+            y_label: "max position error",
+        },
+        WorkPrecisionChart {
+            name: "error-vs-force-evaluations",
+            x_label: weighted_label,
+            cost: Box::new(move |r: &[String]| table.number(r, weighted)),
+            error_column: position,
+            y_label: "max position error",
+        },
+        WorkPrecisionChart {
+            name: "energy-error-vs-force-evaluations",
+            x_label: weighted_label,
+            cost: Box::new(move |r: &[String]| table.number(r, weighted)),
+            error_column: energy,
+            y_label: "max relative energy error",
+        },
     ];
     if wall.is_some() {
-        charts.push((
-            "error-vs-wall-time",
-            "wall time (s)",
-            Box::new(|r: &[String]| wall_of.get(&r[0]).copied().unwrap_or(f64::NAN)),
-            position,
-            "max position error",
-        ));
+        charts.push(WorkPrecisionChart {
+            name: "error-vs-wall-time",
+            x_label: "wall time (s)",
+            cost: Box::new(|r: &[String]| wall_of.get(&r[0]).copied().unwrap_or(f64::NAN)),
+            error_column: position,
+            y_label: "max position error",
+        });
     }
-    for (name, x_label, cost, column, y_label) in charts {
-        let groups = method_points(table, cost.as_ref(), column)?;
-        let finite = |p: &(f64, f64)| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite();
-        let top = groups
-            .iter()
-            .flat_map(|g| g.1.iter())
-            .filter(|p| finite(p))
-            .map(|p| p.1)
-            .fold(f64::NAN, f64::max);
-        let mut chart = LineChart::new(
-            &format!("Work–precision, {scene}"),
-            AxisSpec::log(x_label),
-            AxisSpec::log(y_label),
-        );
-        chart.legend = Corner::LowerLeft;
-        for (k, (method, stable, failed)) in groups.iter().enumerate() {
-            let colour = PALETTE[k % PALETTE.len()];
-            let points: Vec<(f64, f64)> = stable.iter().copied().filter(finite).collect();
-            if !points.is_empty() {
-                let mut series = Series::line(method, points);
-                series.style = SeriesStyle::LineAndPoints;
-                series.colour = Some(colour);
-                chart.series.push(series);
-            }
-            // An unstable run has no meaningful error: it is drawn at the top of the plot.
-            let ceiling = if top.is_finite() { 2.0 * top } else { 1.0 };
-            let unstable: Vec<(f64, f64)> = failed
-                .iter()
-                .filter(|p| p.0 > 0.0 && p.0.is_finite())
-                .map(|p| (p.0, ceiling))
-                .collect();
-            if !unstable.is_empty() {
-                chart
-                    .markers
-                    .push(MarkerSet::unstable_of(method, colour, unstable));
-            }
-        }
+    let scene = scene_label(table);
+    for spec in charts {
+        let groups = method_points(table, spec.cost.as_ref(), spec.error_column)?;
+        let chart = work_precision_chart(&scene, &spec, &groups);
         if chart.series.is_empty() && chart.markers.is_empty() {
             continue;
         }
         for extension in ["png", "svg"] {
-            chart.save(&out.join(format!("{name}.{extension}")))?;
+            chart.save(&out.join(format!("{}.{extension}", spec.name)))?;
         }
     }
     Ok(())
+}
+
+/// One error-against-cost chart: a line per method with each point labelled by its outer
+/// step, and the method's unstable runs as crosses in its colour at the top.
+fn work_precision_chart(
+    scene: &str,
+    spec: &WorkPrecisionChart,
+    groups: &[MethodPoints],
+) -> LineChart {
+    let finite = |p: &(f64, f64)| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite();
+    let top = groups
+        .iter()
+        .flat_map(|g| g.stable.iter().map(|s| s.0))
+        .filter(finite)
+        .map(|p| p.1)
+        .fold(f64::NAN, f64::max);
+    let mut chart = LineChart::new(
+        &format!("Work–precision, {scene}"),
+        AxisSpec::log(spec.x_label),
+        AxisSpec::log(spec.y_label),
+    );
+    chart.legend = Corner::LowerLeft;
+    for (k, group) in groups.iter().enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        let (points, labels): (Vec<(f64, f64)>, Vec<String>) = group
+            .stable
+            .iter()
+            .filter(|s| finite(&s.0))
+            .cloned()
+            .unzip();
+        if !points.is_empty() {
+            let mut series = Series::line(&group.method, points);
+            series.style = SeriesStyle::LineAndPoints;
+            series.colour = Some(colour);
+            series.point_labels = labels;
+            chart.series.push(series);
+        }
+        // An unstable run has no meaningful error: it is drawn at the top of the plot.
+        let ceiling = if top.is_finite() { 2.0 * top } else { 1.0 };
+        let unstable: Vec<(f64, f64)> = group
+            .failed
+            .iter()
+            .filter(|p| p.0 > 0.0 && p.0.is_finite())
+            .map(|p| (p.0, ceiling))
+            .collect();
+        if !unstable.is_empty() {
+            chart
+                .markers
+                .push(MarkerSet::unstable_of(&group.method, colour, unstable));
+        }
+    }
+    chart
 }
 
 /// The pictures of a scan's table: by its criterion.
