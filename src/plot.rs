@@ -546,8 +546,14 @@ fn format_number(v: f64) -> String {
     }
     let magnitude = v.abs();
     if !(1e-3..1e5).contains(&magnitude) {
-        let text = format!("{v:.0e}");
-        return text.replace("e-0", "e-").replace("e0", "");
+        // Three significant digits at most, so ticks 3e140 and 3.5e140 stay apart.
+        let text = format!("{v:.2e}");
+        let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        return match exponent {
+            "0" => mantissa.to_string(),
+            _ => format!("{mantissa}e{exponent}"),
+        };
     }
     let text = format!("{v:.3}");
     text.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -997,5 +1003,21 @@ fn render<P: Picture>(path: &Path, size: (u32, u32), picture: &P) -> Result<()> 
             picture.draw(&root).map_err(failed)?;
             root.present().map_err(|e| failed(e.to_string()))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::format_number;
+
+    #[test]
+    fn tick_labels_keep_neighbouring_ticks_apart() {
+        assert_eq!(format_number(1e-6), "1e-6");
+        assert_eq!(format_number(3e-4), "3e-4");
+        assert_eq!(format_number(3.5e140), "3.5e140");
+        assert_ne!(format_number(3e140), format_number(3.5e140));
+        assert_eq!(format_number(-2.25e7), "-2.25e7");
+        assert_eq!(format_number(0.5), "0.5");
+        assert_eq!(format_number(120.0), "120");
     }
 }

@@ -237,3 +237,46 @@ fn log_colour_bar_is_ticked_to_its_bottom() {
         );
     }
 }
+
+/// A stiffness scan's unstable runs are crosses under their method's name, not anonymous
+/// red crosses: Verlet at h = 0.5 is unstable once ω1 h > 2, i.e. for ω1 > 4 (here up to
+/// 4π), and by t = 60 its error overflows from ω1 = 10π/3 on; impulse with its inner
+/// steps stays bounded.
+#[test]
+fn stiffness_scan_unstable_points_carry_their_method() {
+    let dir = scratch_dir("stiffness-unstable-method");
+    let svg = dir.join("err.svg");
+    run_ok(&[
+        "scan",
+        "stiffness",
+        "systems/two-spring.toml",
+        "--method",
+        "verlet,impulse",
+        "--param",
+        "omega1",
+        "--range",
+        "0:4*pi",
+        "--n",
+        "7",
+        "--h",
+        "0.5",
+        "--t-end",
+        "60",
+        "--quiet",
+        "--out",
+        dir.join("scan.csv").to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let texts = svg_texts(&std::fs::read_to_string(&svg).unwrap());
+    assert!(
+        texts
+            .iter()
+            .any(|t| t.content.starts_with("verlet") && t.content.ends_with(" unstable")),
+        "no legend entry for verlet's unstable runs"
+    );
+    assert!(
+        texts.iter().all(|t| t.content != "unstable"),
+        "an anonymous 'unstable' legend entry"
+    );
+}

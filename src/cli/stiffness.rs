@@ -14,7 +14,7 @@ use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::io::study_csv::StudyTable;
-use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, Series};
+use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
 use crate::settings::{RunSpec, Value};
 
 #[derive(Args, Debug)]
@@ -320,24 +320,43 @@ fn chart(
         }
     }
     chart.legend = Corner::UpperRight;
+    // Unstable runs sit on the axis (their error is unbounded), as crosses in their
+    // method's colour.
+    let floor = curves
+        .iter()
+        .flat_map(|(_, p)| p.iter())
+        .filter(|p| p.max_error.is_finite() && p.max_error > 0.0)
+        .map(|p| p.max_error)
+        .fold(f64::INFINITY, f64::min);
+    let failed_y = if log_y && floor.is_finite() {
+        floor
+    } else {
+        0.0
+    };
     let mut maxima = Vec::new();
-    let mut failed = Vec::new();
-    for (name, points) in curves {
+    for (k, (name, points)) in curves.iter().enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
         let finite: Vec<(f64, f64)> = points
             .iter()
             .filter(|p| p.max_error.is_finite() && (!log_y || p.max_error > 0.0))
             .map(|p| (p.value, p.max_error))
             .collect();
-        failed.extend(
-            points
-                .iter()
-                .filter(|p| !p.max_error.is_finite())
-                .map(|p| p.value),
-        );
+        let failed: Vec<(f64, f64)> = points
+            .iter()
+            .filter(|p| !p.max_error.is_finite())
+            .map(|p| (p.value, failed_y))
+            .collect();
         if let Some(peak) = largest(points) {
             maxima.push(peak);
         }
-        chart.series.push(Series::line(name, finite));
+        let mut series = Series::line(name, finite);
+        series.colour = Some(colour);
+        chart.series.push(series);
+        if !failed.is_empty() {
+            chart
+                .markers
+                .push(MarkerSet::unstable_of(name, colour, failed));
+        }
     }
     if !maxima.is_empty() {
         chart.markers.push(MarkerSet {
@@ -346,23 +365,6 @@ fn chart(
             shape: MarkerShape::Circle,
             colour: plotters::style::RGBColor(0, 0, 0),
         });
-    }
-    if !failed.is_empty() {
-        // Unstable runs sit on the axis: their error is unbounded.
-        let floor = curves
-            .iter()
-            .flat_map(|(_, p)| p.iter())
-            .filter(|p| p.max_error.is_finite() && p.max_error > 0.0)
-            .map(|p| p.max_error)
-            .fold(f64::INFINITY, f64::min);
-        let y = if log_y && floor.is_finite() {
-            floor
-        } else {
-            0.0
-        };
-        chart.markers.push(MarkerSet::unstable(
-            failed.into_iter().map(|x| (x, y)).collect(),
-        ));
     }
     chart
 }
