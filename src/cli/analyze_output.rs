@@ -8,23 +8,10 @@ use serde_json::Value as Json;
 
 use crate::analysis::run_analysis::RunAnalysis;
 use crate::error::{Error, Result};
-
-fn csv_error(path: &Path, e: csv::Error) -> Error {
-    Error::Structure {
-        path: path.to_path_buf(),
-        message: format!("cannot write: {e}"),
-    }
-}
+use crate::io::csv::write_table;
 
 fn write_csv(path: &Path, header: &[String], rows: &[Vec<String>]) -> Result<()> {
-    let mut writer = csv::Writer::from_path(path).map_err(|e| csv_error(path, e))?;
-    writer
-        .write_record(header)
-        .map_err(|e| csv_error(path, e))?;
-    for row in rows {
-        writer.write_record(row).map_err(|e| csv_error(path, e))?;
-    }
-    writer.flush().map_err(|e| Error::io(path, e))
+    write_table(path, None, header, rows)
 }
 
 fn unit(summary: &Json, key: &str) -> String {

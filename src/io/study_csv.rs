@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::io::csv::write_table;
 
 /// A study table in memory.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,20 +67,10 @@ impl StudyTable {
         format!("# longstep {}, {}", self.study, meta.join(", "))
     }
 
-    pub fn to_text(&self) -> String {
-        let mut text = self.first_line();
-        text += "\n";
-        text += &self.header.join(",");
-        text += "\n";
-        for row in &self.rows {
-            text += &row.join(",");
-            text += "\n";
-        }
-        text
-    }
-
+    /// Write the table through the `csv` crate: fields holding a comma or a quote are
+    /// quoted; every other byte is as given.
     pub fn write(&self, path: &Path) -> Result<()> {
-        std::fs::write(path, self.to_text()).map_err(|e| Error::io(path, e))
+        write_table(path, Some(&self.first_line()), &self.header, &self.rows)
     }
 
     pub fn read(path: &Path) -> Result<Self> {
@@ -88,29 +79,32 @@ impl StudyTable {
             path: path.to_path_buf(),
             message: message.to_string(),
         };
-        let mut lines = text.lines();
-        let first = lines
-            .next()
-            .and_then(|l| l.strip_prefix("# longstep "))
-            .ok_or_else(|| bad("not a longstep study table (no `# longstep` first line)"))?;
-        let mut parts = first.split(", ");
-        let study = parts.next().unwrap_or_default().to_string();
-        let mut meta = BTreeMap::new();
-        for part in parts {
-            let (key, value) = part
-                .split_once(" = ")
-                .ok_or_else(|| bad(&format!("bad metadata entry \"{part}\"")))?;
-            meta.insert(key.to_string(), value.to_string());
-        }
-        let header: Vec<String> = lines
-            .next()
-            .ok_or_else(|| bad("no header line"))?
-            .split(',')
-            .map(str::to_string)
+        let (first, body) = text.split_once('\n').unwrap_or((&text, ""));
+        let (study, meta) = first
+            .trim_end_matches('\r')
+            .strip_prefix("# longstep ")
+            .ok_or_else(|| bad("not a longstep study table (no `# longstep` first line)"))
+            .and_then(|first| parse_first_line(first).map_err(|e| bad(&e)))?;
+        let mut reader = ::csv::ReaderBuilder::new()
+            .flexible(true)
+            .from_reader(body.as_bytes());
+        // Line numbers in messages count the file's first line, which the reader never saw.
+        let at = |e: ::csv::Error| {
+            let line = e.position().map_or(0, |p| p.line() + 1);
+            bad(&format!("line {line}: {e}"))
+        };
+        let header: Vec<String> = reader
+            .headers()
+            .map_err(at)?
+            .iter()
+            .map(String::from)
             .collect();
+        if header.is_empty() {
+            return Err(bad("no header line"));
+        }
         let mut rows = Vec::new();
-        for (n, line) in lines.enumerate() {
-            let row: Vec<String> = line.split(',').map(str::to_string).collect();
+        for (n, record) in reader.records().enumerate() {
+            let row: Vec<String> = record.map_err(at)?.iter().map(String::from).collect();
             if row.len() != header.len() {
                 return Err(bad(&format!(
                     "row {} has {} fields, the header {}",
@@ -128,6 +122,23 @@ impl StudyTable {
             rows,
         })
     }
+}
+
+/// `<study>, key = value, …` (the first line after `# longstep `) as the study and its
+/// settings.
+fn parse_first_line(
+    first: &str,
+) -> std::result::Result<(String, BTreeMap<String, String>), String> {
+    let mut parts = first.split(", ");
+    let study = parts.next().unwrap_or_default().to_string();
+    let mut meta = BTreeMap::new();
+    for part in parts {
+        let (key, value) = part
+            .split_once(" = ")
+            .ok_or_else(|| format!("bad metadata entry \"{part}\""))?;
+        meta.insert(key.to_string(), value.to_string());
+    }
+    Ok((study, meta))
 }
 
 /// The first setting (other than the shard) in which two shards' metadata differ, with
@@ -239,6 +250,45 @@ mod tests {
         let path = std::env::temp_dir().join("longstep-study-table-test.csv");
         merged.write(&path).unwrap();
         assert_eq!(StudyTable::read(&path).unwrap(), merged);
+    }
+
+    /// A method holding a comma and a label holding quotes: the old reader, which split
+    /// lines on `,`, found four fields in this row and refused the table.
+    #[test]
+    fn fields_with_commas_and_quotes_round_trip() {
+        let mut meta = BTreeMap::new();
+        meta.insert("points".into(), "1".into());
+        let mut table = StudyTable::new("demo", meta, &["index", "method", "label", "x"]);
+        let method = "equilibrium-molly --molly-constraints bonds,angles";
+        table.rows = vec![vec![
+            "0".into(),
+            method.into(),
+            "the \"slow\" one".into(),
+            "0.5".into(),
+        ]];
+        let path = std::env::temp_dir().join("longstep-study-table-quoting-test.csv");
+        table.write(&path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(
+            text.lines().nth(2),
+            Some(format!("0,\"{method}\",\"the \"\"slow\"\" one\",0.5").as_str())
+        );
+        assert_eq!(StudyTable::read(&path).unwrap(), table);
+    }
+
+    #[test]
+    fn a_short_row_is_refused_with_its_number() {
+        let path = std::env::temp_dir().join("longstep-study-table-short-row-test.csv");
+        std::fs::write(&path, "# longstep demo, points = 2\nindex,x\n0,1\n1\n").unwrap();
+        let error = StudyTable::read(&path).unwrap_err().to_string();
+        assert!(
+            error.contains("row 2 has 1 fields, the header 2"),
+            "{error}"
+        );
+        assert!(
+            error.contains("longstep-study-table-short-row-test.csv"),
+            "{error}"
+        );
     }
 
     #[test]
