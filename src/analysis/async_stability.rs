@@ -24,7 +24,6 @@
 //! Cost: dense `3 n_dofs` coarse steps plus `O((3 n_dofs)³)` for the eigenvalues; power
 //! `iterations` coarse steps.
 
-use std::io::Write;
 use std::path::Path;
 
 use nalgebra::DMatrix;
@@ -33,6 +32,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::integrators::quadrature::Quadrature;
 use crate::integrators::{AsyncPseudoEnergy, Integrator, PseudoEnergy};
+use crate::io::csv::write_table;
 use crate::system::System;
 
 /// A pseudo-energy scheme seen as a map of its state vector.
@@ -359,28 +359,29 @@ pub fn async_stability_map(
 /// growth_per_time,unstable,method` (`growth_per_time = ln ρ / h_S`, the exponential rate
 /// of the unstable mode; `h_slow_over_dx` empty without a `dx`).
 pub fn write_map_csv(path: &Path, points: &[MapPoint], dx: Option<f64>) -> Result<()> {
-    let mut file =
-        std::io::BufWriter::new(std::fs::File::create(path).map_err(|e| Error::io(path, e))?);
-    let mut text = String::from(
-        "h_slow,h_fast,ratio,h_slow_over_dx,spectral_radius,growth_per_time,unstable,method\n",
-    );
-    for p in points {
-        let over_dx = dx.map(|dx| (p.h_slow / dx).to_string()).unwrap_or_default();
-        text.push_str(&format!(
-            "{},{},{},{},{},{},{},{}\n",
-            p.h_slow,
-            p.h_fast,
-            p.ratio,
-            over_dx,
-            p.spectral_radius,
-            p.spectral_radius.ln() / p.h_slow,
-            u8::from(p.unstable),
-            p.method.name()
-        ));
-    }
-    file.write_all(text.as_bytes())
-        .and_then(|()| file.flush())
-        .map_err(|e| Error::io(path, e))
+    let header = [
+        "h_slow",
+        "h_fast",
+        "ratio",
+        "h_slow_over_dx",
+        "spectral_radius",
+        "growth_per_time",
+        "unstable",
+        "method",
+    ];
+    let rows = points.iter().map(|p| {
+        [
+            p.h_slow.to_string(),
+            p.h_fast.to_string(),
+            p.ratio.to_string(),
+            dx.map(|dx| (p.h_slow / dx).to_string()).unwrap_or_default(),
+            p.spectral_radius.to_string(),
+            (p.spectral_radius.ln() / p.h_slow).to_string(),
+            u8::from(p.unstable).to_string(),
+            p.method.name().to_string(),
+        ]
+    });
+    write_table(path, None, header, rows)
 }
 
 /// Contiguous runs of unstable points along the parameter, per ratio:

@@ -19,6 +19,7 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::integrators;
+use crate::io::csv::CsvWriter;
 use crate::io::scene::load_scene;
 use crate::run::monitor::EnergyMonitor;
 use crate::settings::{RunSpec, Value};
@@ -218,6 +219,36 @@ fn hermite(a: &(f64, Vec<f64>, Vec<f64>), b: &(f64, Vec<f64>, Vec<f64>), t: f64)
         .collect()
 }
 
+/// The samples cached in `cache` if its first line is `key`: rows of the time and the
+/// positions; a row that does not read as numbers is left out (the caller then finds too
+/// few samples and runs the reference again).
+fn read_cached(cache: &Path, key: &str) -> Option<Samples> {
+    let text = std::fs::read_to_string(cache).ok()?;
+    let (first, rows) = text.split_once('\n')?;
+    if first != key {
+        return None;
+    }
+    let mut samples = Samples {
+        times: Vec::new(),
+        positions: Vec::new(),
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(rows.as_bytes());
+    for record in reader.records().flatten() {
+        let values: std::result::Result<Vec<f64>, _> =
+            record.iter().map(str::parse::<f64>).collect();
+        if let Ok(values) = values
+            && values.len() > 1
+        {
+            samples.times.push(values[0]);
+            samples.positions.push(values[1..].to_vec());
+        }
+    }
+    Some(samples)
+}
+
 /// The reference solution: `method` at step `h`, cached in `cache` (a CSV of the sample
 /// times and positions, whose first line records what produced it).
 pub fn reference(setup: &StudySetup, method: &str, h: f64, cache: &Path) -> Result<Samples> {
@@ -229,27 +260,10 @@ pub fn reference(setup: &StudySetup, method: &str, h: f64, cache: &Path) -> Resu
         setup.sample,
         setup.base
     );
-    if let Ok(text) = std::fs::read_to_string(cache) {
-        let mut lines = text.lines();
-        if lines.next() == Some(key.as_str()) {
-            let mut samples = Samples {
-                times: Vec::new(),
-                positions: Vec::new(),
-            };
-            for line in lines {
-                let values: std::result::Result<Vec<f64>, _> =
-                    line.split(',').map(str::parse::<f64>).collect();
-                if let Ok(values) = values
-                    && values.len() > 1
-                {
-                    samples.times.push(values[0]);
-                    samples.positions.push(values[1..].to_vec());
-                }
-            }
-            if samples.times.len() == sample_times(setup.sample, setup.t_end).len() {
-                return Ok(samples);
-            }
-        }
+    if let Some(samples) = read_cached(cache, &key)
+        && samples.times.len() == sample_times(setup.sample, setup.t_end).len()
+    {
+        return Ok(samples);
     }
     let (samples, status, ..) = integrate_sampled(setup, method, h)?;
     if status != "ok" {
@@ -257,16 +271,11 @@ pub fn reference(setup: &StudySetup, method: &str, h: f64, cache: &Path) -> Resu
             "the reference run ({method}, h = {h}) did not finish: {status}"
         )));
     }
-    let mut text = key + "\n";
+    let mut out = CsvWriter::headerless(cache, Some(&key))?;
     for (t, q) in samples.times.iter().zip(&samples.positions) {
-        text += &t.to_string();
-        for x in q {
-            text += ",";
-            text += &x.to_string();
-        }
-        text += "\n";
+        out.record(std::iter::once(t).chain(q).map(f64::to_string))?;
     }
-    std::fs::write(cache, text).map_err(|e| Error::io(cache, e))?;
+    out.flush()?;
     Ok(samples)
 }
 

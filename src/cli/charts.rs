@@ -16,6 +16,7 @@ use crate::analysis::work_precision::{
     sample_times,
 };
 use crate::error::{Error, Result};
+use crate::io::csv::write_table;
 use crate::io::scene::load_scene;
 use crate::io::study_csv::{StudyTable, differing_setting, merge};
 use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, PALETTE, Series, SeriesStyle};
@@ -836,16 +837,10 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
             slices.len()
         )));
     }
-    let mut text = format!("{}\n", first.header.join(","));
-    for (_, table) in slices.iter().flatten() {
-        for row in &table.rows {
-            text += &row.join(",");
-            text += "\n";
-        }
-    }
     let path = out.join("stability-map.csv");
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
+    let rows = slices.iter().flatten().flat_map(|(_, table)| &table.rows);
+    write_table(&path, None, &first.header, rows)?;
     eprintln!(
         "merged {} map shards ({points} points) into {}",
         maps.len(),

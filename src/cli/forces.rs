@@ -7,13 +7,13 @@
 //! level); `--json` prints `{"energy": {…}, "units": {…}}` instead of the table.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::Path;
 
 use serde_json::json;
 
 use super::ForcesArgs;
 use crate::error::{Error, Result};
+use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::structure::read_structure;
 use crate::system::System;
@@ -169,27 +169,21 @@ fn write_forces_csv(
 ) -> Result<()> {
     let system = &scene.system;
     let level_gradients = &evaluation.level_gradients;
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut out = std::io::BufWriter::new(file);
     let dim = system.dim;
-    let io = |e| Error::io(path, e);
-    writeln!(out, "{}", forces_header(scene, by_level).join(",")).map_err(io)?;
-    for i in 0..system.n_particles() {
-        write!(out, "{i},{}", scene.elements[i]).map_err(io)?;
+    let rows = (0..system.n_particles()).map(|i| {
+        let mut row = vec![i.to_string(), scene.elements[i].clone()];
         for a in 0..dim {
             let f: f64 = -level_gradients.iter().map(|g| g[i * dim + a]).sum::<f64>();
-            write!(out, ",{f}").map_err(io)?;
+            row.push(f.to_string());
         }
         if by_level {
             for gradient in level_gradients {
-                for a in 0..dim {
-                    write!(out, ",{}", -gradient[i * dim + a]).map_err(io)?;
-                }
+                row.extend((0..dim).map(|a| (-gradient[i * dim + a]).to_string()));
             }
         }
-        writeln!(out).map_err(io)?;
-    }
-    out.flush().map_err(io)
+        row
+    });
+    write_table(path, None, forces_header(scene, by_level), rows)
 }
 
 /// The column names of the forces CSV.

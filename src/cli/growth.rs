@@ -4,7 +4,6 @@
 //! scene's equilibrium (2 ln ρ; GSS98 section 3, Figures 6–10).
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -19,6 +18,7 @@ use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::integrators;
+use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
 use crate::settings::{MethodSettings, RunSpec, Value};
@@ -321,62 +321,82 @@ fn growth_run(
     })
 }
 
+const SUMMARY_HEADER: [&str; 13] = [
+    "index",
+    "method",
+    "h",
+    "inner_steps",
+    "spectral_radius",
+    "type",
+    "predicted_rate",
+    "measured_rate",
+    "fit_first_step",
+    "fit_last_step",
+    "max_relative_error",
+    "steps",
+    "status",
+];
+
 fn write_summary(path: &std::path::Path, runs: &[GrowthRun]) -> Result<()> {
-    let mut text = format!(
-        "# longstep scan-growth, points = {}\nindex,method,h,inner_steps,spectral_radius,type,\
-         predicted_rate,measured_rate,fit_first_step,fit_last_step,max_relative_error,steps,status\n",
-        runs.len()
-    );
-    for run in runs {
-        let (rho, kind, predicted) = match &run.linear {
-            Ok(point) => (
-                point.spectral_radius.to_string(),
-                point.kind.code().to_string(),
-                predicted_rate(point).to_string(),
-            ),
-            Err(_) => (String::new(), String::new(), String::new()),
-        };
-        let (rate, first, last) = match &run.fit {
-            Some(fit) => (
-                fit.rate.to_string(),
-                fit.first_step.to_string(),
-                fit.last_step.to_string(),
-            ),
-            None => (String::new(), String::new(), String::new()),
-        };
-        text += &format!(
-            "{},{},{},{},{rho},{kind},{predicted},{rate},{first},{last},{},{},{}\n",
-            run.index,
-            run.method,
-            run.h,
-            run.inner_steps.map_or(String::new(), |k| k.to_string()),
-            run.max_error,
-            run.steps,
-            run.end
-        );
-    }
-    std::fs::write(path, text).map_err(|e| Error::io(path, e))
+    let first_line = format!("# longstep scan-growth, points = {}", runs.len());
+    write_table(
+        path,
+        Some(&first_line),
+        SUMMARY_HEADER,
+        runs.iter().map(summary_fields),
+    )
+}
+
+/// One run's row of growth.csv, numbers as `{}` writes them, empty where not known.
+fn summary_fields(run: &GrowthRun) -> [String; 13] {
+    let (rho, kind, predicted) = match &run.linear {
+        Ok(point) => (
+            point.spectral_radius.to_string(),
+            point.kind.code().to_string(),
+            predicted_rate(point).to_string(),
+        ),
+        Err(_) => (String::new(), String::new(), String::new()),
+    };
+    let (rate, first, last) = match &run.fit {
+        Some(fit) => (
+            fit.rate.to_string(),
+            fit.first_step.to_string(),
+            fit.last_step.to_string(),
+        ),
+        None => (String::new(), String::new(), String::new()),
+    };
+    [
+        run.index.to_string(),
+        run.method.clone(),
+        run.h.to_string(),
+        run.inner_steps.map_or(String::new(), |k| k.to_string()),
+        rho,
+        kind,
+        predicted,
+        rate,
+        first,
+        last,
+        run.max_error.to_string(),
+        run.steps.to_string(),
+        run.end.to_string(),
+    ]
 }
 
 fn write_envelopes(path: &std::path::Path, runs: &[GrowthRun]) -> Result<()> {
-    let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-    let mut out = std::io::BufWriter::new(file);
-    let io = |e| Error::io(path, e);
-    writeln!(out, "index,method,h,step,t,max_relative_error").map_err(io)?;
-    for run in runs {
-        for &(step, max) in &run.envelope {
-            writeln!(
-                out,
-                "{},{},{},{step},{},{max}",
-                run.index,
-                run.method,
-                run.h,
-                step as f64 * run.h
-            )
-            .map_err(io)?;
-        }
-    }
-    out.flush().map_err(io)
+    let header = ["index", "method", "h", "step", "t", "max_relative_error"];
+    let rows = runs.iter().flat_map(|run| {
+        run.envelope.iter().map(|&(step, max)| {
+            [
+                run.index.to_string(),
+                run.method.clone(),
+                run.h.to_string(),
+                step.to_string(),
+                (step as f64 * run.h).to_string(),
+                max.to_string(),
+            ]
+        })
+    });
+    write_table(path, None, header, rows)
 }
 
 fn chart(scene: &str, runs: &[GrowthRun]) -> LineChart {

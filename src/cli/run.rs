@@ -9,7 +9,7 @@ use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
 use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators;
-use crate::io::energy_table::column_matches;
+use crate::io::energy_table::EnergyTable;
 use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
@@ -486,28 +486,8 @@ fn plot_energies(
     out: &std::path::Path,
 ) -> Result<()> {
     use crate::plot::{AxisSpec, Corner, LineChart, Series};
-    let text = std::fs::read_to_string(csv).map_err(|e| Error::io(csv, e))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
-    let column = |name: &str| header.iter().position(|h| column_matches(h, name));
-    let (Some(t), Some(k), Some(v), Some(e)) = (
-        column("t"),
-        column("kinetic"),
-        column("potential"),
-        column("total"),
-    ) else {
-        return Err(Error::input(format!(
-            "{}: not an energy table",
-            csv.display()
-        )));
-    };
-    let rows: Vec<Vec<f64>> = lines
-        .map(|l| {
-            l.split(',')
-                .map(|x| x.parse().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .collect();
+    let table = EnergyTable::read(csv, &["t", "kinetic", "potential", "total"])?;
+    let time = table.column(0);
     // In a real scene the axes carry units, time in ps beyond 1 ps of run.
     let units = summary.scene_units;
     let (time_scale, time_label, energy_label) = match units {
@@ -526,7 +506,10 @@ fn plot_energies(
     let series = |name: &str, c: usize| {
         Series::line(
             name,
-            rows.iter().map(|r| (r[t] / time_scale, r[c])).collect(),
+            time.iter()
+                .zip(table.column(c))
+                .map(|(t, x)| (t / time_scale, *x))
+                .collect(),
         )
     };
     let title = format!(
@@ -541,9 +524,9 @@ fn plot_energies(
         AxisSpec::linear(&energy_label),
     );
     chart.series = vec![
-        series("kinetic", k),
-        series("potential", v),
-        series("total", e),
+        series("kinetic", 1),
+        series("potential", 2),
+        series("total", 3),
     ];
     chart.legend = Corner::UpperRight;
     let initial = summary.energy.initial;
@@ -555,8 +538,9 @@ fn plot_energies(
     );
     error.series = vec![Series::line(
         "total",
-        rows.iter()
-            .map(|r| (r[t] / time_scale, (r[e] - initial) / scale))
+        time.iter()
+            .zip(table.column(3))
+            .map(|(t, e)| (t / time_scale, (e - initial) / scale))
             .collect(),
     )];
     for extension in ["png", "svg"] {

@@ -13,6 +13,7 @@ use super::studies::{parse_shard, progress_bar};
 use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
 use crate::error::{Error, Result};
 use crate::expr;
+use crate::io::csv::CsvWriter;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
 use crate::settings::{RunSpec, Value};
@@ -213,9 +214,9 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
     if let Some(shard) = &args.shard {
         meta.insert("shard".into(), shard.clone());
     }
-    let mut out = TextCsv::create(
+    let mut out = CsvWriter::create_after(
         &args.out,
-        &StudyTable::new("scan-stiffness", meta, &[]).first_line(),
+        Some(&StudyTable::new("scan-stiffness", meta, &[]).first_line()),
         &header,
     )?;
     let bar = progress_bar(units.len() as u64, args.quiet, "scan stiffness");
@@ -232,7 +233,7 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
             })
             .collect::<Result<Vec<_>>>()?;
         for point in results.into_iter().flatten() {
-            out.row(&point)?;
+            out.record(csv_fields(&point))?;
             all.push(point);
         }
         out.flush()?;
@@ -369,46 +370,18 @@ fn chart(
     chart
 }
 
-/// The study's CSV: a comment line, a header, then rows flushed as blocks finish (the
-/// rows carry method names and statuses, which `CsvWriter` does not write).
-struct TextCsv {
-    path: PathBuf,
-    out: std::io::BufWriter<std::fs::File>,
-}
-
-impl TextCsv {
-    fn create(path: &std::path::Path, comment: &str, header: &[&str]) -> Result<Self> {
-        use std::io::Write;
-        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut out = std::io::BufWriter::new(file);
-        writeln!(out, "{comment}\n{}", header.join(",")).map_err(|e| Error::io(path, e))?;
-        Ok(TextCsv {
-            path: path.to_path_buf(),
-            out,
-        })
-    }
-
-    fn row(&mut self, p: &StiffnessPoint) -> Result<()> {
-        use std::io::Write;
-        writeln!(
-            self.out,
-            "{},{},{},{},{},{},{},{},{},{}",
-            p.index,
-            p.method,
-            p.h,
-            p.value,
-            p.max_error,
-            p.error_time,
-            p.reference_error,
-            p.inner_steps,
-            p.reference_steps,
-            p.status
-        )
-        .map_err(|e| Error::io(&self.path, e))
-    }
-
-    fn flush(&mut self) -> Result<()> {
-        use std::io::Write;
-        self.out.flush().map_err(|e| Error::io(&self.path, e))
-    }
+/// One row of the study's CSV, numbers as `{}` writes them.
+fn csv_fields(p: &StiffnessPoint) -> [String; 10] {
+    [
+        p.index.to_string(),
+        p.method.clone(),
+        p.h.to_string(),
+        p.value.to_string(),
+        p.max_error.to_string(),
+        p.error_time.to_string(),
+        p.reference_error.to_string(),
+        p.inner_steps.to_string(),
+        p.reference_steps.to_string(),
+        p.status.to_string(),
+    ]
 }
