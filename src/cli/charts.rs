@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
 
-use super::studies::{check_methods, parse_shard, parse_steps, progress_bar};
+use super::common::{check_methods, meta_of, or_default, parse_shard, parse_steps, progress_bar};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::stability::map::Shard;
 use crate::analysis::work_precision::{
@@ -99,18 +99,6 @@ const WORK_PRECISION: &str = "work-precision.csv";
 const WALL_TIME: &str = "wall-time.csv";
 const SCAN_STEPS: &str = "scan.csv";
 const SCAN_STIFFNESS: &str = "scan-stiffness.csv";
-
-/// A setting for a study table's first line: its value, or `default` when not given.
-pub fn or_default<T: std::fmt::Display>(value: Option<T>) -> String {
-    value.map_or("default".into(), |v| v.to_string())
-}
-
-fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
-    pairs
-        .iter()
-        .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
-        .collect()
-}
 
 pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
     let scene_units = load_scene(&args.scene, &args.set)?.units;

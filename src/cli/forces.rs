@@ -7,16 +7,43 @@
 //! level); `--json` prints `{"energy": {…}, "units": {…}}` instead of the table.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use clap::Args;
 use serde_json::json;
 
-use super::ForcesArgs;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::structure::read_structure;
 use crate::system::System;
+
+#[derive(Args, Debug)]
+pub struct ForcesArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print {"energy": {...}, "units": {...}} as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Add the force of each level to the CSV (fx_fast, ..., fx_slow, ...).
+    #[arg(long)]
+    pub by_level: bool,
+    /// Evaluate at the positions of this structure file (same atoms) instead of the scene's.
+    #[arg(long, value_name = "FILE")]
+    pub positions: Option<PathBuf>,
+    /// Write every force-field parameter of every interaction to this JSON file.
+    #[arg(long, value_name = "FILE")]
+    pub parameters: Option<PathBuf>,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Print no force-field report or level table on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+}
 
 /// The report group of an energy component named by its kind.
 fn group_of(component: &str) -> &'static str {

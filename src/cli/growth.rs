@@ -3,20 +3,18 @@
 //! by the spectral radius ρ of one outer step of the same integrator linearised about the
 //! scene's equilibrium (2 ln ρ; GSS98 section 3, Figures 6–10).
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use clap::Args;
 use rayon::prelude::*;
 
-use super::studies::progress_bar;
+use super::common::{number, progress_bar};
 use crate::analysis::growth::{
     RateFit, default_fit_range, energy_errors, fit_range, fit_rate, window_maxima,
 };
 use crate::analysis::stability::integrator::{INTEGRATOR_TOLERANCE, IntegratorProbe, ProbeScene};
 use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
-use crate::expr;
 use crate::integrators;
 use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
@@ -73,15 +71,6 @@ pub struct ScanGrowthArgs {
     /// No progress bar or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
-}
-
-fn number(text: &str, what: &str) -> Result<f64> {
-    let value = expr::evaluate(text.trim(), &BTreeMap::new())
-        .map_err(|e| Error::input(format!("{what}: {e}")))?;
-    if !value.is_finite() {
-        return Err(Error::input(format!("{what} is not finite ({value})")));
-    }
-    Ok(value)
 }
 
 /// Most outer steps per run.

@@ -8,6 +8,7 @@ mod analyze;
 mod analyze_output;
 mod async_map;
 mod charts;
+mod common;
 mod forces;
 mod growth;
 mod run;
@@ -15,14 +16,9 @@ pub mod stability;
 mod stiffness;
 mod studies;
 
-use std::path::PathBuf;
+use clap::{Parser, Subcommand};
 
-use clap::{Args, Parser, Subcommand};
-
-use crate::settings::RunSpec;
-
-pub const EXIT_ERROR: i32 = 1;
-pub const EXIT_UNSTABLE: i32 = 3;
+pub use common::{EXIT_ERROR, EXIT_UNSTABLE};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -46,9 +42,9 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Integrate a scene and report energy conservation and force-evaluation counts.
-    Run(Box<RunArgs>),
+    Run(Box<run::RunArgs>),
     /// Print a scene's level table, particle classes and fast components without running.
-    Check(CheckArgs),
+    Check(run::CheckArgs),
     /// List the integration methods.
     Methods,
     /// Normal modes of the fast forces and the outer steps where MTS methods resonate.
@@ -73,92 +69,11 @@ enum Command {
     /// Spectral radius of the asynchronous pseudo-energy scheme over h_slow (or h_fast) and K on a linear scene, as CSV.
     AsyncStabilityMap(async_map::AsyncMapArgs),
     /// Energy per group and per-atom forces at the scene's starting positions.
-    Forces(ForcesArgs),
+    Forces(forces::ForcesArgs),
     /// Configurational analysis of finished runs: g(r), potential energy per molecule,
     /// kinetic and configurational temperature, bond lengths and angles, with block-average
     /// error bars (docs/analysis.md).
     Analyze(Box<analyze::AnalyzeArgs>),
-}
-
-#[derive(Args, Debug)]
-pub struct ForcesArgs {
-    /// Scene file (TOML).
-    pub scene: PathBuf,
-    /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Print {"energy": {...}, "units": {...}} as JSON instead of the table.
-    #[arg(long)]
-    pub json: bool,
-    /// Add the force of each level to the CSV (fx_fast, ..., fx_slow, ...).
-    #[arg(long)]
-    pub by_level: bool,
-    /// Evaluate at the positions of this structure file (same atoms) instead of the scene's.
-    #[arg(long, value_name = "FILE")]
-    pub positions: Option<PathBuf>,
-    /// Write every force-field parameter of every interaction to this JSON file.
-    #[arg(long, value_name = "FILE")]
-    pub parameters: Option<PathBuf>,
-    /// Set a scene parameter (repeatable).
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
-    /// Print no force-field report or level table on stderr.
-    #[arg(long)]
-    pub quiet: bool,
-}
-
-#[derive(Args, Debug)]
-pub struct RunArgs {
-    /// Scene file (TOML), for example systems/three-spring.toml.
-    pub scene: PathBuf,
-    /// Method and step settings; each overrides the scene's [run] table.
-    #[command(flatten)]
-    pub run: RunSpec,
-    /// Set a scene parameter, e.g. --set omega1=12.3 (repeatable; values may be expressions).
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
-    /// Output directory for energy.csv (default: the scene's [output] dir, else out/<scene>-<method>).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// Print the summary as one JSON object on stdout.
-    #[arg(long)]
-    pub json: bool,
-    /// Write a row of energy.csv every N steps.
-    #[arg(long, value_name = "N")]
-    pub energy_every: Option<usize>,
-    /// Write a trajectory frame every N steps (file: the scene's [output] trajectory, default
-    /// trajectory.xyz in the output directory; any chemfiles format by extension).
-    #[arg(long, value_name = "N")]
-    pub trajectory_every: Option<usize>,
-    /// Print no level table or notices on stderr.
-    #[arg(long)]
-    pub quiet: bool,
-    /// Also draw the energies against time (energy.png and energy.svg in the output directory).
-    #[arg(long)]
-    pub plot: bool,
-    /// Start from the positions of this structure file (e.g. from `minimize --save`): same
-    /// atoms in the same order; the scene's force field, velocities and box are kept.
-    #[arg(long, value_name = "FILE")]
-    pub start: Option<PathBuf>,
-    /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
-    #[arg(long)]
-    pub allow_large: bool,
-    /// How the energy drift is judged at the end of the run.
-    #[command(flatten)]
-    pub drift: run::DriftArgs,
-    /// Arithmetic of the non-bonded pair forces: double (default) or mixed (f32 pair
-    /// arithmetic, f64 accumulation and integration).
-    #[arg(long, value_parser = ["double", "mixed"])]
-    pub precision: Option<String>,
-}
-
-#[derive(Args, Debug)]
-pub struct CheckArgs {
-    /// Scene file (TOML).
-    pub scene: PathBuf,
-    /// Set a scene parameter (repeatable).
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
 }
 
 /// `stability-map --method async-pseudo-energy SCENE …` maps the asynchronous scheme of

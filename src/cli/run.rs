@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::{CheckArgs, EXIT_UNSTABLE, RunArgs};
+use super::common::EXIT_UNSTABLE;
 use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators;
@@ -17,11 +17,65 @@ use crate::run::drift::judge;
 use crate::run::{
     RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
 };
-use crate::settings::Value;
+use crate::settings::{RunSpec, Value};
 use crate::split::ParticleClass;
 use crate::system::exact::position_error;
 use crate::system::velocities::DegreesOfFreedom;
 use crate::units::Units;
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// Scene file (TOML), for example systems/three-spring.toml.
+    pub scene: PathBuf,
+    /// Method and step settings; each overrides the scene's [run] table.
+    #[command(flatten)]
+    pub run: RunSpec,
+    /// Set a scene parameter, e.g. --set omega1=12.3 (repeatable; values may be expressions).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Output directory for energy.csv (default: the scene's [output] dir, else out/<scene>-<method>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the summary as one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a row of energy.csv every N steps.
+    #[arg(long, value_name = "N")]
+    pub energy_every: Option<usize>,
+    /// Write a trajectory frame every N steps (file: the scene's [output] trajectory, default
+    /// trajectory.xyz in the output directory; any chemfiles format by extension).
+    #[arg(long, value_name = "N")]
+    pub trajectory_every: Option<usize>,
+    /// Print no level table or notices on stderr.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Also draw the energies against time (energy.png and energy.svg in the output directory).
+    #[arg(long)]
+    pub plot: bool,
+    /// Start from the positions of this structure file (e.g. from `minimize --save`): same
+    /// atoms in the same order; the scene's force field, velocities and box are kept.
+    #[arg(long, value_name = "FILE")]
+    pub start: Option<PathBuf>,
+    /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
+    #[arg(long)]
+    pub allow_large: bool,
+    /// How the energy drift is judged at the end of the run.
+    #[command(flatten)]
+    pub drift: DriftArgs,
+    /// Arithmetic of the non-bonded pair forces: double (default) or mixed (f32 pair
+    /// arithmetic, f64 accumulation and integration).
+    #[arg(long, value_parser = ["double", "mixed"])]
+    pub precision: Option<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Set a scene parameter (repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+}
 
 /// How a run's energy drift is judged: fitted at the end of the run over the recorded
 /// rows (by the method's conserved energy when it reports one, else the true energy) and
@@ -324,12 +378,13 @@ fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
     if steps < 1e5 {
         return indicatif::ProgressBar::hidden();
     }
-    let bar = super::studies::progress_bar(steps as u64, quiet, "run");
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
+    let bar = super::common::terminal_bar(
+        steps as u64,
+        quiet,
         "{msg} [{bar:40}] {pos}/{len} outer steps, {elapsed} elapsed, ~{eta} left",
-    ) {
-        bar.set_style(style.progress_chars("=> "));
-    }
+        Some("=> "),
+    );
+    bar.set_message("run");
     bar
 }
 

@@ -1,18 +1,15 @@
 //! `longstep stability-map` and `longstep spectral-radius`: GSS98 sections 3 and 7.
 
-use std::collections::BTreeMap;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 
+use super::common::{meta_of, number, terminal_bar};
 use crate::analysis::stability::analytic::LinearProblem;
 use crate::analysis::stability::integrator::{IntegratorProbe, ProbeScene};
 use crate::analysis::stability::map::{Axis, Evaluator, Grid, Shard, census, evaluate};
 use crate::analysis::stability::{AnalyticMethod, Coupling, InstabilityType};
 use crate::error::{Error, Result};
-use crate::expr;
 use crate::io::csv::CsvWriter;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Category, Colouring, HeatMap};
@@ -114,15 +111,6 @@ pub struct SpectralRadiusArgs {
     /// Print {"spectral_radius": …, "type": …} (type 0 = stable, 1–3 GSS98's types).
     #[arg(long)]
     pub json: bool,
-}
-
-fn number(text: &str, what: &str) -> Result<f64> {
-    let value = expr::evaluate(text.trim(), &BTreeMap::new())
-        .map_err(|e| Error::input(format!("{what}: {e}")))?;
-    if !value.is_finite() {
-        return Err(Error::input(format!("{what} is not finite ({value})")));
-    }
-    Ok(value)
 }
 
 /// The evaluator the flags ask for, its notices, and a description for titles.
@@ -357,7 +345,12 @@ fn compute_map(
         first_line.as_deref(),
         &["gamma1", "gamma2", "spectral_radius", "type"],
     )?;
-    let progress = progress_bar(args.quiet, range.len());
+    let progress = terminal_bar(
+        range.len() as u64,
+        args.quiet,
+        "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
+        None,
+    );
     let picture_len = if drawing { grid.len() } else { 0 };
     let mut tally = MapTally {
         values: vec![f64::NAN; picture_len],
@@ -391,21 +384,6 @@ fn compute_map(
     csv.flush()?;
     progress.finish_and_clear();
     Ok(tally)
-}
-
-/// A progress bar on a terminal's stderr, hidden when quiet or not a terminal.
-fn progress_bar(quiet: bool, len: usize) -> ProgressBar {
-    if !quiet && std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(len as u64);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} points, {elapsed} elapsed, ~{eta} left",
-        ) {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    }
 }
 
 /// The summary on stderr: the count of each type, the largest spectral radius and the
@@ -475,11 +453,7 @@ fn shard_line(args: &StabilityMapArgs, grid: &Grid, shard: Shard) -> Result<Stri
         ("points", grid.len().to_string()),
         ("shard", format!("{}/{}", shard.index, shard.count)),
     ];
-    let meta = settings
-        .into_iter()
-        .map(|(key, value)| (key.to_string(), value.replace(',', ";")))
-        .collect();
-    Ok(StudyTable::new("stability-map", meta, &[]).first_line())
+    Ok(StudyTable::new("stability-map", meta_of(&settings), &[]).first_line())
 }
 
 /// An axis of a map picture: in units of π for ranges of a radian or more, plain below,

@@ -2,17 +2,14 @@
 //! (GSS98 section 4, Figures 11–13), with a reference solution per value
 //! ([`crate::analysis::stiffness`]).
 
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use clap::Args;
 use rayon::prelude::*;
 
-use super::charts::or_default;
-use super::studies::{parse_shard, progress_bar};
+use super::common::{meta_of, number, or_default, parse_shard, progress_bar};
 use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
 use crate::error::{Error, Result};
-use crate::expr;
 use crate::io::csv::CsvWriter;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
@@ -80,15 +77,6 @@ pub struct ScanStiffnessArgs {
     /// No progress bar or summary on stderr.
     #[arg(long)]
     pub quiet: bool,
-}
-
-fn number(text: &str, what: &str) -> Result<f64> {
-    let value = expr::evaluate(text.trim(), &BTreeMap::new())
-        .map_err(|e| Error::input(format!("{what}: {e}")))?;
-    if !value.is_finite() {
-        return Err(Error::input(format!("{what} is not finite ({value})")));
-    }
-    Ok(value)
 }
 
 /// Most parameter values a study takes (each is a row of every curve, kept for the picture).
@@ -193,7 +181,7 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
     ]);
     // A comment line names the study, its size and settings, so shards can be checked and
     // merged; then rows are written and flushed block by block as they finish.
-    let mut meta: BTreeMap<String, String> = [
+    let mut meta = meta_of(&[
         ("points", study.total_points().to_string()),
         ("scene", args.scene.display().to_string()),
         ("set", args.set.join(" ")),
@@ -207,10 +195,7 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
         ("jacobian", or_default(args.jacobian.as_ref())),
         ("t_end", args.t_end.clone()),
         ("reference_steps", or_default(args.reference_steps)),
-    ]
-    .into_iter()
-    .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
-    .collect();
+    ]);
     if let Some(shard) = &args.shard {
         meta.insert("shard".into(), shard.clone());
     }

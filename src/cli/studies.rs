@@ -1,10 +1,10 @@
 //! The studies: `longstep modes`, `longstep scan steps`, `longstep minimize`.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
+use super::common::{or_default, parse_shard, parse_steps, progress_bar};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::run_analysis::{Analyzer, RunAnalysis};
@@ -188,89 +188,6 @@ fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
     Ok((lo, hi))
 }
 
-/// `LO:HI:STEP` (inclusive, with a tolerance for the last point) or `A,B,C`; in a scene with
-/// real units the values may carry time units (`1fs:10fs:0.25fs`).
-pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
-    let value = |s: &str| -> Result<f64> {
-        let v: Value = s.parse().map_err(|_| Error::input("bad number"))?;
-        let x = v.evaluate_time(&Default::default(), "--h", units.time_units())?;
-        if x <= 0.0 {
-            return Err(Error::input(format!(
-                "--h: steps must be positive, got {x}"
-            )));
-        }
-        Ok(x)
-    };
-    if text.contains(':') {
-        let parts: Vec<&str> = text.split(':').collect();
-        let [lo, hi, step] = parts.as_slice() else {
-            return Err(Error::input(format!(
-                "--h expects LO:HI:STEP, got \"{text}\""
-            )));
-        };
-        let (lo, hi, step) = (value(lo)?, value(hi)?, value(step)?);
-        if hi < lo {
-            return Err(Error::input(format!("--h: {hi} is below {lo}")));
-        }
-        let count = ((hi - lo) / step + 1e-9).floor() as usize + 1;
-        if count > 100_000 {
-            return Err(Error::input(format!(
-                "--h gives {count} steps; that is too many"
-            )));
-        }
-        // Round to 12 significant digits so 0.2 + 0.1·9 reads 1.1, not 1.1000000000000001.
-        let round = |x: f64| format!("{x:.11e}").parse::<f64>().unwrap_or(x);
-        Ok((0..count).map(|i| round(lo + i as f64 * step)).collect())
-    } else {
-        text.split(',').map(value).collect()
-    }
-}
-
-/// `k/n` → (k − 1, n), checked.
-pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
-    let bad = || {
-        Error::input(format!(
-            "--shard expects K/N with 1 ≤ K ≤ N, got \"{text}\""
-        ))
-    };
-    let (k, n) = text.split_once('/').ok_or_else(bad)?;
-    let (k, n): (usize, usize) = (
-        k.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if k == 0 || n == 0 || k > n {
-        return Err(bad());
-    }
-    Ok((k - 1, n))
-}
-
-/// Load the scene and build every (method, h) once, so a bad combination fails before any
-/// time is spent on runs.
-pub fn check_methods(
-    scene: &std::path::Path,
-    set: &[String],
-    base: &RunSpec,
-    methods: &[String],
-    steps: &[f64],
-) -> Result<crate::io::scene::Scene> {
-    let scene = load_scene(scene, set)?;
-    for method in methods {
-        for &h in steps {
-            let mut spec = base.clone();
-            spec.method = Some(method.clone());
-            spec.h = Some(Value::Number(h));
-            let settings = scene
-                .run
-                .overridden_by(&spec)
-                .resolve_with_units(&scene.parameters, scene.units)?;
-            crate::integrators::build(&settings, &mut Vec::new())
-                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-            crate::run::check_seed_used(&settings, "--seed")?;
-        }
-    }
-    Ok(scene)
-}
-
 /// Build every point of a scan once, so a bad combination fails before any time is spent
 /// on runs.
 fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<()> {
@@ -283,21 +200,6 @@ fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<
         }
     }
     Ok(())
-}
-
-/// A progress bar on a terminal, nothing otherwise.
-pub fn progress_bar(total: u64, quiet: bool, label: &str) -> indicatif::ProgressBar {
-    if quiet || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(total);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "{msg} [{bar:40}] {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
-    ) {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_message(label.to_string());
-    bar
 }
 
 pub fn modes_command(args: &ModesArgs) -> Result<()> {
@@ -847,8 +749,8 @@ fn scan_meta(
                 .as_ref()
                 .map_or(setup.t_end.to_string(), |t| t.to_string()),
         ),
-        ("inner_steps", super::charts::or_default(run.inner_steps)),
-        ("dt", super::charts::or_default(run.dt.as_ref())),
+        ("inner_steps", or_default(run.inner_steps)),
+        ("dt", or_default(run.dt.as_ref())),
         ("blowup", setup.base.blowup.unwrap_or(10.0).to_string()),
     ];
     let given = given_settings(run);

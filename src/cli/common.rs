@@ -1,0 +1,155 @@
+//! What the commands share: the argument blocks several commands take, the parsers of
+//! their values (numbers, outer steps, shards), the check of a study's methods, progress
+//! bars, and the settings line of a study table. It imports none of the command modules,
+//! so every command may import it.
+
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::error::{Error, Result};
+use crate::expr;
+use crate::io::scene::load_scene;
+use crate::settings::{RunSpec, Value};
+use crate::units::Units;
+
+/// Exit code of bad input or an I/O error.
+pub const EXIT_ERROR: i32 = 1;
+/// Exit code of a run that went unstable or whose method failed.
+pub const EXIT_UNSTABLE: i32 = 3;
+
+/// A number or expression of a flag (`10*pi`), finite.
+pub fn number(text: &str, what: &str) -> Result<f64> {
+    let value = expr::evaluate(text.trim(), &BTreeMap::new())
+        .map_err(|e| Error::input(format!("{what}: {e}")))?;
+    if !value.is_finite() {
+        return Err(Error::input(format!("{what} is not finite ({value})")));
+    }
+    Ok(value)
+}
+
+/// `LO:HI:STEP` (inclusive, with a tolerance for the last point) or `A,B,C`; in a scene with
+/// real units the values may carry time units (`1fs:10fs:0.25fs`).
+pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
+    let value = |s: &str| -> Result<f64> {
+        let v: Value = s.parse().map_err(|_| Error::input("bad number"))?;
+        let x = v.evaluate_time(&Default::default(), "--h", units.time_units())?;
+        if x <= 0.0 {
+            return Err(Error::input(format!(
+                "--h: steps must be positive, got {x}"
+            )));
+        }
+        Ok(x)
+    };
+    if text.contains(':') {
+        let parts: Vec<&str> = text.split(':').collect();
+        let [lo, hi, step] = parts.as_slice() else {
+            return Err(Error::input(format!(
+                "--h expects LO:HI:STEP, got \"{text}\""
+            )));
+        };
+        let (lo, hi, step) = (value(lo)?, value(hi)?, value(step)?);
+        if hi < lo {
+            return Err(Error::input(format!("--h: {hi} is below {lo}")));
+        }
+        let count = ((hi - lo) / step + 1e-9).floor() as usize + 1;
+        if count > 100_000 {
+            return Err(Error::input(format!(
+                "--h gives {count} steps; that is too many"
+            )));
+        }
+        // Round to 12 significant digits so 0.2 + 0.1·9 reads 1.1, not 1.1000000000000001.
+        let round = |x: f64| format!("{x:.11e}").parse::<f64>().unwrap_or(x);
+        Ok((0..count).map(|i| round(lo + i as f64 * step)).collect())
+    } else {
+        text.split(',').map(value).collect()
+    }
+}
+
+/// `k/n` → (k − 1, n), checked.
+pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
+    let bad = || {
+        Error::input(format!(
+            "--shard expects K/N with 1 ≤ K ≤ N, got \"{text}\""
+        ))
+    };
+    let (k, n) = text.split_once('/').ok_or_else(bad)?;
+    let (k, n): (usize, usize) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if k == 0 || n == 0 || k > n {
+        return Err(bad());
+    }
+    Ok((k - 1, n))
+}
+
+/// Load the scene and build every (method, h) once, so a bad combination fails before any
+/// time is spent on runs.
+pub fn check_methods(
+    scene: &std::path::Path,
+    set: &[String],
+    base: &RunSpec,
+    methods: &[String],
+    steps: &[f64],
+) -> Result<crate::io::scene::Scene> {
+    let scene = load_scene(scene, set)?;
+    for method in methods {
+        for &h in steps {
+            let mut spec = base.clone();
+            spec.method = Some(method.clone());
+            spec.h = Some(Value::Number(h));
+            let settings = scene
+                .run
+                .overridden_by(&spec)
+                .resolve_with_units(&scene.parameters, scene.units)?;
+            crate::integrators::build(&settings, &mut Vec::new())
+                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+            crate::run::check_seed_used(&settings, "--seed")?;
+        }
+    }
+    Ok(scene)
+}
+
+/// A setting for a study table's first line: its value, or `default` when not given.
+pub fn or_default<T: std::fmt::Display>(value: Option<T>) -> String {
+    value.map_or("default".into(), |v| v.to_string())
+}
+
+/// A study table's settings from (name, value) pairs; a comma in a value becomes `;`, as
+/// the table's first line separates its settings by commas.
+pub fn meta_of(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.replace(',', ";")))
+        .collect()
+}
+
+/// A bar on a terminal's stderr drawn by `template` (with `chars` for its bar, else
+/// indicatif's), hidden when quiet or not a terminal.
+pub fn terminal_bar(total: u64, quiet: bool, template: &str, chars: Option<&str>) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total);
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(match chars {
+            Some(chars) => style.progress_chars(chars),
+            None => style,
+        });
+    }
+    bar
+}
+
+/// A progress bar of a study's runs on a terminal, nothing otherwise.
+pub fn progress_bar(total: u64, quiet: bool, label: &str) -> ProgressBar {
+    let bar = terminal_bar(
+        total,
+        quiet,
+        "{msg} [{bar:40}] {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
+        Some("=> "),
+    );
+    bar.set_message(label.to_string());
+    bar
+}
