@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
 
-use super::common::{check_methods, meta_of, or_default, parse_shard, parse_steps, progress_bar};
+use super::common::{
+    InnerSteps, check_methods, meta_of, or_default, parse_shard, parse_steps, progress_bar,
+};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::stability::map::Shard;
 use crate::analysis::work_precision::{
@@ -28,12 +30,19 @@ pub enum ChartCommand {
     WorkPrecision(WorkPrecisionArgs),
 }
 
+// The shared inner-step flags (common::InnerSteps) in this chart's words; its --dt takes no
+// value that starts with `-`.
 #[derive(Args, Debug)]
+#[command(mut_arg("inner_steps", |a| a
+    .help("Inner steps K per outer step for the multiple-time-step methods")))]
+#[command(mut_arg("dt", |a| a
+    .help("A fixed inner step instead of --inner")
+    .allow_negative_numbers(false)))]
 pub struct WorkPrecisionArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
     /// Methods, comma-separated.
-    #[arg(long, value_delimiter = ',', required = true)]
+    #[arg(long, alias = "method", value_delimiter = ',', required = true)]
     pub methods: Vec<String>,
     /// Outer steps, comma-separated (or LO:HI:STEP).
     #[arg(long)]
@@ -44,15 +53,8 @@ pub struct WorkPrecisionArgs {
     /// Sample interval of the position error (default: the largest h; every h must divide it).
     #[arg(long)]
     pub sample: Option<Value>,
-    /// Inner steps K per outer step for the multiple-time-step methods.
-    #[arg(long = "inner", value_name = "K")]
-    pub inner_steps: Option<usize>,
-    /// A fixed inner step instead of --inner.
-    #[arg(long)]
-    pub dt: Option<Value>,
-    /// Jacobian mode of the mollified methods.
-    #[arg(long)]
-    pub jacobian: Option<String>,
+    #[command(flatten)]
+    pub inner: InnerSteps,
     /// Quadrature of the pseudo-energy methods.
     #[arg(long)]
     pub quadrature: Option<String>,
@@ -181,13 +183,10 @@ fn study_setup(args: &WorkPrecisionArgs, times: &StudyTimes) -> StudySetup {
         scene: args.scene.clone(),
         set: args.set.clone(),
         base: RunSpec {
-            inner_steps: args.inner_steps,
-            dt: args.dt.clone(),
-            jacobian: args.jacobian.clone(),
             quadrature: args.quadrature.clone(),
             block: args.block,
             blowup: Some(args.blowup),
-            ..Default::default()
+            ..args.inner.spec()
         },
         t_end: times.t_end,
         sample: times.sample,
@@ -280,7 +279,7 @@ fn work_precision_meta(
             "reference",
             format!("{} h = {}", args.reference_method, times.reference_h),
         ),
-        ("inner_steps", or_default(args.inner_steps)),
+        ("inner_steps", or_default(args.inner.inner_steps)),
         (
             "weights",
             format!(

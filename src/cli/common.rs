@@ -6,6 +6,7 @@
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::error::{Error, Result};
@@ -18,6 +19,67 @@ use crate::units::Units;
 pub const EXIT_ERROR: i32 = 1;
 /// Exit code of a run that went unstable or whose method failed.
 pub const EXIT_UNSTABLE: i32 = 3;
+
+/// The inner step of the multiple-time-step methods a study runs, as `run` takes it.
+#[derive(Args, Debug)]
+pub struct InnerSteps {
+    /// Inner steps K per outer step.
+    #[arg(long = "inner", value_name = "K")]
+    pub inner_steps: Option<usize>,
+    /// A fixed inner step dt instead of --inner.
+    #[arg(long, allow_negative_numbers = true)]
+    pub dt: Option<Value>,
+    /// Jacobian mode of the mollified methods.
+    #[arg(long)]
+    pub jacobian: Option<String>,
+}
+
+impl InnerSteps {
+    /// The run settings these flags give; the rest default.
+    pub fn spec(&self) -> RunSpec {
+        RunSpec {
+            inner_steps: self.inner_steps,
+            dt: self.dt.clone(),
+            jacobian: self.jacobian.clone(),
+            ..Default::default()
+        }
+    }
+}
+
+/// The methods and outer steps of a study that runs every method at every step (`scan
+/// stiffness`, `scan growth`). The methods are `--methods` (or `--method`), comma-separated
+/// or repeated, as in every command that takes a list of them.
+#[derive(Args, Debug)]
+pub struct MethodSteps {
+    /// Method(s), comma-separated.
+    #[arg(long, alias = "method", value_delimiter = ',', required = true)]
+    pub methods: Vec<String>,
+    /// Outer step(s) h, comma-separated (numbers or expressions).
+    #[arg(
+        long = "h",
+        value_delimiter = ',',
+        required = true,
+        allow_negative_numbers = true
+    )]
+    pub h: Vec<String>,
+    #[command(flatten)]
+    pub inner: InnerSteps,
+    /// Length of each run.
+    #[arg(long, allow_negative_numbers = true)]
+    pub t_end: String,
+}
+
+impl MethodSteps {
+    /// The outer steps (--h) as numbers.
+    pub fn steps(&self) -> Result<Vec<f64>> {
+        self.h.iter().map(|text| number(text, "--h")).collect()
+    }
+
+    /// The run length (--t-end) as a number.
+    pub fn t_end(&self) -> Result<f64> {
+        number(&self.t_end, "--t-end")
+    }
+}
 
 /// A number or expression of a flag (`10*pi`), finite.
 pub fn number(text: &str, what: &str) -> Result<f64> {

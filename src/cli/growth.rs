@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use clap::Args;
 use rayon::prelude::*;
 
-use super::common::{number, progress_bar};
+use super::common::{MethodSteps, number, progress_bar};
 use crate::analysis::growth::{
     RateFit, default_fit_range, energy_errors, fit_range, fit_rate, window_maxima,
 };
@@ -19,35 +19,16 @@ use crate::integrators;
 use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
-use crate::settings::{MethodSettings, RunSpec, Value};
+use crate::settings::{MethodSettings, Value};
 
+// The shared method and step flags (common::MethodSteps); --t-end as this study uses it.
 #[derive(Args, Debug)]
+#[command(mut_arg("t_end", |a| a.help("Length of each run (whole outer steps up to it)")))]
 pub struct ScanGrowthArgs {
     /// Scene file (TOML), for example systems/three-spring.toml.
     pub scene: PathBuf,
-    /// Method(s), comma-separated.
-    #[arg(long, value_delimiter = ',', required = true)]
-    pub method: Vec<String>,
-    /// Outer step(s) h, comma-separated (numbers or expressions).
-    #[arg(
-        long = "h",
-        value_delimiter = ',',
-        required = true,
-        allow_negative_numbers = true
-    )]
-    pub h: Vec<String>,
-    /// Inner steps K per outer step.
-    #[arg(long = "inner", value_name = "K")]
-    pub inner_steps: Option<usize>,
-    /// A fixed inner step dt instead of --inner.
-    #[arg(long, allow_negative_numbers = true)]
-    pub dt: Option<Value>,
-    /// Jacobian mode of the mollified methods.
-    #[arg(long)]
-    pub jacobian: Option<String>,
-    /// Length of each run (whole outer steps up to it).
-    #[arg(long, allow_negative_numbers = true)]
-    pub t_end: String,
+    #[command(flatten)]
+    pub study: MethodSteps,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -130,15 +111,11 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
 
 /// The outer steps (--h) and the run length (--t-end), each checked positive.
 fn steps_and_end(args: &ScanGrowthArgs) -> Result<(Vec<f64>, f64)> {
-    let steps = args
-        .h
-        .iter()
-        .map(|text| number(text, "--h"))
-        .collect::<Result<Vec<f64>>>()?;
+    let steps = args.study.steps()?;
     if let Some(&h) = steps.iter().find(|&&h| h <= 0.0) {
         return Err(Error::input(format!("--h must be positive, got {h}")));
     }
-    let t_end = number(&args.t_end, "--t-end")?;
+    let t_end = args.study.t_end()?;
     if t_end <= 0.0 {
         return Err(Error::input(format!(
             "--t-end must be positive, got {t_end}"
@@ -175,14 +152,9 @@ fn growth_points(
     steps: &[f64],
     t_end: f64,
 ) -> Result<Vec<(usize, MethodSettings, usize)>> {
-    let base = RunSpec {
-        inner_steps: args.inner_steps,
-        dt: args.dt.clone(),
-        jacobian: args.jacobian.clone(),
-        ..Default::default()
-    };
+    let base = args.study.inner.spec();
     let mut points = Vec::new();
-    for method in &args.method {
+    for method in &args.study.methods {
         for &h in steps {
             // Whole steps up to t_end (the last may stop short of it).
             let n = (t_end / h * (1.0 + 1e-12)).floor() as usize;

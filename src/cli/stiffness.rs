@@ -7,21 +7,27 @@ use std::path::PathBuf;
 use clap::Args;
 use rayon::prelude::*;
 
-use super::common::{meta_of, number, or_default, parse_shard, progress_bar};
-use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, largest};
+use super::common::{MethodSteps, meta_of, number, or_default, parse_shard, progress_bar};
+use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, Unit, largest};
 use crate::error::{Error, Result};
 use crate::io::csv::CsvWriter;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
-use crate::settings::{RunSpec, Value};
 
+// The shared method and step flags (common::MethodSteps), described as this study uses them.
 #[derive(Args, Debug)]
+#[command(mut_arg("methods", |a| a
+    .help("Method(s), comma-separated: one curve per method and outer step")))]
+#[command(mut_arg("inner_steps", |a| a
+    .help("Inner steps K per outer step (default: max(100, ⌈h ω_max / 0.05⌉))")))]
+#[command(mut_arg("dt", |a| a
+    .help("A fixed inner step dt instead of --inner (every h must be a multiple of it)")))]
+#[command(mut_arg("t_end", |a| a.help("Length of each run; a whole number of every outer step")))]
 pub struct ScanStiffnessArgs {
     /// Scene file (TOML), for example systems/two-spring.toml (GSS98 section 4).
     pub scene: PathBuf,
-    /// Method(s), comma-separated: one curve per method and outer step.
-    #[arg(long, value_delimiter = ',', required = true)]
-    pub method: Vec<String>,
+    #[command(flatten)]
+    pub study: MethodSteps,
     /// The scene parameter to scan, e.g. omega1.
     #[arg(long)]
     pub param: String,
@@ -31,26 +37,6 @@ pub struct ScanStiffnessArgs {
     /// Values of the parameter, evenly spaced from LO to HI inclusive.
     #[arg(long, default_value_t = 400)]
     pub n: usize,
-    /// Outer step(s) h, comma-separated (numbers or expressions).
-    #[arg(
-        long = "h",
-        value_delimiter = ',',
-        required = true,
-        allow_negative_numbers = true
-    )]
-    pub h: Vec<String>,
-    /// Inner steps K per outer step (default: max(100, ⌈h ω_max / 0.05⌉)).
-    #[arg(long = "inner", value_name = "K")]
-    pub inner_steps: Option<usize>,
-    /// A fixed inner step dt instead of --inner (every h must be a multiple of it).
-    #[arg(long, allow_negative_numbers = true)]
-    pub dt: Option<Value>,
-    /// Jacobian mode of the mollified methods.
-    #[arg(long)]
-    pub jacobian: Option<String>,
-    /// Length of each run; a whole number of every outer step.
-    #[arg(long, allow_negative_numbers = true)]
-    pub t_end: String,
     /// Reference Verlet steps per outer step (default as for --inner); the reference is
     /// Richardson-extrapolated from M, 2M and 4M steps.
     #[arg(long, value_name = "M")]
@@ -110,100 +96,11 @@ pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
 }
 
 pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
-    let values = parse_values(&args.range, args.n)?;
-    let steps = args
-        .h
-        .iter()
-        .map(|text| number(text, "--h"))
-        .collect::<Result<Vec<f64>>>()?;
-    let t_end = number(&args.t_end, "--t-end")?;
-    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
-    for path in [&args.png, &args.svg].into_iter().flatten() {
-        crate::plot::Format::of(path)?;
-    }
-    let base = RunSpec {
-        inner_steps: args.inner_steps,
-        dt: args.dt.clone(),
-        jacobian: args.jacobian.clone(),
-        ..Default::default()
-    };
-    let study = StiffnessStudy::new(
-        &args.scene,
-        args.set.clone(),
-        &args.param,
-        values,
-        args.method.clone(),
-        steps,
-        base,
-        t_end,
-        args.reference_steps,
-    )?;
-    let mut units = study.units();
-    if let Some((k, n)) = shard {
-        units.retain(|u| u.unit % n == k);
-    }
+    let (study, units) = stiffness_study(args)?;
     if !args.quiet {
-        for &h in &study.steps {
-            let inner: Vec<String> = study
-                .methods
-                .iter()
-                .map(|m| {
-                    study
-                        .settings(m, h, study.values[0])
-                        .map(|s| match s.inner_steps {
-                            Some(k) => format!("{m} K = {k}"),
-                            None => m.clone(),
-                        })
-                        .unwrap_or_else(|_| m.clone())
-                })
-                .collect();
-            eprintln!(
-                "h = {h}: {}; reference: Verlet with {}, {} and {} steps per h, \
-                 extrapolated (fastest fast mode over the scan: ω = {:.4})",
-                inner.join(", "),
-                study.reference_steps(h),
-                2 * study.reference_steps(h),
-                4 * study.reference_steps(h),
-                study.omega_max
-            );
-        }
+        print_setup(&study);
     }
-
-    let mut header = vec!["index", "method", "h"];
-    header.push(&study.param);
-    header.extend([
-        "max_error",
-        "error_time",
-        "reference_error",
-        "inner_steps",
-        "reference_steps",
-        "status",
-    ]);
-    // A comment line names the study, its size and settings, so shards can be checked and
-    // merged; then rows are written and flushed block by block as they finish.
-    let mut meta = meta_of(&[
-        ("points", study.total_points().to_string()),
-        ("scene", args.scene.display().to_string()),
-        ("set", args.set.join(" ")),
-        ("method", args.method.join(" ")),
-        ("param", args.param.clone()),
-        ("range", args.range.clone()),
-        ("n", args.n.to_string()),
-        ("h", args.h.join(" ")),
-        ("inner_steps", or_default(args.inner_steps)),
-        ("dt", or_default(args.dt.as_ref())),
-        ("jacobian", or_default(args.jacobian.as_ref())),
-        ("t_end", args.t_end.clone()),
-        ("reference_steps", or_default(args.reference_steps)),
-    ]);
-    if let Some(shard) = &args.shard {
-        meta.insert("shard".into(), shard.clone());
-    }
-    let mut out = CsvWriter::create_after(
-        &args.out,
-        Some(&StudyTable::new("scan-stiffness", meta, &[]).first_line()),
-        &header,
-    )?;
+    let mut out = stiffness_csv(args, &study)?;
     let bar = progress_bar(units.len() as u64, args.quiet, "scan stiffness");
     let mut all: Vec<StiffnessPoint> = Vec::with_capacity(units.len() * study.methods.len());
     // Blocks of a few units per thread keep the file current without idling the threads.
@@ -225,37 +122,141 @@ pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
     }
     bar.finish_and_clear();
 
-    // Summary: the largest error of each curve and where.
     let curves = curves(&study, &all);
     if !args.quiet {
-        for (name, points) in &curves {
-            match largest(points) {
-                Some((value, error)) => eprintln!(
-                    "{name}: largest error {error:.4e} at {} = {value:.6}",
-                    study.param
-                ),
-                None => eprintln!("{name}: no finite error"),
-            }
-        }
-        let worst_reference = all.iter().map(|p| p.reference_error).fold(0.0, f64::max);
-        let smallest_error = all
-            .iter()
-            .filter(|p| p.max_error.is_finite())
-            .map(|p| p.max_error)
-            .fold(f64::INFINITY, f64::min);
-        if worst_reference > 0.01 * smallest_error {
-            eprintln!(
-                "notice: the reference's estimated error (up to {worst_reference:.2e}) is not \
-                 small beside the smallest measured error ({smallest_error:.2e}); raise \
-                 --reference-steps"
-            );
-        }
-        eprintln!("{} rows in {}", all.len(), args.out.display());
+        print_summary(args, &study, &curves, &all);
     }
     for path in [&args.png, &args.svg].into_iter().flatten() {
         chart(&study, &curves, args.log_y).save(path)?;
     }
     Ok(())
+}
+
+/// The study the flags ask for, checked, and the (h, value) units of this shard.
+fn stiffness_study(args: &ScanStiffnessArgs) -> Result<(StiffnessStudy, Vec<Unit>)> {
+    let values = parse_values(&args.range, args.n)?;
+    let steps = args.study.steps()?;
+    let t_end = args.study.t_end()?;
+    let shard = args.shard.as_deref().map(parse_shard).transpose()?;
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        crate::plot::Format::of(path)?;
+    }
+    let study = StiffnessStudy::new(
+        &args.scene,
+        args.set.clone(),
+        &args.param,
+        values,
+        args.study.methods.clone(),
+        steps,
+        args.study.inner.spec(),
+        t_end,
+        args.reference_steps,
+    )?;
+    let mut units = study.units();
+    if let Some((k, n)) = shard {
+        units.retain(|u| u.unit % n == k);
+    }
+    Ok((study, units))
+}
+
+/// One line per outer step on stderr: each method's inner steps and the reference's.
+fn print_setup(study: &StiffnessStudy) {
+    for &h in &study.steps {
+        let inner: Vec<String> = study
+            .methods
+            .iter()
+            .map(|m| {
+                study
+                    .settings(m, h, study.values[0])
+                    .map(|s| match s.inner_steps {
+                        Some(k) => format!("{m} K = {k}"),
+                        None => m.clone(),
+                    })
+                    .unwrap_or_else(|_| m.clone())
+            })
+            .collect();
+        eprintln!(
+            "h = {h}: {}; reference: Verlet with {}, {} and {} steps per h, \
+             extrapolated (fastest fast mode over the scan: ω = {:.4})",
+            inner.join(", "),
+            study.reference_steps(h),
+            2 * study.reference_steps(h),
+            4 * study.reference_steps(h),
+            study.omega_max
+        );
+    }
+}
+
+/// The study's CSV, created with its first lines. A comment line names the study, its size
+/// and settings, so shards can be checked and merged; then rows are written and flushed
+/// block by block as they finish.
+fn stiffness_csv(args: &ScanStiffnessArgs, study: &StiffnessStudy) -> Result<CsvWriter> {
+    let mut header = vec!["index", "method", "h"];
+    header.push(&study.param);
+    header.extend([
+        "max_error",
+        "error_time",
+        "reference_error",
+        "inner_steps",
+        "reference_steps",
+        "status",
+    ]);
+    let mut meta = meta_of(&[
+        ("points", study.total_points().to_string()),
+        ("scene", args.scene.display().to_string()),
+        ("set", args.set.join(" ")),
+        ("method", args.study.methods.join(" ")),
+        ("param", args.param.clone()),
+        ("range", args.range.clone()),
+        ("n", args.n.to_string()),
+        ("h", args.study.h.join(" ")),
+        ("inner_steps", or_default(args.study.inner.inner_steps)),
+        ("dt", or_default(args.study.inner.dt.as_ref())),
+        ("jacobian", or_default(args.study.inner.jacobian.as_ref())),
+        ("t_end", args.study.t_end.clone()),
+        ("reference_steps", or_default(args.reference_steps)),
+    ]);
+    if let Some(shard) = &args.shard {
+        meta.insert("shard".into(), shard.clone());
+    }
+    CsvWriter::create_after(
+        &args.out,
+        Some(&StudyTable::new("scan-stiffness", meta, &[]).first_line()),
+        &header,
+    )
+}
+
+/// The summary on stderr: the largest error of each curve and where, and whether the
+/// reference is accurate enough beside the errors measured.
+fn print_summary(
+    args: &ScanStiffnessArgs,
+    study: &StiffnessStudy,
+    curves: &[(String, Vec<&StiffnessPoint>)],
+    all: &[StiffnessPoint],
+) {
+    for (name, points) in curves {
+        match largest(points) {
+            Some((value, error)) => eprintln!(
+                "{name}: largest error {error:.4e} at {} = {value:.6}",
+                study.param
+            ),
+            None => eprintln!("{name}: no finite error"),
+        }
+    }
+    let worst_reference = all.iter().map(|p| p.reference_error).fold(0.0, f64::max);
+    let smallest_error = all
+        .iter()
+        .filter(|p| p.max_error.is_finite())
+        .map(|p| p.max_error)
+        .fold(f64::INFINITY, f64::min);
+    if worst_reference > 0.01 * smallest_error {
+        eprintln!(
+            "notice: the reference's estimated error (up to {worst_reference:.2e}) is not \
+             small beside the smallest measured error ({smallest_error:.2e}); raise \
+             --reference-steps"
+        );
+    }
+    eprintln!("{} rows in {}", all.len(), args.out.display());
 }
 
 /// The points of each (method, h) curve, in study order, named "method, h = …".
