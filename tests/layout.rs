@@ -5,7 +5,7 @@
 //! The source is read as text, formatted by `cargo fmt` (which `make test` checks first):
 //! a function ends at the first line that is its closing brace at its own indentation.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The top-level modules from the bottom up: each may import only those before it.
@@ -62,10 +62,20 @@ fn code_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
 
 /// Every `crate::name` a line refers to, also inside `use crate::{a::…, b::…}`.
 fn crate_references(line: &str) -> Vec<String> {
+    path_references(line, "crate::")
+}
+
+/// Every name that follows `prefix` on a line (`prefix` ending in `::`), also inside a
+/// group `prefix{a::…, b::…}`.
+fn path_references(line: &str, prefix: &str) -> Vec<String> {
     let mut names = Vec::new();
     let mut rest = line;
-    while let Some(at) = rest.find("crate::") {
-        rest = &rest[at + "crate::".len()..];
+    while let Some(at) = rest.find(prefix) {
+        let before = rest[..at].chars().next_back();
+        rest = &rest[at + prefix.len()..];
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            continue; // the end of a longer name: `my_run::` is not `run::`
+        }
         if let Some(group) = rest.strip_prefix('{') {
             let inside = &group[..group.find('}').unwrap_or(group.len())];
             for item in inside.split(',') {
@@ -167,6 +177,7 @@ fn long_functions(text: &str, limit: usize) -> Vec<(usize, String, usize)> {
 fn no_function_in_io_or_cli_is_over_100_lines() {
     let mut files = Vec::new();
     rust_files(Path::new("src/io"), &mut files);
+    rust_files(Path::new("src/cli"), &mut files);
     let mut long = Vec::new();
     for path in &files {
         let text = std::fs::read_to_string(path).unwrap();
@@ -182,6 +193,119 @@ fn no_function_in_io_or_cli_is_over_100_lines() {
         "functions over {MAX_FUNCTION_LINES} lines:\n{}",
         long.join("\n")
     );
+}
+
+/// The name of the `src/cli/` module a file belongs to: its first component below
+/// `src/cli/` without `.rs`; the root `src/cli/mod.rs` is `cli`.
+fn cli_module(path: &Path) -> String {
+    let relative = path.strip_prefix("src/cli").unwrap_or(path);
+    let first = relative
+        .components()
+        .next()
+        .and_then(|c| c.as_os_str().to_str())
+        .unwrap_or("");
+    match first.strip_suffix(".rs") {
+        Some("mod") => "cli".to_string(),
+        Some(stem) => stem.to_string(),
+        None => first.to_string(),
+    }
+}
+
+/// The `src/cli/` modules each module refers to: `crate::cli::x` anywhere; `super::x` in a
+/// file just below `src/cli/` (an item of `mod.rs`, `super::Item`, refers to the root
+/// `cli`); `x::` in `mod.rs`, which names its modules directly. A file is read up to its
+/// first inline module (`mod tests {`), inside which `super` is the file itself.
+fn cli_imports(files: &[(String, usize, String)]) -> BTreeMap<String, BTreeSet<String>> {
+    let modules: BTreeSet<&str> = files.iter().map(|(m, _, _)| m.as_str()).collect();
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (module, depth, text) in files {
+        let targets = graph.entry(module.clone()).or_default();
+        for (_, line) in code_lines(text) {
+            let trimmed = line.trim_start();
+            if trimmed.starts_with("mod ") && trimmed.trim_end().ends_with('{') {
+                break;
+            }
+            let mut names = path_references(line, "crate::cli::");
+            if *depth == 1 {
+                for name in path_references(line, "super::") {
+                    let is_module = modules.contains(name.as_str());
+                    names.push(if is_module { name } else { "cli".into() });
+                }
+            }
+            if module == "cli" {
+                names.extend(
+                    modules
+                        .iter()
+                        .filter(|m| !path_references(line, &format!("{m}::")).is_empty())
+                        .map(|m| m.to_string()),
+                );
+            }
+            targets.extend(
+                names
+                    .into_iter()
+                    .filter(|n| n != module && modules.contains(n.as_str())),
+            );
+        }
+    }
+    graph
+}
+
+/// A circle of the graph (its modules in order, the first repeated at the end), if any.
+fn find_circle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        path: &mut Vec<String>,
+        done: &mut BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(at) = path.iter().position(|n| n == node) {
+            let mut circle = path[at..].to_vec();
+            circle.push(node.to_string());
+            return Some(circle);
+        }
+        if done.contains(node) {
+            return None;
+        }
+        path.push(node.to_string());
+        for next in graph.get(node).into_iter().flatten() {
+            if let Some(circle) = visit(next, graph, path, done) {
+                return Some(circle);
+            }
+        }
+        path.pop();
+        done.insert(node.to_string());
+        None
+    }
+    let mut done = BTreeSet::new();
+    graph
+        .keys()
+        .find_map(|node| visit(node, graph, &mut Vec::new(), &mut done))
+}
+
+#[test]
+fn no_import_circle_among_the_cli_modules() {
+    let mut paths = Vec::new();
+    rust_files(Path::new("src/cli"), &mut paths);
+    let files: Vec<(String, usize, String)> = paths
+        .iter()
+        .map(|path| {
+            let depth = path.strip_prefix("src/cli").unwrap().components().count();
+            let text = std::fs::read_to_string(path).unwrap();
+            (cli_module(path), depth, text)
+        })
+        .collect();
+    let graph = cli_imports(&files);
+    assert!(
+        graph.len() > 5 && graph["cli"].contains("run"),
+        "the checker reads the cli modules: {graph:?}"
+    );
+    if let Some(circle) = find_circle(&graph) {
+        panic!(
+            "the cli modules import each other in a circle: {} (what several commands share \
+             belongs in cli/common.rs, which imports none of them)",
+            circle.join(" → ")
+        );
+    }
 }
 
 #[test]
@@ -204,4 +328,51 @@ fn the_checks_see_what_they_check() {
         (found[0].1.as_str(), found[0].2),
         ("long", MAX_FUNCTION_LINES + 2)
     );
+    // The circle checker: a made-up tree whose `charts` imports `studies` (through
+    // `crate::cli::`) while `studies` imports `charts` (through `super::`), or whose
+    // `common` names an item of the root, which names every module.
+    let tree = |charts: &str, common: &str| {
+        let files = [
+            (
+                "cli",
+                0,
+                "mod charts;\nfn main() { studies::run(); charts::draw(); }",
+            ),
+            ("charts", 1, charts),
+            (
+                "studies",
+                1,
+                "use super::common::x;\nfn f() { super::charts::draw(); }",
+            ),
+            ("common", 1, common),
+        ];
+        let files: Vec<(String, usize, String)> = files
+            .iter()
+            .map(|(m, d, t)| (m.to_string(), *d, t.to_string()))
+            .collect();
+        cli_imports(&files)
+    };
+    let names = |list: &[&str]| list.iter().map(|n| n.to_string()).collect::<BTreeSet<_>>();
+    let circular = tree(
+        "use crate::cli::{studies::parse, common::x};",
+        "use crate::io::scene;",
+    );
+    assert_eq!(circular["cli"], names(&["charts", "studies"]));
+    assert_eq!(circular["charts"], names(&["common", "studies"]));
+    assert_eq!(
+        circular["common"],
+        names(&[]),
+        "crate::io is not a cli module"
+    );
+    assert_eq!(
+        find_circle(&circular),
+        Some(vec!["charts".into(), "studies".into(), "charts".into()])
+    );
+    let acyclic = tree("use super::common::x;", "use crate::io::scene;");
+    assert_eq!(find_circle(&acyclic), None);
+    let through_root = tree("use super::common::x;", "use super::Cli;");
+    assert_eq!(through_root["common"], names(&["cli"]));
+    assert!(find_circle(&through_root).is_some());
+    assert_eq!(cli_module(Path::new("src/cli/mod.rs")), "cli");
+    assert_eq!(cli_module(Path::new("src/cli/scene/terms.rs")), "scene");
 }
