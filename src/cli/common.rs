@@ -11,8 +11,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::error::{Error, Result};
 use crate::expr;
-use crate::io::scene::load_scene;
-use crate::settings::{RunSpec, Value};
+use crate::io::scene::{Scene, load_scene};
+use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
 
 /// Exit code of bad input or an I/O error.
@@ -155,23 +155,34 @@ pub fn check_methods(
     base: &RunSpec,
     methods: &[String],
     steps: &[f64],
-) -> Result<crate::io::scene::Scene> {
+) -> Result<Scene> {
     let scene = load_scene(scene, set)?;
     for method in methods {
         for &h in steps {
-            let mut spec = base.clone();
-            spec.method = Some(method.clone());
-            spec.h = Some(Value::Number(h));
-            let settings = scene
-                .run
-                .overridden_by(&spec)
-                .resolve_with_units(&scene.parameters, scene.units)?;
+            let settings = point_settings(&scene, base, method, h)?;
             crate::integrators::build(&settings, &mut Vec::new())
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
             crate::run::check_seed_used(&settings, "--seed")?;
         }
     }
     Ok(scene)
+}
+
+/// The settings of one point of a study: the scene's `[run]` table overridden by `base`,
+/// then by the point's method and outer step `h`.
+pub fn point_settings(
+    scene: &Scene,
+    base: &RunSpec,
+    method: &str,
+    h: f64,
+) -> Result<MethodSettings> {
+    let mut spec = base.clone();
+    spec.method = Some(method.to_string());
+    spec.h = Some(Value::Number(h));
+    scene
+        .run
+        .overridden_by(&spec)
+        .resolve_with_units(&scene.parameters, scene.units)
 }
 
 /// A setting for a study table's first line: its value, or `default` when not given.

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use clap::Args;
 use rayon::prelude::*;
 
-use super::common::{MethodSteps, number, progress_bar};
+use super::common::{MethodSteps, number, point_settings, progress_bar};
 use crate::analysis::growth::{
     RateFit, default_fit_range, energy_errors, fit_range, fit_rate, window_maxima,
 };
@@ -19,7 +19,7 @@ use crate::integrators;
 use crate::io::csv::write_table;
 use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
-use crate::settings::{MethodSettings, Value};
+use crate::settings::MethodSettings;
 
 // The shared method and step flags (common::MethodSteps); --t-end as this study uses it.
 #[derive(Args, Debug)]
@@ -170,13 +170,7 @@ fn growth_points(
                      records"
                 )));
             }
-            let mut spec = base.clone();
-            spec.method = Some(method.clone());
-            spec.h = Some(Value::Number(h));
-            let settings = scene
-                .run
-                .overridden_by(&spec)
-                .resolve_with_units(&scene.parameters, scene.units)?;
+            let settings = point_settings(scene, &base, method, h)?;
             integrators::build(&settings, &mut Vec::new())
                 .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
             points.push((points.len(), settings, n));
