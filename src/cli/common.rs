@@ -15,6 +15,12 @@ use crate::io::scene::{Scene, load_scene};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
 
+/// The file names of the study tables, which `merge` looks for in a shard's directory.
+pub const WORK_PRECISION: &str = "work-precision.csv";
+pub const WALL_TIME: &str = "wall-time.csv";
+pub const SCAN_STEPS: &str = "scan.csv";
+pub const SCAN_STIFFNESS: &str = "scan-stiffness.csv";
+
 /// Exit code of bad input or an I/O error.
 pub const EXIT_ERROR: i32 = 1;
 /// Exit code of a run that went unstable or whose method failed.

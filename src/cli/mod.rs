@@ -9,8 +9,10 @@ mod analyze_output;
 mod async_map;
 mod charts;
 mod common;
+mod draw;
 mod forces;
 mod growth;
+mod merge;
 mod run;
 pub mod stability;
 mod stiffness;
@@ -58,7 +60,7 @@ enum Command {
     #[command(subcommand)]
     Chart(charts::ChartCommand),
     /// Combine the outputs of --shard runs into what a single run writes.
-    Merge(charts::MergeArgs),
+    Merge(merge::MergeArgs),
     /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
     /// linear three-spring problem (GSS98 eq. (27)): CSV and a heat map. With
     /// `--method async-pseudo-energy SCENE` it maps MEMM18's asynchronous scheme instead
@@ -115,7 +117,7 @@ pub fn main() -> i32 {
         Command::Chart(charts::ChartCommand::WorkPrecision(args)) => {
             charts::work_precision_command(&args).map(|()| 0)
         }
-        Command::Merge(args) => charts::merge_command(&args).map(|()| 0),
+        Command::Merge(args) => merge::merge_command(&args).map(|()| 0),
         Command::Scan(studies::ScanCommand::Stiffness(args)) => {
             stiffness::scan_stiffness_command(&args).map(|()| 0)
         }

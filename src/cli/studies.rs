@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
-use super::common::{or_default, parse_shard, parse_steps, progress_bar};
+use super::common::{SCAN_STEPS, or_default, parse_shard, parse_steps, progress_bar};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::analysis::run_analysis::{Analyzer, RunAnalysis};
@@ -498,14 +498,14 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         unresolved_notice(c, &results);
     }
 
-    let path = args.out.join("scan.csv");
+    let path = args.out.join(SCAN_STEPS);
     let meta = scan_meta(args, &setup, total, sampling.as_ref(), scene.units);
     let table = match &sampling {
         None => scan_table(meta.clone(), &results),
         Some(_) => sampling_table(meta.clone(), &results),
     };
     table.write(&path)?;
-    super::charts::draw_scan(&table, &args.out)?;
+    super::draw::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
     let timings = write_timings(args, &setup, &safe, meta, scene.units)?;
     print_safe_steps(&safe, &steps, &timings, scene.units, criterion);
@@ -581,7 +581,7 @@ fn write_timings(
     if !timings.is_empty() {
         let timing = timing_table(meta, &timings, units);
         timing.write(&args.out.join("timing.csv"))?;
-        super::charts::draw_ns_per_day(&timing, &args.out)?;
+        super::draw::draw_ns_per_day(&timing, &args.out)?;
     }
     Ok(timings)
 }

@@ -1,0 +1,204 @@
+//! `longstep merge`: the tables of `--shard` runs combined into what a single run writes,
+//! and their pictures drawn again.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
+
+use super::common::{SCAN_STEPS, SCAN_STIFFNESS, WALL_TIME, WORK_PRECISION};
+use super::draw::{draw_scan, draw_work_precision};
+use crate::analysis::stability::map::Shard;
+use crate::error::{Error, Result};
+use crate::io::csv::write_table;
+use crate::io::study_csv::{StudyTable, differing_setting, merge};
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Output directories (or CSV files) of the shards.
+    #[arg(required = true)]
+    pub inputs: Vec<PathBuf>,
+    /// Where to write the merged tables and pictures.
+    #[arg(long, default_value = "out/merged")]
+    pub out: PathBuf,
+}
+
+const MAP_HEADER: &str = "gamma1,gamma2,spectral_radius,type";
+
+/// Stability-map shards are contiguous slices of the grid, which runs Γ1-major: the whole
+/// map's rows are the shards' rows in shard order. Each shard's first line names its map's
+/// settings and its `k/n`: the shards must agree on every setting and hold every slice
+/// 1..n once, each with the rows its slice has.
+fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
+    let (first_path, first) = &maps[0];
+    let points = first.points()?;
+    let mut slices: Vec<Option<&(PathBuf, StudyTable)>> = Vec::new();
+    for entry in maps {
+        let (path, table) = entry;
+        if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
+            return Err(Error::input(format!(
+                "the map shards differ in {key}: {theirs} in {}, {ours} in {}",
+                path.display(),
+                first_path.display()
+            )));
+        }
+        let shard = table
+            .meta
+            .get("shard")
+            .map(|s| Shard::parse(s))
+            .transpose()?
+            .ok_or_else(|| Error::Structure {
+                path: path.clone(),
+                message: "a stability-map table without its `shard`".into(),
+            })?;
+        if slices.is_empty() {
+            slices = vec![None; shard.count];
+        }
+        if shard.count != slices.len() {
+            return Err(Error::input(format!(
+                "{} is shard {}/{} but {} is one of {}: give the shards of one --shard split",
+                path.display(),
+                shard.index,
+                shard.count,
+                first_path.display(),
+                slices.len()
+            )));
+        }
+        if let Some((other, _)) = slices[shard.index - 1] {
+            return Err(Error::input(format!(
+                "shard {}/{} appears twice: {} and {}",
+                shard.index,
+                shard.count,
+                other.display(),
+                path.display()
+            )));
+        }
+        let expected = shard.range(points).len();
+        if table.rows.len() != expected {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "shard {}/{} of {points} points holds {} rows, not its {expected}",
+                    shard.index,
+                    shard.count,
+                    table.rows.len()
+                ),
+            });
+        }
+        slices[shard.index - 1] = Some(entry);
+    }
+    if let Some(k) = slices.iter().position(Option::is_none) {
+        return Err(Error::input(format!(
+            "the map shards do not cover its {points} points: shard {}/{} is missing",
+            k + 1,
+            slices.len()
+        )));
+    }
+    let path = out.join("stability-map.csv");
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let rows = slices.iter().flatten().flat_map(|(_, table)| &table.rows);
+    write_table(&path, None, &first.header, rows)?;
+    eprintln!(
+        "merged {} map shards ({points} points) into {}",
+        maps.len(),
+        path.display()
+    );
+    Ok(())
+}
+
+/// The shards' tables, by the study each names, and the stability-map shards apart.
+type Shards = (
+    BTreeMap<String, Vec<(String, StudyTable)>>,
+    Vec<(PathBuf, StudyTable)>,
+);
+
+/// `longstep merge DIR…`: combine shard outputs into what a single run writes.
+pub fn merge_command(args: &MergeArgs) -> Result<()> {
+    let (by_study, maps) = read_shards(&args.inputs)?;
+    if !maps.is_empty() {
+        merge_maps(&maps, &args.out)?;
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let mut merged_tables = BTreeMap::new();
+    for (study, tables) in by_study {
+        let count = tables.len();
+        let merged = merge(tables)?;
+        let name = match study.as_str() {
+            "work-precision" => WORK_PRECISION,
+            "work-precision-wall-time" => WALL_TIME,
+            "scan-steps" => SCAN_STEPS,
+            "scan-stiffness" => SCAN_STIFFNESS,
+            _ => "merged.csv",
+        };
+        merged.write(&args.out.join(name))?;
+        eprintln!(
+            "merged {count} shards of {study} into {}",
+            args.out.join(name).display()
+        );
+        merged_tables.insert(study, merged);
+    }
+    draw_merged(&merged_tables, &args.out)
+}
+
+/// Every study table of the inputs (directories, or CSV files), grouped by the study it
+/// names, so shard files may be called anything.
+fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
+    let mut by_study: BTreeMap<String, Vec<(String, StudyTable)>> = BTreeMap::new();
+    let mut maps: Vec<(PathBuf, StudyTable)> = Vec::new();
+    for input in inputs {
+        let files: Vec<PathBuf> = if input.is_dir() {
+            [WORK_PRECISION, WALL_TIME, SCAN_STEPS, SCAN_STIFFNESS]
+                .iter()
+                .map(|f| input.join(f))
+                .filter(|p| p.exists())
+                .collect()
+        } else {
+            vec![input.clone()]
+        };
+        if files.is_empty() {
+            return Err(Error::input(format!(
+                "{}: no study table ({WORK_PRECISION}, {SCAN_STEPS}, {SCAN_STIFFNESS}) in it",
+                input.display()
+            )));
+        }
+        for file in files {
+            let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+            if text.starts_with(MAP_HEADER) {
+                return Err(Error::Structure {
+                    path: file.clone(),
+                    message: "a whole stability map (written without --shard): merge takes \
+                              the shards of one map"
+                        .into(),
+                });
+            }
+            let table = StudyTable::read(&file)?;
+            if table.study == "stability-map" {
+                maps.push((file.clone(), table));
+                continue;
+            }
+            let name = file.display().to_string();
+            by_study
+                .entry(table.study.clone())
+                .or_default()
+                .push((name, table));
+        }
+    }
+    Ok((by_study, maps))
+}
+
+/// The pictures of the merged tables, as the studies draw them.
+fn draw_merged(merged_tables: &BTreeMap<String, StudyTable>, out: &Path) -> Result<()> {
+    if let Some(table) = merged_tables.get("work-precision") {
+        draw_work_precision(table, merged_tables.get("work-precision-wall-time"), out)?;
+    }
+    if let Some(table) = merged_tables.get("scan-steps") {
+        draw_scan(table, out)?;
+    }
+    if merged_tables.contains_key("scan-stiffness") {
+        eprintln!(
+            "notice: a merged stiffness scan is a table only; its picture is drawn by \
+             `longstep scan stiffness` itself"
+        );
+    }
+    Ok(())
+}
