@@ -10,7 +10,9 @@ use crate::analysis::modes::{fast_modes, predicted_resonances};
 use crate::error::Result;
 use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
-use crate::plot::{AxisSpec, Corner, Guide, LineChart, MarkerSet, PALETTE, Series, SeriesStyle};
+use crate::plot::{
+    AxisSpec, Colour, Corner, Guide, LineChart, MarkerSet, PALETTE, Series, SeriesStyle,
+};
 
 /// The scene's file stem and its --set values, for titles.
 fn scene_label(table: &StudyTable) -> String {
@@ -259,18 +261,7 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
                     points.push((x, y));
                 }
             }
-            points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            if !points.is_empty() {
-                let mut series = Series::line(m, points);
-                series.style = SeriesStyle::LineAndPoints;
-                series.colour = Some(colour);
-                chart.series.push(series);
-            }
-            if !unstable.is_empty() {
-                chart
-                    .markers
-                    .push(MarkerSet::unstable_of(m, colour, unstable));
-            }
+            add_method(&mut chart, m, colour, points, unstable);
         }
         if chart.series.is_empty() && chart.markers.is_empty() {
             continue;
@@ -280,6 +271,29 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A method's line through its points in order of outer step, and its unstable runs as
+/// crosses, both in its colour.
+fn add_method(
+    chart: &mut LineChart,
+    name: &str,
+    colour: Colour,
+    mut points: Vec<(f64, f64)>,
+    unstable: Vec<(f64, f64)>,
+) {
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if !points.is_empty() {
+        let mut series = Series::line(name, points);
+        series.style = SeriesStyle::LineAndPoints;
+        series.colour = Some(colour);
+        chart.series.push(series);
+    }
+    if !unstable.is_empty() {
+        chart
+            .markers
+            .push(MarkerSet::unstable_of(name, colour, unstable));
+    }
 }
 
 /// Simulated time per day at each method's largest safe step against the thread count,
@@ -373,18 +387,7 @@ fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
                 points.push((x, table.number(row, drift).abs().max(floor)));
             }
         }
-        points.sort_by(|a, b| a.0.total_cmp(&b.0));
-        if !points.is_empty() {
-            let mut series = Series::line(name, points);
-            series.style = SeriesStyle::LineAndPoints;
-            series.colour = Some(colour);
-            chart.series.push(series);
-        }
-        if !unstable.is_empty() {
-            chart
-                .markers
-                .push(MarkerSet::unstable_of(name, colour, unstable));
-        }
+        add_method(&mut chart, name, colour, points, unstable);
     }
     chart.guides.extend(resonance_guides(table, h));
     if chart.series.is_empty() && chart.markers.is_empty() {
