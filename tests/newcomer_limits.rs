@@ -378,3 +378,46 @@ fn map_axes_do_not_repeat_units_of_pi() {
         "the axis title repeats the π ticks' unit"
     );
 }
+
+/// Item 7 in the study tables too: Verlet at h = 0.5 past ω1 h = 2 grows to errors of
+/// 1e34–1e140 within t = 60, which `{}` wrote as 35–141-digit decimals in the stiffness
+/// CSV (and its tiny reference errors as 0.000000…). Every field is now short: the
+/// shortest round-trip form is at most 24 characters (17 digits, sign, point, exponent).
+#[test]
+fn study_tables_write_huge_and_tiny_numbers_in_exponent_form() {
+    let dir = scratch_dir("stiffness-exponent-form");
+    let csv = dir.join("scan.csv");
+    let (code, _, stderr) = run(&[
+        "scan",
+        "stiffness",
+        "systems/two-spring.toml",
+        "--methods",
+        "verlet,impulse",
+        "--param",
+        "omega1",
+        "--range",
+        "0:4*pi",
+        "--n",
+        "7",
+        "--h",
+        "0.5",
+        "--t-end",
+        "60",
+        "--quiet",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let huge = text
+        .lines()
+        .skip(2)
+        .filter_map(|l| l.split(',').nth(4)?.parse::<f64>().ok())
+        .fold(0.0, f64::max);
+    assert!(huge > 1e100, "the run no longer blows up far enough: {huge}");
+    for line in text.lines().skip(2) {
+        for field in line.split(',') {
+            assert!(field.len() <= 24, "a long field: {field}");
+        }
+    }
+}

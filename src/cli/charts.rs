@@ -16,6 +16,7 @@ use crate::analysis::work_precision::{
     sample_times,
 };
 use crate::error::{Error, Result};
+use crate::io::number::Num;
 use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
 use crate::settings::{RunSpec, Value, whole_ratio};
@@ -301,17 +302,17 @@ fn work_precision_tables(
         table.rows.push(vec![
             r.index.to_string(),
             r.method.clone(),
-            r.h.to_string(),
+            Num(r.h).to_string(),
             r.status.clone(),
-            r.max_position_error.to_string(),
-            r.max_relative_energy_error.to_string(),
+            Num(r.max_position_error).to_string(),
+            Num(r.max_relative_energy_error).to_string(),
             r.slow_evaluations.to_string(),
             r.fast_evaluations.to_string(),
             r.hessian_vector.to_string(),
-            r.weighted_evaluations.to_string(),
+            Num(r.weighted_evaluations).to_string(),
         ]);
         wall.rows
-            .push(vec![r.index.to_string(), r.wall_seconds.to_string()]);
+            .push(vec![r.index.to_string(), Num(r.wall_seconds).to_string()]);
     }
     (table, wall)
 }

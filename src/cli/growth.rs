@@ -17,6 +17,7 @@ use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
 use crate::integrators;
 use crate::io::csv::write_table;
+use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
 use crate::settings::MethodSettings;
@@ -302,19 +303,19 @@ fn write_summary(path: &std::path::Path, runs: &[GrowthRun]) -> Result<()> {
     )
 }
 
-/// One run's row of growth.csv, numbers as `{}` writes them, empty where not known.
+/// One run's row of growth.csv, numbers in `Num` form, empty where not known.
 fn summary_fields(run: &GrowthRun) -> [String; 13] {
     let (rho, kind, predicted) = match &run.linear {
         Ok(point) => (
-            point.spectral_radius.to_string(),
+            Num(point.spectral_radius).to_string(),
             point.kind.code().to_string(),
-            predicted_rate(point).to_string(),
+            Num(predicted_rate(point)).to_string(),
         ),
         Err(_) => (String::new(), String::new(), String::new()),
     };
     let (rate, first, last) = match &run.fit {
         Some(fit) => (
-            fit.rate.to_string(),
+            Num(fit.rate).to_string(),
             fit.first_step.to_string(),
             fit.last_step.to_string(),
         ),
@@ -323,7 +324,7 @@ fn summary_fields(run: &GrowthRun) -> [String; 13] {
     [
         run.index.to_string(),
         run.method.clone(),
-        run.h.to_string(),
+        Num(run.h).to_string(),
         run.inner_steps.map_or(String::new(), |k| k.to_string()),
         rho,
         kind,
@@ -331,7 +332,7 @@ fn summary_fields(run: &GrowthRun) -> [String; 13] {
         rate,
         first,
         last,
-        run.max_error.to_string(),
+        Num(run.max_error).to_string(),
         run.steps.to_string(),
         run.end.to_string(),
     ]
@@ -344,10 +345,10 @@ fn write_envelopes(path: &std::path::Path, runs: &[GrowthRun]) -> Result<()> {
             [
                 run.index.to_string(),
                 run.method.clone(),
-                run.h.to_string(),
+                Num(run.h).to_string(),
                 step.to_string(),
-                (step as f64 * run.h).to_string(),
-                max.to_string(),
+                Num(step as f64 * run.h).to_string(),
+                Num(max).to_string(),
             ]
         })
     });

@@ -11,6 +11,7 @@ use super::common::{MethodSteps, meta_of, number, or_default, parse_shard, progr
 use crate::analysis::stiffness::{StiffnessPoint, StiffnessStudy, Unit, largest};
 use crate::error::{Error, Result};
 use crate::io::csv::CsvWriter;
+use crate::io::number::Num;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
 
@@ -356,16 +357,16 @@ fn chart(
     chart
 }
 
-/// One row of the study's CSV, numbers as `{}` writes them.
+/// One row of the study's CSV, numbers in `Num` form (exponent form for tiny and huge ones).
 fn csv_fields(p: &StiffnessPoint) -> [String; 10] {
     [
         p.index.to_string(),
         p.method.clone(),
-        p.h.to_string(),
-        p.value.to_string(),
-        p.max_error.to_string(),
-        p.error_time.to_string(),
-        p.reference_error.to_string(),
+        Num(p.h).to_string(),
+        Num(p.value).to_string(),
+        Num(p.max_error).to_string(),
+        Num(p.error_time).to_string(),
+        Num(p.reference_error).to_string(),
         p.inner_steps.to_string(),
         p.reference_steps.to_string(),
         p.status.to_string(),

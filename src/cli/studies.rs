@@ -16,6 +16,7 @@ use crate::analysis::scan::{
     scan_points, time_point,
 };
 use crate::error::{Error, Result};
+use crate::io::number::Num;
 use std::collections::BTreeMap;
 
 use crate::io::scene::load_scene;
@@ -663,11 +664,11 @@ fn timing_table(meta: BTreeMap<String, String>, timings: &[Timing], units: Units
     for t in timings {
         table.rows.push(vec![
             t.method.clone(),
-            t.h.to_string(),
+            Num(t.h).to_string(),
             t.threads.to_string(),
             t.repeats.to_string(),
-            t.median_seconds.to_string(),
-            per_day(t.t_end, t.median_seconds, units).to_string(),
+            Num(t.median_seconds).to_string(),
+            Num(per_day(t.t_end, t.median_seconds, units)).to_string(),
         ]);
     }
     table
@@ -884,13 +885,13 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
         table.rows.push(vec![
             r.index.to_string(),
             r.method.clone(),
-            r.h.to_string(),
+            Num(r.h).to_string(),
             r.verdict.name().to_string(),
-            r.drift.to_string(),
-            detail.map_or(String::new(), |d| d.true_energy.to_string()),
+            Num(r.drift).to_string(),
+            detail.map_or(String::new(), |d| Num(d.true_energy).to_string()),
             detail.map_or(String::new(), |d| d.energy.clone()),
-            r.blowup_time.map_or(String::new(), |t| t.to_string()),
-            r.max_relative_error.to_string(),
+            r.blowup_time.map_or(String::new(), |t| Num(t).to_string()),
+            Num(r.max_relative_error).to_string(),
             r.steps.to_string(),
             r.slow_evaluations.to_string(),
             r.fast_evaluations.to_string(),
@@ -931,7 +932,7 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
         let mut row = vec![
             r.index.to_string(),
             r.method.clone(),
-            r.h.to_string(),
+            Num(r.h).to_string(),
             r.verdict.name().to_string(),
         ];
         match &r.sampling {
@@ -948,12 +949,12 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
                     c.kinetic_temperature,
                     c.kinetic_temperature_error,
                 ]
-                .map(|x| x.to_string()),
+                .map(|x| Num(x).to_string()),
             ),
             None => row.extend(std::iter::repeat_n(String::new(), 10)),
         }
         row.extend([
-            r.blowup_time.map_or(String::new(), |t| t.to_string()),
+            r.blowup_time.map_or(String::new(), |t| Num(t).to_string()),
             r.steps.to_string(),
             r.slow_evaluations.to_string(),
             r.fast_evaluations.to_string(),
