@@ -414,10 +414,40 @@ fn study_tables_write_huge_and_tiny_numbers_in_exponent_form() {
         .skip(2)
         .filter_map(|l| l.split(',').nth(4)?.parse::<f64>().ok())
         .fold(0.0, f64::max);
-    assert!(huge > 1e100, "the run no longer blows up far enough: {huge}");
+    assert!(
+        huge > 1e100,
+        "the run no longer blows up far enough: {huge}"
+    );
     for line in text.lines().skip(2) {
         for field in line.split(',') {
             assert!(field.len() <= 24, "a long field: {field}");
+        }
+    }
+}
+
+/// Items 18 and 19: what docs/studies.md says about shards is what the commands do — the
+/// commands it lists as taking `--shard k/n` have the flag, the two it says do not (it
+/// once claimed every scan and chart had one, `scan growth` included) have none.
+#[test]
+fn the_docs_list_of_sharded_commands_matches_the_commands() {
+    let docs = std::fs::read_to_string("docs/studies.md").unwrap();
+    let claim = "`scan steps`, `scan stiffness`, `chart work-precision` and `stability-map` take\n`--shard k/n` (`scan growth` and `async-stability-map` do not";
+    assert!(
+        docs.contains(claim),
+        "docs/studies.md no longer says which commands shard"
+    );
+    let sharded: [&[&str]; 4] = [
+        &["scan", "steps"],
+        &["scan", "stiffness"],
+        &["chart", "work-precision"],
+        &["stability-map"],
+    ];
+    let unsharded: [&[&str]; 2] = [&["scan", "growth"], &["async-stability-map"]];
+    for (commands, has) in [(&sharded[..], true), (&unsharded[..], false)] {
+        for command in commands {
+            let (code, stdout, stderr) = run(&[*command, &["--help"]].concat());
+            assert_eq!(code, 0, "{command:?}: {stderr}");
+            assert_eq!(stdout.contains("--shard"), has, "{command:?} --help");
         }
     }
 }
