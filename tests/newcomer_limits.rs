@@ -379,35 +379,13 @@ fn map_axes_do_not_repeat_units_of_pi() {
     );
 }
 
-/// Item 7 in the study tables too: Verlet at h = 0.5 past ω1 h = 2 grows to errors of
-/// 1e34–1e140 within t = 60, which `{}` wrote as 35–141-digit decimals in the stiffness
-/// CSV (and its tiny reference errors as 0.000000…). Every field is now short: the
-/// shortest round-trip form is at most 24 characters (17 digits, sign, point, exponent).
+/// Item 7 in the study tables too: `{}` wrote Verlet's errors of 1e34–1e140 in this
+/// stiffness scan as 35–141-digit decimals (and its tiny reference errors as 0.000000…).
+/// Every field is now short: the shortest round-trip form is at most 24 characters
+/// (17 digits, sign, point, exponent).
 #[test]
 fn study_tables_write_huge_and_tiny_numbers_in_exponent_form() {
-    let dir = scratch_dir("stiffness-exponent-form");
-    let csv = dir.join("scan.csv");
-    let (code, _, stderr) = run(&[
-        "scan",
-        "stiffness",
-        "systems/two-spring.toml",
-        "--methods",
-        "verlet,impulse",
-        "--param",
-        "omega1",
-        "--range",
-        "0:4*pi",
-        "--n",
-        "7",
-        "--h",
-        "0.5",
-        "--t-end",
-        "60",
-        "--quiet",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    let (csv, _) = common::verlet_blowup_stiffness_scan(&scratch_dir("stiffness-exponent-form"));
     let text = std::fs::read_to_string(&csv).unwrap();
     let huge = text
         .lines()

@@ -239,35 +239,11 @@ fn log_colour_bar_is_ticked_to_its_bottom() {
 }
 
 /// A stiffness scan's unstable runs are crosses under their method's name, not anonymous
-/// red crosses: Verlet at h = 0.5 is unstable once ω1 h > 2, i.e. for ω1 > 4 (here up to
-/// 4π), and by t = 60 its error overflows from ω1 = 10π/3 on; impulse with its inner
-/// steps stays bounded.
+/// red crosses (the scan of `common::verlet_blowup_stiffness_scan`: Verlet overflows,
+/// impulse does not).
 #[test]
 fn stiffness_scan_unstable_points_carry_their_method() {
-    let dir = scratch_dir("stiffness-unstable-method");
-    let svg = dir.join("err.svg");
-    run_ok(&[
-        "scan",
-        "stiffness",
-        "systems/two-spring.toml",
-        "--method",
-        "verlet,impulse",
-        "--param",
-        "omega1",
-        "--range",
-        "0:4*pi",
-        "--n",
-        "7",
-        "--h",
-        "0.5",
-        "--t-end",
-        "60",
-        "--quiet",
-        "--out",
-        dir.join("scan.csv").to_str().unwrap(),
-        "--svg",
-        svg.to_str().unwrap(),
-    ]);
+    let (_, svg) = common::verlet_blowup_stiffness_scan(&scratch_dir("stiffness-unstable-method"));
     let texts = svg_texts(&std::fs::read_to_string(&svg).unwrap());
     assert!(
         texts

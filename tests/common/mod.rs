@@ -142,3 +142,34 @@ pub fn finite_difference_hessian_vector(
         .map(|(p, m)| (p - m) / (2.0 * epsilon))
         .collect()
 }
+
+/// `scan stiffness` on the two-spring system where Verlet blows up: h = 0.5, ω1 over
+/// [0, 4π] in 7 points, t = 60. Verlet is unstable once ω1 h > 2 (ω1 > 4); its error
+/// reaches 1e34–1e140 and overflows from ω1 = 10π/3 on, while impulse stays bounded.
+/// Writes `scan.csv` and `err.svg` into `dir` and returns their paths.
+pub fn verlet_blowup_stiffness_scan(
+    dir: &std::path::Path,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let (csv, svg) = (dir.join("scan.csv"), dir.join("err.svg"));
+    let output = longstep()
+        .args([
+            "scan",
+            "stiffness",
+            "systems/two-spring.toml",
+            "--methods",
+            "verlet,impulse",
+        ])
+        .args([
+            "--param", "omega1", "--range", "0:4*pi", "--n", "7", "--h", "0.5",
+        ])
+        .args(["--t-end", "60", "--quiet", "--out", csv.to_str().unwrap()])
+        .args(["--svg", svg.to_str().unwrap()])
+        .output()
+        .expect("longstep runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    (csv, svg)
+}
