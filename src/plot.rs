@@ -820,76 +820,16 @@ impl LineChart {
                 .filter(|p| p.0.is_finite() && p.1.is_finite())
                 .map(|&(x, y)| (xc(x), yc(y)))
                 .collect();
-            let line = matches!(series.style, SeriesStyle::Line | SeriesStyle::LineAndPoints);
-            let dots = matches!(
-                series.style,
-                SeriesStyle::Points | SeriesStyle::LineAndPoints
-            );
-            if line {
-                // One path per segment: a single wide polyline joins its segments with
-                // miters, and where a dense series turns back sharply (an oscillating
-                // energy at 2000 rows) a miter shoots far past the plotting area.
-                let style = colour.stroke_width(2);
-                chart
-                    .draw_series(
-                        points
-                            .windows(2)
-                            .map(move |w| PathElement::new(vec![w[0], w[1]], style)),
-                    )
-                    .map_err(|e| e.to_string())?
-                    .label(series.name.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-                    });
-            }
-            if dots {
-                let annotation = chart
-                    .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                    .map_err(|e| e.to_string())?;
-                if !line {
-                    annotation
-                        .label(series.name.clone())
-                        .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
-                }
-            }
+            draw_series_in(&mut chart, series, colour, &points)?;
         }
         for set in &self.markers {
-            let colour = set.colour;
             let points: Vec<(f64, f64)> = set
                 .points
                 .iter()
                 .filter(|p| p.0.is_finite() && p.1.is_finite())
                 .map(|&(x, y)| (xc(x), yc(y)))
                 .collect();
-            let shape = set.shape;
-            let style = colour.stroke_width(2);
-            let annotation =
-                match shape {
-                    MarkerShape::Cross => chart
-                        .draw_series(points.iter().map(|&p| Cross::new(p, 6, style).into_dyn())),
-                    MarkerShape::Triangle => chart.draw_series(
-                        points
-                            .iter()
-                            .map(|&p| TriangleMarker::new(p, 6, colour.filled()).into_dyn()),
-                    ),
-                    MarkerShape::Circle => chart
-                        .draw_series(points.iter().map(|&p| Circle::new(p, 5, style).into_dyn())),
-                }
-                .map_err(|e| e.to_string())?;
-            // The legend shows the set's own shape.
-            annotation
-                .label(set.name.clone())
-                .legend(move |(x, y)| match shape {
-                    MarkerShape::Cross => {
-                        Cross::new((x + 10, y), 5, colour.stroke_width(2)).into_dyn()
-                    }
-                    MarkerShape::Triangle => {
-                        TriangleMarker::new((x + 10, y), 5, colour.filled()).into_dyn()
-                    }
-                    MarkerShape::Circle => {
-                        Circle::new((x + 10, y), 4, colour.stroke_width(2)).into_dyn()
-                    }
-                });
+            draw_markers_in(&mut chart, set, &points)?;
         }
         let plot_area = {
             let (left, top) = chart.backend_coord(&(x_range.start, y_range.end));
@@ -903,22 +843,124 @@ impl LineChart {
         };
         draw_point_labels(root, &point_texts, plot_area)?;
         if !self.series.is_empty() || !self.markers.is_empty() {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .position(match self.legend {
-                    Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
-                    Corner::UpperRight => SeriesLabelPosition::UpperRight,
-                    Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
-                    Corner::LowerRight => SeriesLabelPosition::LowerRight,
-                })
-                .draw()
-                .map_err(|e| e.to_string())?;
+            draw_series_legend(&mut chart, self.legend)?;
         }
         Ok(())
     }
+}
+
+type Cartesian<'a, DB, X, Y> = ChartContext<'a, DB, Cartesian2d<X, Y>>;
+
+/// One series in backend-ready coordinates: a path per segment and/or dots, with its
+/// legend entry.
+fn draw_series_in<'a, DB, X, Y>(
+    chart: &mut Cartesian<'a, DB, X, Y>,
+    series: &Series,
+    colour: Colour,
+    points: &[(f64, f64)],
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    let line = matches!(series.style, SeriesStyle::Line | SeriesStyle::LineAndPoints);
+    let dots = matches!(
+        series.style,
+        SeriesStyle::Points | SeriesStyle::LineAndPoints
+    );
+    if line {
+        // One path per segment: a single wide polyline joins its segments with miters,
+        // and where a dense series turns back sharply (an oscillating energy at 2000
+        // rows) a miter shoots far past the plotting area.
+        let style = colour.stroke_width(2);
+        chart
+            .draw_series(
+                points
+                    .windows(2)
+                    .map(move |w| PathElement::new(vec![w[0], w[1]], style)),
+            )
+            .map_err(|e| e.to_string())?
+            .label(series.name.clone())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+            });
+    }
+    if dots {
+        let annotation = chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            .map_err(|e| e.to_string())?;
+        if !line {
+            annotation
+                .label(series.name.clone())
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+        }
+    }
+    Ok(())
+}
+
+/// A marker set in backend-ready coordinates; its legend entry shows its own shape.
+fn draw_markers_in<'a, DB, X, Y>(
+    chart: &mut Cartesian<'a, DB, X, Y>,
+    set: &MarkerSet,
+    points: &[(f64, f64)],
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    let (colour, shape) = (set.colour, set.shape);
+    let style = colour.stroke_width(2);
+    let annotation = match shape {
+        MarkerShape::Cross => {
+            chart.draw_series(points.iter().map(|&p| Cross::new(p, 6, style).into_dyn()))
+        }
+        MarkerShape::Triangle => chart.draw_series(
+            points
+                .iter()
+                .map(|&p| TriangleMarker::new(p, 6, colour.filled()).into_dyn()),
+        ),
+        MarkerShape::Circle => {
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 5, style).into_dyn()))
+        }
+    }
+    .map_err(|e| e.to_string())?;
+    annotation
+        .label(set.name.clone())
+        .legend(move |(x, y)| match shape {
+            MarkerShape::Cross => Cross::new((x + 10, y), 5, colour.stroke_width(2)).into_dyn(),
+            MarkerShape::Triangle => {
+                TriangleMarker::new((x + 10, y), 5, colour.filled()).into_dyn()
+            }
+            MarkerShape::Circle => Circle::new((x + 10, y), 4, colour.stroke_width(2)).into_dyn(),
+        });
+    Ok(())
+}
+
+/// The legend box in the chosen corner.
+fn draw_series_legend<'a, DB, X, Y>(
+    chart: &mut Cartesian<'a, DB, X, Y>,
+    corner: Corner,
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .position(match corner {
+            Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+            Corner::UpperRight => SeriesLabelPosition::UpperRight,
+            Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
+            Corner::LowerRight => SeriesLabelPosition::LowerRight,
+        })
+        .draw()
+        .map_err(|e| e.to_string())
 }
 
 /// A chart with its plot ranges decided.
