@@ -259,61 +259,9 @@ impl RunSpec {
             Error::input("no outer step h: give --h or set h in the scene's [run] table")
         })?;
         let dt = positive_time(&self.dt, "inner step dt")?;
-        let inner_steps = match (self.inner_steps, dt) {
-            (Some(_), Some(_)) => {
-                return Err(Error::input(
-                    "give the inner step either as inner steps (--inner) or as dt (--dt), not both",
-                ));
-            }
-            (Some(0), None) => return Err(Error::input("inner steps must be at least 1")),
-            (Some(k), None) => Some(k),
-            (None, Some(dt)) => Some(whole_ratio(h, dt, "inner step dt", "outer step h")?),
-            (None, None) => None,
-        };
-        if let Some(blowup) = self.blowup
-            && !(blowup.is_finite() && blowup > 0.0)
-        {
-            return Err(Error::input(format!(
-                "blow-up factor must be positive, got {blowup}"
-            )));
-        }
-        if let Some(steps) = &self.level_steps
-            && steps.contains(&0)
-        {
-            return Err(Error::input("level_steps must all be at least 1"));
-        }
-        if self.ratio == Some(0) {
-            return Err(Error::input("ratio must be at least 1"));
-        }
-        if self.block == Some(0) {
-            return Err(Error::input("block size R must be at least 1"));
-        }
-        if self.max_iter == Some(0) {
-            return Err(Error::input("max_iter must be at least 1"));
-        }
-        if self.thermostats == Some(0) {
-            return Err(Error::input(
-                "thermostats (L, thermostat pairs per degree of freedom) must be at least 1",
-            ));
-        }
-        let temperature = match &self.temperature {
-            Some(v) => {
-                let kelvin = units.temperature_units();
-                let t = v.evaluate_time(parameters, "temperature", kelvin)?;
-                if t <= 0.0 {
-                    return Err(Error::input(format!(
-                        "temperature must be positive, got {t}{}",
-                        if units == crate::units::Units::Real {
-                            " K"
-                        } else {
-                            ""
-                        }
-                    )));
-                }
-                Some(t)
-            }
-            None => None,
-        };
+        let inner_steps = self.inner_steps_of(h, dt)?;
+        self.check_counts()?;
+        let temperature = self.temperature_of(parameters, units)?;
         // An inverse time: `1/ps` is 1/1000 per fs, the unit standing alone being its factor.
         let friction = match time(&self.friction, "friction")? {
             Some(g) if g <= 0.0 => {
@@ -351,6 +299,78 @@ impl RunSpec {
             molly_constraints: self.molly_constraints.clone(),
             molly_jacobian: self.molly_jacobian.clone(),
             units,
+        })
+    }
+
+    /// The inner steps per outer step, from `inner_steps` or `dt` (not both).
+    fn inner_steps_of(&self, h: f64, dt: Option<f64>) -> Result<Option<usize>> {
+        Ok(match (self.inner_steps, dt) {
+            (Some(_), Some(_)) => {
+                return Err(Error::input(
+                    "give the inner step either as inner steps (--inner) or as dt (--dt), not both",
+                ));
+            }
+            (Some(0), None) => return Err(Error::input("inner steps must be at least 1")),
+            (Some(k), None) => Some(k),
+            (None, Some(dt)) => Some(whole_ratio(h, dt, "inner step dt", "outer step h")?),
+            (None, None) => None,
+        })
+    }
+
+    /// The counts and factors that must be at least 1 (or positive).
+    fn check_counts(&self) -> Result<()> {
+        if let Some(blowup) = self.blowup
+            && !(blowup.is_finite() && blowup > 0.0)
+        {
+            return Err(Error::input(format!(
+                "blow-up factor must be positive, got {blowup}"
+            )));
+        }
+        if let Some(steps) = &self.level_steps
+            && steps.contains(&0)
+        {
+            return Err(Error::input("level_steps must all be at least 1"));
+        }
+        if self.ratio == Some(0) {
+            return Err(Error::input("ratio must be at least 1"));
+        }
+        if self.block == Some(0) {
+            return Err(Error::input("block size R must be at least 1"));
+        }
+        if self.max_iter == Some(0) {
+            return Err(Error::input("max_iter must be at least 1"));
+        }
+        if self.thermostats == Some(0) {
+            return Err(Error::input(
+                "thermostats (L, thermostat pairs per degree of freedom) must be at least 1",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The temperature in the scene's units (kelvin in real units), positive.
+    fn temperature_of(
+        &self,
+        parameters: &BTreeMap<String, f64>,
+        units: crate::units::Units,
+    ) -> Result<Option<f64>> {
+        Ok(match &self.temperature {
+            Some(v) => {
+                let kelvin = units.temperature_units();
+                let t = v.evaluate_time(parameters, "temperature", kelvin)?;
+                if t <= 0.0 {
+                    return Err(Error::input(format!(
+                        "temperature must be positive, got {t}{}",
+                        if units == crate::units::Units::Real {
+                            " K"
+                        } else {
+                            ""
+                        }
+                    )));
+                }
+                Some(t)
+            }
+            None => None,
         })
     }
 }
