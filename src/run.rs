@@ -224,9 +224,44 @@ pub fn run(
     if let Some(csv) = &mut recorder.csv {
         csv.flush()?;
     }
+    let outcome = Outcome {
+        h,
+        steps,
+        status,
+        message,
+        wall_seconds,
+    };
+    Ok(summarise(scene, system, integrator, &recorder, outcome))
+}
+
+/// How a run ended, for its summary.
+struct Outcome {
+    h: f64,
+    steps: u64,
+    status: Status,
+    message: Option<String>,
+    wall_seconds: f64,
+}
+
+/// The summary of a finished or stopped run: counts, energies, the drift fit and what the
+/// integrator reports.
+fn summarise(
+    scene: &str,
+    system: &System,
+    integrator: &dyn Integrator,
+    recorder: &Recorder,
+    outcome: Outcome,
+) -> RunSummary {
+    let Outcome {
+        h,
+        steps,
+        status,
+        message,
+        wall_seconds,
+    } = outcome;
     let stopped_early = status != Status::Ok;
     let monitor = &recorder.monitor;
-    Ok(RunSummary {
+    RunSummary {
         scene: scene.to_string(),
         method: integrator.name().to_string(),
         parameters: integrator.describe(),
@@ -259,7 +294,7 @@ pub fn run(
             .into_iter()
             .collect(),
         ..RunSummary::default()
-    })
+    }
 }
 
 /// Refuse a system the method cannot integrate (magnetic terms, a mass matrix).
