@@ -237,6 +237,49 @@ pub const METHODS: &[MethodInfo] = &[
 /// Build the integrator the settings ask for. `notices` collects what the user should
 /// know, such as a setting the method does not use.
 pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box<dyn Integrator>> {
+    use impulse::Variant;
+    use mollified::Average;
+    let info = method_info(settings, notices)?;
+    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
+        let mollifier = averaging(settings, average)?;
+        Ok(Box::new(Impulse::new(
+            settings,
+            Variant::Endpoint,
+            Some(mollifier),
+        )?))
+    };
+    match info.name {
+        "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
+        "impulse" => Ok(Box::new(Impulse::new(settings, Variant::Endpoint, None)?)),
+        "impulse-midpoint" => Ok(Box::new(Impulse::new(settings, Variant::Midpoint, None)?)),
+        "short-average" => mollified(Average::Short),
+        "long-average" => mollified(Average::Long),
+        "linear-average" => mollified(Average::Linear),
+        "langevin-respa" | "sinr" => thermostatted(settings, info.name == "sinr"),
+        "equilibrium-molly" => {
+            let mollifier = equilibrium_molly::EquilibriumMolly::from_settings(settings)?;
+            Ok(Box::new(Impulse::new(
+                settings,
+                Variant::Endpoint,
+                Some(Box::new(mollifier)),
+            )?))
+        }
+        "adaptive-verlet" => adaptive(settings),
+        "structural-zd" => structural_scheme(settings, StructuralKind::Zd),
+        "structural-zds" => structural_scheme(settings, StructuralKind::Zds),
+        "pseudo-energy" => Ok(Box::new(PseudoEnergy::from_settings(settings)?)),
+        "async-pseudo-energy" => Ok(Box::new(AsyncPseudoEnergy::from_settings(
+            settings, notices,
+        )?)),
+        other => unreachable!("method {other} is listed but not built"),
+    }
+}
+
+/// The method's entry in [`METHODS`], with a notice for every given setting it ignores.
+fn method_info(
+    settings: &MethodSettings,
+    notices: &mut Vec<String>,
+) -> Result<&'static MethodInfo> {
     let Some(info) = METHODS.iter().find(|m| m.name == settings.method) else {
         let known: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
         return Err(Error::input(format!(
@@ -253,97 +296,73 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
             ));
         }
     }
-    use impulse::Variant;
-    use mollified::{Average, JacobianChoice, Mollifier, SlowMollifier};
-    // A GSS98 average for the slow force, over the inner step's Verlet.
-    let averaging = |average: Average| -> Result<Box<dyn SlowMollifier>> {
-        let choice = JacobianChoice::parse(settings.jacobian.as_deref())?;
-        let inner_steps = settings.inner_steps.ok_or_else(|| {
-            Error::input(format!(
-                "{} needs the inner step: give --inner K (dt = h/K) or --dt",
-                average.name()
-            ))
-        })?;
-        Ok(Box::new(Mollifier::new(
-            average,
-            choice,
-            settings.h,
-            inner_steps,
-        )))
+    Ok(info)
+}
+
+/// A GSS98 average for the slow force, over the inner step's Verlet.
+fn averaging(
+    settings: &MethodSettings,
+    average: mollified::Average,
+) -> Result<Box<dyn mollified::SlowMollifier>> {
+    let choice = mollified::JacobianChoice::parse(settings.jacobian.as_deref())?;
+    let inner_steps = settings.inner_steps.ok_or_else(|| {
+        Error::input(format!(
+            "{} needs the inner step: give --inner K (dt = h/K) or --dt",
+            average.name()
+        ))
+    })?;
+    Ok(Box::new(mollified::Mollifier::new(
+        average,
+        choice,
+        settings.h,
+        inner_steps,
+    )))
+}
+
+/// langevin-respa or sinr, with the same slow-force hook as the NVE methods: a GSS98
+/// average or the IRS99 projection.
+fn thermostatted(settings: &MethodSettings, sinr: bool) -> Result<Box<dyn Integrator>> {
+    let mollify: Option<Box<dyn mollified::SlowMollifier>> = match settings.mollifier.as_deref() {
+        Some("equilibrium-molly") => Some(Box::new(
+            equilibrium_molly::EquilibriumMolly::from_settings(settings)?,
+        )),
+        Some(name) => Some(averaging(settings, mollified::Average::parse(name)?)?),
+        None => None,
     };
-    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
-        let mollifier = averaging(average)?;
-        Ok(Box::new(Impulse::new(
-            settings,
-            Variant::Endpoint,
-            Some(mollifier),
-        )?))
+    let thermostat = if sinr {
+        impulse::Thermostat::Sinr(Box::new(sinr::Sinr::from_settings(settings)?))
+    } else {
+        impulse::Thermostat::Langevin(langevin::Langevin::from_settings(settings)?)
     };
-    match info.name {
-        "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
-        "impulse" => Ok(Box::new(Impulse::new(settings, Variant::Endpoint, None)?)),
-        "impulse-midpoint" => Ok(Box::new(Impulse::new(settings, Variant::Midpoint, None)?)),
-        "short-average" => mollified(Average::Short),
-        "long-average" => mollified(Average::Long),
-        "linear-average" => mollified(Average::Linear),
-        "langevin-respa" | "sinr" => {
-            // The same hook as the NVE methods: a GSS98 average or the IRS99 projection.
-            let mollify: Option<Box<dyn SlowMollifier>> = match settings.mollifier.as_deref() {
-                Some("equilibrium-molly") => Some(Box::new(
-                    equilibrium_molly::EquilibriumMolly::from_settings(settings)?,
-                )),
-                Some(name) => Some(averaging(Average::parse(name)?)?),
-                None => None,
-            };
-            let thermostat = if info.name == "sinr" {
-                impulse::Thermostat::Sinr(Box::new(sinr::Sinr::from_settings(settings)?))
-            } else {
-                impulse::Thermostat::Langevin(langevin::Langevin::from_settings(settings)?)
-            };
-            Ok(Box::new(Impulse::thermostatted(
-                settings, mollify, thermostat,
-            )?))
-        }
-        "equilibrium-molly" => {
-            let mollifier = equilibrium_molly::EquilibriumMolly::from_settings(settings)?;
-            Ok(Box::new(Impulse::new(
-                settings,
-                Variant::Endpoint,
-                Some(Box::new(mollifier)),
-            )?))
-        }
-        "adaptive-verlet" => {
-            let control = match &settings.control {
-                Some(text) => adaptive_verlet::Control::parse(text)?,
-                None => adaptive_verlet::Control::Arclength,
-            };
-            Ok(Box::new(AdaptiveVerlet::new(
-                settings.h,
-                control,
-                settings.h_min,
-                settings.h_max,
-            )?))
-        }
-        "structural-zd" | "structural-zds" => {
-            let kind = if info.name == "structural-zd" {
-                StructuralKind::Zd
-            } else {
-                StructuralKind::Zds
-            };
-            Ok(Box::new(Structural::new(
-                kind,
-                settings.h,
-                settings.block.unwrap_or(kind.default_block()),
-                settings.tol.unwrap_or(structural::DEFAULT_TOLERANCE),
-                settings
-                    .max_iter
-                    .unwrap_or(structural::DEFAULT_MAX_ITERATIONS),
-            )?))
-        }
-        "pseudo-energy" => Ok(Box::new(PseudoEnergy::from_settings(settings)?)),
-        "async-pseudo-energy" => Ok(Box::new(AsyncPseudoEnergy::from_settings(
-            settings, notices,
-        )?)),
-        other => unreachable!("method {other} is listed but not built"),
-    }
+    Ok(Box::new(Impulse::thermostatted(
+        settings, mollify, thermostat,
+    )?))
+}
+
+fn adaptive(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
+    let control = match &settings.control {
+        Some(text) => adaptive_verlet::Control::parse(text)?,
+        None => adaptive_verlet::Control::Arclength,
+    };
+    Ok(Box::new(AdaptiveVerlet::new(
+        settings.h,
+        control,
+        settings.h_min,
+        settings.h_max,
+    )?))
+}
+
+fn structural_scheme(
+    settings: &MethodSettings,
+    kind: StructuralKind,
+) -> Result<Box<dyn Integrator>> {
+    Ok(Box::new(Structural::new(
+        kind,
+        settings.h,
+        settings.block.unwrap_or(kind.default_block()),
+        settings.tol.unwrap_or(structural::DEFAULT_TOLERANCE),
+        settings
+            .max_iter
+            .unwrap_or(structural::DEFAULT_MAX_ITERATIONS),
+    )?))
 }
