@@ -24,9 +24,7 @@ fn nonbonded(scene: &Scene) -> &Nonbonded {
     scene
         .system
         .forces
-        .terms()
-        .iter()
-        .find_map(|t| t.term.as_any().and_then(|a| a.downcast_ref::<Nonbonded>()))
+        .find::<Nonbonded>()
         .expect("a non-bonded term")
 }
 

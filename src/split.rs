@@ -123,6 +123,14 @@ impl ForceSplit {
         &self.terms
     }
 
+    /// The first term of concrete type `T` (for benchmarks, profiles and tests that reach
+    /// into the non-bonded engine), through [`ForceTerm::as_any`].
+    pub fn find<T: 'static>(&self) -> Option<&T> {
+        self.terms
+            .iter()
+            .find_map(|t| t.term.as_any().and_then(|a| a.downcast_ref::<T>()))
+    }
+
     /// Every term computes in `precision` where it has that choice; how many terms took it.
     pub fn set_precision(&self, precision: crate::forces::Precision) -> usize {
         self.terms
