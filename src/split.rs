@@ -60,6 +60,20 @@ pub enum ParticleClass {
     Slow,
 }
 
+/// Terms from any levels evaluated together ([`ForceSplit::term_set`]).
+#[derive(Clone, Debug, Default)]
+pub struct TermSet {
+    terms: Vec<usize>,
+    /// The distinct levels of `terms`, each counted once per evaluation.
+    levels: Vec<usize>,
+}
+
+impl TermSet {
+    pub fn is_empty(&self) -> bool {
+        self.terms.is_empty()
+    }
+}
+
 pub struct ForceSplit {
     terms: Vec<LabelledTerm>,
     /// Term indices per level.
@@ -189,9 +203,7 @@ impl ForceSplit {
 
     /// `gradient += ∇V_T(q)` for a subset `terms` (indices into [`ForceSplit::terms`]) of
     /// the terms on `level`: one evaluation of the level when the subset is not empty, and
-    /// its terms' interactions. The asynchronous pseudo-energy scheme (MEMM18 (20)–(24))
-    /// evaluates the slow terms that touch mixed particles on the fine grid and the others
-    /// on the coarse grid with it.
+    /// its terms' interactions.
     pub fn add_terms_gradient(
         &mut self,
         level: usize,
@@ -212,6 +224,34 @@ impl ForceSplit {
             self.counts.interactions += term.interaction_count() as u64;
         }
         self.counts.gradient[level] += 1;
+    }
+
+    /// A fixed selection of terms (indices into [`ForceSplit::terms`]) from any levels, for
+    /// [`ForceSplit::add_set_gradient`].
+    pub fn term_set(&self, terms: &[usize]) -> TermSet {
+        let mut levels: Vec<usize> = terms.iter().map(|&t| self.terms[t].level).collect();
+        levels.sort_unstable();
+        levels.dedup();
+        TermSet {
+            terms: terms.to_vec(),
+            levels,
+        }
+    }
+
+    /// `gradient += ∇V_set(q)`: one evaluation of every level the set draws from (as
+    /// [`ForceSplit::add_terms_gradient`] on each level's part, in one call), and its terms'
+    /// interactions. The asynchronous pseudo-energy scheme's fine grid (MEMM18 (20)–(22):
+    /// the fast level and the slow terms touching mixed particles) is one set, evaluated
+    /// without a per-level loop — on a small chain that loop cost as much as the terms.
+    pub fn add_set_gradient(&mut self, set: &TermSet, q: &[f64], gradient: &mut [f64]) {
+        for &t in &set.terms {
+            let term = &self.terms[t].term;
+            term.add_gradient(q, gradient);
+            self.counts.interactions += term.interaction_count() as u64;
+        }
+        for &level in &set.levels {
+            self.counts.gradient[level] += 1;
+        }
     }
 
     /// Indices (into [`ForceSplit::terms`]) of the terms on `level`.

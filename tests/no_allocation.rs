@@ -107,3 +107,31 @@ fn thermostatted_steps_allocate_nothing() {
         }
     }
 }
+
+#[test]
+fn pseudo_energy_steps_allocate_nothing() {
+    // The synchronous scheme and the asynchronous one on a scene with slow particles (its
+    // fine steps, coarse step and monitor), for a rule with end nodes and one without.
+    for rule in ["gl5", "gauss3"] {
+        for name in ["pseudo-energy", "async-pseudo-energy"] {
+            let mut scene = common::scene_file("systems/fpu-slow-fast.toml", &[]);
+            let mut settings = longstep::settings::MethodSettings::new(name, 0.01);
+            settings.quadrature = Some(rule.into());
+            if name == "async-pseudo-energy" {
+                settings.ratio = Some(10);
+            }
+            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+            integrator.setup(&mut scene.system).unwrap();
+            integrator.step(&mut scene.system).unwrap();
+            let before = allocations();
+            for _ in 0..5 {
+                integrator.step(&mut scene.system).unwrap();
+            }
+            let during = allocations() - before;
+            assert_eq!(
+                during, 0,
+                "{name} ({rule}): {during} allocations in 5 steps"
+            );
+        }
+    }
+}

@@ -44,7 +44,7 @@ use super::quadrature::Quadrature;
 use super::{Integrator, StepFailure};
 use crate::error::{Error, Result};
 use crate::settings::{MethodSettings, whole_ratio};
-use crate::split::{ForceSplit, ParticleClass};
+use crate::split::{ForceSplit, ParticleClass, TermSet};
 use crate::system::System;
 
 /// How the slow terms are evaluated, and which coordinates are slow.
@@ -66,8 +66,10 @@ pub struct AsyncPlan {
     /// The same sets as contiguous index ranges, for the loops of a step.
     fine_runs: Vec<Range<usize>>,
     slow_runs: Vec<Range<usize>>,
-    interface_runs: Vec<Range<usize>>,
     fine_written_runs: Vec<Range<usize>>,
+    /// `fine_written` with, per coordinate, whether it is an interface one (on the
+    /// coarse flight (23) during a fine evaluation).
+    fine_lanes: Vec<(usize, bool)>,
     pub n_fast: usize,
     pub n_mixed: usize,
     pub n_slow: usize,
@@ -139,10 +141,58 @@ impl AsyncPlan {
         plan.fine_written.sort_unstable();
         plan.fine_runs = runs_of(&plan.fine_dofs);
         plan.slow_runs = runs_of(&plan.slow_dofs);
-        plan.interface_runs = runs_of(&plan.interface_dofs);
         plan.fine_written_runs = runs_of(&plan.fine_written);
+        plan.fine_lanes = (plan.fine_written.iter())
+            .map(|&i| (i, plan.interface_dofs.binary_search(&i).is_ok()))
+            .collect();
         plan
     }
+
+    /// One pass over the coordinates a fine evaluation writes, at fine node `τ` of fine
+    /// step `m`: `out = q + s v` with `s = s_fine = τ h_F` on fast and mixed coordinates
+    /// (20a) and `s = s_slow = (m + τ) h_F` on interface ones (the coarse flight (23)), and
+    /// `gradient = 0` there. An index loop: on a few coordinates a contiguous loop's
+    /// vector prologue costs more than the work (13 instructions per coordinate here
+    /// against ≈ 140 per call for the run-wise loops on the slow-fast chain).
+    fn fine_flights(&self, s: [f64; 2], q: &[f64], v: &[f64], out: &mut [f64], g: &mut [f64]) {
+        let [s_fine, s_slow] = s;
+        // All of one length, so one bounds check per coordinate serves every array.
+        let n = q.len();
+        let (v, out, g) = (&v[..n], &mut out[..n], &mut g[..n]);
+        for &(i, coarse) in &self.fine_lanes {
+            let s = if coarse { s_slow } else { s_fine };
+            out[i] = q[i] + s * v[i];
+            g[i] = 0.0;
+        }
+    }
+
+    /// `integral += w g` on fast and mixed coordinates (the fine step's `Σ w ∇V`, (20b)),
+    /// `integral += w h_F g` on interface ones (their share of `∫ ∂V_M/∂q_S`, (24b)), in
+    /// one pass; `w = [w, w h_F]`.
+    fn accumulate_fine(&self, w: [f64; 2], integral: &mut [f64], g: &[f64]) {
+        let [w_fine, w_slow] = w;
+        let n = integral.len();
+        let g = &g[..n];
+        for &(i, coarse) in &self.fine_lanes {
+            let w = if coarse { w_slow } else { w_fine };
+            integral[i] += w * g[i];
+        }
+    }
+}
+
+/// One node of the quadrature rule with the products every step reuses (fixed `h_F`,
+/// `h_S = K h_F`): computed once in setup, the same bits as computing them per node.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    tau: f64,
+    w: f64,
+    /// `τ h_F`: the fine flight's time offset.
+    s_fine: f64,
+    /// `w h_F`: the weight of an interface gradient in `∫ ∂V_M/∂q_S` (24b).
+    w_fine: f64,
+    /// `τ h_S`, `w h_S`: the coarse grid's offset and weight (23), (24b).
+    s_coarse: f64,
+    w_coarse: f64,
 }
 
 /// Sorted indices as maximal contiguous ranges.
@@ -185,7 +235,7 @@ fn zero(runs: &[Range<usize>], x: &mut [f64]) {
     }
 }
 
-/// The two-step update on the runs: `p_next = p_minus − scale · integral`,
+/// The two-step update on some coordinates: `p_next = p_minus − scale · integral`,
 /// `q += h M⁻¹ p_plus`, then the half-step momenta (and velocities) shift by one.
 struct HalfSteps<'a> {
     q: &'a mut [f64],
@@ -193,34 +243,25 @@ struct HalfSteps<'a> {
     p_plus: &'a mut [f64],
     v_minus: &'a mut [f64],
     v_plus: &'a mut [f64],
+    integral: &'a [f64],
+    inverse_mass: &'a [f64],
 }
 
 impl HalfSteps<'_> {
-    fn advance(
-        &mut self,
-        runs: &[Range<usize>],
-        integral: &[f64],
-        scale: f64,
-        h: f64,
-        inverse_mass: &[f64],
-    ) {
-        for r in runs {
-            let r = r.clone();
-            let columns = self.q[r.clone()]
-                .iter_mut()
-                .zip(&mut self.p_minus[r.clone()])
-                .zip(&mut self.p_plus[r.clone()])
-                .zip(&mut self.v_minus[r.clone()])
-                .zip(&mut self.v_plus[r.clone()])
-                .zip(integral[r.clone()].iter().zip(&inverse_mass[r]));
-            for (((((q, pm), pp), vm), vp), (i, wi)) in columns {
-                let next = *pm - scale * i;
-                *q += h * *vp;
-                *pm = *pp;
-                *vm = *vp;
-                *pp = next;
-                *vp = wi * next;
-            }
+    /// An index loop over `dofs`: a fine step updates a few coordinates, for which a
+    /// contiguous loop's vector set-up costs more than the work.
+    fn advance(&mut self, dofs: &[usize], scale: f64, h: f64) {
+        let n = self.q.len();
+        let (p_minus, p_plus) = (&mut self.p_minus[..n], &mut self.p_plus[..n]);
+        let (v_minus, v_plus) = (&mut self.v_minus[..n], &mut self.v_plus[..n]);
+        let (integral, inverse_mass) = (&self.integral[..n], &self.inverse_mass[..n]);
+        for &i in dofs {
+            let next = p_minus[i] - scale * integral[i];
+            self.q[i] += h * v_plus[i];
+            p_minus[i] = p_plus[i];
+            v_minus[i] = v_plus[i];
+            p_plus[i] = next;
+            v_plus[i] = inverse_mass[i] * next;
         }
     }
 }
@@ -245,10 +286,14 @@ pub struct AsyncPseudoEnergy {
     p_plus: Vec<f64>,
     v_minus: Vec<f64>,
     v_plus: Vec<f64>,
-    /// `Σ w ∇V` over a fine step, for fast and mixed coordinates.
-    fine_integral: Vec<f64>,
-    /// `∫ ∂V/∂q_S dt` over the coarse step, for slow coordinates.
-    slow_integral: Vec<f64>,
+    /// On fast and mixed coordinates `Σ w ∇V` over the current fine step; on slow ones
+    /// `∫ ∂V/∂q_S dt` over the coarse step (disjoint sets, so one array).
+    integral: Vec<f64>,
+    /// The fine grid's terms (fast level, then the slow terms touching mixed particles)
+    /// and the coarse grid's (the other slow terms), each evaluated in one call.
+    fine_set: TermSet,
+    coarse_set: TermSet,
+    nodes: Vec<Node>,
     gradient: Vec<f64>,
     scratch: Vec<f64>,
     fine_start: Vec<f64>,
@@ -283,8 +328,10 @@ impl AsyncPseudoEnergy {
             p_plus: Vec::new(),
             v_minus: Vec::new(),
             v_plus: Vec::new(),
-            fine_integral: Vec::new(),
-            slow_integral: Vec::new(),
+            integral: Vec::new(),
+            fine_set: TermSet::default(),
+            coarse_set: TermSet::default(),
+            nodes: Vec::new(),
             gradient: Vec::new(),
             scratch: Vec::new(),
             fine_start: Vec::new(),
@@ -415,159 +462,147 @@ impl AsyncPseudoEnergy {
         )
     }
 
-    /// Fine-grid gradient at `scratch`: the fast level and the slow terms touching mixed
-    /// particles.
-    fn fine_gradient(&mut self, forces: &mut ForceSplit) {
-        // Only what the fine-grid terms write is zeroed (and later read): a fine step costs
-        // O(fast + mixed + interface), not O(all particles).
-        zero(&self.plan.fine_written_runs, &mut self.gradient);
-        forces.add_gradient(0, &self.scratch, &mut self.gradient);
-        for level in 1..self.plan.fine_terms.len() {
-            forces.add_terms_gradient(
-                level,
-                &self.plan.fine_terms[level],
-                &self.scratch,
-                &mut self.gradient,
-            );
+    /// The term sets and node table a step reuses (setup).
+    fn prepare(&mut self, forces: &ForceSplit) {
+        let mut fine: Vec<usize> = forces.level_terms(0).to_vec();
+        let mut coarse = Vec::new();
+        for level in 1..forces.n_levels() {
+            fine.extend(&self.plan.fine_terms[level]);
+            coarse.extend(&self.plan.coarse_terms[level]);
         }
+        self.fine_set = forces.term_set(&fine);
+        self.coarse_set = forces.term_set(&coarse);
+        let (h_fast, h_slow) = (self.h_fast, self.ratio as f64 * self.h_fast);
+        let rule = &self.quadrature;
+        self.nodes = (rule.nodes().iter().zip(rule.weights()))
+            .map(|(&tau, &w)| Node {
+                tau,
+                w,
+                s_fine: tau * h_fast,
+                w_fine: w * h_fast,
+                s_coarse: tau * h_slow,
+                w_coarse: w * h_slow,
+            })
+            .collect();
+    }
+
+    /// Fine-grid gradient at `scratch` (only what the fine-grid terms write is zeroed and
+    /// later read: a fine evaluation costs O(fast + mixed + interface)).
+    fn fine_gradient(&mut self, forces: &mut ForceSplit) {
+        zero(&self.plan.fine_written_runs, &mut self.gradient);
+        forces.add_set_gradient(&self.fine_set, &self.scratch, &mut self.gradient);
     }
 
     fn coarse_gradient(&mut self, forces: &mut ForceSplit) {
         zero(&self.plan.slow_runs, &mut self.gradient);
-        for level in 1..self.plan.coarse_terms.len() {
-            forces.add_terms_gradient(
-                level,
-                &self.plan.coarse_terms[level],
-                &self.scratch,
-                &mut self.gradient,
-            );
+        forces.add_set_gradient(&self.coarse_set, &self.scratch, &mut self.gradient);
+    }
+
+    /// Fine step `m` (20a), (20b)/(22) of the fast and mixed coordinates, adding the
+    /// interface coordinates' share of `∫ ∂V_M/∂q_S` (24b) to `integral`. Per node one pass
+    /// forms the flights (and zeroes the gradient), one call evaluates the fine set, one
+    /// pass accumulates. Cost: one fine-set evaluation per node (`n − 1` for Gauss–Lobatto,
+    /// whose first node is the previous fine step's last).
+    fn fine_step(&mut self, system: &mut System, m: usize) {
+        let ends = self.quadrature.has_end_nodes();
+        let h_fast = self.h_fast;
+        zero(&self.plan.fine_runs, &mut self.integral);
+        for node in &self.nodes {
+            let reuse = node.tau == 0.0 && ends && self.fine_start_valid;
+            if !reuse {
+                // Slow partners on their coarse flight (23), at the same time.
+                let s = [node.s_fine, (m as f64 + node.tau) * h_fast];
+                let q = &system.state.q;
+                let (scratch, gradient) = (&mut self.scratch, &mut self.gradient);
+                self.plan
+                    .fine_flights(s, q, &self.v_plus, scratch, gradient);
+                let forces = &mut system.forces;
+                forces.add_set_gradient(&self.fine_set, &self.scratch, &mut self.gradient);
+            }
+            let gradient = if reuse {
+                &self.fine_start
+            } else {
+                &self.gradient
+            };
+            let w = [node.w, node.w_fine];
+            self.plan.accumulate_fine(w, &mut self.integral, gradient);
+            if node.tau == 1.0 && ends {
+                std::mem::swap(&mut self.fine_end, &mut self.gradient);
+            }
+        }
+        // (20a), (20b)/(22) for fast and mixed particles.
+        self.advance(system, false, 2.0 * h_fast, h_fast);
+        if ends {
+            std::mem::swap(&mut self.fine_start, &mut self.fine_end);
+            self.fine_start_valid = true;
         }
     }
 
-    fn async_step(&mut self, system: &mut System) {
+    /// `∫ ∂V_S/∂q_S` over the coarse interval (24b), added to `integral` on the slow
+    /// coordinates. Cost: one coarse-set evaluation per node (`n − 1` for Gauss–Lobatto).
+    fn coarse_integral(&mut self, system: &mut System) {
         let ends = self.quadrature.has_end_nodes();
-        let h_fast = self.h_fast;
-        // h_S as K h_F, so the slow flight sampled at the last fine node and the slow
-        // drift agree to the last bit (the end gradient is reused).
-        let h_slow = self.ratio as f64 * h_fast;
-        zero(&self.plan.slow_runs, &mut self.slow_integral);
-        for m in 0..self.ratio {
-            zero(&self.plan.fine_runs, &mut self.fine_integral);
-            for k in 0..self.quadrature.len() {
-                let tau = self.quadrature.nodes()[k];
-                let w = self.quadrature.weights()[k];
-                let reuse = tau == 0.0 && ends && self.fine_start_valid;
-                if !reuse {
-                    let q = &system.state.q;
-                    let s_fine = tau * h_fast;
-                    flight(
-                        &self.plan.fine_runs,
-                        &mut self.scratch,
-                        q,
-                        &self.v_plus,
-                        s_fine,
-                    );
-                    // Slow partners on their coarse flight (23), at the same time.
-                    let s_slow = (m as f64 + tau) * h_fast;
-                    flight(
-                        &self.plan.interface_runs,
-                        &mut self.scratch,
-                        q,
-                        &self.v_plus,
-                        s_slow,
-                    );
-                    self.fine_gradient(&mut system.forces);
-                }
-                let gradient = if reuse {
-                    &self.fine_start
-                } else {
-                    &self.gradient
-                };
-                accumulate(&self.plan.fine_runs, &mut self.fine_integral, gradient, w);
-                // ∂V_M/∂q_S over this fine interval, for (24b).
-                accumulate(
-                    &self.plan.interface_runs,
-                    &mut self.slow_integral,
-                    gradient,
-                    w * h_fast,
-                );
-                if tau == 1.0 && ends {
-                    std::mem::swap(&mut self.fine_end, &mut self.gradient);
-                }
+        for node in &self.nodes {
+            let reuse = node.tau == 0.0 && ends && self.coarse_start_valid;
+            if !reuse {
+                let (q, v) = (&system.state.q, &self.v_plus);
+                flight(&self.plan.slow_runs, &mut self.scratch, q, v, node.s_coarse);
+                zero(&self.plan.slow_runs, &mut self.gradient);
+                let forces = &mut system.forces;
+                forces.add_set_gradient(&self.coarse_set, &self.scratch, &mut self.gradient);
             }
-            // (20a), (20b)/(22) for fast and mixed particles.
-            HalfSteps {
-                q: &mut system.state.q,
-                p_minus: &mut self.p_minus,
-                p_plus: &mut self.p_plus,
-                v_minus: &mut self.v_minus,
-                v_plus: &mut self.v_plus,
-            }
-            .advance(
-                &self.plan.fine_runs,
-                &self.fine_integral,
-                2.0 * h_fast,
-                h_fast,
-                &system.inverse_mass,
-            );
-            if ends {
-                std::mem::swap(&mut self.fine_start, &mut self.fine_end);
-                self.fine_start_valid = true;
+            let gradient = if reuse {
+                &self.coarse_start
+            } else {
+                &self.gradient
+            };
+            let runs = &self.plan.slow_runs;
+            accumulate(runs, &mut self.integral, gradient, node.w_coarse);
+            if node.tau == 1.0 && ends {
+                std::mem::swap(&mut self.coarse_end, &mut self.gradient);
             }
         }
-        // ∂V_S/∂q_S over the coarse interval (24b).
-        let any_coarse = self.plan.coarse_terms.iter().any(|t| !t.is_empty());
-        if any_coarse {
-            for k in 0..self.quadrature.len() {
-                let tau = self.quadrature.nodes()[k];
-                let w = self.quadrature.weights()[k];
-                let reuse = tau == 0.0 && ends && self.coarse_start_valid;
-                if !reuse {
-                    let s = tau * h_slow;
-                    flight(
-                        &self.plan.slow_runs,
-                        &mut self.scratch,
-                        &system.state.q,
-                        &self.v_plus,
-                        s,
-                    );
-                    self.coarse_gradient(&mut system.forces);
-                }
-                let gradient = if reuse {
-                    &self.coarse_start
-                } else {
-                    &self.gradient
-                };
-                accumulate(
-                    &self.plan.slow_runs,
-                    &mut self.slow_integral,
-                    gradient,
-                    w * h_slow,
-                );
-                if tau == 1.0 && ends {
-                    std::mem::swap(&mut self.coarse_end, &mut self.gradient);
-                }
-            }
-            if ends {
-                std::mem::swap(&mut self.coarse_start, &mut self.coarse_end);
-                self.coarse_start_valid = true;
-            }
+        if ends {
+            std::mem::swap(&mut self.coarse_start, &mut self.coarse_end);
+            self.coarse_start_valid = true;
         }
-        // (24a), (24b) for slow particles.
+    }
+
+    /// The two-step update with `integral` on the slow (else the fast and mixed)
+    /// coordinates.
+    fn advance(&mut self, system: &mut System, slow: bool, scale: f64, h: f64) {
+        let dofs = if slow {
+            &self.plan.slow_dofs
+        } else {
+            &self.plan.fine_dofs
+        };
         HalfSteps {
             q: &mut system.state.q,
             p_minus: &mut self.p_minus,
             p_plus: &mut self.p_plus,
             v_minus: &mut self.v_minus,
             v_plus: &mut self.v_plus,
+            integral: &self.integral,
+            inverse_mass: &system.inverse_mass,
         }
-        .advance(
-            &self.plan.slow_runs,
-            &self.slow_integral,
-            2.0,
-            h_slow,
-            &system.inverse_mass,
-        );
+        .advance(dofs, scale, h);
+    }
+
+    /// One coarse step: `K` fine steps, the coarse integral, (24a)/(24b) for the slow
+    /// particles. Allocates nothing.
+    fn async_step(&mut self, system: &mut System) {
+        // h_S as K h_F, so the slow flight sampled at the last fine node and the slow
+        // drift agree to the last bit (the end gradient is reused).
+        let h_slow = self.ratio as f64 * self.h_fast;
+        zero(&self.plan.slow_runs, &mut self.integral);
+        for m in 0..self.ratio {
+            self.fine_step(system, m);
+        }
+        if !self.coarse_set.is_empty() {
+            self.coarse_integral(system);
+        }
+        // (24a), (24b) for slow particles.
+        self.advance(system, true, 2.0, h_slow);
         self.sync_state(system);
     }
 }
@@ -617,8 +652,8 @@ impl Integrator for AsyncPseudoEnergy {
         self.v_minus = vec![0.0; n];
         system.velocity(&self.p_minus, &mut self.v_minus);
         self.v_plus = self.v_minus.clone();
-        self.fine_integral = vec![0.0; n];
-        self.slow_integral = vec![0.0; n];
+        self.integral = vec![0.0; n];
+        self.prepare(&system.forces);
         self.gradient = vec![0.0; n];
         self.scratch = system.state.q.clone();
         self.fine_start = vec![0.0; n];
@@ -631,7 +666,7 @@ impl Integrator for AsyncPseudoEnergy {
             self.fine_gradient(&mut system.forces);
             self.fine_start.copy_from_slice(&self.gradient);
             self.fine_start_valid = true;
-            if self.plan.coarse_terms.iter().any(|t| !t.is_empty()) {
+            if !self.coarse_set.is_empty() {
                 self.coarse_gradient(&mut system.forces);
                 self.coarse_start.copy_from_slice(&self.gradient);
                 self.coarse_start_valid = true;
