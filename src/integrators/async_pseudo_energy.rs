@@ -32,6 +32,12 @@
 //! touching mixed particles, `n` of the other slow terms — MEMM18 4.3.1's
 //! `N_a = (n−1) T ((m+1)/h_F + m/h_S)` on the slow-fast FPU chain.
 //!
+//! On a chain that small an interaction costs less than the bookkeeping around it, so a
+//! fine node does only: one index pass forming the fine and interface flights (and zeroing
+//! their gradient), one call evaluating the fine grid's terms as a [`TermSet`], one index
+//! pass accumulating; the nodes' products (`τ h_F`, `w h_F`, …) are computed in setup and a
+//! step allocates nothing (docs/performance.md has the instruction counts).
+//!
 //! When the split leaves no slow particle (every particle feels a fast force, as in a
 //! molecule where every atom is bonded), the scheme is the synchronous one at `h_F`: it
 //! says so ([`Integrator::notices`], the summary) and runs [`PseudoEnergy`] with `K` steps
@@ -505,30 +511,41 @@ impl AsyncPseudoEnergy {
     /// whose first node is the previous fine step's last).
     fn fine_step(&mut self, system: &mut System, m: usize) {
         let ends = self.quadrature.has_end_nodes();
+        let reuse_start = ends && self.fine_start_valid;
         let h_fast = self.h_fast;
         zero(&self.plan.fine_runs, &mut self.integral);
-        for node in &self.nodes {
-            let reuse = node.tau == 0.0 && ends && self.fine_start_valid;
-            if !reuse {
+        // Slices held across the node loop (the evaluation writes the last node's
+        // gradient straight into `fine_end`, kept for the next fine step).
+        let Self {
+            plan,
+            nodes,
+            fine_set,
+            v_plus,
+            scratch,
+            gradient,
+            integral,
+            fine_start,
+            fine_end,
+            ..
+        } = self;
+        let (q, forces) = (&system.state.q[..], &mut system.forces);
+        for node in nodes.iter() {
+            let reuse = node.tau == 0.0 && reuse_start;
+            let gradient: &[f64] = if reuse {
+                fine_start
+            } else {
+                let out = if node.tau == 1.0 && ends {
+                    &mut fine_end[..]
+                } else {
+                    &mut gradient[..]
+                };
                 // Slow partners on their coarse flight (23), at the same time.
                 let s = [node.s_fine, (m as f64 + node.tau) * h_fast];
-                let q = &system.state.q;
-                let (scratch, gradient) = (&mut self.scratch, &mut self.gradient);
-                self.plan
-                    .fine_flights(s, q, &self.v_plus, scratch, gradient);
-                let forces = &mut system.forces;
-                forces.add_set_gradient(&self.fine_set, &self.scratch, &mut self.gradient);
-            }
-            let gradient = if reuse {
-                &self.fine_start
-            } else {
-                &self.gradient
+                plan.fine_flights(s, q, v_plus, scratch, out);
+                forces.add_set_gradient(fine_set, scratch, out);
+                out
             };
-            let w = [node.w, node.w_fine];
-            self.plan.accumulate_fine(w, &mut self.integral, gradient);
-            if node.tau == 1.0 && ends {
-                std::mem::swap(&mut self.fine_end, &mut self.gradient);
-            }
+            plan.accumulate_fine([node.w, node.w_fine], integral, gradient);
         }
         // (20a), (20b)/(22) for fast and mixed particles.
         self.advance(system, false, 2.0 * h_fast, h_fast);
