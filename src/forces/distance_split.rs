@@ -769,11 +769,29 @@ impl ShortRange {
     ) -> f64 {
         #[cfg(target_arch = "x86_64")]
         {
+            if std::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the processor supports AVX-512F, checked just above.
+                return unsafe { self.evaluate_avx512(q, mode, part, by, whole, buffer) };
+            }
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the processor supports AVX2, checked just above.
                 return unsafe { self.evaluate_avx2(q, mode, part, by, whole, buffer) };
             }
         }
+        self.evaluate_body(q, mode, part, by, whole, buffer)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn evaluate_avx512(
+        &self,
+        q: &[f64],
+        mode: Mode,
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
+        buffer: &mut [f64],
+    ) -> f64 {
         self.evaluate_body(q, mode, part, by, whole, buffer)
     }
 

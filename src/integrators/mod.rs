@@ -11,6 +11,7 @@ pub mod adaptive_verlet;
 pub mod async_pseudo_energy;
 pub mod equilibrium_molly;
 pub mod impulse;
+pub mod lane_exp;
 pub mod langevin;
 pub mod mollified;
 pub mod pseudo_energy;

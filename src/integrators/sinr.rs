@@ -52,6 +52,7 @@
 //! before anything turns into NaN.
 
 use super::StepFailure;
+use super::lane_exp;
 use super::langevin::{Gaussian, required_kt};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
@@ -243,76 +244,44 @@ impl Sinr {
         self.ratio * self.q1 * sum / self.lkt
     }
 
+    /// The constants a kick or flow reads (copied out so the per-coordinate loops borrow only
+    /// the arrays).
+    fn constants(&self) -> Constants {
+        Constants {
+            q1: self.q1,
+            kt: self.kt,
+            ratio: self.ratio,
+            lkt: self.lkt,
+            over_q2: 1.0 / self.q2,
+        }
+    }
+
     /// The isokinetic force operator `V(t)` with the force `−gradient` (bounded form, see
     /// the module doc). Coordinates with a collapsed thermostat are left as they are.
     pub fn isokinetic_kick(&mut self, p: &mut [f64], gradient: &[f64], t: f64) {
-        let l = self.thermostats;
-        for (i, (pi, gi)) in p.iter_mut().zip(gradient).enumerate() {
-            let force = -gi;
-            if force == 0.0 {
-                continue;
-            }
-            let share = self.share(i);
-            if collapsed(share) {
-                self.collapsed.get_or_insert(i);
-                continue;
-            }
-            let kappa = self.kappa[i];
-            let sign = force.signum();
-            let a = sign * *pi / kappa;
-            let x = force.abs() * t / kappa;
-            // e^{−x} − 1 exactly for small x; tanh x = (1 − e^{−2x})/(1 + e^{−2x}).
-            let m = (-x).exp_m1();
-            let e1 = 1.0 + m;
-            let e2 = e1 * e1;
-            let tanh = -m * (1.0 + e1) / (1.0 + e2);
-            let sech = 2.0 * e1 / (1.0 + e2);
-            let (numerator, denominator) = if a >= 0.0 {
-                (tanh + a, 1.0 + a * tanh)
-            } else {
-                // 1 − |â| = share/(1 + |â|) (the constraint), 1 − tanh x = 2e^{−2x}/(1 + e^{−2x}).
-                let gap = share / (1.0 - a);
-                let one_minus_tanh = 2.0 * e2 / (1.0 + e2);
-                (gap - one_minus_tanh, gap - a * one_minus_tanh)
-            };
-            *pi = sign * kappa * numerator / denominator;
-            let factor = sech / denominator;
-            self.v1[i * l..(i + 1) * l]
-                .iter_mut()
-                .for_each(|v| *v *= factor);
+        let c = self.constants();
+        let (v1, kappa) = (&mut self.v1, &self.kappa);
+        let any_collapsed = if self.thermostats == 1 {
+            lanes::kick_single(c, t, p, gradient, v1, kappa)
+        } else {
+            kick_general(c, t, self.thermostats, p, gradient, v1, kappa)
+        };
+        if any_collapsed && self.collapsed.is_none() {
+            // Rare: find the first one (its v1 was left as it was, so its share still shows).
+            self.collapsed = (0..p.len()).find(|&i| gradient[i] != 0.0 && collapsed(self.share(i)));
         }
     }
 
     /// The thermostat flow `N(δ)`: three Suzuki–Yoshida sub-steps per coordinate (the
     /// coordinates' thermostats are independent, so each runs its sub-steps in turn).
     pub fn thermostat_flow(&mut self, p: &mut [f64], delta: f64) {
-        let l = self.thermostats;
-        let (q1, q2, kt, ratio, lkt) = (self.q1, self.q2, self.kt, self.ratio, self.lkt);
-        let mut decay = [0.0; MAX_THERMOSTATS];
-        for (i, pi) in p.iter_mut().enumerate() {
-            // A collapsed thermostat (v1 = 0) leaves m v² = L kT, so H = 1: no 0/0 here.
-            let v1 = &mut self.v1[i * l..(i + 1) * l];
-            let v2 = &mut self.v2[i * l..(i + 1) * l];
-            for w in self.weights {
-                let t = w * delta;
-                let half = 0.5 * t;
-                for (b, a) in v2.iter_mut().zip(v1.iter()) {
-                    *b += half * (q1 * a * a - kt) / q2;
-                }
-                let mut kinetic = *pi * *pi * self.inverse_mass[i];
-                for ((d, a), b) in decay.iter_mut().zip(v1.iter()).zip(v2.iter()) {
-                    *d = (-t * b).exp();
-                    kinetic += ratio * q1 * a * a * *d * *d;
-                }
-                let scale = (lkt / kinetic).sqrt();
-                *pi *= scale;
-                for (a, d) in v1.iter_mut().zip(&decay) {
-                    *a *= scale * d;
-                }
-                for (b, a) in v2.iter_mut().zip(v1.iter()) {
-                    *b += half * (q1 * a * a - kt) / q2;
-                }
-            }
+        let c = self.constants();
+        let steps = self.weights.map(|w| w * delta);
+        let (v1, v2, w) = (&mut self.v1, &mut self.v2, &self.inverse_mass);
+        if self.thermostats == 1 {
+            lanes::flow_single(c, steps, p, w, v1, v2);
+        } else {
+            flow_general(c, steps, self.thermostats, p, w, v1, v2);
         }
     }
 
@@ -389,5 +358,337 @@ impl Sinr {
             "constraint_max_violation": self.max_violation,
             "smallest_thermostat_share": self.min_share,
         })
+    }
+}
+
+/// What the kick and the flow need besides the arrays.
+#[derive(Clone, Copy)]
+struct Constants {
+    q1: f64,
+    kt: f64,
+    ratio: f64,
+    lkt: f64,
+    over_q2: f64,
+}
+
+/// One coordinate's isokinetic kick from its force, momentum, bound κ and share; returns
+/// the new momentum and the factor for its v1 (the module doc's bounded form; the caller
+/// skips coordinates with no force or a collapsed thermostat).
+#[inline(always)]
+fn kick_one(force: f64, p: f64, kappa: f64, share: f64, t: f64) -> (f64, f64) {
+    let sign = force.signum();
+    let a = sign * p / kappa;
+    let x = force.abs() * t / kappa;
+    // e^{−x} − 1 exactly for small x; tanh x = (1 − e^{−2x})/(1 + e^{−2x}).
+    let m = lane_exp::exp_m1(-x);
+    let e1 = 1.0 + m;
+    let e2 = e1 * e1;
+    let tanh = -m * (1.0 + e1) / (1.0 + e2);
+    let sech = 2.0 * e1 / (1.0 + e2);
+    // For â < 0: 1 − |â| = share/(1 + |â|) (the constraint), 1 − tanh x = 2e^{−2x}/(1 + e^{−2x}).
+    let gap = share / (1.0 - a);
+    let one_minus_tanh = 2.0 * e2 / (1.0 + e2);
+    let (numerator, denominator) = if a >= 0.0 {
+        (tanh + a, 1.0 + a * tanh)
+    } else {
+        (gap - one_minus_tanh, gap - a * one_minus_tanh)
+    };
+    (sign * kappa * numerator / denominator, sech / denominator)
+}
+
+/// The kick with L thermostats per coordinate; true if a coordinate with a force has a
+/// collapsed thermostat (left untouched).
+fn kick_general(
+    c: Constants,
+    t: f64,
+    l: usize,
+    p: &mut [f64],
+    gradient: &[f64],
+    v1: &mut [f64],
+    kappa: &[f64],
+) -> bool {
+    let mut any_collapsed = false;
+    let rows = p
+        .iter_mut()
+        .zip(gradient)
+        .zip(v1.chunks_exact_mut(l))
+        .zip(kappa);
+    for (((pi, gi), thermo), &kappa) in rows {
+        let force = -gi;
+        let sum: f64 = thermo.iter().map(|v| v * v).sum();
+        let share = c.ratio * c.q1 * sum / c.lkt;
+        let stuck = collapsed(share);
+        any_collapsed |= stuck && force != 0.0;
+        if force == 0.0 || stuck {
+            continue;
+        }
+        let (new_p, factor) = kick_one(force, *pi, kappa, share, t);
+        *pi = new_p;
+        thermo.iter_mut().for_each(|v| *v *= factor);
+    }
+    any_collapsed
+}
+
+/// The flow with L thermostats per coordinate: for each Suzuki–Yoshida sub-step `t`, half
+/// a push of every `v2_k`, the rescale, the other half push.
+fn flow_general(
+    c: Constants,
+    steps: [f64; 3],
+    l: usize,
+    p: &mut [f64],
+    inverse_mass: &[f64],
+    v1: &mut [f64],
+    v2: &mut [f64],
+) {
+    let mut decay = [0.0; MAX_THERMOSTATS];
+    let rows = p.iter_mut().zip(inverse_mass);
+    let thermostats = v1.chunks_exact_mut(l).zip(v2.chunks_exact_mut(l));
+    for ((pi, &w), (v1, v2)) in rows.zip(thermostats) {
+        // A collapsed thermostat (v1 = 0) leaves m v² = L kT, so H = 1: no 0/0 here.
+        for t in steps {
+            let push = 0.5 * t * c.over_q2;
+            for (b, a) in v2.iter_mut().zip(v1.iter()) {
+                *b += push * (c.q1 * a * a - c.kt);
+            }
+            let mut kinetic = *pi * *pi * w;
+            for ((d, a), b) in decay.iter_mut().zip(v1.iter()).zip(v2.iter()) {
+                *d = lane_exp::exp(-t * b);
+                kinetic += c.ratio * c.q1 * a * a * *d * *d;
+            }
+            let scale = (c.lkt / kinetic).sqrt();
+            *pi *= scale;
+            for (a, d) in v1.iter_mut().zip(&decay) {
+                *a *= scale * d;
+            }
+            for (b, a) in v2.iter_mut().zip(v1.iter()) {
+                *b += push * (c.q1 * a * a - c.kt);
+            }
+        }
+    }
+}
+
+/// L = 1 (the usual choice): the same arithmetic as [`kick_general`] and [`flow_general`],
+/// bit for bit, written without branches so each loop over coordinates runs in SIMD lanes
+/// (compiled for AVX-512 and AVX2 and chosen at run time, portable otherwise; no fused
+/// multiply-add, so every path gives the same bits).
+mod lanes {
+    use super::{Constants, collapsed, kick_one, lane_exp};
+
+    macro_rules! dispatch {
+        ($body:ident ( $($arg:expr),* )) => {{
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the processor has AVX-512F, checked just above.
+                    return unsafe { avx512::$body($($arg),*) };
+                }
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor has AVX2, checked just above.
+                    return unsafe { avx2::$body($($arg),*) };
+                }
+            }
+            $body($($arg),*)
+        }};
+    }
+
+    pub(super) fn kick_single(
+        c: Constants,
+        t: f64,
+        p: &mut [f64],
+        gradient: &[f64],
+        v1: &mut [f64],
+        kappa: &[f64],
+    ) -> bool {
+        dispatch!(kick_body(c, t, p, gradient, v1, kappa))
+    }
+
+    pub(super) fn flow_single(
+        c: Constants,
+        steps: [f64; 3],
+        p: &mut [f64],
+        inverse_mass: &[f64],
+        v1: &mut [f64],
+        v2: &mut [f64],
+    ) {
+        dispatch!(flow_body(c, steps, p, inverse_mass, v1, v2))
+    }
+
+    #[inline(always)]
+    fn kick_body(
+        c: Constants,
+        t: f64,
+        p: &mut [f64],
+        gradient: &[f64],
+        v1: &mut [f64],
+        kappa: &[f64],
+    ) -> bool {
+        let mut any_collapsed = false;
+        let rows = p.iter_mut().zip(gradient).zip(v1.iter_mut()).zip(kappa);
+        for (((pi, gi), a), &kappa) in rows {
+            let force = -gi;
+            let share = c.ratio * c.q1 * (*a * *a) / c.lkt;
+            let stuck = collapsed(share);
+            any_collapsed |= stuck & (force != 0.0);
+            let (new_p, factor) = kick_one(force, *pi, kappa, share, t);
+            let skip = (force == 0.0) | stuck;
+            *pi = if skip { *pi } else { new_p };
+            *a = if skip { *a } else { *a * factor };
+        }
+        any_collapsed
+    }
+
+    #[inline(always)]
+    fn flow_body(
+        c: Constants,
+        steps: [f64; 3],
+        p: &mut [f64],
+        inverse_mass: &[f64],
+        v1: &mut [f64],
+        v2: &mut [f64],
+    ) {
+        let rows = p
+            .iter_mut()
+            .zip(inverse_mass)
+            .zip(v1.iter_mut())
+            .zip(v2.iter_mut());
+        for (((pi, &w), a), b) in rows {
+            let (mut p, mut a_, mut b_) = (*pi, *a, *b);
+            for t in steps {
+                let push = 0.5 * t * c.over_q2;
+                b_ += push * (c.q1 * a_ * a_ - c.kt);
+                let d = lane_exp::exp(-t * b_);
+                let kinetic = p * p * w + c.ratio * c.q1 * a_ * a_ * d * d;
+                let scale = (c.lkt / kinetic).sqrt();
+                p *= scale;
+                a_ *= scale * d;
+                b_ += push * (c.q1 * a_ * a_ - c.kt);
+            }
+            (*pi, *a, *b) = (p, a_, b_);
+        }
+    }
+
+    /// The bodies compiled for one instruction set.
+    macro_rules! compiled_for {
+        ($module:ident, $feature:literal) => {
+            #[cfg(target_arch = "x86_64")]
+            mod $module {
+                use super::Constants;
+
+                #[target_feature(enable = $feature)]
+                pub(super) fn kick_body(
+                    c: Constants,
+                    t: f64,
+                    p: &mut [f64],
+                    gradient: &[f64],
+                    v1: &mut [f64],
+                    kappa: &[f64],
+                ) -> bool {
+                    super::kick_body(c, t, p, gradient, v1, kappa)
+                }
+
+                #[target_feature(enable = $feature)]
+                pub(super) fn flow_body(
+                    c: Constants,
+                    steps: [f64; 3],
+                    p: &mut [f64],
+                    inverse_mass: &[f64],
+                    v1: &mut [f64],
+                    v2: &mut [f64],
+                ) {
+                    super::flow_body(c, steps, p, inverse_mass, v1, v2)
+                }
+            }
+        };
+    }
+    compiled_for!(avx2, "avx2");
+    compiled_for!(avx512, "avx512f");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A spread of coordinates for L = 1 at kT = 0.6, τ = 5: momenta on and off the bound,
+    /// both signs of force, a coordinate without force and one with a collapsed thermostat.
+    fn coordinates() -> (Sinr, Vec<f64>, Vec<f64>) {
+        let mut sinr = Sinr::new(0.6, 1, 5.0, 0.2, 1).expect("valid settings");
+        let n = 203; // not a multiple of any vector width: the loops' remainders run too
+        sinr.inverse_mass = (0..n)
+            .map(|i| 1.0 / (1.0 + (i % 3) as f64 * 14.0))
+            .collect();
+        sinr.kappa = sinr
+            .inverse_mass
+            .iter()
+            .map(|w| (sinr.lkt / w).sqrt())
+            .collect();
+        let mut gaussian = Gaussian::new(3, 4);
+        let mut p = Vec::with_capacity(n);
+        for i in 0..n {
+            // (p, v1) on the constraint, the momentum's share between 0 and 1.
+            let share = (i as f64 + 0.5) / n as f64;
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            p.push(sign * sinr.kappa[i] * (1.0 - share).sqrt());
+            sinr.v1.push(
+                gaussian.normal().signum() * (share * sinr.lkt / (sinr.ratio * sinr.q1)).sqrt(),
+            );
+            sinr.v2.push(0.3 * gaussian.normal());
+        }
+        sinr.v1[7] = 0.0; // collapsed
+        p[7] = sinr.kappa[7];
+        let mut gradient: Vec<f64> = (0..n).map(|_| 5.0 * gaussian.normal()).collect();
+        gradient[11] = 0.0;
+        (sinr, p, gradient)
+    }
+
+    fn bits(x: &[f64]) -> Vec<u64> {
+        x.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// The vectorised L = 1 loops do the general loops' arithmetic in the same order: the
+    /// same bits, on whichever instruction set this machine picks.
+    #[test]
+    fn the_single_thermostat_lanes_match_the_general_loops_bit_for_bit() {
+        let (mut sinr, p, gradient) = coordinates();
+        let c = sinr.constants();
+        let steps = sinr.weights.map(|w| w * 0.5);
+        let (mut p1, mut v1a, mut v2a) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
+        let (mut p2, mut v1b, mut v2b) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
+        let collapsed_lanes = lanes::kick_single(c, 2.0, &mut p1, &gradient, &mut v1a, &sinr.kappa);
+        let collapsed_loop = kick_general(c, 2.0, 1, &mut p2, &gradient, &mut v1b, &sinr.kappa);
+        assert!(collapsed_lanes && collapsed_loop);
+        lanes::flow_single(c, steps, &mut p1, &sinr.inverse_mass, &mut v1a, &mut v2a);
+        flow_general(c, steps, 1, &mut p2, &sinr.inverse_mass, &mut v1b, &mut v2b);
+        assert_eq!(bits(&p1), bits(&p2));
+        assert_eq!(bits(&v1a), bits(&v1b));
+        assert_eq!(bits(&v2a), bits(&v2b));
+        // The coordinate without force and the collapsed one were not kicked; the rest were.
+        assert_eq!(p1[7], p[7]);
+        sinr.v1 = v1a;
+        assert_eq!(sinr.share(7), 0.0);
+        let mut again = p.clone();
+        sinr.isokinetic_kick(&mut again, &gradient, 2.0);
+        assert_eq!(sinr.collapsed, Some(7));
+        assert_eq!(again[11], p[11]);
+        assert_ne!(again[12], p[12]);
+    }
+
+    /// Kick and flow keep every coordinate on its constraint to round-off.
+    #[test]
+    fn kick_and_flow_keep_the_constraint() {
+        let (mut sinr, mut p, gradient) = coordinates();
+        for _ in 0..50 {
+            sinr.isokinetic_kick(&mut p, &gradient, 2.0);
+            sinr.thermostat_flow(&mut p, 0.5);
+        }
+        sinr.collapsed = None;
+        sinr.max_violation = 0.0;
+        sinr.watch(&p);
+        // A few roundings per operation, 100 operations: 1e-13 is far above round-off
+        // (~1e-16 each) and far below any real violation.
+        assert!(
+            sinr.max_violation < 1e-13,
+            "violation {}",
+            sinr.max_violation
+        );
     }
 }

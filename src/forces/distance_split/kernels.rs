@@ -479,9 +479,30 @@ fn accumulate<const GRADIENT: bool>(sc: &mut Scratch, n: usize) -> [f64; 3] {
             d[t] *= -force[t];
             sum[t] += d[t];
         }
-        *g = -d.iter().sum::<f64>();
+        *g = -sum_in_lanes(d);
     }
     gi
+}
+
+/// `Σ x` in eight interleaved partial sums, combined in a fixed tree: one vector add per
+/// eight terms where a left-to-right sum waits out an add's latency per term (that chain
+/// was a quarter of the row's time). The order depends only on `x.len()`, never on threads
+/// or the instruction set.
+#[inline(always)]
+fn sum_in_lanes(x: &[f64]) -> f64 {
+    let mut lanes = [0.0; 8];
+    let chunks = x.chunks_exact(8);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for (lane, v) in lanes.iter_mut().zip(chunk) {
+            *lane += v;
+        }
+    }
+    for (lane, v) in lanes.iter_mut().zip(rest) {
+        *lane += v;
+    }
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = lanes;
+    ((a0 + a4) + (a2 + a6)) + ((a1 + a5) + (a3 + a7))
 }
 
 /// The partners of row molecule `a` inside `r_out` into `sc` (count in `partner_count`)
