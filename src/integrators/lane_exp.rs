@@ -21,9 +21,9 @@
 
 const LOG2_E: f64 = std::f64::consts::LOG2_E;
 /// `ln 2` to 33 bits (fdlibm's `ln2_hi`): `k · LN2_HI` is exact for `|k| < 2^20`.
-const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1;
+const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
 /// `ln 2 − LN2_HI` (fdlibm's `ln2_lo`).
-const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
 /// `1.5 · 2^52`: adding it rounds to an integer held in the low mantissa bits.
 const ROUNDER: f64 = 6_755_399_441_055_744.0;
 const SMALLEST: f64 = -708.0;
@@ -32,14 +32,8 @@ const LARGEST: f64 = 709.0;
 /// `(2^k, e^r − 1)` with `x = k ln 2 + r`, `|r| ≤ ln 2/2`.
 #[inline(always)]
 fn reduce(x: f64) -> (f64, f64) {
-    // Comparisons, not max/min: a NaN passes through (max/min would replace it).
-    let x = if x < SMALLEST {
-        SMALLEST
-    } else if x > LARGEST {
-        LARGEST
-    } else {
-        x
-    };
+    // clamp, not max/min: a NaN passes through (max/min would replace it).
+    let x = x.clamp(SMALLEST, LARGEST);
     let shifted = x * LOG2_E + ROUNDER;
     let k = shifted - ROUNDER;
     let r = (x - k * LN2_HI) - k * LN2_LO;
