@@ -108,22 +108,17 @@ impl Switch {
     /// `(S, S′)` at `r`.
     #[inline(always)]
     pub fn value_slope(&self, r: f64) -> (f64, f64) {
-        if r <= self.r_in {
-            return (1.0, 0.0);
-        }
-        if r >= self.r_out {
-            return (0.0, 0.0);
-        }
-        let t = (r - self.r_in) * self.inverse_width;
+        // Clamped, not branched (t = 0 gives S = 1, S′ = 0 and t = 1 gives 0, 0 exactly), so
+        // loops over it vectorise.
+        let t = ((r - self.r_in) * self.inverse_width).clamp(0.0, 1.0);
         let u = 1.0 - t;
         // 1 − P(t) = P(1 − t) for the smoothstep P(t) = t³(10 − 15t + 6t²): each half
         // uses the form without cancellation at its end.
-        let s = if t < 0.5 {
-            1.0 - t * t * t * (10.0 - 15.0 * t + 6.0 * t * t)
-        } else {
-            u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
-        };
-        (s, -30.0 * t * t * u * u * self.inverse_width)
+        let near = 1.0 - t * t * t * (10.0 - 15.0 * t + 6.0 * t * t);
+        let far = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+        let s = if t < 0.5 { near } else { far };
+        // 0 − x, not −x: +0 at the ends, as before.
+        (s, (0.0 - 30.0 * t * t * u * u) * self.inverse_width)
     }
 
     /// `(S, S′, S″)` at `r`.

@@ -37,7 +37,11 @@
 //! per step of that level). Per innermost step, besides the fast gradient: two thermostat
 //! flows of 3 sub-steps, each one `exp` per thermostat variable and one `sqrt` per degree
 //! of freedom (`6 L n` exps), `2 n` isokinetic updates (one `expm1` each), `n L` normal
-//! numbers; the outer levels' kicks add `n` `expm1` each. All O(n L).
+//! numbers; the outer levels' kicks add `n` `expm1` each. All O(n L). With L = 1 the kick
+//! and the flow are branch-free loops over the coordinates with `exp`/`expm1` of
+//! [`super::lane_exp`], so they run in SIMD lanes (AVX-512, AVX2 or portable, the same bits;
+//! on the 1728-water box this cut their share of a 50 fs SIN(R) step from a third to a
+//! tenth).
 //!
 //! **Start.** The given momenta keep their direction: each degree of freedom draws
 //! `v1_k ~ N(0, kT/Q1)` and `v2_k ~ N(0, kT/Q2)` (the stationary law of the OU part) from

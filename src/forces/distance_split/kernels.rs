@@ -519,32 +519,40 @@ fn gather_partners(
     let molecules = &short.molecules;
     let r_out2 = short.switch.r_out() * short.switch.r_out();
     let xa = packed[molecules.reference_slot[a] as usize];
-    let (mut partners, mut atoms) = (0, 0);
+    // Three passes without data-dependent branches (about half the listed molecules lie
+    // outside r_out, a coin toss for a branch predictor): every listed partner's image
+    // displacement is written and the count moves on only for those inside r_out; then the
+    // switch of the kept ones; then their atoms.
+    let mut partners = 0;
     for &[_, b] in group {
-        let b = b as usize;
-        let xb = packed[molecules.reference_slot[b] as usize];
-        let raw = [xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]];
-        let d = model.image(raw);
+        let xb = packed[molecules.reference_slot[b as usize] as usize];
+        let d = model.image([xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]]);
         let big_r2 = dot(&d, &d);
-        if big_r2 >= r_out2 {
-            continue;
-        }
-        let big_r = big_r2.sqrt();
-        let (s, s1) = short.switch.value_slope(big_r);
-        sc.partner[partners] = b as u32;
+        sc.partner[partners] = b;
         sc.partner_d[partners] = d;
-        sc.partner_r[partners] = big_r;
-        sc.partner_s[partners] = s;
-        sc.partner_s1[partners] = s1;
-        sc.partner_start[partners] = atoms as u32;
+        sc.partner_r[partners] = big_r2;
+        partners += usize::from(big_r2 < r_out2);
+    }
+    for p in 0..partners {
+        let big_r = sc.partner_r[p].sqrt();
+        (sc.partner_s[p], sc.partner_s1[p]) = short.switch.value_slope(big_r);
+        sc.partner_r[p] = big_r;
+    }
+    let mut atoms = 0;
+    for p in 0..partners {
+        let b = sc.partner[p] as usize;
+        let d = sc.partner_d[p];
+        let xb = packed[molecules.reference_slot[b] as usize];
+        // The shift from each atom's stored image to the row molecule's.
+        let shift: [f64; 3] = std::array::from_fn(|c| d[c] - (xb[c] - xa[c]));
+        sc.partner_start[p] = atoms as u32;
         // The partner's atoms are contiguous in molecule order: copy them as blocks.
         let source = molecules.start[b] as usize..molecules.start[b + 1] as usize;
         let slots = atoms..atoms + source.len();
         let from = &packed[source.clone()];
         for c in 0..3 {
-            let shift = d[c] - raw[c];
             for (x, xj) in sc.x[c][slots.clone()].iter_mut().zip(from) {
-                *x = xj[c] + shift;
+                *x = xj[c] + shift[c];
             }
         }
         for (q, xj) in sc.charge[slots.clone()].iter_mut().zip(from) {
@@ -552,9 +560,8 @@ fn gather_partners(
         }
         sc.kind[slots.clone()].copy_from_slice(&molecules.types[source.clone()]);
         sc.atom[slots.clone()].copy_from_slice(&molecules.atoms[source]);
-        sc.weight[slots.clone()].fill(s);
+        sc.weight[slots.clone()].fill(sc.partner_s[p]);
         atoms = slots.end;
-        partners += 1;
     }
     sc.partner_count = partners;
     sc.partner_start[partners] = atoms as u32;

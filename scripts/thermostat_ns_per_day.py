@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""ns/day of the thermostatted methods at their largest passing steps, runs interleaved.
+
+The cases of docs/thermostats.md, "ns/day of valid sampling": each repeat runs every case
+once, in turn, so a change of machine load hits all alike. Prints every run (wall time from
+the run's JSON summary, which includes loading and the first neighbour list, and user CPU
+time), the median per case, its ns/day and its ratio to the langevin-respa case of the same
+box. Run from a clone after `cargo build --release`:
+
+    RAYON_NUM_THREADS=1 python3 scripts/thermostat_ns_per_day.py --repeats 3
+"""
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+LONGSTEP = ROOT / "target" / "release" / "longstep"
+NINE = "systems/water-box/scene.toml"
+NINE_SPLIT = "systems/water-box/three-level.toml"
+TWELVE = "systems/water-box/long-cutoff.toml"
+TWELVE_SPLIT = "systems/water-box/long-cutoff-three-level-wide.toml"
+SINR = "--method sinr --thermostats 1 --tau 5fs --temperature 300K"
+LANGEVIN = "--method langevin-respa --temperature 300K"
+
+# (box, label, scene, flags, simulated ps); the first case of each box is its baseline.
+CASES = [
+    ("9 A", "langevin-respa 1 fs / 0.5 fs", NINE, f"{LANGEVIN} --h 1fs --inner 2", 5),
+    ("9 A", "sinr 50 fs (25,2), 6-7 A", NINE_SPLIT, f"{SINR} --h 50fs --level-steps 25,2", 5),
+    ("9 A", "sinr 48 fs (16,3), 6-7 A", NINE_SPLIT, f"{SINR} --h 48fs --level-steps 16,3", 5),
+    ("12 A", "langevin-respa 2 fs / 0.5 fs", TWELVE, f"{LANGEVIN} --h 2fs --inner 4", 1),
+    ("12 A", "sinr 50 fs (25,2), 7-8.5 A", TWELVE_SPLIT, f"{SINR} --h 50fs --level-steps 25,2", 1),
+    ("12 A", "sinr 48 fs (16,3), 7-8.5 A", TWELVE_SPLIT, f"{SINR} --h 48fs --level-steps 16,3", 1),
+]
+
+
+def one_run(scene, flags, ps, out):
+    command = [str(LONGSTEP), "run", scene, *flags.split(), "--t-end", f"{ps}ps",
+               "--json", "--quiet", "--out", out]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
+    done = subprocess.run(command, capture_output=True, text=True)
+    user = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - before
+    if done.returncode != 0:
+        sys.exit(f"{' '.join(command)} failed:\n{done.stderr}")
+    summary = json.loads(done.stdout)
+    return summary["wall_seconds"], user, summary["status"]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    if not LONGSTEP.exists():
+        sys.exit(f"{LONGSTEP} not found: run `cargo build --release` first")
+    print(f"# RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', '(unset)')}, "
+          f"load before: {os.getloadavg()[0]:.2f}")
+    for k, (box, label, scene, flags, ps) in enumerate(CASES, 1):
+        print(f"# case {k} ({box}): longstep run {scene} {flags} --t-end {ps}ps")
+    walls = [[] for _ in CASES]
+    with tempfile.TemporaryDirectory() as scratch:
+        for repeat in range(1, args.repeats + 1):
+            for k, (_, _, scene, flags, ps) in enumerate(CASES):
+                wall, user, status = one_run(scene, flags, ps, f"{scratch}/{k}")
+                walls[k].append(wall)
+                print(f"run {repeat} case {k + 1} wall_s {wall:.3f} user_s {user:.2f} {status}")
+    print(f"\n# load after: {os.getloadavg()[0]:.2f}")
+    print("box  case                             median wall s (runs)          ns/day  ratio")
+    baseline = {}
+    for k, (box, label, _, _, ps) in enumerate(CASES):
+        median = statistics.median(walls[k])
+        ns_per_day = ps * 1e-3 * 86400 / median
+        baseline.setdefault(box, ns_per_day)
+        runs = ", ".join(f"{w:.2f}" for w in walls[k])
+        print(f"{box:4s} {label:32s} {median:7.2f} ({runs})  {ns_per_day:7.1f}  "
+              f"{ns_per_day / baseline[box]:.2f}x")
+
+
+if __name__ == "__main__":
+    main()
