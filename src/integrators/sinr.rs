@@ -265,10 +265,10 @@ impl Sinr {
     pub fn isokinetic_kick(&mut self, p: &mut [f64], gradient: &[f64], t: f64) {
         let c = self.constants();
         let (v1, kappa) = (&mut self.v1, &self.kappa);
-        let any_collapsed = if self.thermostats == 1 {
-            lanes::kick_single(c, t, p, gradient, v1, kappa)
-        } else {
-            kick_general(c, t, self.thermostats, p, gradient, v1, kappa)
+        let any_collapsed = match self.thermostats {
+            1 => lanes::kick_single(c, t, p, gradient, v1, kappa),
+            4 => lanes::kick_four(c, t, p, gradient, v1, kappa),
+            l => kick_general(c, t, l, p, gradient, v1, kappa),
         };
         if any_collapsed && self.collapsed.is_none() {
             // Rare: find the first one (its v1 was left as it was, so its share still shows).
@@ -282,10 +282,10 @@ impl Sinr {
         let c = self.constants();
         let steps = self.weights.map(|w| w * delta);
         let (v1, v2, w) = (&mut self.v1, &mut self.v2, &self.inverse_mass);
-        if self.thermostats == 1 {
-            lanes::flow_single(c, steps, p, w, v1, v2);
-        } else {
-            flow_general(c, steps, self.thermostats, p, w, v1, v2);
+        match self.thermostats {
+            1 => lanes::flow_single(c, steps, p, w, v1, v2),
+            4 => lanes::flow_four(c, steps, p, w, v1, v2),
+            l => flow_general(c, steps, l, p, w, v1, v2),
         }
     }
 
@@ -402,6 +402,7 @@ fn kick_one(force: f64, p: f64, kappa: f64, share: f64, t: f64) -> (f64, f64) {
 
 /// The kick with L thermostats per coordinate; true if a coordinate with a force has a
 /// collapsed thermostat (left untouched).
+#[inline(always)]
 fn kick_general(
     c: Constants,
     t: f64,
@@ -435,6 +436,7 @@ fn kick_general(
 
 /// The flow with L thermostats per coordinate: for each Suzuki–Yoshida sub-step `t`, half
 /// a push of every `v2_k`, the rescale, the other half push.
+#[inline(always)]
 fn flow_general(
     c: Constants,
     steps: [f64; 3],
@@ -515,6 +517,54 @@ mod lanes {
         v2: &mut [f64],
     ) {
         dispatch!(flow_body(c, steps, p, inverse_mass, v1, v2))
+    }
+
+    /// L = 4 (Tinker's default): the general loops with L known at compile time, so the
+    /// four thermostats of a coordinate are one vector.
+    pub(super) fn kick_four(
+        c: Constants,
+        t: f64,
+        p: &mut [f64],
+        gradient: &[f64],
+        v1: &mut [f64],
+        kappa: &[f64],
+    ) -> bool {
+        dispatch!(kick_four_body(c, t, p, gradient, v1, kappa))
+    }
+
+    pub(super) fn flow_four(
+        c: Constants,
+        steps: [f64; 3],
+        p: &mut [f64],
+        inverse_mass: &[f64],
+        v1: &mut [f64],
+        v2: &mut [f64],
+    ) {
+        dispatch!(flow_four_body(c, steps, p, inverse_mass, v1, v2))
+    }
+
+    #[inline(always)]
+    fn kick_four_body(
+        c: Constants,
+        t: f64,
+        p: &mut [f64],
+        gradient: &[f64],
+        v1: &mut [f64],
+        kappa: &[f64],
+    ) -> bool {
+        super::kick_general(c, t, 4, p, gradient, v1, kappa)
+    }
+
+    #[inline(always)]
+    fn flow_four_body(
+        c: Constants,
+        steps: [f64; 3],
+        p: &mut [f64],
+        inverse_mass: &[f64],
+        v1: &mut [f64],
+        v2: &mut [f64],
+    ) {
+        super::flow_general(c, steps, 4, p, inverse_mass, v1, v2)
     }
 
     #[inline(always)]
@@ -600,6 +650,30 @@ mod lanes {
                     v2: &mut [f64],
                 ) {
                     super::flow_body(c, steps, p, inverse_mass, v1, v2)
+                }
+
+                #[target_feature(enable = $feature)]
+                pub(super) fn kick_four_body(
+                    c: Constants,
+                    t: f64,
+                    p: &mut [f64],
+                    gradient: &[f64],
+                    v1: &mut [f64],
+                    kappa: &[f64],
+                ) -> bool {
+                    super::kick_four_body(c, t, p, gradient, v1, kappa)
+                }
+
+                #[target_feature(enable = $feature)]
+                pub(super) fn flow_four_body(
+                    c: Constants,
+                    steps: [f64; 3],
+                    p: &mut [f64],
+                    inverse_mass: &[f64],
+                    v1: &mut [f64],
+                    v2: &mut [f64],
+                ) {
+                    super::flow_four_body(c, steps, p, inverse_mass, v1, v2)
                 }
             }
         };
