@@ -474,6 +474,25 @@ pub fn split_nonbonded(
     ))
 }
 
+/// [`ShortRange::evaluate_body`] compiled for one instruction set (chosen at run time).
+macro_rules! evaluate_for {
+    ($name:ident, $feature:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $feature)]
+        fn $name(
+            &self,
+            q: &[f64],
+            mode: Mode,
+            part: &[[u32; 2]],
+            by: SwitchBy,
+            whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
+            buffer: &mut [f64],
+        ) -> f64 {
+            self.evaluate_body(q, mode, part, by, whole, buffer)
+        }
+    };
+}
+
 impl ShortRange {
     fn new(
         spec: &NonbondedSpec,
@@ -776,33 +795,8 @@ impl ShortRange {
         self.evaluate_body(q, mode, part, by, whole, buffer)
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn evaluate_avx512(
-        &self,
-        q: &[f64],
-        mode: Mode,
-        part: &[[u32; 2]],
-        by: SwitchBy,
-        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
-        buffer: &mut [f64],
-    ) -> f64 {
-        self.evaluate_body(q, mode, part, by, whole, buffer)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn evaluate_avx2(
-        &self,
-        q: &[f64],
-        mode: Mode,
-        part: &[[u32; 2]],
-        by: SwitchBy,
-        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
-        buffer: &mut [f64],
-    ) -> f64 {
-        self.evaluate_body(q, mode, part, by, whole, buffer)
-    }
+    evaluate_for!(evaluate_avx512, "avx512f");
+    evaluate_for!(evaluate_avx2, "avx2");
 
     #[inline(always)]
     fn evaluate_body(

@@ -266,8 +266,8 @@ impl Sinr {
         let c = self.constants();
         let (v1, kappa) = (&mut self.v1, &self.kappa);
         let any_collapsed = match self.thermostats {
-            1 => lanes::kick_single(c, t, p, gradient, v1, kappa),
-            4 => lanes::kick_four(c, t, p, gradient, v1, kappa),
+            1 => lanes::kick::<1>(c, t, p, gradient, v1, kappa),
+            4 => lanes::kick::<4>(c, t, p, gradient, v1, kappa),
             l => kick_general(c, t, l, p, gradient, v1, kappa),
         };
         if any_collapsed && self.collapsed.is_none() {
@@ -283,8 +283,8 @@ impl Sinr {
         let steps = self.weights.map(|w| w * delta);
         let (v1, v2, w) = (&mut self.v1, &mut self.v2, &self.inverse_mass);
         match self.thermostats {
-            1 => lanes::flow_single(c, steps, p, w, v1, v2),
-            4 => lanes::flow_four(c, steps, p, w, v1, v2),
+            1 => lanes::flow::<1>(c, steps, p, w, v1, v2),
+            4 => lanes::flow::<4>(c, steps, p, w, v1, v2),
             l => flow_general(c, steps, l, p, w, v1, v2),
         }
     }
@@ -473,31 +473,35 @@ fn flow_general(
     }
 }
 
-/// L = 1 (the usual choice): the same arithmetic as [`kick_general`] and [`flow_general`],
-/// bit for bit, written without branches so each loop over coordinates runs in SIMD lanes
-/// (compiled for AVX-512 and AVX2 and chosen at run time, portable otherwise; no fused
-/// multiply-add, so every path gives the same bits).
+/// The kick and the flow for L fixed at compile time, compiled for AVX-512 and AVX2 and
+/// chosen at run time (portable otherwise). L = 1 (the usual choice) has its own loops: the
+/// same arithmetic as [`kick_general`] and [`flow_general`], bit for bit, written without
+/// branches so each loop over coordinates runs in SIMD lanes. Other L run the general loops
+/// with L a constant, so a coordinate's thermostats are one vector. No fused multiply-add
+/// anywhere: every path gives the same bits.
 mod lanes {
     use super::{Constants, collapsed, kick_one, lane_exp};
 
     macro_rules! dispatch {
-        ($body:ident ( $($arg:expr),* )) => {{
+        ($body:ident::<$l:ident>( $($arg:expr),* )) => {{
             #[cfg(target_arch = "x86_64")]
             {
                 if std::is_x86_feature_detected!("avx512f") {
                     // SAFETY: the processor has AVX-512F, checked just above.
-                    return unsafe { avx512::$body($($arg),*) };
+                    return unsafe { avx512::$body::<$l>($($arg),*) };
                 }
                 if std::is_x86_feature_detected!("avx2") {
                     // SAFETY: the processor has AVX2, checked just above.
-                    return unsafe { avx2::$body($($arg),*) };
+                    return unsafe { avx2::$body::<$l>($($arg),*) };
                 }
             }
-            $body($($arg),*)
+            $body::<$l>($($arg),*)
         }};
     }
 
-    pub(super) fn kick_single(
+    /// The kick with L thermostats per coordinate; true if a coordinate with a force has a
+    /// collapsed thermostat.
+    pub(super) fn kick<const L: usize>(
         c: Constants,
         t: f64,
         p: &mut [f64],
@@ -505,10 +509,11 @@ mod lanes {
         v1: &mut [f64],
         kappa: &[f64],
     ) -> bool {
-        dispatch!(kick_body(c, t, p, gradient, v1, kappa))
+        dispatch!(kick_body::<L>(c, t, p, gradient, v1, kappa))
     }
 
-    pub(super) fn flow_single(
+    /// The thermostat flow with L thermostats per coordinate.
+    pub(super) fn flow<const L: usize>(
         c: Constants,
         steps: [f64; 3],
         p: &mut [f64],
@@ -516,12 +521,11 @@ mod lanes {
         v1: &mut [f64],
         v2: &mut [f64],
     ) {
-        dispatch!(flow_body(c, steps, p, inverse_mass, v1, v2))
+        dispatch!(flow_body::<L>(c, steps, p, inverse_mass, v1, v2))
     }
 
-    /// L = 4 (Tinker's default): the general loops with L known at compile time, so the
-    /// four thermostats of a coordinate are one vector.
-    pub(super) fn kick_four(
+    #[inline(always)]
+    fn kick_body<const L: usize>(
         c: Constants,
         t: f64,
         p: &mut [f64],
@@ -529,53 +533,9 @@ mod lanes {
         v1: &mut [f64],
         kappa: &[f64],
     ) -> bool {
-        dispatch!(kick_four_body(c, t, p, gradient, v1, kappa))
-    }
-
-    pub(super) fn flow_four(
-        c: Constants,
-        steps: [f64; 3],
-        p: &mut [f64],
-        inverse_mass: &[f64],
-        v1: &mut [f64],
-        v2: &mut [f64],
-    ) {
-        dispatch!(flow_four_body(c, steps, p, inverse_mass, v1, v2))
-    }
-
-    #[inline(always)]
-    fn kick_four_body(
-        c: Constants,
-        t: f64,
-        p: &mut [f64],
-        gradient: &[f64],
-        v1: &mut [f64],
-        kappa: &[f64],
-    ) -> bool {
-        super::kick_general(c, t, 4, p, gradient, v1, kappa)
-    }
-
-    #[inline(always)]
-    fn flow_four_body(
-        c: Constants,
-        steps: [f64; 3],
-        p: &mut [f64],
-        inverse_mass: &[f64],
-        v1: &mut [f64],
-        v2: &mut [f64],
-    ) {
-        super::flow_general(c, steps, 4, p, inverse_mass, v1, v2)
-    }
-
-    #[inline(always)]
-    fn kick_body(
-        c: Constants,
-        t: f64,
-        p: &mut [f64],
-        gradient: &[f64],
-        v1: &mut [f64],
-        kappa: &[f64],
-    ) -> bool {
+        if L != 1 {
+            return super::kick_general(c, t, L, p, gradient, v1, kappa);
+        }
         let mut any_collapsed = false;
         let rows = p.iter_mut().zip(gradient).zip(v1.iter_mut()).zip(kappa);
         for (((pi, gi), a), &kappa) in rows {
@@ -592,7 +552,7 @@ mod lanes {
     }
 
     #[inline(always)]
-    fn flow_body(
+    fn flow_body<const L: usize>(
         c: Constants,
         steps: [f64; 3],
         p: &mut [f64],
@@ -600,6 +560,9 @@ mod lanes {
         v1: &mut [f64],
         v2: &mut [f64],
     ) {
+        if L != 1 {
+            return super::flow_general(c, steps, L, p, inverse_mass, v1, v2);
+        }
         let rows = p
             .iter_mut()
             .zip(inverse_mass)
@@ -629,7 +592,7 @@ mod lanes {
                 use super::Constants;
 
                 #[target_feature(enable = $feature)]
-                pub(super) fn kick_body(
+                pub(super) fn kick_body<const L: usize>(
                     c: Constants,
                     t: f64,
                     p: &mut [f64],
@@ -637,11 +600,11 @@ mod lanes {
                     v1: &mut [f64],
                     kappa: &[f64],
                 ) -> bool {
-                    super::kick_body(c, t, p, gradient, v1, kappa)
+                    super::kick_body::<L>(c, t, p, gradient, v1, kappa)
                 }
 
                 #[target_feature(enable = $feature)]
-                pub(super) fn flow_body(
+                pub(super) fn flow_body<const L: usize>(
                     c: Constants,
                     steps: [f64; 3],
                     p: &mut [f64],
@@ -649,31 +612,7 @@ mod lanes {
                     v1: &mut [f64],
                     v2: &mut [f64],
                 ) {
-                    super::flow_body(c, steps, p, inverse_mass, v1, v2)
-                }
-
-                #[target_feature(enable = $feature)]
-                pub(super) fn kick_four_body(
-                    c: Constants,
-                    t: f64,
-                    p: &mut [f64],
-                    gradient: &[f64],
-                    v1: &mut [f64],
-                    kappa: &[f64],
-                ) -> bool {
-                    super::kick_four_body(c, t, p, gradient, v1, kappa)
-                }
-
-                #[target_feature(enable = $feature)]
-                pub(super) fn flow_four_body(
-                    c: Constants,
-                    steps: [f64; 3],
-                    p: &mut [f64],
-                    inverse_mass: &[f64],
-                    v1: &mut [f64],
-                    v2: &mut [f64],
-                ) {
-                    super::flow_four_body(c, steps, p, inverse_mass, v1, v2)
+                    super::flow_body::<L>(c, steps, p, inverse_mass, v1, v2)
                 }
             }
         };
@@ -731,10 +670,10 @@ mod tests {
         let steps = sinr.weights.map(|w| w * 0.5);
         let (mut p1, mut v1a, mut v2a) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
         let (mut p2, mut v1b, mut v2b) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
-        let collapsed_lanes = lanes::kick_single(c, 2.0, &mut p1, &gradient, &mut v1a, &sinr.kappa);
+        let collapsed_lanes = lanes::kick::<1>(c, 2.0, &mut p1, &gradient, &mut v1a, &sinr.kappa);
         let collapsed_loop = kick_general(c, 2.0, 1, &mut p2, &gradient, &mut v1b, &sinr.kappa);
         assert!(collapsed_lanes && collapsed_loop);
-        lanes::flow_single(c, steps, &mut p1, &sinr.inverse_mass, &mut v1a, &mut v2a);
+        lanes::flow::<1>(c, steps, &mut p1, &sinr.inverse_mass, &mut v1a, &mut v2a);
         flow_general(c, steps, 1, &mut p2, &sinr.inverse_mass, &mut v1b, &mut v2b);
         assert_eq!(bits(&p1), bits(&p2));
         assert_eq!(bits(&v1a), bits(&v1b));
