@@ -154,11 +154,42 @@ impl BlockSolver {
         forces: &mut ForceSplit,
         start: &Node<'_>,
     ) -> Result<u32, BlockFailure> {
-        let (n, block, h) = (self.n, self.block(), self.h);
-        let second = self.second();
+        self.initialise(physics, forces, start);
+        let mut history = UpdateHistory::new();
+        for iteration in 1..=self.max_iterations {
+            let update = self.structural_update(start);
+            if !update.is_finite() {
+                return Err(BlockFailure::NonFinite {
+                    iterations: iteration,
+                });
+            }
+            for r in 0..self.block() {
+                self.physical(physics, forces, r);
+            }
+            if history.stop(update, self.tolerance) {
+                return Ok(iteration);
+            }
+            if iteration == self.max_iterations {
+                return Err(BlockFailure::NotConverged {
+                    iterations: iteration,
+                    update,
+                });
+            }
+        }
+        unreachable!("max_iterations is at least 1")
+    }
 
-        // Initialisation: Taylor predictor, node after node.
-        for r in 0..block {
+    /// Initialisation: the Taylor predictor node after node, each followed by the
+    /// physical equations (its derivatives feed the next node's prediction).
+    fn initialise(
+        &mut self,
+        physics: &mut PhysicalEquations,
+        forces: &mut ForceSplit,
+        start: &Node<'_>,
+    ) {
+        let (n, h) = (self.n, self.h);
+        let second = self.second();
+        for r in 0..self.block() {
             let (before, this) = (r.checked_sub(1), r * n);
             for i in 0..n {
                 let (x, p, dx, dp) = match before {
@@ -182,98 +213,112 @@ impl BlockSolver {
             }
             self.physical(physics, forces, r);
         }
+    }
 
-        let mut previous_update = f64::INFINITY;
-        let mut smallest_update = f64::INFINITY;
-        let mut since_smallest = 0u32;
-        for iteration in 1..=self.max_iterations {
-            // Structural equations: the new block from the derivatives.
-            for m in 0..block {
-                let row = m * n..(m + 1) * n;
-                let (z, d) = (self.coefficients.start_z[m], self.start_d[m]);
-                for i in 0..n {
-                    self.next_x[m * n + i] = -(z * start.x[i] + d * start.dx[i]);
-                    self.next_p[m * n + i] = -(z * start.p[i] + d * start.dp[i]);
-                }
-                if second {
-                    let s = self.start_s[m];
-                    for i in 0..n {
-                        self.next_x[m * n + i] -= s * start.sx[i];
-                        self.next_p[m * n + i] -= s * start.sp[i];
-                    }
-                }
-                for r in 0..block {
-                    let c = self.matrix_d[m * block + r];
-                    let (next_x, next_p) =
-                        (&mut self.next_x[row.clone()], &mut self.next_p[row.clone()]);
-                    let node = r * n..(r + 1) * n;
-                    for ((nx, np), (dx, dp)) in next_x
-                        .iter_mut()
-                        .zip(next_p.iter_mut())
-                        .zip(self.dx[node.clone()].iter().zip(&self.dp[node.clone()]))
-                    {
-                        *nx -= c * dx;
-                        *np -= c * dp;
-                    }
-                    if second {
-                        let c = self.matrix_s[m * block + r];
-                        for ((nx, np), (sx, sp)) in next_x
-                            .iter_mut()
-                            .zip(next_p.iter_mut())
-                            .zip(self.sx[node.clone()].iter().zip(&self.sp[node]))
-                        {
-                            *nx -= c * sx;
-                            *np -= c * sp;
-                        }
-                    }
-                }
-            }
-            let relative_update = |next: &[f64], current: &[f64]| -> f64 {
-                let mut change = 0.0f64;
-                let mut size = 0.0f64;
-                for (a, b) in next.iter().zip(current) {
-                    if !a.is_finite() {
-                        // f64::max would skip a NaN: report it.
-                        return f64::NAN;
-                    }
-                    change = change.max((a - b).abs());
-                    size = size.max(a.abs());
-                }
-                if change == 0.0 { 0.0 } else { change / size }
-            };
-            let update = relative_update(&self.next_x, &self.zx)
-                .max(relative_update(&self.next_p, &self.zp));
-            std::mem::swap(&mut self.zx, &mut self.next_x);
-            std::mem::swap(&mut self.zp, &mut self.next_p);
-            if !update.is_finite() {
-                return Err(BlockFailure::NonFinite {
-                    iterations: iteration,
-                });
-            }
-            for r in 0..block {
-                self.physical(physics, forces, r);
-            }
-            let converged = update <= self.tolerance;
-            if update < smallest_update {
-                smallest_update = update;
-                since_smallest = 0;
-            } else {
-                since_smallest += 1;
-            }
-            let at_roundoff = (update <= ROUNDOFF_FACTOR * f64::EPSILON
-                && update > 0.5 * previous_update)
-                || (smallest_update <= STALL_LEVEL && since_smallest >= STALL_ITERATIONS);
-            if converged || at_roundoff {
-                return Ok(iteration);
-            }
-            previous_update = update;
-            if iteration == self.max_iterations {
-                return Err(BlockFailure::NotConverged {
-                    iterations: iteration,
-                    update,
-                });
+    /// One fixed-point step of the structural equations: the new block from the
+    /// derivatives, swapped in as the current one. Returns the relative update
+    /// (the larger of positions' and momenta's; NaN if a value is not finite).
+    fn structural_update(&mut self, start: &Node<'_>) -> f64 {
+        for m in 0..self.block() {
+            self.structural_row(start, m);
+        }
+        let update =
+            relative_update(&self.next_x, &self.zx).max(relative_update(&self.next_p, &self.zp));
+        std::mem::swap(&mut self.zx, &mut self.next_x);
+        std::mem::swap(&mut self.zp, &mut self.next_p);
+        update
+    }
+
+    /// Row `m` of the structural equations into `next_x`, `next_p`:
+    /// `−(b_z Z_n + b_d D_n + b_s S_n + Σ_r B_d[m,r] D_r + B_s[m,r] S_r)`.
+    fn structural_row(&mut self, start: &Node<'_>, m: usize) {
+        let (n, block) = (self.n, self.block());
+        let second = self.second();
+        let row = m * n..(m + 1) * n;
+        let (z, d) = (self.coefficients.start_z[m], self.start_d[m]);
+        for i in 0..n {
+            self.next_x[m * n + i] = -(z * start.x[i] + d * start.dx[i]);
+            self.next_p[m * n + i] = -(z * start.p[i] + d * start.dp[i]);
+        }
+        if second {
+            let s = self.start_s[m];
+            for i in 0..n {
+                self.next_x[m * n + i] -= s * start.sx[i];
+                self.next_p[m * n + i] -= s * start.sp[i];
             }
         }
-        unreachable!("max_iterations is at least 1")
+        for r in 0..block {
+            let c = self.matrix_d[m * block + r];
+            let (next_x, next_p) = (&mut self.next_x[row.clone()], &mut self.next_p[row.clone()]);
+            let node = r * n..(r + 1) * n;
+            for ((nx, np), (dx, dp)) in next_x
+                .iter_mut()
+                .zip(next_p.iter_mut())
+                .zip(self.dx[node.clone()].iter().zip(&self.dp[node.clone()]))
+            {
+                *nx -= c * dx;
+                *np -= c * dp;
+            }
+            if second {
+                let c = self.matrix_s[m * block + r];
+                for ((nx, np), (sx, sp)) in next_x
+                    .iter_mut()
+                    .zip(next_p.iter_mut())
+                    .zip(self.sx[node.clone()].iter().zip(&self.sp[node]))
+                {
+                    *nx -= c * sx;
+                    *np -= c * sp;
+                }
+            }
+        }
+    }
+}
+
+/// `max|next − current| / max|next|` (0 when nothing changed); NaN as soon as `next`
+/// holds a non-finite value, since `f64::max` would skip a NaN.
+fn relative_update(next: &[f64], current: &[f64]) -> f64 {
+    let mut change = 0.0f64;
+    let mut size = 0.0f64;
+    for (a, b) in next.iter().zip(current) {
+        if !a.is_finite() {
+            return f64::NAN;
+        }
+        change = change.max((a - b).abs());
+        size = size.max(a.abs());
+    }
+    if change == 0.0 { 0.0 } else { change / size }
+}
+
+/// The sizes of the updates so far, to accept convergence or a round-off stall.
+struct UpdateHistory {
+    previous: f64,
+    smallest: f64,
+    since_smallest: u32,
+}
+
+impl UpdateHistory {
+    fn new() -> Self {
+        Self {
+            previous: f64::INFINITY,
+            smallest: f64::INFINITY,
+            since_smallest: 0,
+        }
+    }
+
+    /// Records `update`; true when it is within `tolerance` or the iteration has
+    /// stalled at round-off (the two rules of the module doc).
+    fn stop(&mut self, update: f64, tolerance: f64) -> bool {
+        let converged = update <= tolerance;
+        if update < self.smallest {
+            self.smallest = update;
+            self.since_smallest = 0;
+        } else {
+            self.since_smallest += 1;
+        }
+        let at_roundoff = (update <= ROUNDOFF_FACTOR * f64::EPSILON
+            && update > 0.5 * self.previous)
+            || (self.smallest <= STALL_LEVEL && self.since_smallest >= STALL_ITERATIONS);
+        self.previous = update;
+        converged || at_roundoff
     }
 }
