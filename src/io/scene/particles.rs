@@ -2,13 +2,13 @@
 //! with its bonds and velocities.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use toml::Spanned;
 
 use super::{Builder, ParticleSpec, SceneFile, StructureSpec};
 use crate::error::{Error, Result};
-use crate::io::structure::{Structure, read_structure, read_structure_with};
+use crate::io::structure::{Atom, Structure, read_structure, read_structure_with};
 
 /// The particles as the scene gives them, before the force field: names, masses and
 /// momenta in the scene's units, and the structure they were read from.
@@ -165,6 +165,35 @@ impl Builder<'_> {
     ) -> Result<Start> {
         let offset = spanned.span().start;
         let spec = spanned.get_ref();
+        let (structure_path, structure) = self.read_scene_structure(spanned, with_forcefield)?;
+        let uniform_mass = self.structure_mass(spec, parameters, offset)?;
+        let (mut names, mut masses, mut q, mut p) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for (i, atom) in structure.atoms.iter().enumerate() {
+            let mass = atom_mass(atom, i, uniform_mass, with_forcefield, &structure_path)?;
+            push_position(&mut q, atom, i, dim, &structure_path)?;
+            names.push(atom.name.clone());
+            masses.push(mass);
+            p.extend(std::iter::repeat_n(0.0, dim));
+        }
+        Ok(Start {
+            names,
+            masses,
+            q,
+            p,
+            structure: Some(structure),
+        })
+    }
+
+    /// The `[structure]` file beside the scene, read (bonds guessed unless told, by
+    /// default when a force field needs them) and refused when missing, empty or too big.
+    fn read_scene_structure(
+        &self,
+        spanned: &Spanned<StructureSpec>,
+        with_forcefield: bool,
+    ) -> Result<(PathBuf, Structure)> {
+        let offset = spanned.span().start;
+        let spec = spanned.get_ref();
         let structure_path = self.beside_scene(&spec.file);
         if !structure_path.is_file() {
             return Err(self.error_at(
@@ -197,7 +226,17 @@ impl Builder<'_> {
                 ),
             ));
         }
-        let uniform_mass = match &spec.mass {
+        Ok((structure_path, structure))
+    }
+
+    /// The `[structure]` section's `mass` for every atom, if given (must be positive).
+    fn structure_mass(
+        &self,
+        spec: &StructureSpec,
+        parameters: &BTreeMap<String, f64>,
+        offset: usize,
+    ) -> Result<Option<f64>> {
+        match &spec.mass {
             Some(mass) => {
                 let mass = self.evaluate(mass, parameters, "structure mass", offset)?;
                 if mass <= 0.0 {
@@ -206,54 +245,10 @@ impl Builder<'_> {
                         format!("structure mass must be positive, got {mass}"),
                     ));
                 }
-                Some(mass)
+                Ok(Some(mass))
             }
-            None => None,
-        };
-        let (mut names, mut masses, mut q, mut p) =
-            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-        for (i, atom) in structure.atoms.iter().enumerate() {
-            let mass = match uniform_mass {
-                Some(mass) => mass,
-                None if atom.mass > 0.0 => atom.mass,
-                // The force field gives masses of types that are no element.
-                None if with_forcefield => 0.0,
-                None => {
-                    return Err(Error::Structure {
-                        path: structure_path.clone(),
-                        message: format!(
-                            "atom {i} has unknown element \"{}\" (no mass): give \
-                             `mass` in the scene's [structure] section",
-                            atom.name
-                        ),
-                    });
-                }
-            };
-            for (axis, &x) in atom.position.iter().enumerate() {
-                if axis < dim {
-                    q.push(x);
-                } else if x != 0.0 {
-                    return Err(Error::Structure {
-                        path: structure_path.clone(),
-                        message: format!(
-                            "atom {i} has coordinate {axis} = {x}, but the scene has \
-                             dim = {dim}: use dim = 3 or a file in the first {dim} \
-                             coordinates"
-                        ),
-                    });
-                }
-            }
-            names.push(atom.name.clone());
-            masses.push(mass);
-            p.extend(std::iter::repeat_n(0.0, dim));
+            None => Ok(None),
         }
-        Ok(Start {
-            names,
-            masses,
-            q,
-            p,
-            structure: Some(structure),
-        })
     }
 
     /// Momenta from a `velocities` file of the same layout (`p = m v`, masses internal).
@@ -340,4 +335,54 @@ impl Builder<'_> {
         }
         Ok(bonds)
     }
+}
+
+/// Atom `i`'s mass: the scene's uniform one, else its element's, else 0 for the force
+/// field to give (types that are no element); without a force field that is an error.
+fn atom_mass(
+    atom: &Atom,
+    i: usize,
+    uniform_mass: Option<f64>,
+    with_forcefield: bool,
+    structure_path: &Path,
+) -> Result<f64> {
+    match uniform_mass {
+        Some(mass) => Ok(mass),
+        None if atom.mass > 0.0 => Ok(atom.mass),
+        // The force field gives masses of types that are no element.
+        None if with_forcefield => Ok(0.0),
+        None => Err(Error::Structure {
+            path: structure_path.to_path_buf(),
+            message: format!(
+                "atom {i} has unknown element \"{}\" (no mass): give \
+                 `mass` in the scene's [structure] section",
+                atom.name
+            ),
+        }),
+    }
+}
+
+/// Appends atom `i`'s first `dim` coordinates to `q`; the others must be zero.
+fn push_position(
+    q: &mut Vec<f64>,
+    atom: &Atom,
+    i: usize,
+    dim: usize,
+    structure_path: &Path,
+) -> Result<()> {
+    for (axis, &x) in atom.position.iter().enumerate() {
+        if axis < dim {
+            q.push(x);
+        } else if x != 0.0 {
+            return Err(Error::Structure {
+                path: structure_path.to_path_buf(),
+                message: format!(
+                    "atom {i} has coordinate {axis} = {x}, but the scene has \
+                     dim = {dim}: use dim = 3 or a file in the first {dim} \
+                     coordinates"
+                ),
+            });
+        }
+    }
+    Ok(())
 }
