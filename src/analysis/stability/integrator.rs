@@ -26,6 +26,7 @@ use crate::error::{Error, Result};
 use crate::integrators::{self, Integrator};
 use crate::io::scene::{SceneFile, build_parsed_scene, parse_scene};
 use crate::settings::MethodSettings;
+use crate::system::System;
 
 /// The three-spring scene shipped in `systems/`, compiled in so the command works from
 /// any directory.
@@ -141,36 +142,58 @@ impl IntegratorProbe {
         let scene =
             build_parsed_scene(&self.parsed, &self.scene.text, &self.scene.path, overrides)?;
         let mut system = scene.system;
-        let dim = system.dim;
-        let n = system.n_particles();
         let q0 = system.state.q.clone();
-        let zero_p = vec![0.0; q0.len()];
-        let coordinate = |j: usize| (j % n) * dim; // axis 0 of particle j mod n
         let scale = q0.iter().fold(1.0_f64, |acc, x| acc.max(x.abs()));
 
         // One integrator for the point's nine steps: `setup` sizes its buffers and
         // evaluates the forces at each new starting state, so nothing carries over.
         let mut integrator: Box<dyn Integrator> =
             integrators::build(&self.settings, &mut Vec::new())?;
-        let mut step = |q: &[f64], p: &[f64]| -> Result<(Vec<f64>, Vec<f64>)> {
-            system.state.q.copy_from_slice(q);
-            system.state.p.copy_from_slice(p);
-            system.state.t = 0.0;
-            integrator.setup(&mut system)?;
-            integrator.step(&mut system).map_err(|failure| {
-                Error::input(format!(
-                    "{} failed on its first step: {}",
-                    self.settings.method, failure.0
-                ))
-            })?;
-            Ok((system.state.q.clone(), system.state.p.clone()))
-        };
+        let integrator = integrator.as_mut();
+        self.check_equilibrium(&mut system, integrator, &q0, scale)?;
 
-        // The starting positions must be an equilibrium at rest: one step leaves them.
-        let (q_rest, p_rest) = step(&q0, &zero_p)?;
+        let size = 2 * system.n_particles();
+        let mut matrix = DMatrix::zeros(size, size);
+        for column in 0..size {
+            self.matrix_column(&mut system, integrator, &q0, scale, column, &mut matrix)?;
+        }
+        Ok(matrix)
+    }
+
+    /// One outer step from `(q, p)` at t = 0: the positions and momenta after it.
+    fn step_from(
+        &self,
+        system: &mut System,
+        integrator: &mut dyn Integrator,
+        q: &[f64],
+        p: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        system.state.q.copy_from_slice(q);
+        system.state.p.copy_from_slice(p);
+        system.state.t = 0.0;
+        integrator.setup(system)?;
+        integrator.step(system).map_err(|failure| {
+            Error::input(format!(
+                "{} failed on its first step: {}",
+                self.settings.method, failure.0
+            ))
+        })?;
+        Ok((system.state.q.clone(), system.state.p.clone()))
+    }
+
+    /// The starting positions must be an equilibrium at rest: one step leaves them.
+    fn check_equilibrium(
+        &self,
+        system: &mut System,
+        integrator: &mut dyn Integrator,
+        q0: &[f64],
+        scale: f64,
+    ) -> Result<()> {
+        let zero_p = vec![0.0; q0.len()];
+        let (q_rest, p_rest) = self.step_from(system, integrator, q0, &zero_p)?;
         let drift = q_rest
             .iter()
-            .zip(&q0)
+            .zip(q0)
             .map(|(a, b)| (a - b).abs())
             .chain(p_rest.iter().map(|x| x.abs()))
             .fold(0.0_f64, f64::max);
@@ -183,56 +206,80 @@ impl IntegratorProbe {
                 self.scene.path.display()
             )));
         }
+        Ok(())
+    }
 
-        let size = 2 * n;
-        let mut matrix = DMatrix::zeros(size, size);
-        for column in 0..size {
-            let mut delta = FIRST_DELTA;
-            let mut linear = false;
-            for _ in 0..=MAX_HALVINGS {
-                let mut responses = Vec::with_capacity(2);
-                for sign in [1.0, -1.0] {
-                    let (mut q, mut p) = (q0.clone(), zero_p.clone());
-                    if column < n {
-                        q[coordinate(column)] += sign * delta;
-                    } else {
-                        p[coordinate(column)] += sign * delta;
-                    }
-                    responses.push(step(&q, &p)?);
-                }
-                let (plus, minus) = (&responses[0], &responses[1]);
-                let mut defect = 0.0_f64;
-                let mut response = 0.0_f64;
-                for row in 0..size {
-                    let k = coordinate(row);
-                    let (a, b, rest) = if row < n {
-                        (plus.0[k], minus.0[k], q0[k])
-                    } else {
-                        (plus.1[k], minus.1[k], 0.0)
-                    };
-                    defect = defect.max((a + b - 2.0 * rest).abs());
-                    response = response.max((a - b).abs());
-                    matrix[(row, column)] = (a - b) / (2.0 * delta);
-                }
-                // Linear up to round-off: the even part (a nonlinear effect, O(δ²) or
-                // O(1) at a flipped spring) below 1e-6 of the response, beyond the
-                // round-off of absolute positions (1e3 ε · scale as above).
-                if response.is_finite() && defect <= 1e-6 * response + 1e3 * f64::EPSILON * scale {
-                    linear = true;
-                    break;
-                }
-                delta *= 0.5;
+    /// Column `column` of the matrix: the central difference at ±δ, δ halved from
+    /// [`FIRST_DELTA`] until the step is linear in the perturbation.
+    fn matrix_column(
+        &self,
+        system: &mut System,
+        integrator: &mut dyn Integrator,
+        q0: &[f64],
+        scale: f64,
+        column: usize,
+        matrix: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let mut delta = FIRST_DELTA;
+        for _ in 0..=MAX_HALVINGS {
+            let (defect, response) =
+                self.difference_column(system, integrator, q0, column, delta, matrix)?;
+            // Linear up to round-off: the even part (a nonlinear effect, O(δ²) or
+            // O(1) at a flipped spring) below 1e-6 of the response, beyond the
+            // round-off of absolute positions (1e3 ε · scale as above).
+            if response.is_finite() && defect <= 1e-6 * response + 1e3 * f64::EPSILON * scale {
+                return Ok(());
             }
-            if !linear {
-                return Err(Error::input(format!(
-                    "{} (h = {}): one outer step is not linear in a perturbation of the \
-                     equilibrium even at δ = {delta:e}; the step amplifies it beyond the \
-                     linear range of the springs",
-                    self.settings.method, self.settings.h
-                )));
-            }
+            delta *= 0.5;
         }
-        Ok(matrix)
+        Err(Error::input(format!(
+            "{} (h = {}): one outer step is not linear in a perturbation of the \
+             equilibrium even at δ = {delta:e}; the step amplifies it beyond the \
+             linear range of the springs",
+            self.settings.method, self.settings.h
+        )))
+    }
+
+    /// Fills `column` of `matrix` with `(out(+δ) − out(−δ)) / 2δ` for a perturbation of
+    /// that coordinate (positions first, then momenta). Returns the largest even part
+    /// `|out(+δ) + out(−δ) − 2 rest|` and the largest response `|out(+δ) − out(−δ)|`.
+    fn difference_column(
+        &self,
+        system: &mut System,
+        integrator: &mut dyn Integrator,
+        q0: &[f64],
+        column: usize,
+        delta: f64,
+        matrix: &mut DMatrix<f64>,
+    ) -> Result<(f64, f64)> {
+        let (n, dim) = (system.n_particles(), system.dim);
+        let coordinate = |j: usize| (j % n) * dim; // axis 0 of particle j mod n
+        let zero_p = vec![0.0; q0.len()];
+        let mut responses = Vec::with_capacity(2);
+        for sign in [1.0, -1.0] {
+            let (mut q, mut p) = (q0.to_vec(), zero_p.clone());
+            if column < n {
+                q[coordinate(column)] += sign * delta;
+            } else {
+                p[coordinate(column)] += sign * delta;
+            }
+            responses.push(self.step_from(system, integrator, &q, &p)?);
+        }
+        let (plus, minus) = (&responses[0], &responses[1]);
+        let mut defect = 0.0_f64;
+        let mut response = 0.0_f64;
+        for row in 0..2 * n {
+            let k = coordinate(row);
+            let (a, b, rest) = if row < n {
+                (plus.0[k], minus.0[k], q0[k])
+            } else {
+                (plus.1[k], minus.1[k], 0.0)
+            };
+            defect = defect.max((a + b - 2.0 * rest).abs());
+            response = response.max((a - b).abs());
+            matrix[(row, column)] = (a - b) / (2.0 * delta);
+        }
+        Ok((defect, response))
     }
 }
 
