@@ -109,41 +109,8 @@ impl StiffnessStudy {
     ) -> Result<Self> {
         let text = std::fs::read_to_string(scene).map_err(|e| Error::io(scene, e))?;
         let parsed = parse_scene(&text, scene)?;
-        if !parsed.parameters.contains_key(param) {
-            let known: Vec<&str> = parsed.parameters.keys().map(String::as_str).collect();
-            return Err(Error::input(format!(
-                "--param {param}: the scene {} has no parameter \"{param}\" (it has: {})",
-                scene.display(),
-                if known.is_empty() {
-                    "none".to_string()
-                } else {
-                    known.join(", ")
-                }
-            )));
-        }
-        if values.is_empty() || values.iter().any(|v| !v.is_finite()) {
-            return Err(Error::input("--range must give finite values"));
-        }
-        if methods.is_empty() {
-            return Err(Error::input("--method: give at least one method"));
-        }
-        if !(t_end.is_finite() && t_end > 0.0) {
-            return Err(Error::input(format!(
-                "--t-end must be positive, got {t_end}"
-            )));
-        }
-        for &h in &steps {
-            if !(h.is_finite() && h > 0.0) {
-                return Err(Error::input(format!("--h must be positive, got {h}")));
-            }
-            outer_steps(t_end, h)?;
-        }
-        if steps.is_empty() {
-            return Err(Error::input("--h: give at least one outer step"));
-        }
-        if reference_steps == Some(0) {
-            return Err(Error::input("--reference-steps must be at least 1"));
-        }
+        check_param(&parsed, param, scene)?;
+        check_scan(&values, &methods, &steps, t_end, reference_steps)?;
         let mut study = StiffnessStudy {
             text,
             path: scene.to_path_buf(),
@@ -158,38 +125,56 @@ impl StiffnessStudy {
             omega_max: 0.0,
             reference_steps,
         };
-        // Build every value once: the scene must build, and the default steps need the
-        // fastest frequency over the scan.
-        for &value in &study.values {
-            let mut system = study.system(value)?;
+        study.omega_max = study.fastest_frequency()?;
+        study.check_default_steps()?;
+        study.check_methods()?;
+        Ok(study)
+    }
+
+    /// Builds every value once: the scene must build, and the default steps need the
+    /// fastest frequency over the scan.
+    fn fastest_frequency(&self) -> Result<f64> {
+        let mut omega_max = 0.0_f64;
+        for &value in &self.values {
+            let mut system = self.system(value)?;
             let fastest = fast_modes(&mut system)
                 .iter()
                 .map(|m| m.frequency)
                 .fold(0.0, f64::max);
-            study.omega_max = study.omega_max.max(fastest);
+            omega_max = omega_max.max(fastest);
         }
-        for &h in &study.steps {
-            let needed = h * study.omega_max / DEFAULT_STEP_PHASE;
-            let defaulted = study.reference_steps.is_none()
-                || (study.base.inner_steps.is_none() && study.base.dt.is_none());
+        Ok(omega_max)
+    }
+
+    /// Refuses an outer step whose default inner or reference steps would be too many.
+    fn check_default_steps(&self) -> Result<()> {
+        for &h in &self.steps {
+            let needed = h * self.omega_max / DEFAULT_STEP_PHASE;
+            let defaulted = self.reference_steps.is_none()
+                || (self.base.inner_steps.is_none() && self.base.dt.is_none());
             if defaulted && (needed > MAX_DEFAULT_SUBSTEPS as f64 || needed.is_nan()) {
                 return Err(Error::input(format!(
                     "--h {h}: the fastest fast mode over the scan (ω = {:e}) would need more \
                      than {MAX_DEFAULT_SUBSTEPS} default inner or reference steps per outer \
                      step; give --inner (or --dt) and --reference-steps",
-                    study.omega_max
+                    self.omega_max
                 )));
             }
         }
-        let first = study.values[0];
-        for method in &study.methods {
-            for &h in &study.steps {
-                let settings = study.settings(method, h, first)?;
+        Ok(())
+    }
+
+    /// Every method must build at every outer step (at the first value).
+    fn check_methods(&self) -> Result<()> {
+        let first = self.values[0];
+        for method in &self.methods {
+            for &h in &self.steps {
+                let settings = self.settings(method, h, first)?;
                 integrators::build(&settings, &mut Vec::new())
                     .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
             }
         }
-        Ok(study)
+        Ok(())
     }
 
     /// `parameter=value` after the `--set` overrides.
@@ -397,4 +382,56 @@ pub fn largest(points: &[&StiffnessPoint]) -> Option<(f64, f64)> {
         .filter(|p| p.max_error.is_finite())
         .max_by(|a, b| a.max_error.total_cmp(&b.max_error))
         .map(|p| (p.value, p.max_error))
+}
+
+/// The scanned parameter must be one of the scene's.
+fn check_param(parsed: &SceneFile, param: &str, scene: &Path) -> Result<()> {
+    if !parsed.parameters.contains_key(param) {
+        let known: Vec<&str> = parsed.parameters.keys().map(String::as_str).collect();
+        return Err(Error::input(format!(
+            "--param {param}: the scene {} has no parameter \"{param}\" (it has: {})",
+            scene.display(),
+            if known.is_empty() {
+                "none".to_string()
+            } else {
+                known.join(", ")
+            }
+        )));
+    }
+    Ok(())
+}
+
+/// The scan's values, methods, outer steps (each a whole number of `t_end`) and
+/// reference steps, checked in that order.
+fn check_scan(
+    values: &[f64],
+    methods: &[String],
+    steps: &[f64],
+    t_end: f64,
+    reference_steps: Option<usize>,
+) -> Result<()> {
+    if values.is_empty() || values.iter().any(|v| !v.is_finite()) {
+        return Err(Error::input("--range must give finite values"));
+    }
+    if methods.is_empty() {
+        return Err(Error::input("--method: give at least one method"));
+    }
+    if !(t_end.is_finite() && t_end > 0.0) {
+        return Err(Error::input(format!(
+            "--t-end must be positive, got {t_end}"
+        )));
+    }
+    for &h in steps {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::input(format!("--h must be positive, got {h}")));
+        }
+        outer_steps(t_end, h)?;
+    }
+    if steps.is_empty() {
+        return Err(Error::input("--h: give at least one outer step"));
+    }
+    if reference_steps == Some(0) {
+        return Err(Error::input("--reference-steps must be at least 1"));
+    }
+    Ok(())
 }
