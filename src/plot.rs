@@ -282,25 +282,8 @@ impl Picture for HeatMap {
         let (width, _) = root.dim_in_pixel();
         let side = 150.min(width / 3);
         let (main, side_area) = root.split_horizontally(width - side);
-        let (nx, ny) = (self.x_cells.2, self.y_cells.2);
-        let step = |cells: (f64, f64, usize)| {
-            if cells.2 > 1 {
-                (cells.1 - cells.0) / (cells.2 - 1) as f64
-            } else {
-                1.0
-            }
-        };
-        let (dx, dy) = (step(self.x_cells), step(self.y_cells));
-        let x_range = self
-            .x
-            .range
-            .unwrap_or((self.x_cells.0 - 0.5 * dx, self.x_cells.1 + 0.5 * dx));
-        let y_range = self
-            .y
-            .range
-            .unwrap_or((self.y_cells.0 - 0.5 * dy, self.y_cells.1 + 0.5 * dy));
-        let (x0, x1) = (self.x.coordinate(x_range.0), self.x.coordinate(x_range.1));
-        let (y0, y1) = (self.y.coordinate(y_range.0), self.y.coordinate(y_range.1));
+        let (dx, dy) = self.cell_steps();
+        let ((x0, x1), (y0, y1)) = self.plot_ranges(dx, dy);
 
         let mut chart = ChartBuilder::on(&main)
             .caption(&self.title, ("sans-serif", 22))
@@ -309,9 +292,48 @@ impl Picture for HeatMap {
             .y_label_area_size(64)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(self.cell_rectangles(dx, dy))
+            .map_err(|e| e.to_string())?;
+        configure_mesh(&mut chart, &self.x, &self.y, false)?;
+        self.draw_side(&side_area)
+    }
+}
 
-        // Cells, with runs of equal colour along y merged into one rectangle (the stable
-        // region becomes a few rectangles, which keeps SVG files small).
+impl HeatMap {
+    /// The spacing of the cell centres along x and y (1 for a single cell).
+    fn cell_steps(&self) -> (f64, f64) {
+        let step = |cells: (f64, f64, usize)| {
+            if cells.2 > 1 {
+                (cells.1 - cells.0) / (cells.2 - 1) as f64
+            } else {
+                1.0
+            }
+        };
+        (step(self.x_cells), step(self.y_cells))
+    }
+
+    /// The plotted x and y ranges in axis coordinates: the axes' own, or the cells'
+    /// centres widened by half a cell.
+    fn plot_ranges(&self, dx: f64, dy: f64) -> ((f64, f64), (f64, f64)) {
+        let x_range = self
+            .x
+            .range
+            .unwrap_or((self.x_cells.0 - 0.5 * dx, self.x_cells.1 + 0.5 * dx));
+        let y_range = self
+            .y
+            .range
+            .unwrap_or((self.y_cells.0 - 0.5 * dy, self.y_cells.1 + 0.5 * dy));
+        (
+            (self.x.coordinate(x_range.0), self.x.coordinate(x_range.1)),
+            (self.y.coordinate(y_range.0), self.y.coordinate(y_range.1)),
+        )
+    }
+
+    /// The cells, with runs of equal colour along y merged into one rectangle (the stable
+    /// region becomes a few rectangles, which keeps SVG files small).
+    fn cell_rectangles(&self, dx: f64, dy: f64) -> Vec<Rectangle<(f64, f64)>> {
+        let (nx, ny) = (self.x_cells.2, self.y_cells.2);
         let mut rectangles = Vec::new();
         for i in 0..nx {
             let xc = self.x_cells.0 + dx * i as f64;
@@ -333,10 +355,14 @@ impl Picture for HeatMap {
                 j = k;
             }
         }
-        chart.draw_series(rectangles).map_err(|e| e.to_string())?;
-        configure_mesh(&mut chart, &self.x, &self.y, false)?;
+        rectangles
+    }
 
-        // The side: a colour bar, a legend, or both.
+    /// The side: a colour bar, a legend, or both.
+    fn draw_side<DB: DrawingBackend>(
+        &self,
+        side_area: &DrawingArea<DB, Shift>,
+    ) -> Result<(), String> {
         let mut entries: Vec<(String, Colour)> = Vec::new();
         match &self.colouring {
             Colouring::Continuous {
