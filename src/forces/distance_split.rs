@@ -501,37 +501,7 @@ impl ShortRange {
         q: &[f64],
     ) -> Result<Self, String> {
         let n = spec.types.len();
-        if q.len() != 3 * n || spec.charges.len() != n {
-            return Err("non-bonded split: sizes of positions, types and charges differ".into());
-        }
-        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
-        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
-            return Err("non-bonded split: the Lennard-Jones table does not fit the types".into());
-        }
-        let root_ke = spec.coulomb_constant.sqrt();
-        let scaled_charges = if spec.electrostatics == Electrostatics::None {
-            vec![0.0; n]
-        } else {
-            spec.charges.iter().map(|c| c * root_ke).collect()
-        };
-        let period = spec.box_lengths.unwrap_or([0.0; 3]);
-        let model = Model {
-            cutoff_squared: spec.cutoff * spec.cutoff,
-            coulomb: CoulombPair::new(spec.electrostatics, spec.cutoff)?,
-            n_types,
-            types: spec.types.clone(),
-            lj: spec.lj.clone(),
-            has_lj: (0..n_types)
-                .map(|a| {
-                    spec.lj[a * n_types..(a + 1) * n_types]
-                        .iter()
-                        .any(|p| p.c12 != 0.0 || p.c6 != 0.0 || p.shift != 0.0)
-                })
-                .collect(),
-            scaled_charges,
-            period,
-            inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
-        };
+        let model = Self::model(spec, q)?;
         let (excluded_start, excluded_partners) = exclusion_table(n, &spec.excluded)?;
         let molecules = match split.by {
             SwitchBy::Molecule => molecule_table(n, split, &spec.types)?,
@@ -558,21 +528,7 @@ impl ShortRange {
             excluded_partners,
             chunks,
             listed_atom_pairs: AtomicUsize::new(0),
-            workspace: Mutex::new(Workspace {
-                search: PairSearch::new(
-                    points,
-                    switch.r_out() + spec.skin,
-                    spec.skin,
-                    spec.box_lengths,
-                ),
-                packed: vec![[0.0; 4]; if split.by == SwitchBy::Molecule { n } else { 0 }],
-                scratch: (0..chunks).map(|_| kernels::Scratch::default()).collect(),
-                buffers: vec![vec![0.0; 3 * n]; chunks],
-                energies: vec![0.0; chunks],
-                cached_q: vec![f64::NAN; 3 * n],
-                cached_gradient: vec![0.0; 3 * n],
-                cached_energy: None,
-            }),
+            workspace: Mutex::new(Self::workspace(spec, switch, split.by, points, chunks)),
         };
         if split.by == SwitchBy::Molecule {
             short.intramolecular = short.intramolecular_pairs()?;
@@ -582,6 +538,70 @@ impl ShortRange {
             short.refresh(&mut workspace, q);
         }
         Ok(short)
+    }
+
+    /// The pair model of `spec` (types, Lennard-Jones table, charges scaled by `√k_e`,
+    /// box), after checking the sizes agree with the positions `q`.
+    fn model(spec: &NonbondedSpec, q: &[f64]) -> Result<Model, String> {
+        let n = spec.types.len();
+        if q.len() != 3 * n || spec.charges.len() != n {
+            return Err("non-bonded split: sizes of positions, types and charges differ".into());
+        }
+        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
+        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
+            return Err("non-bonded split: the Lennard-Jones table does not fit the types".into());
+        }
+        let root_ke = spec.coulomb_constant.sqrt();
+        let scaled_charges = if spec.electrostatics == Electrostatics::None {
+            vec![0.0; n]
+        } else {
+            spec.charges.iter().map(|c| c * root_ke).collect()
+        };
+        let period = spec.box_lengths.unwrap_or([0.0; 3]);
+        Ok(Model {
+            cutoff_squared: spec.cutoff * spec.cutoff,
+            coulomb: CoulombPair::new(spec.electrostatics, spec.cutoff)?,
+            n_types,
+            types: spec.types.clone(),
+            lj: spec.lj.clone(),
+            has_lj: (0..n_types)
+                .map(|a| {
+                    spec.lj[a * n_types..(a + 1) * n_types]
+                        .iter()
+                        .any(|p| p.c12 != 0.0 || p.c6 != 0.0 || p.shift != 0.0)
+                })
+                .collect(),
+            scaled_charges,
+            period,
+            inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
+        })
+    }
+
+    /// The buffers, sized once here: the pair search over `points` (molecule reference
+    /// atoms or atoms), one scratch and gradient buffer per chunk, the position cache.
+    fn workspace(
+        spec: &NonbondedSpec,
+        switch: Switch,
+        by: SwitchBy,
+        points: usize,
+        chunks: usize,
+    ) -> Workspace {
+        let n = spec.types.len();
+        Workspace {
+            search: PairSearch::new(
+                points,
+                switch.r_out() + spec.skin,
+                spec.skin,
+                spec.box_lengths,
+            ),
+            packed: vec![[0.0; 4]; if by == SwitchBy::Molecule { n } else { 0 }],
+            scratch: (0..chunks).map(|_| kernels::Scratch::default()).collect(),
+            buffers: vec![vec![0.0; 3 * n]; chunks],
+            energies: vec![0.0; chunks],
+            cached_q: vec![f64::NAN; 3 * n],
+            cached_gradient: vec![0.0; 3 * n],
+            cached_energy: None,
+        }
     }
 
     fn lock(&self) -> MutexGuard<'_, Workspace> {
