@@ -30,8 +30,9 @@ use crate::forces::ForceTerm;
 use crate::settings::RunSpec;
 use crate::split::{Assignment, ForceSplit};
 use crate::system::exact::ExactSolution;
-use crate::system::{Particles, State, System};
+use crate::system::{MassMatrix, Particles, PeriodicBox, State, System};
 use crate::units::Units;
+use particles::Start;
 use terms::SceneSoFar;
 
 /// The scene-file format version this build reads.
@@ -203,12 +204,7 @@ impl Builder<'_> {
             masses: &start.masses,
             periodic_box,
         };
-        let mut terms = file
-            .terms
-            .iter()
-            .enumerate()
-            .map(|(index, spanned)| self.build_term(spanned, index, &scene))
-            .collect::<Result<Terms>>()?;
+        let mut terms = self.build_terms(file, &scene)?;
         let molecule = self.apply_forcefield(file, &mut start, periodic_box, units, &mut terms)?;
         if terms.is_empty() {
             return Err(self.error(
@@ -216,31 +212,10 @@ impl Builder<'_> {
                  [[terms]] (docs/scenes.md) or a [forcefield]",
             ));
         }
-        // Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.
-        for m in &mut start.masses {
-            *m = units.mass(*m);
-        }
-        for pk in &mut start.p {
-            *pk = units.mass(*pk);
-        }
+        to_internal_masses(units, &mut start);
         let structure_spec = file.structure.as_ref().map(|s| s.get_ref());
         self.structure_velocities(structure_spec, &start.masses, &mut start.p, dim)?;
-        let forces = ForceSplit::new(terms).map_err(|e| self.error(e.to_string()))?;
-
-        let state = State {
-            t: 0.0,
-            q: start.q,
-            p: start.p,
-        };
-        let particles = Particles {
-            names: start.names,
-            masses: start.masses,
-        };
-        let mut system = System::new(dim, particles, state, forces, periodic_box);
-        if let Some(mass_matrix) = mass_matrix {
-            system = system.with_mass_matrix(mass_matrix);
-        }
-        self.check_finite_start(&system)?;
+        let system = self.system(start, terms, dim, periodic_box, mass_matrix)?;
         let exact = match &file.exact {
             Some(spanned) => Some(self.exact_solution(spanned, dim, &parameters)?),
             None => None,
@@ -263,6 +238,44 @@ impl Builder<'_> {
                 .and_then(|s| s.velocities.as_ref())
                 .map(|v| self.path.parent().unwrap_or(Path::new(".")).join(v)),
         })
+    }
+
+    /// The `[[terms]]`, in the order of the file.
+    fn build_terms(&self, file: &SceneFile, scene: &SceneSoFar) -> Result<Terms> {
+        file.terms
+            .iter()
+            .enumerate()
+            .map(|(index, spanned)| self.build_term(spanned, index, scene))
+            .collect::<Result<Terms>>()
+    }
+
+    /// The system from the particles (internal units) and the terms; the force terms
+    /// must be finite at its start.
+    fn system(
+        &self,
+        start: Start,
+        terms: Terms,
+        dim: usize,
+        periodic_box: Option<PeriodicBox>,
+        mass_matrix: Option<MassMatrix>,
+    ) -> Result<System> {
+        let forces = ForceSplit::new(terms).map_err(|e| self.error(e.to_string()))?;
+
+        let state = State {
+            t: 0.0,
+            q: start.q,
+            p: start.p,
+        };
+        let particles = Particles {
+            names: start.names,
+            masses: start.masses,
+        };
+        let mut system = System::new(dim, particles, state, forces, periodic_box);
+        if let Some(mass_matrix) = mass_matrix {
+            system = system.with_mass_matrix(mass_matrix);
+        }
+        self.check_finite_start(&system)?;
+        Ok(system)
     }
 
     /// The version, the dimension and the units; a force field needs real units, 3-D and
@@ -319,5 +332,15 @@ impl Builder<'_> {
             }
         }
         Ok(())
+    }
+}
+
+/// Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.
+fn to_internal_masses(units: Units, start: &mut Start) {
+    for m in &mut start.masses {
+        *m = units.mass(*m);
+    }
+    for pk in &mut start.p {
+        *pk = units.mass(*pk);
     }
 }
