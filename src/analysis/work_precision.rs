@@ -18,9 +18,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::integrators;
+use crate::integrators::{self, Integrator};
 use crate::io::csv::CsvWriter;
-use crate::io::scene::load_scene;
+use crate::io::scene::{Scene, load_scene};
 use crate::run::monitor::EnergyMonitor;
 use crate::settings::{RunSpec, Value};
 use crate::system::System;
@@ -122,15 +122,7 @@ fn integrate_sampled(
     method: &str,
     h: f64,
 ) -> Result<(Samples, String, f64, [u64; 3], f64)> {
-    let mut scene = load_scene(&setup.scene, &setup.set)?;
-    let mut spec = setup.base.clone();
-    spec.method = Some(method.to_string());
-    spec.h = Some(Value::Number(h));
-    let settings = scene
-        .run
-        .overridden_by(&spec)
-        .resolve_with_units(&scene.parameters, scene.units)?;
-    let mut integrator = integrators::build(&settings, &mut Vec::new())?;
+    let (mut scene, mut integrator) = scene_and_integrator(setup, method, h)?;
     let system = &mut scene.system;
     system.forces.reset_counts();
     integrator.setup(system)?;
@@ -145,13 +137,6 @@ fn integrate_sampled(
         setup.blowup,
     );
     // The last two step points (t, q, M⁻¹p), reused every step.
-    let point = |s: &System, into: &mut (f64, Vec<f64>, Vec<f64>)| {
-        into.0 = s.state.t;
-        into.1.copy_from_slice(&s.state.q);
-        for ((v, p), w) in into.2.iter_mut().zip(&s.state.p).zip(&s.inverse_mass) {
-            *v = p * w;
-        }
-    };
     let n = system.n_dofs();
     let mut previous = (0.0, vec![0.0; n], vec![0.0; n]);
     let mut current = previous.clone();
@@ -185,20 +170,52 @@ fn integrate_sampled(
         std::mem::swap(&mut previous, &mut current);
     }
     let wall = started.elapsed().as_secs_f64();
-    let counts = system.forces.counts();
-    let hv: u64 = counts.hessian_vector_total();
-    let evaluations = [
-        counts.gradient.first().copied().unwrap_or(0),
-        counts.gradient.last().copied().unwrap_or(0),
-        hv,
-    ];
     Ok((
         samples,
         status,
         monitor.max_relative_error(),
-        evaluations,
+        evaluation_counts(system),
         wall,
     ))
+}
+
+/// The scene of the study and `method` at outer step `h` on it (the study's run settings
+/// overridden).
+fn scene_and_integrator(
+    setup: &StudySetup,
+    method: &str,
+    h: f64,
+) -> Result<(Scene, Box<dyn Integrator>)> {
+    let scene = load_scene(&setup.scene, &setup.set)?;
+    let mut spec = setup.base.clone();
+    spec.method = Some(method.to_string());
+    spec.h = Some(Value::Number(h));
+    let settings = scene
+        .run
+        .overridden_by(&spec)
+        .resolve_with_units(&scene.parameters, scene.units)?;
+    let integrator = integrators::build(&settings, &mut Vec::new())?;
+    Ok((scene, integrator))
+}
+
+/// The step point `(t, q, M⁻¹p)` of `s` into `into` (no allocation).
+fn point(s: &System, into: &mut (f64, Vec<f64>, Vec<f64>)) {
+    into.0 = s.state.t;
+    into.1.copy_from_slice(&s.state.q);
+    for ((v, p), w) in into.2.iter_mut().zip(&s.state.p).zip(&s.inverse_mass) {
+        *v = p * w;
+    }
+}
+
+/// Gradient evaluations of the first and the last level, and Hessian-vector products.
+fn evaluation_counts(system: &System) -> [u64; 3] {
+    let counts = system.forces.counts();
+    let hv: u64 = counts.hessian_vector_total();
+    [
+        counts.gradient.first().copied().unwrap_or(0),
+        counts.gradient.last().copied().unwrap_or(0),
+        hv,
+    ]
 }
 
 /// Cubic Hermite interpolation between `(t0, q0, v0)` and `(t1, q1, v1)` at `t`.
