@@ -359,9 +359,31 @@ impl Mollifier {
         q: &[f64],
         fast_gradient_at_q: Option<&[f64]>,
     ) {
-        let (dt, half) = (self.dt, 0.5 * self.dt);
-        let n = q.len();
+        self.start_average(forces, q, fast_gradient_at_q);
         let steps = self.auxiliary_steps();
+        for k in 0..steps {
+            // The GSS98 section 2 step, on (p, q, b) and, in forward mode, on their
+            // derivatives with respect to q_n.
+            let weight = self.auxiliary_step(forces, inverse_mass, k, steps);
+            if self.mode == JacobianMode::Forward {
+                self.jacobian_step(forces, inverse_mass, k + 1 < steps, weight);
+            }
+        }
+        let scale = 2.0 / self.h;
+        for b in &mut self.averaged {
+            *b *= scale;
+        }
+    }
+
+    /// The auxiliary problem's start `(q, 0)` with `∇W(q)`, the first trapezoid term of
+    /// the average and, in forward mode, the Jacobian blocks at the identity.
+    fn start_average(
+        &mut self,
+        forces: &mut ForceSplit,
+        q: &[f64],
+        fast_gradient_at_q: Option<&[f64]>,
+    ) {
+        let half = 0.5 * self.dt;
         self.q.copy_from_slice(q);
         self.p.fill(0.0);
         match fast_gradient_at_q {
@@ -382,56 +404,72 @@ impl Mollifier {
             }
             self.block_hessian_products(forces);
         }
-        for k in 0..steps {
-            // The GSS98 section 2 step, on (p, q, b) and, in forward mode, on their
-            // derivatives with respect to q_n.
+    }
+
+    /// Step `k` of `steps` on `(p, q)` and its trapezoid term added to the average.
+    /// Returns the term's weight (the forward mode's `b_q` takes the same).
+    fn auxiliary_step(
+        &mut self,
+        forces: &mut ForceSplit,
+        inverse_mass: &[f64],
+        k: usize,
+        steps: usize,
+    ) -> f64 {
+        let (dt, half) = (self.dt, 0.5 * self.dt);
+        let n = self.q.len();
+        for (p, g) in self.p.iter_mut().zip(&self.fast_gradient) {
+            *p -= half * g;
+        }
+        if self.mode == JacobianMode::Adjoint {
+            self.trajectory[k * n..(k + 1) * n].copy_from_slice(&self.q);
+        }
+        for ((x, p), w) in self.q.iter_mut().zip(&self.p).zip(inverse_mass) {
+            *x += dt * (w * p);
+        }
+        // The last half-kick would only update p, which the average does not use.
+        if k + 1 < steps {
+            forces.gradient(0, &self.q, &mut self.fast_gradient);
             for (p, g) in self.p.iter_mut().zip(&self.fast_gradient) {
                 *p -= half * g;
             }
-            if self.mode == JacobianMode::Adjoint {
-                self.trajectory[k * n..(k + 1) * n].copy_from_slice(&self.q);
-            }
-            for ((x, p), w) in self.q.iter_mut().zip(&self.p).zip(inverse_mass) {
-                *x += dt * (w * p);
-            }
-            // The last half-kick would only update p, which the average does not use.
-            if k + 1 < steps {
-                forces.gradient(0, &self.q, &mut self.fast_gradient);
-                for (p, g) in self.p.iter_mut().zip(&self.fast_gradient) {
-                    *p -= half * g;
-                }
-            }
-            let weight = if k + 1 == steps { half } else { dt } * self.weights[k + 1];
-            for (b, x) in self.averaged.iter_mut().zip(&self.q) {
-                *b += weight * x;
-            }
-            if self.mode == JacobianMode::Forward {
-                for block in &mut self.blocks {
-                    add_scaled(&mut block.p_q, -half, &block.hq);
-                    let d = block.dofs.len();
-                    for (r, &dof) in block.dofs.iter().enumerate() {
-                        let factor = dt * inverse_mass[dof];
-                        for c in 0..d {
-                            block.q_q[(r, c)] += factor * block.p_q[(r, c)];
-                        }
-                    }
-                }
-                // W_qq q_q at the new point, needed by the second half-kick (not after the
-                // last step, where p_q no longer matters).
-                if k + 1 < steps {
-                    self.block_hessian_products(forces);
-                    for block in &mut self.blocks {
-                        add_scaled(&mut block.p_q, -half, &block.hq);
-                    }
-                }
-                for block in &mut self.blocks {
-                    add_scaled(&mut block.b_q, weight, &block.q_q);
+        }
+        let weight = if k + 1 == steps { half } else { dt } * self.weights[k + 1];
+        for (b, x) in self.averaged.iter_mut().zip(&self.q) {
+            *b += weight * x;
+        }
+        weight
+    }
+
+    /// The same step on the forward mode's derivatives `p_q`, `q_q` and `b_q` (trapezoid
+    /// `weight`); `more` when another step follows.
+    fn jacobian_step(
+        &mut self,
+        forces: &mut ForceSplit,
+        inverse_mass: &[f64],
+        more: bool,
+        weight: f64,
+    ) {
+        let (dt, half) = (self.dt, 0.5 * self.dt);
+        for block in &mut self.blocks {
+            add_scaled(&mut block.p_q, -half, &block.hq);
+            let d = block.dofs.len();
+            for (r, &dof) in block.dofs.iter().enumerate() {
+                let factor = dt * inverse_mass[dof];
+                for c in 0..d {
+                    block.q_q[(r, c)] += factor * block.p_q[(r, c)];
                 }
             }
         }
-        let scale = 2.0 / self.h;
-        for b in &mut self.averaged {
-            *b *= scale;
+        // W_qq q_q at the new point, needed by the second half-kick (not after the
+        // last step, where p_q no longer matters).
+        if more {
+            self.block_hessian_products(forces);
+            for block in &mut self.blocks {
+                add_scaled(&mut block.p_q, -half, &block.hq);
+            }
+        }
+        for block in &mut self.blocks {
+            add_scaled(&mut block.b_q, weight, &block.q_q);
         }
     }
 
