@@ -525,7 +525,7 @@ mod lanes {
     }
 
     #[inline(always)]
-    fn kick_body<const L: usize>(
+    pub(super) fn kick_body<const L: usize>(
         c: Constants,
         t: f64,
         p: &mut [f64],
@@ -552,7 +552,7 @@ mod lanes {
     }
 
     #[inline(always)]
-    fn flow_body<const L: usize>(
+    pub(super) fn flow_body<const L: usize>(
         c: Constants,
         steps: [f64; 3],
         p: &mut [f64],
@@ -588,11 +588,11 @@ mod lanes {
     macro_rules! compiled_for {
         ($module:ident, $feature:literal) => {
             #[cfg(target_arch = "x86_64")]
-            mod $module {
+            pub(super) mod $module {
                 use super::Constants;
 
                 #[target_feature(enable = $feature)]
-                pub(super) fn kick_body<const L: usize>(
+                pub(crate) fn kick_body<const L: usize>(
                     c: Constants,
                     t: f64,
                     p: &mut [f64],
@@ -604,7 +604,7 @@ mod lanes {
                 }
 
                 #[target_feature(enable = $feature)]
-                pub(super) fn flow_body<const L: usize>(
+                pub(crate) fn flow_body<const L: usize>(
                     c: Constants,
                     steps: [f64; 3],
                     p: &mut [f64],
@@ -687,6 +687,75 @@ mod tests {
         assert_eq!(sinr.collapsed, Some(7));
         assert_eq!(again[11], p[11]);
         assert_ne!(again[12], p[12]);
+    }
+
+    /// Every instruction set this machine has gives the portable path's bits, for L = 1
+    /// (the branch-free loops) and L = 4 (the general loops with L constant).
+    #[test]
+    fn every_instruction_set_gives_the_portable_bits() {
+        type Kick = unsafe fn(Constants, f64, &mut [f64], &[f64], &mut [f64], &[f64]) -> bool;
+        type Flow = unsafe fn(Constants, [f64; 3], &mut [f64], &[f64], &mut [f64], &mut [f64]);
+        fn run(sinr: &Sinr, p: &[f64], gradient: &[f64], kick: Kick, flow: Flow) -> Vec<u64> {
+            let (c, steps) = (sinr.constants(), sinr.weights.map(|w| w * 0.5));
+            let (mut p, mut v1, mut v2) = (p.to_vec(), sinr.v1.clone(), sinr.v2.clone());
+            // SAFETY: only called below for instruction sets the processor was found to have.
+            unsafe {
+                kick(c, 2.0, &mut p, gradient, &mut v1, &sinr.kappa);
+                flow(c, steps, &mut p, &sinr.inverse_mass, &mut v1, &mut v2);
+            }
+            bits(&p)
+                .into_iter()
+                .chain(bits(&v1))
+                .chain(bits(&v2))
+                .collect()
+        }
+        let (one, p, gradient) = coordinates();
+        let mut four = Sinr::new(0.6, 4, 5.0, 0.2, 1).expect("valid settings");
+        four.inverse_mass = one.inverse_mass.clone();
+        four.kappa = one
+            .inverse_mass
+            .iter()
+            .map(|w| (four.lkt / w).sqrt())
+            .collect();
+        four.v1 = one
+            .v1
+            .iter()
+            .flat_map(|v| [0.5 * v, -0.5 * v, 0.3 * v, 0.1])
+            .collect();
+        four.v2 = one.v2.iter().flat_map(|v| [*v, -v, 0.5 * v, 0.0]).collect();
+        let portable_one = run(
+            &one,
+            &p,
+            &gradient,
+            lanes::kick_body::<1>,
+            lanes::flow_body::<1>,
+        );
+        let portable_four = run(
+            &four,
+            &p,
+            &gradient,
+            lanes::kick_body::<4>,
+            lanes::flow_body::<4>,
+        );
+        #[cfg(target_arch = "x86_64")]
+        {
+            let mut checked = 0;
+            if std::is_x86_feature_detected!("avx2") {
+                let (k1, f1) = (lanes::avx2::kick_body::<1>, lanes::avx2::flow_body::<1>);
+                let (k4, f4) = (lanes::avx2::kick_body::<4>, lanes::avx2::flow_body::<4>);
+                assert_eq!(run(&one, &p, &gradient, k1, f1), portable_one);
+                assert_eq!(run(&four, &p, &gradient, k4, f4), portable_four);
+                checked += 1;
+            }
+            if std::is_x86_feature_detected!("avx512f") {
+                let (k1, f1) = (lanes::avx512::kick_body::<1>, lanes::avx512::flow_body::<1>);
+                let (k4, f4) = (lanes::avx512::kick_body::<4>, lanes::avx512::flow_body::<4>);
+                assert_eq!(run(&one, &p, &gradient, k1, f1), portable_one);
+                assert_eq!(run(&four, &p, &gradient, k4, f4), portable_four);
+                checked += 1;
+            }
+            eprintln!("SIMD builds checked against the portable one: {checked}");
+        }
     }
 
     /// Kick and flow keep every coordinate on its constraint to round-off.
