@@ -33,7 +33,7 @@ LANGEVIN = "--method langevin-respa --temperature 300K"
 CASES = [
     ("9 A", "langevin-respa 1 fs / 0.5 fs", NINE, f"{LANGEVIN} --h 1fs --inner 2", 5),
     ("9 A", "sinr 50 fs (25,2), 6-7 A", NINE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 5),
-    ("9 A", "sinr 48 fs (16,3), 6-7 A", NINE_SPLIT, f"{SINR} 5fs --h 48fs --level-steps 16,3", 5),
+    ("9 A", "sinr 48 fs (16,3), tau 3 fs", NINE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 5),
     ("12 A", "langevin-respa 2 fs / 0.5 fs", TWELVE, f"{LANGEVIN} --h 2fs --inner 4", 1),
     ("12 A", "sinr 50 fs (25,2), 7-8.5 A", TWELVE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 1),
     ("12 A", "sinr 48 fs (16,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
