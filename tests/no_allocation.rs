@@ -35,6 +35,22 @@ fn allocations() -> usize {
     ALLOCATIONS.with(|c| c.get())
 }
 
+/// Allocations made by five steps of the integrator `settings` builds, after its setup and
+/// a first step (which may size its buffers).
+fn allocations_in_five_steps(
+    settings: &longstep::settings::MethodSettings,
+    system: &mut longstep::system::System,
+) -> usize {
+    let mut integrator = longstep::integrators::build(settings, &mut Vec::new()).unwrap();
+    integrator.setup(system).unwrap();
+    integrator.step(system).unwrap();
+    let before = allocations();
+    for _ in 0..5 {
+        integrator.step(system).unwrap();
+    }
+    allocations() - before
+}
+
 #[test]
 fn steps_allocate_nothing() {
     // The counter sees allocations at all.
@@ -64,14 +80,7 @@ fn steps_allocate_nothing() {
         } else {
             settings.jacobian = jacobian.map(str::to_string);
         }
-        let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
-        integrator.setup(&mut scene.system).unwrap();
-        integrator.step(&mut scene.system).unwrap();
-        let before = allocations();
-        for _ in 0..5 {
-            integrator.step(&mut scene.system).unwrap();
-        }
-        let during = allocations() - before;
+        let during = allocations_in_five_steps(&settings, &mut scene.system);
         assert_eq!(
             during, 0,
             "{name} ({jacobian:?}): {during} allocations in 5 steps"
@@ -92,14 +101,7 @@ fn thermostatted_steps_allocate_nothing() {
             settings.friction = Some(1.0);
             settings.tau = Some(0.2);
             settings.mollifier = mollifier.map(str::to_string);
-            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
-            integrator.setup(&mut scene.system).unwrap();
-            integrator.step(&mut scene.system).unwrap();
-            let before = allocations();
-            for _ in 0..5 {
-                integrator.step(&mut scene.system).unwrap();
-            }
-            let during = allocations() - before;
+            let during = allocations_in_five_steps(&settings, &mut scene.system);
             assert_eq!(
                 during, 0,
                 "{name} ({mollifier:?}): {during} allocations in 5 steps"
@@ -120,14 +122,7 @@ fn pseudo_energy_steps_allocate_nothing() {
             if name == "async-pseudo-energy" {
                 settings.ratio = Some(10);
             }
-            let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
-            integrator.setup(&mut scene.system).unwrap();
-            integrator.step(&mut scene.system).unwrap();
-            let before = allocations();
-            for _ in 0..5 {
-                integrator.step(&mut scene.system).unwrap();
-            }
-            let during = allocations() - before;
+            let during = allocations_in_five_steps(&settings, &mut scene.system);
             assert_eq!(
                 during, 0,
                 "{name} ({rule}): {during} allocations in 5 steps"
