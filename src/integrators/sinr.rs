@@ -92,16 +92,13 @@ fn suzuki_yoshida() -> [f64; 3] {
 
 pub struct Sinr {
     thermostats: usize,
-    kt: f64,
     tau: f64,
     friction: f64,
     seed: u64,
-    q1: f64,
+    /// `Q2` (equal to `Q1`; kept for the start and the OU step, which divide by it).
     q2: f64,
-    /// `L kT`.
-    lkt: f64,
-    /// `L/(L+1)`.
-    ratio: f64,
+    /// kT, `Q1`, `L kT`, `L/(L+1)`, `1/Q2`: what the kick and the flow read.
+    c: Constants,
     weights: [f64; 3],
     gaussian: Gaussian,
     /// `v1[i L + k]`, `v2[i L + k]`: thermostat pair k of coordinate i.
@@ -128,14 +125,17 @@ impl Sinr {
         let q = kt * tau * tau;
         Ok(Sinr {
             thermostats,
-            kt,
             tau,
             friction,
             seed,
-            q1: q,
             q2: q,
-            lkt: thermostats as f64 * kt,
-            ratio: thermostats as f64 / (thermostats + 1) as f64,
+            c: Constants {
+                q1: q,
+                kt,
+                ratio: thermostats as f64 / (thermostats + 1) as f64,
+                lkt: thermostats as f64 * kt,
+                over_q2: 1.0 / q,
+            },
             weights: suzuki_yoshida(),
             gaussian: Gaussian::new(seed, SALT),
             v1: Vec::new(),
@@ -213,10 +213,10 @@ impl Sinr {
         self.kappa = self
             .inverse_mass
             .iter()
-            .map(|w| (self.lkt / w).sqrt())
+            .map(|w| (self.c.lkt / w).sqrt())
             .collect();
-        let v1_scale = (self.kt / self.q1).sqrt();
-        let v2_scale = (self.kt / self.q2).sqrt();
+        let v1_scale = (self.c.kt / self.c.q1).sqrt();
+        let v2_scale = (self.c.kt / self.q2).sqrt();
         self.v1 = (0..n * l)
             .map(|_| v1_scale * self.gaussian.normal())
             .collect();
@@ -226,13 +226,13 @@ impl Sinr {
         let p = &mut system.state.p;
         for (i, pi) in p.iter_mut().enumerate() {
             let thermo = &mut self.v1[i * l..(i + 1) * l];
-            let bath: f64 = self.ratio * self.q1 * thermo.iter().map(|v| v * v).sum::<f64>();
-            let scale = (self.lkt / (*pi * *pi * self.inverse_mass[i] + bath)).sqrt();
+            let bath: f64 = self.c.ratio * self.c.q1 * thermo.iter().map(|v| v * v).sum::<f64>();
+            let scale = (self.c.lkt / (*pi * *pi * self.inverse_mass[i] + bath)).sqrt();
             *pi *= scale;
             thermo.iter_mut().for_each(|v| *v *= scale);
         }
         self.ou_decay = (-self.friction * dt).exp();
-        self.ou_noise = (-self.kt * (-2.0 * self.friction * dt).exp_m1() / self.q2).sqrt();
+        self.ou_noise = (-self.c.kt * (-2.0 * self.friction * dt).exp_m1() / self.q2).sqrt();
         self.max_violation = 0.0;
         self.min_share = f64::INFINITY;
         self.collapsed = None;
@@ -244,26 +244,13 @@ impl Sinr {
     #[inline]
     fn share(&self, i: usize) -> f64 {
         let l = self.thermostats;
-        let sum: f64 = self.v1[i * l..(i + 1) * l].iter().map(|v| v * v).sum();
-        self.ratio * self.q1 * sum / self.lkt
-    }
-
-    /// The constants a kick or flow reads (copied out so the per-coordinate loops borrow only
-    /// the arrays).
-    fn constants(&self) -> Constants {
-        Constants {
-            q1: self.q1,
-            kt: self.kt,
-            ratio: self.ratio,
-            lkt: self.lkt,
-            over_q2: 1.0 / self.q2,
-        }
+        self.c.share(&self.v1[i * l..(i + 1) * l])
     }
 
     /// The isokinetic force operator `V(t)` with the force `−gradient` (bounded form, see
     /// the module doc). Coordinates with a collapsed thermostat are left as they are.
     pub fn isokinetic_kick(&mut self, p: &mut [f64], gradient: &[f64], t: f64) {
-        let c = self.constants();
+        let c = self.c;
         let (v1, kappa) = (&mut self.v1, &self.kappa);
         let any_collapsed = match self.thermostats {
             1 => lanes::kick::<1>(c, t, p, gradient, v1, kappa),
@@ -279,7 +266,7 @@ impl Sinr {
     /// The thermostat flow `N(δ)`: three Suzuki–Yoshida sub-steps per coordinate (the
     /// coordinates' thermostats are independent, so each runs its sub-steps in turn).
     pub fn thermostat_flow(&mut self, p: &mut [f64], delta: f64) {
-        let c = self.constants();
+        let c = self.c;
         let steps = self.weights.map(|w| w * delta);
         let (v1, v2, w) = (&mut self.v1, &mut self.v2, &self.inverse_mass);
         match self.thermostats {
@@ -300,7 +287,7 @@ impl Sinr {
     fn watch(&mut self, p: &[f64]) {
         for (i, pi) in p.iter().enumerate() {
             let share = self.share(i);
-            let kinetic = pi * pi * self.inverse_mass[i] / self.lkt;
+            let kinetic = pi * pi * self.inverse_mass[i] / self.c.lkt;
             let violation = (kinetic + share - 1.0).abs();
             self.max_violation = self.max_violation.max(violation);
             self.min_share = self.min_share.min(share);
@@ -337,7 +324,7 @@ impl Sinr {
             "sinr bounds each degree of freedom's kinetic energy by L kT: its kinetic \
              temperature is L/(L+1) = {:.4} of the target (L = {}); its positions sample the \
              target temperature, so judge it by configurational quantities (longstep analyze)",
-            self.ratio, self.thermostats
+            self.c.ratio, self.thermostats
         )
     }
 
@@ -345,19 +332,19 @@ impl Sinr {
     pub fn describe(&self) -> String {
         format!(
             ", kT = {}, L = {}, tau = {}, friction = {} (on v2), seed = {}",
-            self.kt, self.thermostats, self.tau, self.friction, self.seed
+            self.c.kt, self.thermostats, self.tau, self.friction, self.seed
         )
     }
 
     /// The summary's `sinr` object.
     pub fn report(&self) -> serde_json::Value {
         serde_json::json!({
-            "kT": self.kt,
+            "kT": self.c.kt,
             "thermostats": self.thermostats,
             "tau": self.tau,
             "friction": self.friction,
             "seed": self.seed,
-            "kinetic_temperature_factor": self.ratio,
+            "kinetic_temperature_factor": self.c.ratio,
             "kinetic_temperature_note": "SIN(R)'s kinetic temperature is L/(L+1) T by construction; judge it by configurational quantities",
             "constraint_max_violation": self.max_violation,
             "smallest_thermostat_share": self.min_share,
@@ -368,11 +355,24 @@ impl Sinr {
 /// What the kick and the flow need besides the arrays.
 #[derive(Clone, Copy)]
 struct Constants {
+    /// `Q1 = kT τ²`.
     q1: f64,
     kt: f64,
+    /// `L/(L+1)`.
     ratio: f64,
+    /// `L kT`.
     lkt: f64,
+    /// `1/Q2`.
     over_q2: f64,
+}
+
+impl Constants {
+    /// `L/(L+1) Σ_k Q1 v1_k² / (L kT)` of one coordinate's thermostats: their share of `L kT`.
+    #[inline(always)]
+    fn share(&self, thermo: &[f64]) -> f64 {
+        let sum: f64 = thermo.iter().map(|v| v * v).sum();
+        self.ratio * self.q1 * sum / self.lkt
+    }
 }
 
 /// One coordinate's isokinetic kick from its force, momentum, bound κ and share; returns
@@ -420,8 +420,7 @@ fn kick_general(
         .zip(kappa);
     for (((pi, gi), thermo), &kappa) in rows {
         let force = -gi;
-        let sum: f64 = thermo.iter().map(|v| v * v).sum();
-        let share = c.ratio * c.q1 * sum / c.lkt;
+        let share = c.share(thermo);
         let stuck = collapsed(share);
         any_collapsed |= stuck && force != 0.0;
         if force == 0.0 || stuck {
@@ -636,7 +635,7 @@ mod tests {
         sinr.kappa = sinr
             .inverse_mass
             .iter()
-            .map(|w| (sinr.lkt / w).sqrt())
+            .map(|w| (sinr.c.lkt / w).sqrt())
             .collect();
         let mut gaussian = Gaussian::new(3, 4);
         let mut p = Vec::with_capacity(n);
@@ -646,7 +645,8 @@ mod tests {
             let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
             p.push(sign * sinr.kappa[i] * (1.0 - share).sqrt());
             sinr.v1.push(
-                gaussian.normal().signum() * (share * sinr.lkt / (sinr.ratio * sinr.q1)).sqrt(),
+                gaussian.normal().signum()
+                    * (share * sinr.c.lkt / (sinr.c.ratio * sinr.c.q1)).sqrt(),
             );
             sinr.v2.push(0.3 * gaussian.normal());
         }
@@ -666,7 +666,7 @@ mod tests {
     #[test]
     fn the_single_thermostat_lanes_match_the_general_loops_bit_for_bit() {
         let (mut sinr, p, gradient) = coordinates();
-        let c = sinr.constants();
+        let c = sinr.c;
         let steps = sinr.weights.map(|w| w * 0.5);
         let (mut p1, mut v1a, mut v2a) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
         let (mut p2, mut v1b, mut v2b) = (p.clone(), sinr.v1.clone(), sinr.v2.clone());
@@ -696,7 +696,7 @@ mod tests {
         type Kick = unsafe fn(Constants, f64, &mut [f64], &[f64], &mut [f64], &[f64]) -> bool;
         type Flow = unsafe fn(Constants, [f64; 3], &mut [f64], &[f64], &mut [f64], &mut [f64]);
         fn run(sinr: &Sinr, p: &[f64], gradient: &[f64], kick: Kick, flow: Flow) -> Vec<u64> {
-            let (c, steps) = (sinr.constants(), sinr.weights.map(|w| w * 0.5));
+            let (c, steps) = (sinr.c, sinr.weights.map(|w| w * 0.5));
             let (mut p, mut v1, mut v2) = (p.to_vec(), sinr.v1.clone(), sinr.v2.clone());
             // SAFETY: only called below for instruction sets the processor was found to have.
             unsafe {
@@ -715,7 +715,7 @@ mod tests {
         four.kappa = one
             .inverse_mass
             .iter()
-            .map(|w| (four.lkt / w).sqrt())
+            .map(|w| (four.c.lkt / w).sqrt())
             .collect();
         four.v1 = one
             .v1
