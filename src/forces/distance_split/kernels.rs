@@ -530,7 +530,7 @@ fn gather_partners(
         let big_r2 = dot(&d, &d);
         sc.partner[partners] = b;
         sc.partner_d[partners] = d;
-        sc.partner_r[partners] = big_r2;
+        sc.partner_r[partners] = big_r2; // R², made R in the next pass
         partners += usize::from(big_r2 < r_out2);
     }
     for p in 0..partners {
