@@ -6,7 +6,7 @@ use clap::{Args, Subcommand};
 
 use super::common::{SCAN_STEPS, or_default, parse_shard, parse_steps, progress_bar};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
-use crate::analysis::modes::{fast_modes, predicted_resonances};
+use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
 use crate::analysis::run_analysis::{Analyzer, RunAnalysis};
 use crate::analysis::sampling::{
     SamplingCriterion, check_reference_temperature, run_sampling_points,
@@ -235,8 +235,16 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
     if let Some(report) = &minimized {
         println!("minimised  {report}");
     }
+    print_curvature_warning(&modes, minimized.is_some());
+    print_modes(&modes);
+    print_resonances(&resonances, lo, hi);
+    Ok(())
+}
+
+/// Modes of negative curvature predict no resonance; the warning says why they are there.
+fn print_curvature_warning(modes: &[Mode], minimized: bool) {
     let unstable = modes.iter().filter(|m| m.unstable).count();
-    if unstable > 0 && minimized.is_some() {
+    if unstable > 0 && minimized {
         // The minimiser minimises all forces; the modes are those of the fast ones alone.
         println!(
             "warning    {unstable} modes have negative curvature: the minimum of all forces \
@@ -249,6 +257,10 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
              minimum of the fast forces (try --minimize)"
         );
     }
+}
+
+/// The table of the twelve fastest oscillating modes.
+fn print_modes(modes: &[Mode]) {
     println!("fastest modes of the fast subsystem (level 0):");
     println!(
         "  {:>4}  {:>14}  {:>14}  {:>9}",
@@ -273,8 +285,12 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
             }
         );
     }
+}
+
+/// The predicted resonant outer steps in `[lo, hi]`, each with the methods it affects.
+fn print_resonances(resonances: &[Resonance], lo: f64, hi: f64) {
     println!("predicted resonant outer steps in [{lo}, {hi}]:");
-    for r in &resonances {
+    for r in resonances {
         let methods: Vec<&str> = ["impulse", "short-average", "linear-average", "long-average"]
             .into_iter()
             .filter(|m| r.kind.affects(m))
@@ -288,7 +304,6 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
             methods.join(", ")
         );
     }
-    Ok(())
 }
 
 /// The methods of a scan: `--methods` and `--method`, in order, at least one.
