@@ -478,6 +478,9 @@ fn map_axis(axis: &Axis, name: &str, meaning: &str) -> (AxisSpec, (f64, f64, usi
     }
 }
 
+/// The colour of stable points in either colouring.
+const STABLE_COLOUR: plotters::style::RGBColor = plotters::style::RGBColor(255, 255, 255);
+
 /// The heat map of a stability map; points not computed (another shard's) show as no data.
 pub fn draw_map(
     path: &Path,
@@ -487,73 +490,9 @@ pub fn draw_map(
     colour: ColourBy,
     title: &str,
 ) -> Result<()> {
-    let stable_colour = plotters::style::RGBColor(255, 255, 255);
     let (values, colouring) = match colour {
-        ColourBy::Radius => {
-            // ρ − 1 for unstable points, 0 (drawn as "stable") for stable ones.
-            let values: Vec<f64> = excesses
-                .iter()
-                .zip(kinds)
-                .map(|(excess, kind)| match kind {
-                    None => f64::NAN,
-                    Some(InstabilityType::Stable) => 0.0,
-                    Some(_) => *excess,
-                })
-                .collect();
-            let positive = values.iter().copied().filter(|v| v.is_finite() && *v > 0.0);
-            let max = positive.clone().fold(f64::NAN, f64::max);
-            let min = positive.fold(f64::NAN, f64::min);
-            let (min, max) = if max.is_finite() {
-                // At most twelve decades: weaker instabilities share the lowest colour.
-                let min = min.max(max * 1e-12);
-                if max > min {
-                    (min, max)
-                } else {
-                    (max / 10.0, max)
-                }
-            } else {
-                (1e-6, 1e-3)
-            };
-            (
-                values,
-                Colouring::Continuous {
-                    label: "spectral radius ρ − 1".into(),
-                    min,
-                    max,
-                    log: true,
-                    below: Some(Category {
-                        value: 0.0,
-                        name: "stable (ρ = 1)".into(),
-                        colour: stable_colour,
-                    }),
-                },
-            )
-        }
-        ColourBy::Type => {
-            let values = kinds
-                .iter()
-                .map(|kind| kind.map_or(f64::NAN, |k| k.code() as f64))
-                .collect();
-            let category = |kind: InstabilityType, name: &str, colour| Category {
-                value: kind.code() as f64,
-                name: name.into(),
-                colour,
-            };
-            use plotters::style::RGBColor;
-            // Stable always, the other categories only where they occur.
-            let present = |kind: InstabilityType| kind.is_stable() || kinds.contains(&Some(kind));
-            let categories = [
-                category(InstabilityType::Stable, "stable", stable_colour),
-                category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
-                category(InstabilityType::Type2, "type 2", RGBColor(31, 119, 180)),
-                category(InstabilityType::Type3, "type 3", RGBColor(44, 160, 44)),
-                category(InstabilityType::Overflow, "overflow", RGBColor(0, 0, 0)),
-            ]
-            .into_iter()
-            .filter(|c| InstabilityType::from_code(c.value as i32).is_some_and(present))
-            .collect();
-            (values, Colouring::Categorical(categories))
-        }
+        ColourBy::Radius => radius_colouring(excesses, kinds),
+        ColourBy::Type => type_colouring(kinds),
     };
     let (x, x_cells) = map_axis(&grid.gamma1, "Γ1", "hΩ1");
     let (y, y_cells) = map_axis(&grid.gamma2, "Γ2", "hΩ2");
@@ -568,4 +507,73 @@ pub fn draw_map(
         size: (1000, 800),
     }
     .save(path)
+}
+
+/// Colour by ρ − 1 on a log scale; stable points (ρ = 1) as their own category.
+fn radius_colouring(excesses: &[f64], kinds: &[Option<InstabilityType>]) -> (Vec<f64>, Colouring) {
+    // ρ − 1 for unstable points, 0 (drawn as "stable") for stable ones.
+    let values: Vec<f64> = excesses
+        .iter()
+        .zip(kinds)
+        .map(|(excess, kind)| match kind {
+            None => f64::NAN,
+            Some(InstabilityType::Stable) => 0.0,
+            Some(_) => *excess,
+        })
+        .collect();
+    let positive = values.iter().copied().filter(|v| v.is_finite() && *v > 0.0);
+    let max = positive.clone().fold(f64::NAN, f64::max);
+    let min = positive.fold(f64::NAN, f64::min);
+    let (min, max) = if max.is_finite() {
+        // At most twelve decades: weaker instabilities share the lowest colour.
+        let min = min.max(max * 1e-12);
+        if max > min {
+            (min, max)
+        } else {
+            (max / 10.0, max)
+        }
+    } else {
+        (1e-6, 1e-3)
+    };
+    (
+        values,
+        Colouring::Continuous {
+            label: "spectral radius ρ − 1".into(),
+            min,
+            max,
+            log: true,
+            below: Some(Category {
+                value: 0.0,
+                name: "stable (ρ = 1)".into(),
+                colour: STABLE_COLOUR,
+            }),
+        },
+    )
+}
+
+/// Colour by the type of instability.
+fn type_colouring(kinds: &[Option<InstabilityType>]) -> (Vec<f64>, Colouring) {
+    let values = kinds
+        .iter()
+        .map(|kind| kind.map_or(f64::NAN, |k| k.code() as f64))
+        .collect();
+    let category = |kind: InstabilityType, name: &str, colour| Category {
+        value: kind.code() as f64,
+        name: name.into(),
+        colour,
+    };
+    use plotters::style::RGBColor;
+    // Stable always, the other categories only where they occur.
+    let present = |kind: InstabilityType| kind.is_stable() || kinds.contains(&Some(kind));
+    let categories = [
+        category(InstabilityType::Stable, "stable", STABLE_COLOUR),
+        category(InstabilityType::Type1, "type 1", RGBColor(214, 39, 40)),
+        category(InstabilityType::Type2, "type 2", RGBColor(31, 119, 180)),
+        category(InstabilityType::Type3, "type 3", RGBColor(44, 160, 44)),
+        category(InstabilityType::Overflow, "overflow", RGBColor(0, 0, 0)),
+    ]
+    .into_iter()
+    .filter(|c| InstabilityType::from_code(c.value as i32).is_some_and(present))
+    .collect();
+    (values, Colouring::Categorical(categories))
 }
