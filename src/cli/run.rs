@@ -15,9 +15,10 @@ use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
 use crate::run::{
-    RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
+    RunOptions, StartReport, TrajectoryOptions, check_seed_used, is_stochastic, run,
+    start_velocities,
 };
-use crate::settings::{RunSpec, Value};
+use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::split::ParticleClass;
 use crate::system::exact::position_error;
 use crate::system::velocities::DegreesOfFreedom;
@@ -167,16 +168,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let t_end = settings.t_end.ok_or_else(|| {
         Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
     })?;
-    let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
-    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
-    for (flag, every) in [
-        ("--energy-every", Some(energy_every)),
-        ("--trajectory-every", trajectory_every),
-    ] {
-        if every == Some(0) {
-            return Err(Error::input(format!("{flag} must be at least 1")));
-        }
-    }
+    let (energy_every, trajectory_every) = output_intervals(args, &scene)?;
     let seed_source = match args.run.seed {
         Some(_) => "--seed",
         None => "the scene's [run] seed",
@@ -190,21 +182,8 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let mut integrator =
         integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
     let start = start_velocities(&mut scene, &settings, &mut notices)?;
-    // The kinetic temperature is recorded in a real scene, and wherever a temperature is
-    // given; a dimensionless scene without one keeps its outputs.
-    let degrees_of_freedom = match &start {
-        Some(start) => Some(start.degrees_of_freedom),
-        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
-        None => None,
-    };
-    if settings.method == "async-pseudo-energy" {
-        // On a scratch copy: the check steps the scene.
-        let mut scratch = load_scene(&args.scene, &args.set)?;
-        notices.extend(crate::analysis::async_stability::band_warning(
-            &mut scratch.system,
-            &settings,
-        ));
-    }
+    let degrees_of_freedom = temperature_degrees_of_freedom(&scene, start.as_ref());
+    notices.extend(async_band_warning(args, &settings)?);
     notices.extend(integrator.notices(&scene.system));
 
     let steps = check_size(args, &scene, &settings, t_end, energy_every)?;
@@ -240,6 +219,48 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         eprintln!("trajectory {}", t.path.display());
     }
     report(args, &summary)
+}
+
+/// Steps between energy rows (default 1) and between trajectory frames (default none):
+/// the flag, else the scene's `[output]` table; each at least 1.
+fn output_intervals(args: &RunArgs, scene: &Scene) -> Result<(usize, Option<usize>)> {
+    let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
+    let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
+    for (flag, every) in [
+        ("--energy-every", Some(energy_every)),
+        ("--trajectory-every", trajectory_every),
+    ] {
+        if every == Some(0) {
+            return Err(Error::input(format!("{flag} must be at least 1")));
+        }
+    }
+    Ok((energy_every, trajectory_every))
+}
+
+/// The degrees of freedom the kinetic temperature is recorded over: in a real scene, and
+/// wherever a temperature is given; a dimensionless scene without one keeps its outputs.
+fn temperature_degrees_of_freedom(
+    scene: &Scene,
+    start: Option<&StartReport>,
+) -> Option<DegreesOfFreedom> {
+    match start {
+        Some(start) => Some(start.degrees_of_freedom),
+        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
+        None => None,
+    }
+}
+
+/// The asynchronous pseudo-energy scheme's warning before it enters an instability band;
+/// checked on a scratch copy of the scene, since the check steps it.
+fn async_band_warning(args: &RunArgs, settings: &MethodSettings) -> Result<Option<String>> {
+    if settings.method != "async-pseudo-energy" {
+        return Ok(None);
+    }
+    let mut scratch = load_scene(&args.scene, &args.set)?;
+    Ok(crate::analysis::async_stability::band_warning(
+        &mut scratch.system,
+        settings,
+    ))
 }
 
 /// `--out`, else the scene's `[output] dir`, else `out/<scene>-<method>`; created here,
@@ -347,7 +368,7 @@ const MAX_OUTPUT_BYTES: f64 = 2e9;
 fn check_size(
     args: &RunArgs,
     scene: &Scene,
-    settings: &crate::settings::MethodSettings,
+    settings: &MethodSettings,
     t_end: f64,
     energy_every: usize,
 ) -> Result<f64> {
