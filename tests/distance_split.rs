@@ -308,6 +308,45 @@ fn short_part_is_the_switched_brute_force_sum_and_parts_add_up() {
     }
 }
 
+/// Waters all of three atoms take the molecule loop compiled for that size; one O–H bond
+/// left out makes a one-atom molecule, so the same box takes the loop for any sizes: both
+/// must be the switched brute-force sum, with gradients that match finite differences.
+#[test]
+fn molecules_of_equal_and_of_mixed_sizes_give_the_switched_sum() {
+    let mut rng = TestRng::new(21);
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    // r_out + 2 Å < L − r_c: the whole-molecule loop.
+    for (label, skipped) in [("equal sizes", None), ("mixed sizes", Some(1))] {
+        let mut spec = water_spec(
+            n,
+            6.0,
+            Electrostatics::DampedShiftedForce { alpha: 0.0 },
+            Some([length; 3]),
+            true,
+        );
+        // Exclusions stay inside molecules: the lone H (atom 2) interacts with its old water.
+        if skipped.is_some() {
+            spec.excluded.retain(|&(i, j)| i != 2 && j != 2);
+        }
+        let kept: Vec<[usize; 2]> = bonds
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| Some(k) != skipped)
+            .map(|(_, &b)| b)
+            .collect();
+        let split = split_spec(SwitchBy::Molecule, 2.5, 3.5, n, &kept);
+        let (short, _) = split_nonbonded(spec.clone(), &split, &q).unwrap();
+        let (expected, _, scale) = brute_force(&spec, &split, &q);
+        let energy = short.energy(&q);
+        assert!(
+            (energy - expected).abs() <= 1e-9 * scale,
+            "{label}: short part {energy} against brute force {expected}"
+        );
+        check_finite_differences(&short, &q, &mut rng, label);
+    }
+}
+
 #[test]
 fn both_parts_match_finite_differences_in_both_modes() {
     let mut rng = TestRng::new(7);

@@ -380,6 +380,8 @@ pub(crate) struct Molecules {
     pub reference_slot: Vec<u32>,
     /// Type of each atom of `atoms`.
     pub types: Vec<u32>,
+    /// The atom count of every molecule when they all have the same, else 0.
+    pub uniform_size: usize,
 }
 
 impl Molecules {
@@ -511,6 +513,7 @@ impl ShortRange {
                 reference: Vec::new(),
                 reference_slot: Vec::new(),
                 types: Vec::new(),
+                uniform_size: 0,
             },
         };
         let points = match split.by {
@@ -1029,7 +1032,10 @@ fn molecule_table(n: usize, split: &SplitSpec, types: &[u32]) -> Result<Molecule
         slot_of[a as usize] = k as u32;
     }
     let reference_slot = split.reference_atoms.iter().map(|&r| slot_of[r]).collect();
+    let first = start.get(1).copied().unwrap_or(0);
+    let uniform = start.windows(2).all(|w| w[1] - w[0] == first);
     Ok(Molecules {
+        uniform_size: if uniform { first as usize } else { 0 },
         start,
         reference: split.reference_atoms.iter().map(|&r| r as u32).collect(),
         reference_slot,

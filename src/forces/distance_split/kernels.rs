@@ -344,9 +344,28 @@ impl Scratch {
 
 /// Molecule pairs over whole molecules (`packed`: `[x, y, z, q√k_e]` in molecule order,
 /// each atom at the image nearest its reference), row by row: each run of list entries
-/// with the same first molecule is one row ([`whole_molecule_row`]).
+/// with the same first molecule is one row ([`whole_molecule_row`]). Molecules that all
+/// have 3 or 4 atoms (water models) take a copy of the loops with that size fixed at
+/// compile time, so the per-partner copies and sums unroll: the same operations in the
+/// same order, so the same bits.
 #[inline(always)]
 pub(super) fn whole_molecule_rows<const GRADIENT: bool>(
+    short: &ShortRange,
+    packed: &[[f64; 4]],
+    pairs: &[[u32; 2]],
+    scratch: &mut Scratch,
+    buffer: &mut [f64],
+) -> f64 {
+    match short.molecules.uniform_size {
+        3 => rows_of::<GRADIENT, 3>(short, packed, pairs, scratch, buffer),
+        4 => rows_of::<GRADIENT, 4>(short, packed, pairs, scratch, buffer),
+        _ => rows_of::<GRADIENT, 0>(short, packed, pairs, scratch, buffer),
+    }
+}
+
+/// [`whole_molecule_rows`] for molecules of `M` atoms each (`M = 0`: any sizes).
+#[inline(always)]
+fn rows_of<const GRADIENT: bool, const M: usize>(
     short: &ShortRange,
     packed: &[[f64; 4]],
     pairs: &[[u32; 2]],
@@ -358,7 +377,7 @@ pub(super) fn whole_molecule_rows<const GRADIENT: bool>(
     while start < pairs.len() {
         let a = pairs[start][0];
         let end = start + pairs[start..].iter().take_while(|p| p[0] == a).count();
-        energy += whole_molecule_row::<GRADIENT>(
+        energy += whole_molecule_row::<GRADIENT, M>(
             short,
             packed,
             a as usize,
@@ -371,13 +390,24 @@ pub(super) fn whole_molecule_rows<const GRADIENT: bool>(
     energy
 }
 
+/// The slots of molecule `m` in molecule order: `M m ..` when every molecule has `M`
+/// atoms (a constant the loops over them unroll on), else from the table.
+#[inline(always)]
+fn slots<const M: usize>(start: &[u32], m: usize) -> std::ops::Range<usize> {
+    if M > 0 {
+        M * m..M * m + M
+    } else {
+        start[m] as usize..start[m + 1] as usize
+    }
+}
+
 /// One row molecule `a` against its listed partners: gather the partners inside `r_out`
 /// and their atoms; for each atom of `a` one branch-free pass over all partner atoms (the
 /// cutoff is a 0/1 factor, so it vectorises) that adds each pair's energy and gradient to
 /// the partner atom's sums; then the sums per partner molecule, the scatter of the partner
 /// atoms' forces (once per row molecule), and the switch's force on the reference atoms.
 #[inline(always)]
-fn whole_molecule_row<const GRADIENT: bool>(
+fn whole_molecule_row<const GRADIENT: bool, const M: usize>(
     short: &ShortRange,
     packed: &[[f64; 4]],
     a: usize,
@@ -385,18 +415,32 @@ fn whole_molecule_row<const GRADIENT: bool>(
     sc: &mut Scratch,
     buffer: &mut [f64],
 ) -> f64 {
-    let model = &short.model;
-    let molecules = &short.molecules;
-    let n = gather_partners(short, packed, a, group, sc);
-    let partners = sc.partner_count;
-    if partners == 0 {
+    let n = gather_partners::<M>(short, packed, a, group, sc);
+    if sc.partner_count == 0 {
         return 0.0;
     }
     sc.energy_sum[..n].fill(0.0);
     for g in &mut sc.gradient_sum {
         g[..n].fill(0.0);
     }
-    let atoms_a = molecules.start[a] as usize..molecules.start[a + 1] as usize;
+    row_atom_passes::<GRADIENT, M>(short, packed, a, n, sc, buffer);
+    partner_sums::<GRADIENT, M>(short, a, sc, buffer)
+}
+
+/// For each atom of row molecule `a`, its pairs with the `n` gathered partner atoms into
+/// the partner atoms' sums, and its own gradient into `buffer`.
+#[inline(always)]
+fn row_atom_passes<const GRADIENT: bool, const M: usize>(
+    short: &ShortRange,
+    packed: &[[f64; 4]],
+    a: usize,
+    n: usize,
+    sc: &mut Scratch,
+    buffer: &mut [f64],
+) {
+    let model = &short.model;
+    let molecules = &short.molecules;
+    let atoms_a = slots::<M>(&molecules.start, a);
     let row_atoms = packed[atoms_a.clone()]
         .iter()
         .zip(&molecules.types[atoms_a.clone()])
@@ -425,10 +469,27 @@ fn whole_molecule_row<const GRADIENT: bool>(
             }
         }
     }
+}
+
+/// Per gathered partner of row molecule `a`: its pair energy `E_IJ` (returned summed as
+/// `Σ S E_IJ`), the scatter of its atoms' gradient sums, and the switch's force
+/// `E_IJ S′ ∇R` on the two reference atoms.
+#[inline(always)]
+fn partner_sums<const GRADIENT: bool, const M: usize>(
+    short: &ShortRange,
+    a: usize,
+    sc: &Scratch,
+    buffer: &mut [f64],
+) -> f64 {
+    let molecules = &short.molecules;
     let mut energy = 0.0;
     let reference_a = molecules.reference[a] as usize;
-    for p in 0..partners {
-        let slots = sc.partner_start[p] as usize..sc.partner_start[p + 1] as usize;
+    for p in 0..sc.partner_count {
+        let slots = if M > 0 {
+            M * p..M * p + M
+        } else {
+            sc.partner_start[p] as usize..sc.partner_start[p + 1] as usize
+        };
         let pair_energy: f64 = sc.energy_sum[slots.clone()].iter().sum();
         if GRADIENT {
             let [gx, gy, gz] = &sc.gradient_sum;
@@ -446,8 +507,7 @@ fn whole_molecule_row<const GRADIENT: bool>(
         energy += sc.partner_s[p] * pair_energy;
         if GRADIENT && sc.partner_s1[p] != 0.0 {
             let k = pair_energy * sc.partner_s1[p] / sc.partner_r[p];
-            let b = sc.partner[p] as usize;
-            let reference_b = molecules.reference[b] as usize;
+            let reference_b = molecules.reference[sc.partner[p] as usize] as usize;
             add_pair(
                 buffer,
                 reference_a,
@@ -508,7 +568,7 @@ fn sum_in_lanes(x: &[f64]) -> f64 {
 /// The partners of row molecule `a` inside `r_out` into `sc` (count in `partner_count`)
 /// and their atoms, shifted to `a`'s image; returns the number of partner atoms.
 #[inline(always)]
-fn gather_partners(
+fn gather_partners<const M: usize>(
     short: &ShortRange,
     packed: &[[f64; 4]],
     a: usize,
@@ -547,7 +607,7 @@ fn gather_partners(
         let shift: [f64; 3] = std::array::from_fn(|c| d[c] - (xb[c] - xa[c]));
         sc.partner_start[p] = atoms as u32;
         // The partner's atoms are contiguous in molecule order: copy them as blocks.
-        let source = molecules.start[b] as usize..molecules.start[b + 1] as usize;
+        let source = slots::<M>(&molecules.start, b);
         let slots = atoms..atoms + source.len();
         let from = &packed[source.clone()];
         for c in 0..3 {
