@@ -26,6 +26,8 @@ NINE = "systems/water-box/scene.toml"
 NINE_SPLIT = "systems/water-box/three-level.toml"
 TWELVE = "systems/water-box/long-cutoff.toml"
 TWELVE_SPLIT = "systems/water-box/long-cutoff-three-level-wide.toml"
+FIFTEEN = "systems/water-box/long-cutoff-15.toml"
+FIFTEEN_SPLIT = "systems/water-box/long-cutoff-15-three-level-wide.toml"
 SINR = "--method sinr --thermostats 1 --temperature 300K --tau"
 LANGEVIN = "--method langevin-respa --temperature 300K"
 
@@ -37,6 +39,8 @@ CASES = [
     ("12 A", "langevin-respa 2 fs / 0.5 fs", TWELVE, f"{LANGEVIN} --h 2fs --inner 4", 1),
     ("12 A", "sinr 50 fs (25,2), 7-8.5 A", TWELVE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 1),
     ("12 A", "sinr 48 fs (16,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
+    ("15 A", "langevin-respa 2 fs / 0.5 fs", FIFTEEN, f"{LANGEVIN} --h 2fs --inner 4", 1),
+    ("15 A", "sinr 48 fs (16,3), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
 ]
 
 
