@@ -60,6 +60,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use rayon::prelude::*;
 
 use super::nonbonded::{CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use super::simd::Isa;
 use super::{ForceTerm, TermClass};
 use search::PairSearch;
 
@@ -426,6 +427,8 @@ pub struct ShortRange {
     excluded_start: Vec<u32>,
     excluded_partners: Vec<u32>,
     chunks: usize,
+    /// The instruction set the pair loops are compiled for (the widest there is).
+    isa: Isa,
     listed_atom_pairs: AtomicUsize,
     workspace: Mutex<Workspace>,
 }
@@ -476,25 +479,6 @@ pub fn split_nonbonded(
     ))
 }
 
-/// [`ShortRange::evaluate_body`] compiled for one instruction set (chosen at run time).
-macro_rules! evaluate_for {
-    ($name:ident, $feature:literal) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $feature)]
-        fn $name(
-            &self,
-            q: &[f64],
-            mode: Mode,
-            part: &[[u32; 2]],
-            by: SwitchBy,
-            whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
-            buffer: &mut [f64],
-        ) -> f64 {
-            self.evaluate_body(q, mode, part, by, whole, buffer)
-        }
-    };
-}
-
 impl ShortRange {
     fn new(
         spec: &NonbondedSpec,
@@ -530,6 +514,7 @@ impl ShortRange {
             excluded_start,
             excluded_partners,
             chunks,
+            isa: Isa::best(),
             listed_atom_pairs: AtomicUsize::new(0),
             workspace: Mutex::new(Self::workspace(spec, switch, split.by, points, chunks)),
         };
@@ -793,8 +778,9 @@ impl ShortRange {
     }
 
     /// The pairs `part` of the list, switched `by` molecule or atom pair; `whole`: whole
-    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Uses AVX2 when the processor has it (the
-    /// same operations in the same order, so the same bits; `round` becomes inline).
+    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Compiled for
+    /// the widest instruction set there is (the same operations in the same order, so the
+    /// same bits; `round` becomes inline).
     fn evaluate(
         &self,
         q: &[f64],
@@ -804,22 +790,11 @@ impl ShortRange {
         whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
         buffer: &mut [f64],
     ) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the processor supports AVX-512F, checked just above.
-                return unsafe { self.evaluate_avx512(q, mode, part, by, whole, buffer) };
-            }
-            if std::is_x86_feature_detected!("avx2") {
-                // SAFETY: the processor supports AVX2, checked just above.
-                return unsafe { self.evaluate_avx2(q, mode, part, by, whole, buffer) };
-            }
-        }
-        self.evaluate_body(q, mode, part, by, whole, buffer)
+        self.isa.run(
+            #[inline(always)]
+            || self.evaluate_body(q, mode, part, by, whole, buffer),
+        )
     }
-
-    evaluate_for!(evaluate_avx512, "avx512f");
-    evaluate_for!(evaluate_avx2, "avx2");
 
     #[inline(always)]
     fn evaluate_body(

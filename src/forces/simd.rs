@@ -214,9 +214,31 @@ impl Isa {
         }
     }
 
-    /// The widest available.
+    /// The widest available (no allocation: callers may ask once per step).
     pub fn best() -> Isa {
-        *Isa::available().last().unwrap_or(&Isa::Portable)
+        [Isa::Avx512, Isa::Avx2]
+            .into_iter()
+            .find(|isa| isa.is_available())
+            .unwrap_or(Isa::Portable)
+    }
+
+    /// `f` with its body compiled for this instruction set: `f` is inlined into a function
+    /// with the set's target features, so its loops vectorise for it (mark the closure
+    /// `#[inline(always)]`, and what it calls). Rust never fuses a multiply and an add on
+    /// its own, so plain arithmetic gives the same bits on every set. Panics if the
+    /// processor lacks the set.
+    #[inline(always)]
+    pub fn run<R>(self, f: impl FnOnce() -> R) -> R {
+        assert!(self.is_available(), "{} is not available", self.name());
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 and FMA are available (asserted above).
+            Isa::Avx2 => unsafe { run_avx2(f) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX-512 F, VL and DQ are available (asserted above).
+            Isa::Avx512 => unsafe { run_avx512(f) },
+            _ => f(),
+        }
     }
 
     pub fn name(self) -> &'static str {
@@ -232,6 +254,20 @@ impl Isa {
             .into_iter()
             .find(|isa| isa.name() == name)
     }
+}
+
+/// [`Isa::run`]'s copy for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// [`Isa::run`]'s copy for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
+    f()
 }
 
 /// Plain arrays of four: the reference path, on any processor.

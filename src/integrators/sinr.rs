@@ -59,6 +59,7 @@ use super::StepFailure;
 use super::lane_exp;
 use super::langevin::{Gaussian, required_kt};
 use crate::error::{Error, Result};
+use crate::forces::simd::Isa;
 use crate::settings::MethodSettings;
 use crate::system::System;
 use crate::units::Units;
@@ -90,6 +91,7 @@ fn suzuki_yoshida() -> [f64; 3] {
     [w1, 1.0 - 2.0 * w1, w1]
 }
 
+#[derive(Clone)]
 pub struct Sinr {
     thermostats: usize,
     tau: f64,
@@ -100,6 +102,8 @@ pub struct Sinr {
     /// kT, `Q1`, `L kT`, `L/(L+1)`, `1/Q2`: what the kick and the flow read.
     c: Constants,
     weights: [f64; 3],
+    /// The instruction set the kick and the flow are compiled for (the widest there is).
+    isa: Isa,
     gaussian: Gaussian,
     /// `v1[i L + k]`, `v2[i L + k]`: thermostat pair k of coordinate i.
     v1: Vec<f64>,
@@ -137,6 +141,7 @@ impl Sinr {
                 over_q2: 1.0 / q,
             },
             weights: suzuki_yoshida(),
+            isa: Isa::best(),
             gaussian: Gaussian::new(seed, SALT),
             v1: Vec::new(),
             v2: Vec::new(),
@@ -253,8 +258,14 @@ impl Sinr {
         let c = self.c;
         let (v1, kappa) = (&mut self.v1, &self.kappa);
         let any_collapsed = match self.thermostats {
-            1 => lanes::kick::<1>(c, t, p, gradient, v1, kappa),
-            4 => lanes::kick::<4>(c, t, p, gradient, v1, kappa),
+            1 => self.isa.run(
+                #[inline(always)]
+                || lanes::kick::<1>(c, t, p, gradient, v1, kappa),
+            ),
+            4 => self.isa.run(
+                #[inline(always)]
+                || lanes::kick::<4>(c, t, p, gradient, v1, kappa),
+            ),
             l => kick_general(c, t, l, p, gradient, v1, kappa),
         };
         if any_collapsed && self.collapsed.is_none() {
@@ -270,8 +281,14 @@ impl Sinr {
         let steps = self.weights.map(|w| w * delta);
         let (v1, v2, w) = (&mut self.v1, &mut self.v2, &self.inverse_mass);
         match self.thermostats {
-            1 => lanes::flow::<1>(c, steps, p, w, v1, v2),
-            4 => lanes::flow::<4>(c, steps, p, w, v1, v2),
+            1 => self.isa.run(
+                #[inline(always)]
+                || lanes::flow::<1>(c, steps, p, w, v1, v2),
+            ),
+            4 => self.isa.run(
+                #[inline(always)]
+                || lanes::flow::<4>(c, steps, p, w, v1, v2),
+            ),
             l => flow_general(c, steps, l, p, w, v1, v2),
         }
     }
@@ -472,59 +489,19 @@ fn flow_general(
     }
 }
 
-/// The kick and the flow for L fixed at compile time, compiled for AVX-512 and AVX2 and
-/// chosen at run time (portable otherwise). L = 1 (the usual choice) has its own loops: the
-/// same arithmetic as [`kick_general`] and [`flow_general`], bit for bit, written without
+/// The kick and the flow for L fixed at compile time, inlined into the copy for the chosen
+/// instruction set by [`Isa::run`]. L = 1 (the usual choice) has its own loops: the same
+/// arithmetic as [`kick_general`] and [`flow_general`], bit for bit, written without
 /// branches so each loop over coordinates runs in SIMD lanes. Other L run the general loops
 /// with L a constant, so a coordinate's thermostats are one vector. No fused multiply-add
-/// anywhere: every path gives the same bits.
+/// anywhere: every instruction set gives the same bits.
 mod lanes {
     use super::{Constants, collapsed, kick_one, lane_exp};
 
-    macro_rules! dispatch {
-        ($body:ident::<$l:ident>( $($arg:expr),* )) => {{
-            #[cfg(target_arch = "x86_64")]
-            {
-                if std::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the processor has AVX-512F, checked just above.
-                    return unsafe { avx512::$body::<$l>($($arg),*) };
-                }
-                if std::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the processor has AVX2, checked just above.
-                    return unsafe { avx2::$body::<$l>($($arg),*) };
-                }
-            }
-            $body::<$l>($($arg),*)
-        }};
-    }
-
     /// The kick with L thermostats per coordinate; true if a coordinate with a force has a
     /// collapsed thermostat.
-    pub(super) fn kick<const L: usize>(
-        c: Constants,
-        t: f64,
-        p: &mut [f64],
-        gradient: &[f64],
-        v1: &mut [f64],
-        kappa: &[f64],
-    ) -> bool {
-        dispatch!(kick_body::<L>(c, t, p, gradient, v1, kappa))
-    }
-
-    /// The thermostat flow with L thermostats per coordinate.
-    pub(super) fn flow<const L: usize>(
-        c: Constants,
-        steps: [f64; 3],
-        p: &mut [f64],
-        inverse_mass: &[f64],
-        v1: &mut [f64],
-        v2: &mut [f64],
-    ) {
-        dispatch!(flow_body::<L>(c, steps, p, inverse_mass, v1, v2))
-    }
-
     #[inline(always)]
-    pub(super) fn kick_body<const L: usize>(
+    pub(super) fn kick<const L: usize>(
         c: Constants,
         t: f64,
         p: &mut [f64],
@@ -550,8 +527,9 @@ mod lanes {
         any_collapsed
     }
 
+    /// The thermostat flow with L thermostats per coordinate.
     #[inline(always)]
-    pub(super) fn flow_body<const L: usize>(
+    pub(super) fn flow<const L: usize>(
         c: Constants,
         steps: [f64; 3],
         p: &mut [f64],
@@ -582,42 +560,6 @@ mod lanes {
             (*pi, *a, *b) = (p, a_, b_);
         }
     }
-
-    /// The bodies compiled for one instruction set.
-    macro_rules! compiled_for {
-        ($module:ident, $feature:literal) => {
-            #[cfg(target_arch = "x86_64")]
-            pub(super) mod $module {
-                use super::Constants;
-
-                #[target_feature(enable = $feature)]
-                pub(crate) fn kick_body<const L: usize>(
-                    c: Constants,
-                    t: f64,
-                    p: &mut [f64],
-                    gradient: &[f64],
-                    v1: &mut [f64],
-                    kappa: &[f64],
-                ) -> bool {
-                    super::kick_body::<L>(c, t, p, gradient, v1, kappa)
-                }
-
-                #[target_feature(enable = $feature)]
-                pub(crate) fn flow_body<const L: usize>(
-                    c: Constants,
-                    steps: [f64; 3],
-                    p: &mut [f64],
-                    inverse_mass: &[f64],
-                    v1: &mut [f64],
-                    v2: &mut [f64],
-                ) {
-                    super::flow_body::<L>(c, steps, p, inverse_mass, v1, v2)
-                }
-            }
-        };
-    }
-    compiled_for!(avx2, "avx2");
-    compiled_for!(avx512, "avx512f");
 }
 
 #[cfg(test)]
@@ -693,20 +635,16 @@ mod tests {
     /// (the branch-free loops) and L = 4 (the general loops with L constant).
     #[test]
     fn every_instruction_set_gives_the_portable_bits() {
-        type Kick = unsafe fn(Constants, f64, &mut [f64], &[f64], &mut [f64], &[f64]) -> bool;
-        type Flow = unsafe fn(Constants, [f64; 3], &mut [f64], &[f64], &mut [f64], &mut [f64]);
-        fn run(sinr: &Sinr, p: &[f64], gradient: &[f64], kick: Kick, flow: Flow) -> Vec<u64> {
-            let (c, steps) = (sinr.c, sinr.weights.map(|w| w * 0.5));
-            let (mut p, mut v1, mut v2) = (p.to_vec(), sinr.v1.clone(), sinr.v2.clone());
-            // SAFETY: only called below for instruction sets the processor was found to have.
-            unsafe {
-                kick(c, 2.0, &mut p, gradient, &mut v1, &sinr.kappa);
-                flow(c, steps, &mut p, &sinr.inverse_mass, &mut v1, &mut v2);
-            }
+        fn run(sinr: &Sinr, p: &[f64], gradient: &[f64], isa: Isa) -> Vec<u64> {
+            let mut sinr = sinr.clone();
+            sinr.isa = isa;
+            let mut p = p.to_vec();
+            sinr.isokinetic_kick(&mut p, gradient, 2.0);
+            sinr.thermostat_flow(&mut p, 0.5);
             bits(&p)
                 .into_iter()
-                .chain(bits(&v1))
-                .chain(bits(&v2))
+                .chain(bits(&sinr.v1))
+                .chain(bits(&sinr.v2))
                 .collect()
         }
         let (one, p, gradient) = coordinates();
@@ -723,39 +661,30 @@ mod tests {
             .flat_map(|v| [0.5 * v, -0.5 * v, 0.3 * v, 0.1])
             .collect();
         four.v2 = one.v2.iter().flat_map(|v| [*v, -v, 0.5 * v, 0.0]).collect();
-        let portable_one = run(
-            &one,
-            &p,
-            &gradient,
-            lanes::kick_body::<1>,
-            lanes::flow_body::<1>,
-        );
-        let portable_four = run(
-            &four,
-            &p,
-            &gradient,
-            lanes::kick_body::<4>,
-            lanes::flow_body::<4>,
-        );
-        #[cfg(target_arch = "x86_64")]
-        {
-            let mut checked = 0;
-            if std::is_x86_feature_detected!("avx2") {
-                let (k1, f1) = (lanes::avx2::kick_body::<1>, lanes::avx2::flow_body::<1>);
-                let (k4, f4) = (lanes::avx2::kick_body::<4>, lanes::avx2::flow_body::<4>);
-                assert_eq!(run(&one, &p, &gradient, k1, f1), portable_one);
-                assert_eq!(run(&four, &p, &gradient, k4, f4), portable_four);
-                checked += 1;
-            }
-            if std::is_x86_feature_detected!("avx512f") {
-                let (k1, f1) = (lanes::avx512::kick_body::<1>, lanes::avx512::flow_body::<1>);
-                let (k4, f4) = (lanes::avx512::kick_body::<4>, lanes::avx512::flow_body::<4>);
-                assert_eq!(run(&one, &p, &gradient, k1, f1), portable_one);
-                assert_eq!(run(&four, &p, &gradient, k4, f4), portable_four);
-                checked += 1;
-            }
-            eprintln!("SIMD builds checked against the portable one: {checked}");
+        let portable_one = run(&one, &p, &gradient, Isa::Portable);
+        let portable_four = run(&four, &p, &gradient, Isa::Portable);
+        let others: Vec<Isa> = Isa::available()
+            .into_iter()
+            .filter(|&isa| isa != Isa::Portable)
+            .collect();
+        for &isa in &others {
+            assert_eq!(
+                run(&one, &p, &gradient, isa),
+                portable_one,
+                "{}",
+                isa.name()
+            );
+            assert_eq!(
+                run(&four, &p, &gradient, isa),
+                portable_four,
+                "{}",
+                isa.name()
+            );
         }
+        eprintln!(
+            "SIMD builds checked against the portable one: {}",
+            others.len()
+        );
     }
 
     /// Kick and flow keep every coordinate on its constraint to round-off.
