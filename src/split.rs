@@ -201,31 +201,6 @@ impl ForceSplit {
         self.counts.gradient[level] += 1;
     }
 
-    /// `gradient += ∇V_T(q)` for a subset `terms` (indices into [`ForceSplit::terms`]) of
-    /// the terms on `level`: one evaluation of the level when the subset is not empty, and
-    /// its terms' interactions.
-    pub fn add_terms_gradient(
-        &mut self,
-        level: usize,
-        terms: &[usize],
-        q: &[f64],
-        gradient: &mut [f64],
-    ) {
-        if terms.is_empty() {
-            return;
-        }
-        for &t in terms {
-            debug_assert_eq!(
-                self.terms[t].level, level,
-                "term {t} is not on level {level}"
-            );
-            let term = &self.terms[t].term;
-            term.add_gradient(q, gradient);
-            self.counts.interactions += term.interaction_count() as u64;
-        }
-        self.counts.gradient[level] += 1;
-    }
-
     /// A fixed selection of terms (indices into [`ForceSplit::terms`]) from any levels, for
     /// [`ForceSplit::add_set_gradient`].
     pub fn term_set(&self, terms: &[usize]) -> TermSet {
@@ -238,9 +213,8 @@ impl ForceSplit {
         }
     }
 
-    /// `gradient += ∇V_set(q)`: one evaluation of every level the set draws from (as
-    /// [`ForceSplit::add_terms_gradient`] on each level's part, in one call), and its terms'
-    /// interactions. The asynchronous pseudo-energy scheme's fine grid (MEMM18 (20)–(22):
+    /// `gradient += ∇V_set(q)`: one evaluation of every level the set draws from, and its
+    /// terms' interactions. The asynchronous pseudo-energy scheme's fine grid (MEMM18 (20)–(22):
     /// the fast level and the slow terms touching mixed particles) is one set, evaluated
     /// without a per-level loop — on a small chain that loop cost as much as the terms.
     pub fn add_set_gradient(&mut self, set: &TermSet, q: &[f64], gradient: &mut [f64]) {
