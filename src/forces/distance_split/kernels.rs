@@ -390,8 +390,8 @@ fn rows_of<const GRADIENT: bool, const M: usize>(
     energy
 }
 
-/// The slots of molecule `m` in molecule order: `M m ..` when every molecule has `M`
-/// atoms (a constant the loops over them unroll on), else from the table.
+/// The slots of molecule (or gathered partner) `m`: `M m ..` when every molecule has `M`
+/// atoms (a constant the loops over them unroll on), else from its table of starts.
 #[inline(always)]
 fn slots<const M: usize>(start: &[u32], m: usize) -> std::ops::Range<usize> {
     if M > 0 {
@@ -485,11 +485,7 @@ fn partner_sums<const GRADIENT: bool, const M: usize>(
     let mut energy = 0.0;
     let reference_a = molecules.reference[a] as usize;
     for p in 0..sc.partner_count {
-        let slots = if M > 0 {
-            M * p..M * p + M
-        } else {
-            sc.partner_start[p] as usize..sc.partner_start[p + 1] as usize
-        };
+        let slots = slots::<M>(&sc.partner_start, p);
         let pair_energy: f64 = sc.energy_sum[slots.clone()].iter().sum();
         if GRADIENT {
             let [gx, gy, gz] = &sc.gradient_sum;
