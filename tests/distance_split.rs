@@ -308,16 +308,22 @@ fn short_part_is_the_switched_brute_force_sum_and_parts_add_up() {
     }
 }
 
-/// Waters all of three atoms take the molecule loop compiled for that size; one O–H bond
-/// left out makes a one-atom molecule, so the same box takes the loop for any sizes: both
-/// must be the switched brute-force sum, with gradients that match finite differences.
+/// Waters of one kind take the SIMD molecule blocks; waters of two kinds (one molecule's
+/// charges moved) the row loop compiled for three atoms; one O–H bond left out makes a
+/// one-atom molecule, so the same box takes the row loop for any sizes: each must be the
+/// switched brute-force sum, with gradients that match finite differences.
 #[test]
-fn molecules_of_equal_and_of_mixed_sizes_give_the_switched_sum() {
+fn molecules_of_one_kind_of_two_and_of_mixed_sizes_give_the_switched_sum() {
     let mut rng = TestRng::new(21);
     let (q, bonds, length) = waters(4, 60, &mut rng);
     let n = q.len() / 3;
-    // r_out + 2 Å < L − r_c: the whole-molecule loop.
-    for (label, skipped) in [("equal sizes", None), ("mixed sizes", Some(1))] {
+    // r_out + 2 Å < L − r_c: the whole-molecule loops.
+    let cases = [
+        ("one kind", None, false, "molecule blocks"),
+        ("two kinds", None, true, "molecule rows"),
+        ("mixed sizes", Some(1), false, "molecule rows"),
+    ];
+    for (label, skipped, two_kinds, pair_loop) in cases {
         let mut spec = water_spec(
             n,
             6.0,
@@ -325,6 +331,12 @@ fn molecules_of_equal_and_of_mixed_sizes_give_the_switched_sum() {
             Some([length; 3]),
             true,
         );
+        if two_kinds {
+            // The last water becomes another neutral kind.
+            spec.charges[n - 3] *= 0.9;
+            spec.charges[n - 2] *= 0.9;
+            spec.charges[n - 1] *= 0.9;
+        }
         // Exclusions stay inside molecules: the lone H (atom 2) interacts with its old water.
         if skipped.is_some() {
             spec.excluded.retain(|&(i, j)| i != 2 && j != 2);
@@ -337,6 +349,7 @@ fn molecules_of_equal_and_of_mixed_sizes_give_the_switched_sum() {
             .collect();
         let split = split_spec(SwitchBy::Molecule, 2.5, 3.5, n, &kept);
         let (short, _) = split_nonbonded(spec.clone(), &split, &q).unwrap();
+        assert_eq!(short.short_range().pair_loop(), pair_loop, "{label}");
         let (expected, _, scale) = brute_force(&spec, &split, &q);
         let energy = short.energy(&q);
         assert!(
@@ -344,6 +357,49 @@ fn molecules_of_equal_and_of_mixed_sizes_give_the_switched_sum() {
             "{label}: short part {energy} against brute force {expected}"
         );
         check_finite_differences(&short, &q, &mut rng, label);
+    }
+}
+
+/// The SIMD molecule blocks give the portable lanes' bits on every instruction set here
+/// (energy and gradient; `1/r` by integer seed and Newton steps, sums in a fixed lane order).
+#[test]
+fn molecule_blocks_give_the_same_bits_on_every_instruction_set() {
+    let mut rng = TestRng::new(23);
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    let available = longstep::forces::simd::Isa::available();
+    for electrostatics in [
+        Electrostatics::DampedShiftedForce { alpha: 0.0 },
+        Electrostatics::DampedShiftedForce { alpha: 0.2 },
+        Electrostatics::ReactionField { dielectric: 78.0 },
+    ] {
+        let spec = water_spec(n, 6.0, electrostatics, Some([length; 3]), true);
+        // r_in 2.5 < R < r_out 3.5 puts many pairs on the switch's slope.
+        let split = split_spec(SwitchBy::Molecule, 2.5, 3.5, n, &bonds);
+        let (short, _) = split_nonbonded(spec, &split, &q).unwrap();
+        let range = short.short_range();
+        assert_eq!(range.pair_loop(), "molecule blocks");
+        let mut results = Vec::new();
+        for &isa in &available {
+            range.set_isa(isa);
+            let g = gradient(&short, &q);
+            results.push((
+                isa,
+                short.energy(&q).to_bits(),
+                g.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            ));
+        }
+        let (_, e0, g0) = &results[0];
+        for (isa, e, g) in &results[1..] {
+            assert_eq!(
+                e, e0,
+                "{electrostatics:?}: energy on {isa:?} against portable"
+            );
+            assert!(
+                g == g0,
+                "{electrostatics:?}: gradient on {isa:?} against portable"
+            );
+        }
     }
 }
 

@@ -41,7 +41,11 @@
 //! radial: `W′ = S′V + SV′`, `W″ = S″V + 2S′V′ + SV″`, and the radial Hessian of
 //! [`super::nonbonded`] applies.
 //!
-//! **Cost.** The short part has its own pair search ([`search`]): molecule pairs whose
+//! **Cost.** By molecule in a box of one kind of molecule of at most four atoms (water
+//! models), each listed molecule pair inside `r_out` is one SIMD block of 4 × 4 atom pairs
+//! with one switch value ([`lanes`]: about 7 ns per atom pair on the 12 Å water box, where
+//! the row loop of [`kernels`], which takes any molecules, needed about 11). The short part
+//! has its own pair search ([`search`]): molecule pairs whose
 //! reference atoms are closer than `r_out + skin` (or atom pairs, by atom pair), rebuilt
 //! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
 //! (a number that depends only on the atom count), in parallel for large systems, each into
@@ -52,13 +56,15 @@
 //! not two.
 
 mod kernels;
+mod lanes;
 mod search;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use rayon::prelude::*;
 
+use super::clusters::Cluster;
 use super::nonbonded::{CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use super::simd::Isa;
 use super::{ForceTerm, TermClass};
@@ -392,6 +398,13 @@ impl Molecules {
     }
 }
 
+/// Whole molecules for one chunk: packed atoms, clusters (one molecule kind) and scratch.
+struct Whole<'a> {
+    packed: &'a [[f64; 4]],
+    clusters: &'a [Cluster<f64>],
+    scratch: &'a mut kernels::Scratch,
+}
+
 /// What one evaluation computes.
 #[derive(Clone, Copy)]
 enum Mode<'a> {
@@ -405,6 +418,8 @@ struct Workspace {
     /// By molecule: `[x, y, z, q√k_e]` per atom in molecule order, each atom at the image
     /// nearest its reference atom (molecules made whole).
     packed: Vec<[f64; 4]>,
+    /// By molecule, one kind of molecule: each molecule as a cluster for [`lanes`].
+    clusters: Vec<Cluster<f64>>,
     /// One scratch per chunk for the whole-molecule loop.
     scratch: Vec<kernels::Scratch>,
     /// One gradient (or Hessian-vector) buffer per chunk, `n × 3` each.
@@ -427,11 +442,17 @@ pub struct ShortRange {
     excluded_start: Vec<u32>,
     excluded_partners: Vec<u32>,
     chunks: usize,
-    /// The instruction set the pair loops are compiled for (the widest there is).
-    isa: Isa,
+    /// The instruction set the pair loops are compiled for (default the widest there is),
+    /// as its index in [`INSTRUCTION_SETS`].
+    isa: AtomicU8,
+    /// By molecule in a box of one kind of small molecule: the SIMD block loop's constants.
+    lanes: Option<lanes::Lanes>,
     listed_atom_pairs: AtomicUsize,
     workspace: Mutex<Workspace>,
 }
+
+/// The instruction sets by index, for [`ShortRange::set_isa`].
+const INSTRUCTION_SETS: [Isa; 3] = [Isa::Portable, Isa::Avx2, Isa::Avx512];
 
 /// Chunks of the short part's list: a function of the atom count only (determinism).
 fn chunk_count(n_atoms: usize) -> usize {
@@ -514,10 +535,15 @@ impl ShortRange {
             excluded_start,
             excluded_partners,
             chunks,
-            isa: Isa::best(),
+            isa: AtomicU8::new(0),
+            lanes: None,
             listed_atom_pairs: AtomicUsize::new(0),
             workspace: Mutex::new(Self::workspace(spec, switch, split.by, points, chunks)),
         };
+        short.set_isa(Isa::best());
+        if split.by == SwitchBy::Molecule {
+            short.lanes = lanes::Lanes::of(&short.model, &short.molecules);
+        }
         if split.by == SwitchBy::Molecule {
             short.intramolecular = short.intramolecular_pairs()?;
         }
@@ -583,12 +609,37 @@ impl ShortRange {
                 spec.box_lengths,
             ),
             packed: vec![[0.0; 4]; if by == SwitchBy::Molecule { n } else { 0 }],
+            clusters: vec![Cluster::default(); if by == SwitchBy::Molecule { points } else { 0 }],
             scratch: (0..chunks).map(|_| kernels::Scratch::default()).collect(),
             buffers: vec![vec![0.0; 3 * n]; chunks],
             energies: vec![0.0; chunks],
             cached_q: vec![f64::NAN; 3 * n],
             cached_gradient: vec![0.0; 3 * n],
             cached_energy: None,
+        }
+    }
+
+    /// The instruction set of the pair loops.
+    pub fn isa(&self) -> Isa {
+        INSTRUCTION_SETS[self.isa.load(Ordering::Relaxed) as usize]
+    }
+
+    /// Compile-time choice of the pair loops' instruction set (default: the widest
+    /// available); every set gives the same bits. Panics if the processor lacks it.
+    pub fn set_isa(&self, isa: Isa) {
+        assert!(isa.is_available(), "{} is not available", isa.name());
+        let index = INSTRUCTION_SETS.iter().position(|&i| i == isa).unwrap_or(0);
+        self.isa.store(index as u8, Ordering::Relaxed);
+        self.lock().cached_energy = None;
+    }
+
+    /// Which pair loop evaluates the short part: `"molecule blocks"` (SIMD, one kind of
+    /// molecule of at most four atoms), `"molecule rows"` (any molecules) or `"atom pairs"`.
+    pub fn pair_loop(&self) -> &'static str {
+        match (self.by, &self.lanes) {
+            (SwitchBy::AtomPair, _) => "atom pairs",
+            (SwitchBy::Molecule, Some(_)) => "molecule blocks",
+            (SwitchBy::Molecule, None) => "molecule rows",
         }
     }
 
@@ -695,9 +746,13 @@ impl ShortRange {
     fn run(&self, workspace: &mut Workspace, q: &[f64], mode: Mode) -> f64 {
         self.refresh(workspace, q);
         let whole = self.by == SwitchBy::Molecule && self.pack_molecules(q, &mut workspace.packed);
+        if let (true, Some(lanes)) = (whole, &self.lanes) {
+            lanes.pack(&workspace.packed, &mut workspace.clusters);
+        }
         let Workspace {
             search,
             packed,
+            clusters,
             scratch,
             buffers,
             energies,
@@ -711,7 +766,11 @@ impl ShortRange {
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
             }
-            let whole = packed.map(|x| (x, scratch));
+            let whole = packed.map(|packed| Whole {
+                packed,
+                clusters,
+                scratch,
+            });
             self.evaluate(q, mode, part, self.by, whole, buffer)
         };
         if chunks > 1 {
@@ -787,10 +846,11 @@ impl ShortRange {
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
-        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
+        whole: Option<Whole>,
         buffer: &mut [f64],
     ) -> f64 {
-        self.isa.run(
+        let isa = self.isa();
+        isa.run(
             #[inline(always)]
             || self.evaluate_body(q, mode, part, by, whole, buffer),
         )
@@ -803,16 +863,13 @@ impl ShortRange {
         mode: Mode,
         part: &[[u32; 2]],
         by: SwitchBy,
-        whole: Option<(&[[f64; 4]], &mut kernels::Scratch)>,
+        whole: Option<Whole>,
         buffer: &mut [f64],
     ) -> f64 {
         use kernels::*;
         match (mode, by, whole) {
-            (Mode::Energy, SwitchBy::Molecule, Some((x, scratch))) => {
-                whole_molecule_rows::<false>(self, x, part, scratch, buffer)
-            }
-            (Mode::Gradient, SwitchBy::Molecule, Some((x, scratch))) => {
-                whole_molecule_rows::<true>(self, x, part, scratch, buffer)
+            (Mode::Energy | Mode::Gradient, SwitchBy::Molecule, Some(whole)) => {
+                self.whole_molecules(mode, part, whole, buffer)
             }
             (Mode::Energy, SwitchBy::Molecule, None) => {
                 molecule_pairs::<false>(self, q, part, buffer)
@@ -830,6 +887,37 @@ impl ShortRange {
                 atom_pairs_hessian(self, q, v, part, buffer);
                 0.0
             }
+        }
+    }
+
+    /// Energy or gradient over whole molecules: the SIMD blocks for one molecule kind, else
+    /// the row loop.
+    #[inline(always)]
+    fn whole_molecules(&self, mode: Mode, part: &[[u32; 2]], w: Whole, buffer: &mut [f64]) -> f64 {
+        let isa = self.isa();
+        let gradient = matches!(mode, Mode::Gradient);
+        let Some(lanes) = &self.lanes else {
+            return match gradient {
+                true => {
+                    kernels::whole_molecule_rows::<true>(self, w.packed, part, w.scratch, buffer)
+                }
+                false => {
+                    kernels::whole_molecule_rows::<false>(self, w.packed, part, w.scratch, buffer)
+                }
+            };
+        };
+        let block = lanes::Block {
+            lanes,
+            model: &self.model,
+            switch: self.switch,
+            molecules: &self.molecules,
+            clusters: w.clusters,
+            packed: w.packed,
+            pairs: part,
+        };
+        match gradient {
+            true => lanes::evaluate::<true>(isa, &block, w.scratch, buffer),
+            false => lanes::evaluate::<false>(isa, &block, w.scratch, buffer),
         }
     }
 

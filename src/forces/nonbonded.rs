@@ -48,7 +48,7 @@ use super::simd::Isa;
 use super::{ForceTerm, TermClass};
 
 mod engine;
-mod kernel;
+pub(crate) mod kernel;
 mod reference;
 
 pub use super::Precision;
@@ -238,6 +238,12 @@ enum Kernel {
 #[derive(Clone, Copy)]
 pub struct CoulombPair(Kernel);
 
+/// Work generic over a Coulomb form's SIMD lanes ([`CoulombPair::lanes`]).
+pub(crate) trait CoulombLanes {
+    type Out;
+    fn with<C: kernel::Coulomb>(self, coulomb: C) -> Self::Out;
+}
+
 impl CoulombPair {
     /// The form for `electrostatics` with `cutoff` (`f64::INFINITY` for none).
     pub fn new(electrostatics: Electrostatics, cutoff: f64) -> Result<Self, String> {
@@ -316,6 +322,16 @@ impl CoulombPair {
             Kernel::ShiftedForce(c) => block(c, charge_product, s, inv_r, energy, force),
             Kernel::Damped(c) => block(c, charge_product, s, inv_r, energy, force),
             Kernel::ReactionField(c) => block(c, charge_product, s, inv_r, energy, force),
+        }
+    }
+
+    /// `with` called with this form's SIMD lanes (the cluster-pair kernel's).
+    pub(crate) fn lanes<W: CoulombLanes>(&self, with: W) -> W::Out {
+        match self.0 {
+            Kernel::Plain(c) => with.with(c),
+            Kernel::ShiftedForce(c) => with.with(c),
+            Kernel::Damped(c) => with.with(c),
+            Kernel::ReactionField(c) => with.with(c),
         }
     }
 

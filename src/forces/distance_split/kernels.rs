@@ -3,7 +3,7 @@
 //! by atom pair, each pair is switched on its own distance. Gradients and Hessian-vector
 //! products go into one chunk's buffer.
 
-use super::{Model, ShortRange};
+use super::{Model, ShortRange, Switch};
 
 #[inline(always)]
 fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
@@ -258,11 +258,11 @@ pub(super) fn energy_parts(
 pub(super) struct Scratch {
     partner_count: usize,
     /// Per partner molecule: the reference displacement, `R`, `S`, `S′`, its energy sum.
-    partner: Vec<u32>,
-    partner_d: Vec<[f64; 3]>,
-    partner_r: Vec<f64>,
-    partner_s: Vec<f64>,
-    partner_s1: Vec<f64>,
+    pub(super) partner: Vec<u32>,
+    pub(super) partner_d: Vec<[f64; 3]>,
+    pub(super) partner_r: Vec<f64>,
+    pub(super) partner_s: Vec<f64>,
+    pub(super) partner_s1: Vec<f64>,
     /// Where each partner's atoms start among the partner atoms (one more entry: the end).
     partner_start: Vec<u32>,
     /// Per partner atom: position (shifted to the row molecule's image), scaled charge,
@@ -571,34 +571,18 @@ fn gather_partners<const M: usize>(
     group: &[[u32; 2]],
     sc: &mut Scratch,
 ) -> usize {
-    let model = &short.model;
     let molecules = &short.molecules;
-    let r_out2 = short.switch.r_out() * short.switch.r_out();
-    let xa = packed[molecules.reference_slot[a] as usize];
-    // Three passes without data-dependent branches (about half the listed molecules lie
-    // outside r_out, a coin toss for a branch predictor): every listed partner's image
-    // displacement is written and the count moves on only for those inside r_out; then the
-    // switch of the kept ones; then their atoms.
-    let mut partners = 0;
-    for &[_, b] in group {
-        let xb = packed[molecules.reference_slot[b as usize] as usize];
-        let d = model.image([xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]]);
-        let big_r2 = dot(&d, &d);
-        sc.partner[partners] = b;
-        sc.partner_d[partners] = d;
-        sc.partner_r[partners] = big_r2; // R², made R in the next pass
-        partners += usize::from(big_r2 < r_out2);
-    }
-    for p in 0..partners {
-        let big_r = sc.partner_r[p].sqrt();
-        (sc.partner_s[p], sc.partner_s1[p]) = short.switch.value_slope(big_r);
-        sc.partner_r[p] = big_r;
-    }
+    let reference = |m: usize| {
+        let x = packed[molecules.reference_slot[m] as usize];
+        [x[0], x[1], x[2]]
+    };
+    let xa = reference(a);
+    let partners = keep_partners(&short.model, short.switch, xa, group, sc, reference);
     let mut atoms = 0;
     for p in 0..partners {
         let b = sc.partner[p] as usize;
         let d = sc.partner_d[p];
-        let xb = packed[molecules.reference_slot[b] as usize];
+        let xb = reference(b);
         // The shift from each atom's stored image to the row molecule's.
         let shift: [f64; 3] = std::array::from_fn(|c| d[c] - (xb[c] - xa[c]));
         sc.partner_start[p] = atoms as u32;
@@ -622,6 +606,41 @@ fn gather_partners<const M: usize>(
     sc.partner_count = partners;
     sc.partner_start[partners] = atoms as u32;
     atoms
+}
+
+/// The listed partners `group` of a row molecule whose reference atom is at `xa` that lie
+/// inside `r_out`, into `sc`: molecule, reference displacement (minimum image), `R`, `S`,
+/// `S′`; returns their count. `reference(b)` is molecule `b`'s reference position.
+#[inline(always)]
+pub(super) fn keep_partners(
+    model: &Model,
+    switch: Switch,
+    xa: [f64; 3],
+    group: &[[u32; 2]],
+    sc: &mut Scratch,
+    reference: impl Fn(usize) -> [f64; 3],
+) -> usize {
+    let r_out2 = switch.r_out() * switch.r_out();
+    // Two passes without data-dependent branches (about half the listed molecules lie
+    // outside r_out, a coin toss for a branch predictor): every listed partner's image
+    // displacement is written and the count moves on only for those inside r_out; then the
+    // switch of the kept ones.
+    let mut partners = 0;
+    for &[_, b] in group {
+        let xb = reference(b as usize);
+        let d = model.image([xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]]);
+        let big_r2 = dot(&d, &d);
+        sc.partner[partners] = b;
+        sc.partner_d[partners] = d;
+        sc.partner_r[partners] = big_r2; // R², made R in the next pass
+        partners += usize::from(big_r2 < r_out2);
+    }
+    for p in 0..partners {
+        let big_r = sc.partner_r[p].sqrt();
+        (sc.partner_s[p], sc.partner_s1[p]) = switch.value_slope(big_r);
+        sc.partner_r[p] = big_r;
+    }
+    partners
 }
 
 /// The pairs of one row atom at `xi` (`[x, y, z, q√k_e]`) with the `n` gathered partner

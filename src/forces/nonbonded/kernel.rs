@@ -261,7 +261,12 @@ impl<S: Simd> Lj<S> for Geometric<'_, S> {
 
 /// `(r⁻⁸, r⁻⁶, 12 c₁₂ r⁻⁶ − 6 c₆)`: `−V′/r` is the product of the first and last.
 #[inline(always)]
-fn lennard_jones_force<S: Simd>(s: S, c12x12: S::V, c6x6: S::V, rinv2: S::V) -> (S::V, S::V, S::V) {
+pub(crate) fn lennard_jones_force<S: Simd>(
+    s: S,
+    c12x12: S::V,
+    c6x6: S::V,
+    rinv2: S::V,
+) -> (S::V, S::V, S::V) {
     let rinv4 = s.mul(rinv2, rinv2);
     let rinv6 = s.mul(rinv4, rinv2);
     let rinv8 = s.mul(rinv4, rinv4);
@@ -270,7 +275,13 @@ fn lennard_jones_force<S: Simd>(s: S, c12x12: S::V, c6x6: S::V, rinv2: S::V) -> 
 
 /// `V = r⁻⁶(c₁₂ r⁻⁶ − c₆) − shift`.
 #[inline(always)]
-fn lennard_jones_energy<S: Simd>(s: S, c12: S::V, c6: S::V, shift: S::V, rinv6: S::V) -> S::V {
+pub(crate) fn lennard_jones_energy<S: Simd>(
+    s: S,
+    c12: S::V,
+    c6: S::V,
+    shift: S::V,
+    rinv6: S::V,
+) -> S::V {
     s.sub(s.mul(rinv6, s.sub(s.mul(c12, rinv6), c6)), shift)
 }
 
@@ -368,7 +379,7 @@ fn rows<S: Simd, L: Lj<S>>(s: S, job: &Job<S::R>, lj: &L, entry: &Entry) -> Rows
 
 /// Add the i-gradients of an entry to the buffer: per row, lanes `(l₀ + l₂) + (l₁ + l₃)`.
 #[inline(always)]
-fn finish_rows<S: Simd>(s: S, gi: &[[S::V; 3]; 4], out: &mut Gradient4) {
+pub(crate) fn finish_rows<S: Simd>(s: S, gi: &[[S::V; 3]; 4], out: &mut Gradient4) {
     for (g, components) in gi.iter().enumerate().take(16 / S::WIDTH) {
         for (d, &v) in components.iter().enumerate() {
             let mut lanes = [S::R::default(); 16];
@@ -389,7 +400,7 @@ fn finish_rows<S: Simd>(s: S, gi: &[[S::V; 3]; 4], out: &mut Gradient4) {
 
 /// `acc[g % 2] (+)= v`: rows 0, 2 and 1, 3 apart (the canonical order, module doc of simd).
 #[inline(always)]
-fn gather<S: Simd>(s: S, acc: &mut [S::V; 2], group: usize, v: S::V) {
+pub(crate) fn gather<S: Simd>(s: S, acc: &mut [S::V; 2], group: usize, v: S::V) {
     if group < 2 {
         acc[group] = v;
     } else {
@@ -398,7 +409,7 @@ fn gather<S: Simd>(s: S, acc: &mut [S::V; 2], group: usize, v: S::V) {
 }
 
 #[inline(always)]
-fn combine<S: Simd>(s: S, acc: &[S::V; 2]) -> S::V {
+pub(crate) fn combine<S: Simd>(s: S, acc: &[S::V; 2]) -> S::V {
     if 16 / S::WIDTH == 1 {
         acc[0]
     } else {
