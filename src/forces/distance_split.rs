@@ -43,8 +43,8 @@
 //!
 //! **Cost.** By molecule in a box of one kind of molecule of at most four atoms (water
 //! models), each listed molecule pair inside `r_out` is one SIMD block of 4 × 4 atom pairs
-//! with one switch value ([`lanes`]: about 7 ns per atom pair on the 12 Å water box, where
-//! the row loop of [`kernels`], which takes any molecules, needed about 11). The short part
+//! with one switch value ([`lanes`]); other molecules take the row loop of [`kernels`],
+//! which gathers each row's partner atoms (docs/thermostats.md has both costs). The short part
 //! has its own pair search ([`search`]): molecule pairs whose
 //! reference atoms are closer than `r_out + skin` (or atom pairs, by atom pair), rebuilt
 //! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
