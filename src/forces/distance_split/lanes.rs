@@ -175,6 +175,8 @@ struct Registers<S: Simd> {
     qq: [S::V; 4],
     /// Whether a group has a lane with Lennard-Jones (water: only rows with the O).
     has_lj: [bool; 4],
+    /// Whether a group has a real atom pair (not with three atoms and four lanes a row).
+    active: [bool; 4],
 }
 
 impl<S: Simd<R = f64>> Registers<S> {
@@ -199,6 +201,10 @@ impl<S: Simd<R = f64>> Registers<S> {
             c6x6: group(&times(&lanes.c6, 6.0)),
             lj_shift: group(&lanes.lj_shift),
             qq: group(&lanes.qq),
+            active: std::array::from_fn(|g| {
+                let g = g.min(16 / S::WIDTH - 1);
+                (lanes.mask as u32 >> (g * S::WIDTH)) & ((1u32 << S::WIDTH) - 1) != 0
+            }),
             has_lj: std::array::from_fn(|g| {
                 let g = g.min(16 / S::WIDTH - 1);
                 (g * S::WIDTH..(g + 1) * S::WIDTH)
@@ -347,6 +353,9 @@ fn pair<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
     let mut fj = [[k.zero; 2]; 3];
     let mut ej = [k.zero; 2];
     for g in 0..16 / S::WIDTH {
+        if !k.active[g] {
+            continue;
+        }
         let dx = s.sub(xi[0][g], xj[0]);
         let dy = s.sub(xi[1][g], xj[1]);
         let dz = s.sub(xi[2][g], xj[2]);
