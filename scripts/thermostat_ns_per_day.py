@@ -3,8 +3,8 @@
 
 The cases of docs/thermostats.md, "ns/day of valid sampling": each repeat runs every case
 once, in turn, so a change of machine load hits all alike. Prints every run (wall time from
-the run's JSON summary, which includes loading and the first neighbour list, and user CPU
-time), the median per case, its ns/day and its ratio to the langevin-respa case of the same
+the run's JSON summary — its stepping loop, without loading and set-up — and the user CPU
+time of the whole process), the median per case, its ns/day and its ratio to the langevin-respa case of the same
 box. Run from a clone after `cargo build --release`:
 
     RAYON_NUM_THREADS=1 python3 scripts/thermostat_ns_per_day.py --repeats 3
@@ -40,9 +40,11 @@ CASES = [
     ("12 A", "sinr 50 fs (25,2), 7-8.5 A", TWELVE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 1),
     ("12 A", "sinr 48 fs (16,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
     ("12 A", "sinr 96 fs (32,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,3", 1),
+    ("12 A", "sinr 96 fs (32,2), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,2", 1),
     ("15 A", "langevin-respa 2 fs / 0.5 fs", FIFTEEN, f"{LANGEVIN} --h 2fs --inner 4", 1),
     ("15 A", "sinr 48 fs (16,3), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
     ("15 A", "sinr 96 fs (32,3), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,3", 1),
+    ("15 A", "sinr 96 fs (32,2), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,2", 1),
 ]
 
 
