@@ -247,7 +247,7 @@ fn rows<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
 
 /// Row molecule `a` against its listed partners `pairs[range]` inside `r_out`.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
     s: S,
     k: &Registers<S>,
@@ -276,10 +276,10 @@ fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
     // Plain loops, not `array::from_fn`: its body is not compiled with the lanes'
     // instruction set, so the loads inside would be calls.
     let mut xi = [[k.zero; 4]; 3];
-    for (x, values) in xi.iter_mut().zip([&ci.x, &ci.y, &ci.z]) {
-        for (g, lanes) in x.iter_mut().enumerate() {
-            *lanes = row_lanes(s, values, 0.0, g);
-        }
+    for g in 0..4 {
+        xi[0][g] = row_lanes(s, &ci.x, 0.0, g);
+        xi[1][g] = row_lanes(s, &ci.y, 0.0, g);
+        xi[2][g] = row_lanes(s, &ci.z, 0.0, g);
     }
     let mut gi = [[k.zero; 3]; 4];
     let mut energy = 0.0;
