@@ -18,7 +18,8 @@ use super::kernels::{Scratch, keep_partners};
 use super::{Model, Molecules, Switch};
 use crate::forces::clusters::{Cluster, PAD_POSITION};
 use crate::forces::nonbonded::kernel::{
-    Coulomb, Gradient4, combine, finish_rows, gather, lennard_jones_energy, lennard_jones_force,
+    Coulomb, Gradient4, add_pair_force, combine, finish_rows, gather, lennard_jones_energy,
+    lennard_jones_force,
 };
 use crate::forces::nonbonded::{CoulombLanes, CoulombPair};
 use crate::forces::simd::{Isa, Portable, Simd, row_lanes};
@@ -384,13 +385,7 @@ fn pair<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
         gather(s, &mut ej, g, s.select(m, e, k.zero));
         if GRADIENT {
             let f = s.mul(weight, s.select(m, f, k.zero));
-            let (fx, fy, fz) = (s.mul(f, dx), s.mul(f, dy), s.mul(f, dz));
-            gi[g][0] = s.sub(gi[g][0], fx);
-            gi[g][1] = s.sub(gi[g][1], fy);
-            gi[g][2] = s.sub(gi[g][2], fz);
-            gather(s, &mut fj[0], g, fx);
-            gather(s, &mut fj[1], g, fy);
-            gather(s, &mut fj[2], g, fz);
+            add_pair_force(s, f, [dx, dy, dz], g, &mut gi[g], &mut fj);
         }
     }
     let mut e = [0.0; 4];

@@ -408,6 +408,24 @@ pub(crate) fn gather<S: Simd>(s: S, acc: &mut [S::V; 2], group: usize, v: S::V) 
     }
 }
 
+/// A group's pair forces `f d` (`f = −V′/r`, `d = x_i − x_j`): `−f d` into the row atoms'
+/// gradients `gi`, `+f d` into the column sums `fj` in the canonical row order.
+#[inline(always)]
+pub(crate) fn add_pair_force<S: Simd>(
+    s: S,
+    f: S::V,
+    d: [S::V; 3],
+    group: usize,
+    gi: &mut [S::V; 3],
+    fj: &mut [[S::V; 2]; 3],
+) {
+    for c in 0..3 {
+        let fd = s.mul(f, d[c]);
+        gi[c] = s.sub(gi[c], fd);
+        gather(s, &mut fj[c], group, fd);
+    }
+}
+
 #[inline(always)]
 pub(crate) fn combine<S: Simd>(s: S, acc: &[S::V; 2]) -> S::V {
     if 16 / S::WIDTH == 1 {
@@ -454,13 +472,7 @@ fn pair<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
         let (e_lj, rinv8, bracket) = lj.lanes::<ENERGY>(s, &rows.lj[g], &lj_j, rinv2);
         let (e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, s.mul(rows.q[g], qj), r2, rinv, rinv2);
         let f = s.select(m, s.fma(rinv8, bracket, f_q), k.zero);
-        let (fx, fy, fz) = (s.mul(f, dx), s.mul(f, dy), s.mul(f, dz));
-        gi[g][0] = s.sub(gi[g][0], fx);
-        gi[g][1] = s.sub(gi[g][1], fy);
-        gi[g][2] = s.sub(gi[g][2], fz);
-        gather(s, &mut fj[0], g, fx);
-        gather(s, &mut fj[1], g, fy);
-        gather(s, &mut fj[2], g, fz);
+        add_pair_force(s, f, [dx, dy, dz], g, &mut gi[g], &mut fj);
         if ENERGY {
             gather(s, &mut ej[0], g, s.select(m, e_lj, k.zero));
             gather(s, &mut ej[1], g, s.select(m, e_q, k.zero));
