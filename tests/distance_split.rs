@@ -650,6 +650,8 @@ fn the_level_table_shows_both_parts_with_their_range() {
         "1 (level 1) = nonbonded-short \"short-range: switched off from r_in = 6 to r_out = 7 by molecule (O)\"",
         "2 (slow) = nonbonded-remainder \"remainder: nonbonded − short-range\"",
         "0 (fast) = bond \"bonds\"",
+        // One kind of water: the SIMD molecule blocks.
+        "computed as molecule blocks",
     ] {
         assert!(
             text.contains(expected),

@@ -93,9 +93,10 @@ pub(super) fn terms(
         SwitchBy::AtomPair => String::new(),
     };
     report.push(format!(
-        "nonbonded split: short-range part on level {short_level} {}{reference_name}; \
-         remainder (full − short) on level {remainder_level}",
-        short.short_range().describe()
+        "nonbonded split: short-range part on level {short_level} {}{reference_name}, \
+         computed as {}; remainder (full − short) on level {remainder_level}",
+        short.short_range().describe(),
+        short.short_range().pair_loop()
     ));
     let by_name = match by {
         SwitchBy::Molecule => format!("by molecule ({})", reference_label(section)),
