@@ -727,18 +727,13 @@ impl ShortRange {
 
     /// The most partner molecules and partner atoms of one row molecule in `pairs`.
     fn largest_row(&self, pairs: &[[u32; 2]]) -> (usize, usize) {
-        let (mut partners, mut atoms) = (0, 0);
-        let mut row = (u32::MAX, 0, 0);
-        for &[a, b] in pairs {
-            if a != row.0 {
-                row = (a, 0, 0);
-            }
-            row.1 += 1;
-            row.2 += self.molecules.atoms(b as usize).len();
-            partners = partners.max(row.1);
-            atoms = atoms.max(row.2);
-        }
-        (partners, atoms)
+        kernels::list_rows(pairs).fold((0, 0), |(partners, atoms), (_, group)| {
+            let row_atoms = group
+                .iter()
+                .map(|&[_, b]| self.molecules.atoms(b as usize).len())
+                .sum::<usize>();
+            (partners.max(group.len()), atoms.max(row_atoms))
+        })
     }
 
     /// One evaluation into the chunk buffers; returns the energy (0 for a Hessian-vector

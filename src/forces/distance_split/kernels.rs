@@ -373,21 +373,19 @@ fn rows_of<const GRADIENT: bool, const M: usize>(
     buffer: &mut [f64],
 ) -> f64 {
     let mut energy = 0.0;
-    let mut start = 0;
-    while start < pairs.len() {
-        let a = pairs[start][0];
-        let end = start + pairs[start..].iter().take_while(|p| p[0] == a).count();
-        energy += whole_molecule_row::<GRADIENT, M>(
-            short,
-            packed,
-            a as usize,
-            &pairs[start..end],
-            scratch,
-            buffer,
-        );
-        start = end;
+    for (a, group) in list_rows(pairs) {
+        energy += whole_molecule_row::<GRADIENT, M>(short, packed, a, group, scratch, buffer);
     }
     energy
+}
+
+/// The rows of a molecule-pair list: each run of entries with the same first molecule, as
+/// that molecule and its entries (the list is built row by row).
+#[inline(always)]
+pub(super) fn list_rows(pairs: &[[u32; 2]]) -> impl Iterator<Item = (usize, &[[u32; 2]])> {
+    pairs
+        .chunk_by(|x, y| x[0] == y[0])
+        .map(|group| (group[0][0] as usize, group))
 }
 
 /// The slots of molecule (or gathered partner) `m`: `M m ..` when every molecule has `M`

@@ -14,7 +14,7 @@
 //! gathers each row's partner atoms into scratch arrays and runs a dozen passes over them;
 //! here a block stays in registers.
 
-use super::kernels::{Scratch, keep_partners};
+use super::kernels::{Scratch, keep_partners, list_rows};
 use super::{Model, Molecules, Switch};
 use crate::forces::clusters::{Cluster, PAD_POSITION};
 use crate::forces::nonbonded::kernel::{
@@ -112,7 +112,7 @@ pub(crate) struct Block<'a> {
     pub clusters: &'a [Cluster<f64>],
     /// `[x, y, z, q√k_e]` per atom in molecule order (the reference atoms read here).
     pub packed: &'a [[f64; 4]],
-    /// Runs of molecule pairs with the same first molecule (the pair list's rows).
+    /// Molecule pairs, row by row ([`list_rows`]).
     pub pairs: &'a [[u32; 2]],
 }
 
@@ -228,28 +228,14 @@ fn rows<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
     buffer: &mut [f64],
 ) -> f64 {
     let k = Registers::new(s, block.lanes, block.model.cutoff_squared);
-    let pairs = block.pairs;
     let mut energy = 0.0;
-    let mut start = 0;
-    while start < pairs.len() {
-        let a = pairs[start][0];
-        let end = start + pairs[start..].iter().take_while(|p| p[0] == a).count();
-        energy += row::<S, C, GRADIENT>(
-            s,
-            &k,
-            coulomb,
-            block,
-            a as usize,
-            start..end,
-            scratch,
-            buffer,
-        );
-        start = end;
+    for (a, group) in list_rows(block.pairs) {
+        energy += row::<S, C, GRADIENT>(s, &k, coulomb, block, a, group, scratch, buffer);
     }
     energy
 }
 
-/// Row molecule `a` against its listed partners `pairs[range]` inside `r_out`.
+/// Row molecule `a` against its listed partners `group` inside `r_out`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
@@ -258,7 +244,7 @@ fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
     coulomb: C,
     block: &Block,
     a: usize,
-    range: std::ops::Range<usize>,
+    group: &[[u32; 2]],
     sc: &mut Scratch,
     buffer: &mut [f64],
 ) -> f64 {
@@ -269,14 +255,7 @@ fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
         [x[0], x[1], x[2]]
     };
     let xa = reference(a);
-    let partners = keep_partners(
-        block.model,
-        block.switch,
-        xa,
-        &block.pairs[range],
-        sc,
-        reference,
-    );
+    let partners = keep_partners(block.model, block.switch, xa, group, sc, reference);
     // Plain loops, not `array::from_fn`: its body is not compiled with the lanes'
     // instruction set, so the loads inside would be calls.
     let mut xi = [[k.zero; 4]; 3];
