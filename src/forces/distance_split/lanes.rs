@@ -96,8 +96,8 @@ impl Lanes {
                 } else {
                     [PAD_POSITION; 4]
                 };
+                // The charges are lane constants of the kind: `q` stays unused.
                 (cluster.x[k], cluster.y[k], cluster.z[k]) = (x[0], x[1], x[2]);
-                cluster.q[k] = if k < self.size { x[3] } else { 0.0 };
             }
         }
     }
