@@ -31,20 +31,32 @@ FIFTEEN_SPLIT = "systems/water-box/long-cutoff-15-three-level-wide.toml"
 SINR = "--method sinr --thermostats 1 --temperature 300K --tau"
 LANGEVIN = "--method langevin-respa --temperature 300K"
 
+
+def langevin(box, scene, h, inner, ps):
+    """langevin-respa at outer step `h` fs with `inner` bonded steps, `ps` picoseconds."""
+    return (box, f"langevin-respa {h} fs / {h / inner:g} fs", scene,
+            f"{LANGEVIN} --h {h}fs --inner {inner}", ps)
+
+
+def sinr(box, scene, h, levels, tau, ps):
+    """SIN(R) at outer step `h` fs, `--level-steps levels`, τ = `tau` fs."""
+    return (box, f"sinr {h} fs ({levels}), tau {tau} fs", scene,
+            f"{SINR} {tau}fs --h {h}fs --level-steps {levels}", ps)
+
+
+# The SIN(R) configurations of the 12 and 15 A boxes: (outer step in fs, level steps).
+LONG_CUTOFF_SINR = [(48, "16,3"), (96, "32,3"), (96, "32,2")]
+
 # (box, label, scene, flags, --t-end in ps); the first case of each box is its baseline.
 CASES = [
-    ("9 A", "langevin-respa 1 fs / 0.5 fs", NINE, f"{LANGEVIN} --h 1fs --inner 2", 5),
-    ("9 A", "sinr 50 fs (25,2), 6-7 A", NINE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 5),
-    ("9 A", "sinr 48 fs (16,3), tau 3 fs", NINE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 5),
-    ("12 A", "langevin-respa 2 fs / 0.5 fs", TWELVE, f"{LANGEVIN} --h 2fs --inner 4", 1),
-    ("12 A", "sinr 50 fs (25,2), 7-8.5 A", TWELVE_SPLIT, f"{SINR} 5fs --h 50fs --level-steps 25,2", 1),
-    ("12 A", "sinr 48 fs (16,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
-    ("12 A", "sinr 96 fs (32,3), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,3", 1),
-    ("12 A", "sinr 96 fs (32,2), tau 3 fs", TWELVE_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,2", 1),
-    ("15 A", "langevin-respa 2 fs / 0.5 fs", FIFTEEN, f"{LANGEVIN} --h 2fs --inner 4", 1),
-    ("15 A", "sinr 48 fs (16,3), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 48fs --level-steps 16,3", 1),
-    ("15 A", "sinr 96 fs (32,3), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,3", 1),
-    ("15 A", "sinr 96 fs (32,2), tau 3 fs", FIFTEEN_SPLIT, f"{SINR} 3fs --h 96fs --level-steps 32,2", 1),
+    langevin("9 A", NINE, 1, 2, 5),
+    sinr("9 A", NINE_SPLIT, 50, "25,2", 5, 5),
+    sinr("9 A", NINE_SPLIT, 48, "16,3", 3, 5),
+    langevin("12 A", TWELVE, 2, 4, 1),
+    sinr("12 A", TWELVE_SPLIT, 50, "25,2", 5, 1),
+    *[sinr("12 A", TWELVE_SPLIT, h, levels, 3, 1) for h, levels in LONG_CUTOFF_SINR],
+    langevin("15 A", FIFTEEN, 2, 4, 1),
+    *[sinr("15 A", FIFTEEN_SPLIT, h, levels, 3, 1) for h, levels in LONG_CUTOFF_SINR],
 ]
 
 
