@@ -13,6 +13,10 @@
 //! mollified methods' averaging Jacobian), and it counts force evaluations per level:
 //! every accuracy-against-cost chart rests on those counts.
 
+mod blocks;
+
+pub use blocks::Blocks;
+
 use crate::error::{Error, Result};
 use crate::forces::{ForceTerm, TermClass};
 

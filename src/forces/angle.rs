@@ -12,7 +12,8 @@ use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
 use super::scratch::{Scratch, parallel};
 use super::{
-    ForceTerm, RestGeometry, Site, TermClass, add_to_site, site_position, site_vector, with_dim,
+    ForceTerm, RestGeometry, Site, TermClass, add_to_site, site_in_block, site_position,
+    site_vector, with_dim,
 };
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -103,6 +104,26 @@ impl HarmonicAngles {
             let gi: [f64; D] = std::array::from_fn(|a| part(on_i[a]));
             let gk: [f64; D] = std::array::from_fn(|a| part(on_k[a]));
             add_sites(angle, out, gi, gk);
+        }
+    }
+
+    /// The gradient of the angles `range`, in a block starting at particle `first`: the
+    /// additions of [`HarmonicAngles::accumulate`] for them.
+    fn block_gradient_d<const D: usize>(
+        &self,
+        q: &[f64],
+        out: &mut [f64],
+        first: usize,
+        range: std::ops::Range<usize>,
+    ) {
+        for angle in &self.angles[range] {
+            let angle = AngleBend {
+                sites: angle.sites.map(|site| site_in_block(site, first)),
+                ..*angle
+            };
+            let (u, w) = self.arms::<f64, D>(&angle, q, None);
+            let (gi, gk) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
+            add_sites(&angle, out, gi, gk);
         }
     }
 
@@ -197,6 +218,17 @@ impl ForceTerm for HarmonicAngles {
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
         with_dim!(self.dim, D => self.accumulate::<Dual, D>(q, Some(v), out, |x| x.derivative))
+    }
+
+    fn add_block_gradient(
+        &self,
+        q: &[f64],
+        gradient: &mut [f64],
+        first: usize,
+        range: std::ops::Range<usize>,
+    ) -> bool {
+        with_dim!(self.dim, D => self.block_gradient_d::<D>(q, gradient, first, range));
+        true
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {

@@ -113,6 +113,20 @@ pub trait ForceTerm: Send + Sync {
     /// `out += ∇²V(q) · v`.
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]);
 
+    /// `gradient += ∇V` of the interactions `range` only, all of whose particles lie in a
+    /// block that starts at particle `first`: `q` and `gradient` are the block's slices.
+    /// The additions are those of [`ForceTerm::add_gradient`] for these interactions, in
+    /// the same order. `false` (and nothing added) for a term that cannot (the default).
+    fn add_block_gradient(
+        &self,
+        _q: &[f64],
+        _gradient: &mut [f64],
+        _first: usize,
+        _range: std::ops::Range<usize>,
+    ) -> bool {
+        false
+    }
+
     /// The particles each interaction of this term couples (anchors left out).
     fn couplings(&self) -> Vec<Vec<usize>>;
 
@@ -190,6 +204,15 @@ pub(crate) fn site_position<const D: usize>(site: &Site, q: &[f64]) -> [f64; D] 
     match *site {
         Site::Particle(i) => std::array::from_fn(|a| q[i * D + a]),
         Site::Fixed(x) => std::array::from_fn(|a| x[a]),
+    }
+}
+
+/// The site with its particle numbered from `first` (the start of a block).
+#[inline(always)]
+pub(crate) fn site_in_block(site: Site, first: usize) -> Site {
+    match site {
+        Site::Particle(i) => Site::Particle(i - first),
+        fixed => fixed,
     }
 }
 

@@ -13,8 +13,8 @@
 use super::PeriodicBox;
 use super::scratch::{Scratch, parallel};
 use super::{
-    ForceTerm, RestGeometry, Site, TermClass, add_to_site, dot, site_position, site_vector,
-    with_dim,
+    ForceTerm, RestGeometry, Site, TermClass, add_to_site, dot, site_in_block, site_position,
+    site_vector, with_dim,
 };
 
 /// A radial potential written in the squared distance `s`.
@@ -123,6 +123,24 @@ impl<P: PairPotential> PairTerm<P> {
         }
     }
 
+    /// [`PairTerm::gradient_d`] over `range`, in a block starting at particle `first`.
+    fn block_gradient_d<const D: usize>(
+        &self,
+        q: &[f64],
+        gradient: &mut [f64],
+        first: usize,
+        range: std::ops::Range<usize>,
+    ) {
+        for pair in &self.pairs[range] {
+            let pair = Pair {
+                a: site_in_block(pair.a, first),
+                b: site_in_block(pair.b, first),
+                potential: pair.potential,
+            };
+            add_pair(&pair, gradient, self.on_b::<D>(&pair, q));
+        }
+    }
+
     /// The gradient in two phases ([`super::scratch`]): the same bits as
     /// [`PairTerm::gradient_d`].
     fn gradient_two_phase<const D: usize>(&self, q: &[f64], gradient: &mut [f64]) {
@@ -188,6 +206,17 @@ impl<P: PairPotential> ForceTerm for PairTerm<P> {
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
         with_dim!(self.dim, D => self.hessian_vector_d::<D>(q, v, out))
+    }
+
+    fn add_block_gradient(
+        &self,
+        q: &[f64],
+        gradient: &mut [f64],
+        first: usize,
+        range: std::ops::Range<usize>,
+    ) -> bool {
+        with_dim!(self.dim, D => self.block_gradient_d::<D>(q, gradient, first, range));
+        true
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
