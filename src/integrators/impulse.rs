@@ -139,6 +139,12 @@ impl Impulse {
         self.thermostat.as_ref()
     }
 
+    /// The blocks the fast level's inner loop runs in, if it runs block by block (for
+    /// tests).
+    pub fn fast_blocks(&self) -> Option<&Blocks> {
+        self.blocks.as_ref()
+    }
+
     /// The mollifier of a mollified method (for tests and studies).
     pub fn mollifier(&self) -> Option<&dyn SlowMollifier> {
         self.mollifier.as_deref()
@@ -241,7 +247,7 @@ impl Impulse {
     /// The fast level's blocks, where the inner loop of plain endpoint impulse pays to run
     /// in parallel: more than one thread, at least [`BLOCKS_MIN_PARTICLES`] particles, and
     /// at least two blocks.
-    fn fast_blocks(&self, system: &System) -> Option<Blocks> {
+    fn find_fast_blocks(&self, system: &System) -> Option<Blocks> {
         let threads = rayon::current_num_threads();
         let n = system.n_dofs() / system.dim;
         let plain = self.thermostat.is_none() && self.variant == Variant::Endpoint;
@@ -358,7 +364,7 @@ impl Integrator for Impulse {
         self.empty = (0..levels)
             .map(|level| system.forces.level_is_empty(level))
             .collect();
-        self.blocks = self.fast_blocks(system);
+        self.blocks = self.find_fast_blocks(system);
         // Level 0 first: a mollified slow level reuses ∇W(q). The midpoint form evaluates
         // the outer levels where it kicks, so only level 0 is needed at the start.
         let needed = match self.variant {
