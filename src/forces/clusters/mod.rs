@@ -56,6 +56,27 @@ pub const ZERO_SHIFT: usize = 13;
 /// Below this many atoms builds and pruning run on the calling thread.
 pub const PARALLEL_MIN_ATOMS: usize = 256;
 
+/// From this many atoms on, the displacement test and the positions into clusters run in
+/// parallel too (below, they are a few microseconds).
+const SERIAL_PARTS_PARALLEL_MIN_ATOMS: usize = 2048;
+
+/// Atoms per task of the displacement test.
+const ATOM_BLOCK: usize = 1024;
+
+/// Clusters per task of the positions into clusters.
+const CLUSTER_BLOCK: usize = 256;
+
+/// `top` keeps the two largest squared displacements seen, `top[0] ≥ top[1]` (a NaN counts
+/// as infinite).
+fn keep_two_largest(top: &mut [f64; 2], d2: f64) {
+    if d2.is_nan() || d2 > top[1] {
+        top[1] = if d2.is_nan() { f64::INFINITY } else { d2 };
+        if top[1] > top[0] {
+            top.swap(0, 1);
+        }
+    }
+}
+
 /// Positions and charges of a cluster's four atoms.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C, align(32))]
@@ -393,28 +414,42 @@ impl ClusterList {
         if !self.built || !self.cutoff.is_finite() {
             return (if self.built { 0.0 } else { f64::INFINITY }, 0.0);
         }
-        let mut build = [0.0f64; 2];
-        let mut prune = [0.0f64; 2];
-        let top = |top: &mut [f64; 2], d2: f64| {
-            if d2.is_nan() || d2 > top[1] {
-                top[1] = if d2.is_nan() { f64::INFINITY } else { d2 };
-                if top[1] > top[0] {
-                    top.swap(0, 1);
-                }
+        // The two largest values do not depend on the order they are met in: blocks of
+        // atoms in parallel, merged, give the serial loop's result.
+        let block = |(q, (at_build, at_prune)): (&[f64], (&[f64], &[f64]))| {
+            let (mut build, mut prune) = ([0.0f64; 2], [0.0f64; 2]);
+            for ((x, b), p) in q
+                .chunks_exact(3)
+                .zip(at_build.chunks_exact(3))
+                .zip(at_prune.chunks_exact(3))
+            {
+                let d2 = |r: &[f64]| {
+                    let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
+                    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                };
+                keep_two_largest(&mut build, d2(b));
+                keep_two_largest(&mut prune, d2(p));
             }
+            (build, prune)
         };
-        for ((x, b), p) in q
-            .chunks_exact(3)
-            .zip(self.at_build.chunks_exact(3))
-            .zip(self.at_prune.chunks_exact(3))
-        {
-            let d2 = |r: &[f64]| {
-                let d = [x[0] - r[0], x[1] - r[1], x[2] - r[2]];
-                d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-            };
-            top(&mut build, d2(b));
-            top(&mut prune, d2(p));
-        }
+        let merge = |(mut b, mut p): ([f64; 2], [f64; 2]), (b2, p2): ([f64; 2], [f64; 2])| {
+            b2.into_iter().for_each(|d2| keep_two_largest(&mut b, d2));
+            p2.into_iter().for_each(|d2| keep_two_largest(&mut p, d2));
+            (b, p)
+        };
+        let len = 3 * ATOM_BLOCK;
+        let (build, prune) = if self.n >= SERIAL_PARTS_PARALLEL_MIN_ATOMS {
+            q.par_chunks(len)
+                .zip(
+                    self.at_build
+                        .par_chunks(len)
+                        .zip(self.at_prune.par_chunks(len)),
+                )
+                .map(block)
+                .reduce(|| ([0.0; 2], [0.0; 2]), merge)
+        } else {
+            block((q, (&self.at_build, &self.at_prune)))
+        };
         (
             build[0].sqrt() + build[1].sqrt(),
             prune[0].sqrt() + prune[1].sqrt(),
@@ -504,23 +539,38 @@ impl ClusterList {
     fn fill_positions(&mut self, q: &[f64]) {
         let clusters = self.grid.clusters();
         self.positions.resize(clusters, Cluster::default());
-        let slots = &self.grid.slots;
-        for (c, cluster) in self.positions.iter_mut().enumerate() {
-            for k in 0..CLUSTER {
-                let atom = slots[c * CLUSTER + k];
-                if atom == PAD {
-                    cluster.x[k] = PAD_POSITION;
-                    cluster.y[k] = PAD_POSITION;
-                    cluster.z[k] = PAD_POSITION;
-                    cluster.q[k] = 0.0;
-                } else {
-                    let a = atom as usize;
-                    cluster.x[k] = q[3 * a] - self.offsets[3 * a];
-                    cluster.y[k] = q[3 * a + 1] - self.offsets[3 * a + 1];
-                    cluster.z[k] = q[3 * a + 2] - self.offsets[3 * a + 2];
-                    cluster.q[k] = self.charges[a];
+        let (slots, offsets, charges) = (&self.grid.slots, &self.offsets, &self.charges);
+        let fill = |(block, positions): (usize, &mut [Cluster<f64>])| {
+            for (i, cluster) in positions.iter_mut().enumerate() {
+                let c = block * CLUSTER_BLOCK + i;
+                for k in 0..CLUSTER {
+                    let atom = slots[c * CLUSTER + k];
+                    if atom == PAD {
+                        cluster.x[k] = PAD_POSITION;
+                        cluster.y[k] = PAD_POSITION;
+                        cluster.z[k] = PAD_POSITION;
+                        cluster.q[k] = 0.0;
+                    } else {
+                        let a = atom as usize;
+                        cluster.x[k] = q[3 * a] - offsets[3 * a];
+                        cluster.y[k] = q[3 * a + 1] - offsets[3 * a + 1];
+                        cluster.z[k] = q[3 * a + 2] - offsets[3 * a + 2];
+                        cluster.q[k] = charges[a];
+                    }
                 }
             }
+        };
+        let positions = &mut self.positions[..];
+        if self.n >= SERIAL_PARTS_PARALLEL_MIN_ATOMS {
+            positions
+                .par_chunks_mut(CLUSTER_BLOCK)
+                .enumerate()
+                .for_each(fill);
+        } else {
+            positions
+                .chunks_mut(CLUSTER_BLOCK)
+                .enumerate()
+                .for_each(fill);
         }
     }
 

@@ -284,16 +284,26 @@ impl Nonbonded {
         } else {
             reduced.chunks_mut(BLOCK).enumerate().for_each(add);
         }
-        for (c, g) in reduced.iter().enumerate() {
-            for l in 0..CLUSTER {
-                let atom = list.grid.slots[c * CLUSTER + l];
-                if atom != PAD {
-                    let a = 3 * atom as usize;
-                    gradient[a] += g.x[l];
-                    gradient[a + 1] += g.y[l];
-                    gradient[a + 2] += g.z[l];
-                }
+        // Each atom has one slot: one addition per atom, in any order the same bits.
+        let slot_of = &list.grid.slot_of;
+        let gradient = &mut gradient[..3 * slot_of.len()];
+        let scatter = |(block, out): (usize, &mut [f64])| {
+            for (k, g) in out.chunks_exact_mut(3).enumerate() {
+                let slot = slot_of[block * BLOCK + k] as usize;
+                let c = &reduced[slot / CLUSTER];
+                let l = slot % CLUSTER;
+                g[0] += c.x[l];
+                g[1] += c.y[l];
+                g[2] += c.z[l];
             }
+        };
+        if self.n >= 8 * PARALLEL_MIN_ATOMS {
+            gradient
+                .par_chunks_mut(3 * BLOCK)
+                .enumerate()
+                .for_each(scatter);
+        } else {
+            gradient.chunks_mut(3 * BLOCK).enumerate().for_each(scatter);
         }
     }
 
