@@ -603,3 +603,36 @@ impl ClusterList {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::keep_two_largest;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    /// The parallel displacement test merges per-block results: the two largest values
+    /// must not depend on how the values are cut into blocks or merged.
+    #[test]
+    fn the_two_largest_do_not_depend_on_the_blocks() {
+        let mut rng = StdRng::seed_from_u64(5);
+        let mut values: Vec<f64> = (0..1000).map(|_| rng.random::<f64>()).collect();
+        values[517] = values[3]; // a tie
+        let mut serial = [0.0; 2];
+        values
+            .iter()
+            .for_each(|&v| keep_two_largest(&mut serial, v));
+        for block in [1, 7, 64, 999] {
+            let mut merged = [0.0; 2];
+            for part in values.chunks(block).rev() {
+                let mut top = [0.0; 2];
+                part.iter().for_each(|&v| keep_two_largest(&mut top, v));
+                top.into_iter()
+                    .for_each(|v| keep_two_largest(&mut merged, v));
+            }
+            assert_eq!(merged, serial, "blocks of {block}");
+        }
+        let mut with_nan = serial;
+        keep_two_largest(&mut with_nan, f64::NAN);
+        assert_eq!(with_nan[0], f64::INFINITY);
+    }
+}
