@@ -23,6 +23,10 @@
 //! Mollification is a hook around the slow-force call; the rest of the integrator does not
 //! know which kind it is.
 //!
+//! **Threads.** With more than one thread the inner loop of the endpoint form (impulse and
+//! the mollified methods) runs block by block: whole molecules per block ([`Blocks`]), each
+//! block's `K` Verlet steps on its own thread, the same bits as one thread.
+//!
 //! **Thermostatted r-RESPA** ([`Thermostat`]): the same recursion with another innermost
 //! step and, for SIN(R), another kick. `langevin-respa` (BAOAB-RESPA, OpenMM's
 //! `MTSLangevinIntegrator`): the innermost step is BAOAB (LM13), kick `dt/2`, drift `dt/2`,
