@@ -118,12 +118,11 @@ impl<P: PairPotential> PairTerm<P> {
     }
 
     fn gradient_d<const D: usize>(&self, q: &[f64], gradient: &mut [f64]) {
-        for pair in &self.pairs {
-            add_pair(pair, gradient, self.on_b::<D>(pair, q));
-        }
+        self.block_gradient_d::<D>(q, gradient, 0, 0..self.pairs.len());
     }
 
-    /// [`PairTerm::gradient_d`] over `range`, in a block starting at particle `first`.
+    /// The gradient of the pairs `range`, in a block starting at particle `first` (the
+    /// whole gradient is the block of all pairs from particle 0).
     fn block_gradient_d<const D: usize>(
         &self,
         q: &[f64],
