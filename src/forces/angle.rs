@@ -90,39 +90,24 @@ impl HarmonicAngles {
     }
 
     /// Adds the gradient (`direction = None`) or the Hessian-vector product along
-    /// `direction`; both come from [`angle_gradient`].
+    /// `direction`, both from [`angle_gradient`], of the angles `range`, with particles
+    /// numbered from `first` (a block's slices; `0` and every angle for the whole term).
     fn accumulate<T: Scalar, const D: usize>(
         &self,
-        q: &[f64],
-        direction: Option<&[f64]>,
+        (q, direction): (&[f64], Option<&[f64]>),
         out: &mut [f64],
         part: impl Fn(T) -> f64,
-    ) {
-        for angle in &self.angles {
-            let (u, w) = self.arms::<T, D>(angle, q, direction);
-            let (on_i, on_k) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
-            let gi: [f64; D] = std::array::from_fn(|a| part(on_i[a]));
-            let gk: [f64; D] = std::array::from_fn(|a| part(on_k[a]));
-            add_sites(angle, out, gi, gk);
-        }
-    }
-
-    /// The gradient of the angles `range`, in a block starting at particle `first`: the
-    /// additions of [`HarmonicAngles::accumulate`] for them.
-    fn block_gradient_d<const D: usize>(
-        &self,
-        q: &[f64],
-        out: &mut [f64],
-        first: usize,
-        range: std::ops::Range<usize>,
+        (first, range): (usize, std::ops::Range<usize>),
     ) {
         for angle in &self.angles[range] {
             let angle = AngleBend {
                 sites: angle.sites.map(|site| site_in_block(site, first)),
                 ..*angle
             };
-            let (u, w) = self.arms::<f64, D>(&angle, q, None);
-            let (gi, gk) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
+            let (u, w) = self.arms::<T, D>(&angle, q, direction);
+            let (on_i, on_k) = angle_gradient(&u, &w, angle.stiffness, angle.rest_angle);
+            let gi: [f64; D] = std::array::from_fn(|a| part(on_i[a]));
+            let gk: [f64; D] = std::array::from_fn(|a| part(on_k[a]));
             add_sites(&angle, out, gi, gk);
         }
     }
@@ -212,12 +197,14 @@ impl ForceTerm for HarmonicAngles {
         if parallel(self.angles.len()) {
             with_dim!(self.dim, D => self.gradient_two_phase::<D>(q, gradient))
         } else {
-            with_dim!(self.dim, D => self.accumulate::<f64, D>(q, None, gradient, |x| x))
+            let all = (0, 0..self.angles.len());
+            with_dim!(self.dim, D => self.accumulate::<f64, D>((q, None), gradient, |x| x, all))
         }
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        with_dim!(self.dim, D => self.accumulate::<Dual, D>(q, Some(v), out, |x| x.derivative))
+        let all = (0, 0..self.angles.len());
+        with_dim!(self.dim, D => self.accumulate::<Dual, D>((q, Some(v)), out, |x| x.derivative, all))
     }
 
     fn add_block_gradient(
@@ -227,7 +214,7 @@ impl ForceTerm for HarmonicAngles {
         first: usize,
         range: std::ops::Range<usize>,
     ) -> bool {
-        with_dim!(self.dim, D => self.block_gradient_d::<D>(q, gradient, first, range));
+        with_dim!(self.dim, D => self.accumulate::<f64, D>((q, None), gradient, |x| x, (first, range)));
         true
     }
 

@@ -56,9 +56,10 @@ pub const ZERO_SHIFT: usize = 13;
 /// Below this many atoms builds and pruning run on the calling thread.
 pub const PARALLEL_MIN_ATOMS: usize = 256;
 
-/// From this many atoms on, the displacement test and the positions into clusters run in
-/// parallel too (below, they are a few microseconds).
-const SERIAL_PARTS_PARALLEL_MIN_ATOMS: usize = 2048;
+/// From this many atoms on, the per-atom passes run in parallel too: the displacement test,
+/// the positions into clusters, and the reduction and its scatter to atoms (below, they are
+/// a few microseconds).
+pub const PARALLEL_PASSES_MIN_ATOMS: usize = 8 * PARALLEL_MIN_ATOMS;
 
 /// Atoms per task of the displacement test.
 const ATOM_BLOCK: usize = 1024;
@@ -438,7 +439,7 @@ impl ClusterList {
             (b, p)
         };
         let len = 3 * ATOM_BLOCK;
-        let (build, prune) = if self.n >= SERIAL_PARTS_PARALLEL_MIN_ATOMS {
+        let (build, prune) = if self.n >= PARALLEL_PASSES_MIN_ATOMS {
             q.par_chunks(len)
                 .zip(
                     self.at_build
@@ -561,7 +562,7 @@ impl ClusterList {
             }
         };
         let positions = &mut self.positions[..];
-        if self.n >= SERIAL_PARTS_PARALLEL_MIN_ATOMS {
+        if self.n >= PARALLEL_PASSES_MIN_ATOMS {
             positions
                 .par_chunks_mut(CLUSTER_BLOCK)
                 .enumerate()

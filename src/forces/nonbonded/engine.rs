@@ -10,7 +10,8 @@ use rayon::prelude::*;
 use super::kernel::{self, Gradient4, Job, KernelReal, LjData, Out};
 use super::{Electrostatics, Kernel, Nonbonded, Precision};
 use crate::forces::clusters::{
-    CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, Refresh, reserve_total,
+    CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, PARALLEL_PASSES_MIN_ATOMS,
+    Refresh, reserve_total,
 };
 use crate::forces::simd::{Isa, Real};
 
@@ -279,7 +280,7 @@ impl Nonbonded {
             }
         };
         let reduced = &mut reduced[..n];
-        if self.n >= 8 * PARALLEL_MIN_ATOMS {
+        if self.n >= PARALLEL_PASSES_MIN_ATOMS {
             reduced.par_chunks_mut(BLOCK).enumerate().for_each(add);
         } else {
             reduced.chunks_mut(BLOCK).enumerate().for_each(add);
@@ -297,7 +298,7 @@ impl Nonbonded {
                 g[2] += c.z[l];
             }
         };
-        if self.n >= 8 * PARALLEL_MIN_ATOMS {
+        if self.n >= PARALLEL_PASSES_MIN_ATOMS {
             gradient
                 .par_chunks_mut(3 * BLOCK)
                 .enumerate()
