@@ -11,6 +11,18 @@
 //! stay in registers over an entry's j-clusters; the j-gradients go to the gradient buffer
 //! once per cluster pair. Energies (when asked) are summed per lane in f64.
 //!
+//! **Only live groups.** About a third of the register groups of a pruned list (4 × 4 pairs
+//! within the cutoff plus the prune buffer) have no pair within the cutoff, and on water
+//! about half have i-atoms without Lennard-Jones parameters (hydrogens). Both would add
+//! exact zeros, so an entry's j-clusters go in blocks through three passes: (1) `r²` of
+//! every group, keeping the positions of the live ones per group; (2) each group over its
+//! live cluster pairs, two side by side, with or without the Lennard-Jones lanes, the
+//! i-gradient gaining `−f d` in list order and `f d` waiting in a scratch block; (3) each
+//! live cluster pair's j-forces summed over its groups in the canonical order and added to
+//! the buffer. Every non-zero term is added in the same order as a pass over all groups
+//! would add it: the results are the same bits (checked against the previous kernel on the
+//! water boxes' trajectories), with a fifth to a quarter fewer operations.
+//!
 //! Mixed precision: the same code with `f32` lanes. The i-positions (with their image
 //! shift) are formed in f64 and rounded once, the j-positions are rounded once per
 //! evaluation; every cluster pair's contributions go into f64 buffers.
@@ -192,6 +204,9 @@ pub trait Lj<S: Simd>: Copy {
     type J: Copy;
     fn i(&self, s: S, ci: usize, group: usize) -> Self::I;
     fn j(&self, s: S, cj: usize) -> Self::J;
+    /// Whether an i-atom of the group has Lennard-Jones parameters (when not, its lanes are
+    /// exact zeros and the kernel leaves them out).
+    fn has_lj(&self, ci: usize, group: usize) -> bool;
     fn lanes<const ENERGY: bool>(
         &self,
         s: S,
@@ -224,6 +239,15 @@ impl<S: Simd> Lj<S> for Geometric<'_, S> {
             b[k] = p[4 + row::<S>(group, k)];
         }
         (s.mul(self.twelve, s.load(&a)), s.mul(self.six, s.load(&b)))
+    }
+    #[inline(always)]
+    fn has_lj(&self, ci: usize, group: usize) -> bool {
+        let p = &self.params[ci];
+        let zero = S::R::of(0.0);
+        (0..S::WIDTH).any(|k| {
+            let row = row::<S>(group.min(16 / S::WIDTH - 1), k);
+            p[row] != zero || p[4 + row] != zero
+        })
     }
     #[inline(always)]
     fn j(&self, s: S, cj: usize) -> (S::V, S::V) {
@@ -308,6 +332,11 @@ impl<S: Simd> Lj<S> for Table<'_, S> {
     #[inline(always)]
     fn j(&self, _s: S, cj: usize) -> [u32; 4] {
         self.types[cj]
+    }
+    /// Always: a type's row may pair with others' parameters through the table.
+    #[inline(always)]
+    fn has_lj(&self, _ci: usize, _group: usize) -> bool {
+        true
     }
     #[inline(always)]
     fn lanes<const ENERGY: bool>(
@@ -435,56 +464,247 @@ pub(crate) fn combine<S: Simd>(s: S, acc: &[S::V; 2]) -> S::V {
     }
 }
 
-/// One cluster pair.
+/// Cluster pairs per pass of [`entries`]: a block's j-forces wait in [`Scratch`] until
+/// its last group is done.
+const BLOCK: usize = 32;
+
+/// Per block position and group: the j-forces `f d` (x, y, z) and, with energies, the
+/// Lennard-Jones and Coulomb energy lanes.
+type Scratch<S> = [[[<S as Simd>::V; 5]; 4]; BLOCK];
+
+/// Pass 1 of a block: which groups of which cluster pairs have a pair within the cutoff.
+struct Live {
+    /// Per group, the block positions where it has one, in list order.
+    groups: [[u8; BLOCK]; 4],
+    counts: [usize; 4],
+    /// Per block position, bit `g` set where group `g` has one.
+    bits: [u8; BLOCK],
+    /// Block positions where any group has one, in list order.
+    any: [u8; BLOCK],
+    any_count: usize,
+}
+
+/// `d = x_i − x_j` of a group and `r² = d·d`: the same operations in both passes.
 #[inline(always)]
-#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
-fn pair<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
-    s: S,
-    k: &Constants<S>,
-    coulomb: C,
-    lj: &L,
-    rows: &Rows<S, L::I>,
-    j: &Cluster<S::R>,
-    lj_j: L::J,
-    mask: u16,
-    gi: &mut [[S::V; 3]; 4],
-    gj: &mut Gradient4,
-    energies: (&mut [f64; 4], &mut [f64; 4]),
-) {
-    let (xj, yj, zj, qj) = (s.load4(&j.x), s.load4(&j.y), s.load4(&j.z), s.load4(&j.q));
+fn separation<S: Simd, I>(s: S, rows: &Rows<S, I>, g: usize, j: [S::V; 3]) -> ([S::V; 3], S::V) {
+    let dx = s.sub(rows.x[g], j[0]);
+    let dy = s.sub(rows.y[g], j[1]);
+    let dz = s.sub(rows.z[g], j[2]);
+    ([dx, dy, dz], s.fma(dz, dz, s.fma(dy, dy, s.mul(dx, dx))))
+}
+
+/// The list's mask bits of group `g`.
+#[inline(always)]
+fn group_bits<S: Simd>(mask: u16, g: usize) -> u32 {
     let lane_bits = if S::WIDTH >= 16 {
         0xFFFF
     } else {
         (1u32 << S::WIDTH) - 1
     };
-    let mut fj = [[k.zero; 2]; 3];
-    let mut ej = [[k.zero; 2]; 2];
-    for g in 0..16 / S::WIDTH {
-        let dx = s.sub(rows.x[g], xj);
-        let dy = s.sub(rows.y[g], yj);
-        let dz = s.sub(rows.z[g], zj);
-        let r2 = s.fma(dz, dz, s.fma(dy, dy, s.mul(dx, dx)));
-        let bits = (mask as u32 >> (g * S::WIDTH)) & lane_bits;
-        let m = s.and(s.mask(bits), s.less(r2, k.cutoff2));
-        let r2 = s.select(m, r2, k.one);
-        let rinv = s.rsqrt(r2);
-        let rinv2 = s.mul(rinv, rinv);
-        let (e_lj, rinv8, bracket) = lj.lanes::<ENERGY>(s, &rows.lj[g], &lj_j, rinv2);
-        let (e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, s.mul(rows.q[g], qj), r2, rinv, rinv2);
-        let f = s.select(m, s.fma(rinv8, bracket, f_q), k.zero);
-        add_pair_force(s, f, [dx, dy, dz], g, &mut gi[g], &mut fj);
+    (mask as u32 >> (g * S::WIDTH)) & lane_bits
+}
+
+/// The pairs of a group to compute: the list's mask bits of the group, within the cutoff.
+#[inline(always)]
+fn within<S: Simd>(s: S, k: &Constants<S>, mask: u16, g: usize, r2: S::V) -> S::M {
+    s.and(s.mask(group_bits::<S>(mask, g)), s.less(r2, k.cutoff2))
+}
+
+#[inline(always)]
+fn positions<S: Simd>(s: S, j: &Cluster<S::R>) -> [S::V; 3] {
+    [s.load4(&j.x), s.load4(&j.y), s.load4(&j.z)]
+}
+
+/// Pass 1: the live groups of a block (cluster pairs `js` with list masks `masks`). A group
+/// with no pair within the cutoff contributes exact zeros, so leaving it out changes no bit.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // `g` indexes four arrays
+fn live<S: Simd, I>(
+    s: S,
+    k: &Constants<S>,
+    rows: &Rows<S, I>,
+    clusters: &[Cluster<S::R>],
+    (js, masks): (&[u32], &[u16]),
+    live: &mut Live,
+) {
+    // Counters in registers, not through `live`.
+    let (mut counts, mut any_count) = ([0; 4], 0);
+    for (p, (&cj, &mask)) in js.iter().zip(masks).enumerate() {
+        let j = positions(s, &clusters[cj as usize]);
+        let mut any = 0u8;
+        for g in 0..16 / S::WIDTH {
+            let (_, r2) = separation(s, rows, g, j);
+            let alive = s.bits(within(s, k, mask, g, r2)) != 0;
+            live.groups[g][counts[g]] = p as u8;
+            counts[g] += usize::from(alive);
+            any |= u8::from(alive) << g;
+        }
+        live.bits[p] = any;
+        live.any[any_count] = p as u8;
+        any_count += usize::from(any != 0);
+    }
+    (live.counts, live.any_count) = (counts, any_count);
+}
+
+/// One group against one cluster pair (block position `p`): `[f d, E_LJ, E_C]`, zero
+/// outside the cutoff. `LJ` false: the group's i-atoms have no Lennard-Jones parameters,
+/// whose lanes would be exact zeros.
+#[inline(always)]
+fn group_pair<S: Simd, C: Coulomb, L: Lj<S>, const LJ: bool, const ENERGY: bool>(
+    s: S,
+    k: &Constants<S>,
+    (coulomb, lj): (C, &L),
+    rows: &Rows<S, L::I>,
+    g: usize,
+    (job, js, masks): (&Job<S::R>, &[u32], &[u16]),
+    p: usize,
+) -> [S::V; 5] {
+    let cj = js[p] as usize;
+    let j = &job.clusters[cj];
+    let (d, r2) = separation(s, rows, g, positions(s, j));
+    let m = within(s, k, masks[p], g, r2);
+    let r2 = s.select(m, r2, k.one);
+    let rinv = s.rsqrt(r2);
+    let rinv2 = s.mul(rinv, rinv);
+    let qq = s.mul(rows.q[g], s.load4(&j.q));
+    let (e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, qq, r2, rinv, rinv2);
+    let (mut f, mut e_lj) = (f_q, k.zero);
+    if LJ {
+        let (e, rinv8, bracket) = lj.lanes::<ENERGY>(s, &rows.lj[g], &lj.j(s, cj), rinv2);
+        (f, e_lj) = (s.fma(rinv8, bracket, f_q), e);
+    }
+    let f = s.select(m, f, k.zero);
+    let mut out = [k.zero; 5];
+    for c in 0..3 {
+        out[c] = s.mul(f, d[c]);
+    }
+    if ENERGY {
+        out[3] = s.select(m, e_lj, k.zero);
+        out[4] = s.select(m, e_q, k.zero);
+    }
+    out
+}
+
+/// Pass 2: group `g` against the cluster pairs of its stream, two at a time (independent
+/// work side by side). The i-gradient gains `−f d` in list order; `f d` waits in the
+/// scratch for pass 3.
+#[inline(always)]
+fn group<S: Simd, C: Coulomb, L: Lj<S>, const LJ: bool, const ENERGY: bool>(
+    s: S,
+    k: &Constants<S>,
+    terms: (C, &L),
+    rows: &Rows<S, L::I>,
+    (g, stream): (usize, &[u8]),
+    data: (&Job<S::R>, &[u32], &[u16]),
+    (gi, scratch): (&mut [S::V; 3], &mut Scratch<S>),
+) {
+    let one = |p: u8| group_pair::<S, C, L, LJ, ENERGY>(s, k, terms, rows, g, data, p as usize);
+    let mut sum = *gi;
+    let mut add = |p: u8, v: [S::V; 5]| {
+        for c in 0..3 {
+            sum[c] = s.sub(sum[c], v[c]);
+        }
+        scratch[p as usize][g] = v;
+    };
+    let mut pairs = stream.chunks_exact(2);
+    for two in &mut pairs {
+        let (a, b) = (one(two[0]), one(two[1]));
+        add(two[0], a);
+        add(two[1], b);
+    }
+    for &p in pairs.remainder() {
+        add(p, one(p));
+    }
+    *gi = sum;
+}
+
+/// Pass 3: each live cluster pair's j-forces (and energies), its groups summed in the
+/// canonical order (a dead group as zero), into the buffer.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // `g` indexes the bits and the scratch
+fn fold_block<S: Simd, const ENERGY: bool>(
+    s: S,
+    k: &Constants<S>,
+    live: &Live,
+    js: &[u32],
+    scratch: &Scratch<S>,
+    out: &mut Out,
+) {
+    let lanes = if S::WIDTH >= 16 {
+        0xFFFF
+    } else {
+        (1u32 << S::WIDTH) - 1
+    };
+    for &p in &live.any[..live.any_count] {
+        let p = p as usize;
+        let mut acc = [[k.zero; 2]; 5];
+        for g in 0..16 / S::WIDTH {
+            let alive = s.mask(lanes * u32::from(live.bits[p] >> g & 1));
+            let parts = if ENERGY { 5 } else { 3 };
+            for (c, acc) in acc.iter_mut().enumerate().take(parts) {
+                gather(s, acc, g, s.select(alive, scratch[p][g][c], k.zero));
+            }
+        }
+        let gj = &mut out.gradient[js[p] as usize];
+        s.fold4(combine(s, &acc[0]), &mut gj.x);
+        s.fold4(combine(s, &acc[1]), &mut gj.y);
+        s.fold4(combine(s, &acc[2]), &mut gj.z);
         if ENERGY {
-            gather(s, &mut ej[0], g, s.select(m, e_lj, k.zero));
-            gather(s, &mut ej[1], g, s.select(m, e_q, k.zero));
+            s.fold4(combine(s, &acc[3]), &mut out.lj);
+            s.fold4(combine(s, &acc[4]), &mut out.coulomb);
         }
     }
-    s.fold4(combine(s, &fj[0]), &mut gj.x);
-    s.fold4(combine(s, &fj[1]), &mut gj.y);
-    s.fold4(combine(s, &fj[2]), &mut gj.z);
-    if ENERGY {
-        s.fold4(combine(s, &ej[0]), energies.0);
-        s.fold4(combine(s, &ej[1]), energies.1);
+}
+
+/// One entry: its j-clusters in blocks, each in the three passes.
+#[inline(always)]
+fn entry<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
+    s: S,
+    k: &Constants<S>,
+    (job, coulomb, lj): (&Job<S::R>, C, &L),
+    entry: &Entry,
+    (state, scratch): (&mut Live, &mut Scratch<S>),
+    out: &mut Out,
+) {
+    let rows = rows(s, job, lj, entry);
+    let mut gi = [[k.zero; 3]; 4];
+    let range = entry.start as usize..entry.end as usize;
+    let has_lj: [bool; 4] = std::array::from_fn(|g| lj.has_lj(entry.ci as usize, g));
+    for (js, masks) in job.list.j[range.clone()]
+        .chunks(BLOCK)
+        .zip(job.list.masks[range].chunks(BLOCK))
+    {
+        live(s, k, &rows, job.clusters, (js, masks), state);
+        for g in 0..16 / S::WIDTH {
+            let which = (g, &state.groups[g][..state.counts[g]]);
+            let data = (job, js, masks);
+            if has_lj[g] {
+                let f = group::<S, C, L, true, ENERGY>;
+                f(
+                    s,
+                    k,
+                    (coulomb, lj),
+                    &rows,
+                    which,
+                    data,
+                    (&mut gi[g], scratch),
+                );
+            } else {
+                let f = group::<S, C, L, false, ENERGY>;
+                f(
+                    s,
+                    k,
+                    (coulomb, lj),
+                    &rows,
+                    which,
+                    data,
+                    (&mut gi[g], scratch),
+                );
+            }
+        }
+        fold_block::<S, ENERGY>(s, k, state, js, scratch, out);
     }
+    finish_rows(s, &gi, &mut out.gradient[entry.ci as usize]);
 }
 
 /// Every entry of the job's list.
@@ -501,28 +721,17 @@ fn entries<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
         one: s.splat(S::R::of(1.0)),
         cutoff2: s.splat(S::R::of(job.cutoff2)),
     };
-    let list = job.list;
-    for entry in &list.entries {
-        let rows = rows(s, job, &lj, entry);
-        let mut gi = [[k.zero; 3]; 4];
-        let range = entry.start as usize..entry.end as usize;
-        for (&cj, &mask) in list.j[range.clone()].iter().zip(&list.masks[range]) {
-            let cj = cj as usize;
-            pair::<S, C, L, ENERGY>(
-                s,
-                &k,
-                coulomb,
-                &lj,
-                &rows,
-                &job.clusters[cj],
-                lj.j(s, cj),
-                mask,
-                &mut gi,
-                &mut out.gradient[cj],
-                (&mut out.lj, &mut out.coulomb),
-            );
-        }
-        finish_rows(s, &gi, &mut out.gradient[entry.ci as usize]);
+    let mut state = Live {
+        groups: [[0; BLOCK]; 4],
+        counts: [0; 4],
+        bits: [0; BLOCK],
+        any: [0; BLOCK],
+        any_count: 0,
+    };
+    let mut scratch: Scratch<S> = [[[k.zero; 5]; 4]; BLOCK];
+    for e in &job.list.entries {
+        let parts = (&mut state, &mut scratch);
+        entry::<S, C, L, ENERGY>(s, &k, (job, coulomb, &lj), e, parts, out);
     }
 }
 
