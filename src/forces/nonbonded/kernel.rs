@@ -678,28 +678,24 @@ fn entry<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
         for g in 0..16 / S::WIDTH {
             let which = (g, &state.groups[g][..state.counts[g]]);
             let data = (job, js, masks);
+            // One call, instantiated with and without the Lennard-Jones lanes.
+            macro_rules! group_with {
+                ($lj:literal) => {
+                    group::<S, C, L, $lj, ENERGY>(
+                        s,
+                        k,
+                        (coulomb, lj),
+                        &rows,
+                        which,
+                        data,
+                        (&mut gi[g], scratch),
+                    )
+                };
+            }
             if has_lj[g] {
-                let f = group::<S, C, L, true, ENERGY>;
-                f(
-                    s,
-                    k,
-                    (coulomb, lj),
-                    &rows,
-                    which,
-                    data,
-                    (&mut gi[g], scratch),
-                );
+                group_with!(true)
             } else {
-                let f = group::<S, C, L, false, ENERGY>;
-                f(
-                    s,
-                    k,
-                    (coulomb, lj),
-                    &rows,
-                    which,
-                    data,
-                    (&mut gi[g], scratch),
-                );
+                group_with!(false)
             }
         }
         fold_block::<S, ENERGY>(s, k, state, js, scratch, out);
