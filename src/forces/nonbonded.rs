@@ -528,6 +528,15 @@ impl Nonbonded {
         self.lock().isa
     }
 
+    /// Whether the kernel computes every register group, Lennard-Jones lanes included,
+    /// instead of only those with a pair within the cutoff (the default). The results are
+    /// the same bits; `tests/nonbonded_engine.rs` checks it.
+    pub fn set_every_group(&self, every: bool) {
+        let mut workspace = self.lock();
+        workspace.every_group = every;
+        workspace.cached = None;
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, engine::Workspace> {
         // A panic elsewhere while the lock was held leaves a list that is rebuilt anyway.
         self.workspace.lock().unwrap_or_else(|e| e.into_inner())

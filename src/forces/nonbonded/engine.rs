@@ -21,6 +21,8 @@ pub struct Workspace {
     pub list: ClusterList,
     pub isa: Isa,
     pub precision: Precision,
+    /// [`Job::every_group`] (tests).
+    pub every_group: bool,
     clusters32: Vec<Cluster<f32>>,
     /// Per-slot Lennard-Jones factors (factored parameters) or types (table).
     factors64: Vec<[f64; 8]>,
@@ -48,6 +50,7 @@ impl Workspace {
             list,
             isa: Isa::best(),
             precision: Precision::Double,
+            every_group: false,
             clusters32: Vec::new(),
             factors64: Vec::new(),
             factors32: Vec::new(),
@@ -393,6 +396,7 @@ fn job<'a, R>(
         cutoff2: list.cutoff() * list.cutoff(),
         inverse_cutoff6,
         lj,
+        every_group: false,
     }
 }
 
@@ -407,7 +411,10 @@ impl Inputs<f64> for Workspace {
         &mut [(f64, f64)],
     ) {
         let lj = lj_data(&self.factors64, &self.types, &self.table64);
-        let job = job(&self.list, &self.list.positions, lj, inverse_cutoff6);
+        let job = Job {
+            every_group: self.every_group,
+            ..job(&self.list, &self.list.positions, lj, inverse_cutoff6)
+        };
         (
             job,
             &self.list.chunks,
@@ -428,7 +435,10 @@ impl Inputs<f32> for Workspace {
         &mut [(f64, f64)],
     ) {
         let lj = lj_data(&self.factors32, &self.types, &self.table32);
-        let job = job(&self.list, &self.clusters32, lj, inverse_cutoff6);
+        let job = Job {
+            every_group: self.every_group,
+            ..job(&self.list, &self.clusters32, lj, inverse_cutoff6)
+        };
         (
             job,
             &self.list.chunks,

@@ -20,8 +20,9 @@
 //! i-gradient gaining `−f d` in list order and `f d` waiting in a scratch block; (3) each
 //! live cluster pair's j-forces summed over its groups in the canonical order and added to
 //! the buffer. Every non-zero term is added in the same order as a pass over all groups
-//! would add it: the results are the same bits (checked against the previous kernel on the
-//! water boxes' trajectories), with a fifth to a quarter fewer operations.
+//! would add it: the results are the same bits (`Job::every_group` computes every group;
+//! `tests/nonbonded_engine.rs` checks both give the same bits), with a fifth to a quarter
+//! fewer floating-point operations.
 //!
 //! Mixed precision: the same code with `f32` lanes. The i-positions (with their image
 //! shift) are formed in f64 and rounded once, the j-positions are rounded once per
@@ -66,6 +67,9 @@ pub struct Job<'a, R> {
     /// `r_c⁻⁶` when the Lennard-Jones energy is shifted, else 0 (geometric parameters).
     pub inverse_cutoff6: f64,
     pub lj: LjData<'a, R>,
+    /// Compute every register group, Lennard-Jones lanes included: what the kernel leaves
+    /// out must be exact zeros, and tests check the bits do not change.
+    pub every_group: bool,
 }
 
 /// Where a chunk's results go: the gradient buffer (indexed by cluster) and the
@@ -525,7 +529,7 @@ fn live<S: Simd, I>(
     rows: &Rows<S, I>,
     clusters: &[Cluster<S::R>],
     (js, masks): (&[u32], &[u16]),
-    live: &mut Live,
+    (every, live): (bool, &mut Live),
 ) {
     // Counters in registers, not through `live`.
     let (mut counts, mut any_count) = ([0; 4], 0);
@@ -534,7 +538,7 @@ fn live<S: Simd, I>(
         let mut any = 0u8;
         for g in 0..16 / S::WIDTH {
             let (_, r2) = separation(s, rows, g, j);
-            let alive = s.bits(within(s, k, mask, g, r2)) != 0;
+            let alive = every || s.bits(within(s, k, mask, g, r2)) != 0;
             live.groups[g][counts[g]] = p as u8;
             counts[g] += usize::from(alive);
             any |= u8::from(alive) << g;
@@ -669,12 +673,20 @@ fn entry<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
     let rows = rows(s, job, lj, entry);
     let mut gi = [[k.zero; 3]; 4];
     let range = entry.start as usize..entry.end as usize;
-    let has_lj: [bool; 4] = std::array::from_fn(|g| lj.has_lj(entry.ci as usize, g));
+    let has_lj: [bool; 4] =
+        std::array::from_fn(|g| job.every_group || lj.has_lj(entry.ci as usize, g));
     for (js, masks) in job.list.j[range.clone()]
         .chunks(BLOCK)
         .zip(job.list.masks[range].chunks(BLOCK))
     {
-        live(s, k, &rows, job.clusters, (js, masks), state);
+        live(
+            s,
+            k,
+            &rows,
+            job.clusters,
+            (js, masks),
+            (job.every_group, state),
+        );
         for g in 0..16 / S::WIDTH {
             let which = (g, &state.groups[g][..state.counts[g]]);
             let data = (job, js, masks);
