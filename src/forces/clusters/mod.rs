@@ -6,7 +6,8 @@
 //! pairs) whose bounding boxes come closer than the list reach `r_c + b_outer`, and of those
 //! only the ones with an atom pair within reach ([`search`]); a 16-bit mask per cluster pair
 //! marks the atom pairs to compute (no padding, no excluded pair, `j > i` within a cluster).
-//! The kernel then runs SIMD over the 16 pairs of a cluster pair with no branch.
+//! The kernel then runs SIMD over the 16 pairs of a cluster pair with no branch on a pair,
+//! computing only the register groups that have a pair within the cutoff.
 //!
 //! **Rare rebuilds, dynamic pruning.** An atom pair's distance changes by at most the sum of
 //! the two atoms' displacements, so a list built with buffer `b` holds every pair within
