@@ -12,8 +12,9 @@
 //! once per cluster pair. Energies (when asked) are summed per lane in f64.
 //!
 //! **Only live groups.** About a third of the register groups of a pruned list (4 × 4 pairs
-//! within the cutoff plus the prune buffer) have no pair within the cutoff, and on water
-//! about half have i-atoms without Lennard-Jones parameters (hydrogens). Both would add
+//! within the cutoff plus the prune buffer) have no pair within the cutoff, and on water,
+//! two thirds of whose atoms are hydrogens without Lennard-Jones parameters, many groups
+//! have only hydrogens as i-atoms. Both would add
 //! exact zeros, so an entry's j-clusters go in blocks through three passes: (1) `r²` of
 //! every group, keeping the positions of the live ones per group; (2) each group over its
 //! live cluster pairs, two side by side, with or without the Lennard-Jones lanes, the
