@@ -498,21 +498,21 @@ fn separation<S: Simd, I>(s: S, rows: &Rows<S, I>, g: usize, j: [S::V; 3]) -> ([
     ([dx, dy, dz], s.fma(dz, dz, s.fma(dy, dy, s.mul(dx, dx))))
 }
 
-/// The list's mask bits of group `g`.
+/// Every lane of a register set: the low `S::WIDTH` bits.
 #[inline(always)]
-fn group_bits<S: Simd>(mask: u16, g: usize) -> u32 {
-    let lane_bits = if S::WIDTH >= 16 {
+fn all_lanes<S: Simd>() -> u32 {
+    if S::WIDTH >= 16 {
         0xFFFF
     } else {
         (1u32 << S::WIDTH) - 1
-    };
-    (mask as u32 >> (g * S::WIDTH)) & lane_bits
+    }
 }
 
 /// The pairs of a group to compute: the list's mask bits of the group, within the cutoff.
 #[inline(always)]
 fn within<S: Simd>(s: S, k: &Constants<S>, mask: u16, g: usize, r2: S::V) -> S::M {
-    s.and(s.mask(group_bits::<S>(mask, g)), s.less(r2, k.cutoff2))
+    let bits = (mask as u32 >> (g * S::WIDTH)) & all_lanes::<S>();
+    s.and(s.mask(bits), s.less(r2, k.cutoff2))
 }
 
 #[inline(always)]
@@ -635,16 +635,11 @@ fn fold_block<S: Simd, const ENERGY: bool>(
     scratch: &Scratch<S>,
     out: &mut Out,
 ) {
-    let lanes = if S::WIDTH >= 16 {
-        0xFFFF
-    } else {
-        (1u32 << S::WIDTH) - 1
-    };
     for &p in &live.any[..live.any_count] {
         let p = p as usize;
         let mut acc = [[k.zero; 2]; 5];
         for g in 0..16 / S::WIDTH {
-            let alive = s.mask(lanes * u32::from(live.bits[p] >> g & 1));
+            let alive = s.mask(all_lanes::<S>() * u32::from(live.bits[p] >> g & 1));
             let parts = if ENERGY { 5 } else { 3 };
             for (c, acc) in acc.iter_mut().enumerate().take(parts) {
                 gather(s, acc, g, s.select(alive, scratch[p][g][c], k.zero));
