@@ -39,7 +39,7 @@
 //! the scalar root finding (arclength) or one pass over the pair distances
 //! (min-distance), neither of them a force evaluation.
 
-use super::{Integrator, StepFailure, drift, kick};
+use super::integrator::{Integrator, StepFailure, drift, kick};
 use crate::error::{Error, Result};
 use crate::forces::TermClass;
 use crate::system::System;

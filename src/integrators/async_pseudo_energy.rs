@@ -45,9 +45,9 @@
 
 use std::ops::Range;
 
+use super::integrator::{Integrator, StepFailure};
 use super::pseudo_energy::{PseudoEnergy, PseudoEnergyMonitor, pseudo_and_discrete_energy};
 use super::quadrature::Quadrature;
-use super::{Integrator, StepFailure};
 use crate::error::{Error, Result};
 use crate::settings::{MethodSettings, whole_ratio};
 use crate::split::{ForceSplit, ParticleClass, TermSet};

@@ -27,18 +27,17 @@
 //! the mollified methods) runs block by block: whole molecules per block ([`Blocks`]), each
 //! block's `K` Verlet steps on its own thread, the same bits as one thread.
 //!
-//! **Thermostatted r-RESPA** ([`Thermostat`]): the same recursion with another innermost
-//! step and, for SIN(R), another kick. `langevin-respa` (BAOAB-RESPA, OpenMM's
+//! **Thermostatted r-RESPA** ([`InnermostStep`], `super::innermost`): the same recursion
+//! with another innermost step and, for SIN(R), another kick. `langevin-respa` (BAOAB-RESPA, OpenMM's
 //! `MTSLangevinIntegrator`): the innermost step is BAOAB (LM13), kick `dt/2`, drift `dt/2`,
 //! O step ([`super::langevin`]), drift `dt/2`, kick `dt/2`; the outer levels kick as impulse
 //! does. With one force level it is plain BAOAB. `sinr`: every kick goes through the
 //! isokinetic operator and the innermost step carries the thermostat ([`super::sinr`]).
 //! Same cost in force evaluations as impulse.
 
-use super::langevin::Langevin;
+use super::innermost::{InnermostStep, VerletStep};
+use super::integrator::{Integrator, StepFailure, drift, kick};
 use super::mollified::SlowMollifier;
-use super::sinr::Sinr;
-use super::{Integrator, StepFailure, drift, kick};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
 use crate::split::{Blocks, ForceSplit};
@@ -54,14 +53,6 @@ pub enum Variant {
     Midpoint,
 }
 
-/// What a thermostatted r-RESPA method changes in the impulse recursion.
-pub enum Thermostat {
-    /// BAOAB innermost step (`langevin-respa`).
-    Langevin(Langevin),
-    /// SIN(R): isokinetic kicks, thermostat and OU steps in the innermost step (`sinr`).
-    Sinr(Box<Sinr>),
-}
-
 pub struct Impulse {
     name: &'static str,
     h: f64,
@@ -75,7 +66,8 @@ pub struct Impulse {
     gradients: Vec<Vec<f64>>,
     empty: Vec<bool>,
     mollifier: Option<Box<dyn SlowMollifier>>,
-    thermostat: Option<Thermostat>,
+    /// The innermost step, through which every level kicks ([`InnermostStep`]).
+    step: Box<dyn InnermostStep>,
     /// A mollified force that could not be computed at the start: the first step reports
     /// it, so the run stops at t₀ with its outputs written (exit 3), not as bad input.
     pending_failure: Option<StepFailure>,
@@ -117,30 +109,26 @@ impl Impulse {
             gradients: Vec::new(),
             empty: Vec::new(),
             mollifier,
-            thermostat: None,
+            step: Box::new(VerletStep),
             pending_failure: None,
             blocks: None,
         })
     }
 
-    /// A thermostatted r-RESPA method (endpoint form), optionally with a mollified slow force.
-    pub fn thermostatted(
+    /// The endpoint recursion around another innermost step (a thermostatted r-RESPA
+    /// method: BAOAB, SIN(R)), optionally with a mollified slow force. The method takes the
+    /// step's name.
+    pub fn with_innermost(
         settings: &MethodSettings,
         mollifier: Option<Box<dyn SlowMollifier>>,
-        thermostat: Thermostat,
+        step: Box<dyn InnermostStep>,
     ) -> Result<Self> {
         let mut method = Impulse::new(settings, Variant::Endpoint, mollifier)?;
-        method.name = match &thermostat {
-            Thermostat::Langevin(_) => "langevin-respa",
-            Thermostat::Sinr(_) => "sinr",
-        };
-        method.thermostat = Some(thermostat);
+        if let Some(name) = step.method_name() {
+            method.name = name;
+        }
+        method.step = step;
         Ok(method)
-    }
-
-    /// The thermostat of a thermostatted method (for tests and studies).
-    pub fn thermostat(&self) -> Option<&Thermostat> {
-        self.thermostat.as_ref()
     }
 
     /// The blocks the fast level's inner loop runs in, if it runs block by block (for
@@ -186,12 +174,7 @@ impl Impulse {
         if self.empty[level] {
             return;
         }
-        match &mut self.thermostat {
-            Some(Thermostat::Sinr(sinr)) => {
-                sinr.isokinetic_kick(&mut system.state.p, &self.gradients[level], scale)
-            }
-            _ => kick(&mut system.state.p, &self.gradients[level], scale),
-        }
+        self.step.kick(system, &self.gradients[level], scale);
     }
 
     /// One step of length `h_level` of `level` (endpoint form).
@@ -236,16 +219,11 @@ impl Impulse {
         Ok(())
     }
 
-    /// Size the thermostat for the innermost step `dt = h / Π level_steps` (SIN(R) also
-    /// starts its thermostat variables and puts the momenta on its constraint).
-    fn setup_thermostat(&mut self, system: &mut System) -> Result<()> {
+    /// Size the innermost step for `dt = h / Π level_steps` (SIN(R) also starts its
+    /// thermostat variables and puts the momenta on its constraint).
+    fn setup_innermost(&mut self, system: &mut System) -> Result<()> {
         let dt = self.h / self.substeps[1..].iter().product::<usize>() as f64;
-        match &mut self.thermostat {
-            Some(Thermostat::Langevin(langevin)) => langevin.setup(dt, &system.inverse_mass),
-            Some(Thermostat::Sinr(sinr)) => sinr.setup(dt, system)?,
-            None => {}
-        }
-        Ok(())
+        self.step.setup(dt, system)
     }
 
     /// The fast level's blocks, where the inner loop of plain endpoint impulse pays to run
@@ -254,7 +232,7 @@ impl Impulse {
     fn find_fast_blocks(&self, system: &System) -> Option<Blocks> {
         let threads = rayon::current_num_threads();
         let n = system.n_dofs() / system.dim;
-        let plain = self.thermostat.is_none() && self.variant == Variant::Endpoint;
+        let plain = self.step.is_plain_verlet() && self.variant == Variant::Endpoint;
         if !plain || self.empty[0] || threads < 2 || n < BLOCKS_MIN_PARTICLES {
             return None;
         }
@@ -264,32 +242,16 @@ impl Impulse {
             .filter(|blocks| blocks.len() > 1)
     }
 
-    /// The innermost step: velocity Verlet, BAOAB, or SIN(R)'s
-    /// `N(dt/2) V(dt/2) X(dt) OU(dt) V(dt/2) N(dt/2)`.
+    /// The innermost step ([`InnermostStep`]): bracket, kick, flight, the level-0 force,
+    /// kick, bracket.
     fn innermost(&mut self, dt: f64, system: &mut System) -> Result<(), StepFailure> {
         let half = 0.5 * dt;
-        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
-            sinr.thermostat_flow(&mut system.state.p, half);
-        }
+        self.step.bracket(system, half);
         self.kick(0, system, half);
-        let (state, w) = (&mut system.state, &system.inverse_mass);
-        match &mut self.thermostat {
-            None => drift(&mut state.q, &state.p, w, dt),
-            Some(Thermostat::Langevin(langevin)) => {
-                drift(&mut state.q, &state.p, w, half);
-                langevin.apply(&mut state.p);
-                drift(&mut state.q, &state.p, w, half);
-            }
-            Some(Thermostat::Sinr(sinr)) => {
-                drift(&mut state.q, &state.p, w, dt);
-                sinr.ornstein_uhlenbeck();
-            }
-        }
+        self.step.flight(system, dt)?;
         self.refresh(0, system)?;
         self.kick(0, system, half);
-        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
-            sinr.thermostat_flow(&mut system.state.p, half);
-        }
+        self.step.bracket(system, half);
         Ok(())
     }
 }
@@ -315,11 +277,7 @@ impl Integrator for Impulse {
         if let Some(mollifier) = &self.mollifier {
             text += &format!(", {}", mollifier.describe());
         }
-        match &self.thermostat {
-            Some(Thermostat::Langevin(langevin)) => text += &langevin.describe(),
-            Some(Thermostat::Sinr(sinr)) => text += &sinr.describe(),
-            None => {}
-        }
+        text += &self.step.describe();
         text
     }
 
@@ -360,9 +318,7 @@ impl Integrator for Impulse {
         if let Some(mollifier) = &mut self.mollifier {
             mollifier.setup(system)?;
         }
-        if self.thermostat.is_some() {
-            self.setup_thermostat(system)?;
-        }
+        self.setup_innermost(system)?;
         let n = system.n_dofs();
         self.gradients = vec![vec![0.0; n]; levels];
         self.empty = (0..levels)
@@ -391,10 +347,7 @@ impl Integrator for Impulse {
         }
         self.advance(self.top(), self.h, system)?;
         system.state.t += self.h;
-        if let Some(Thermostat::Sinr(sinr)) = &mut self.thermostat {
-            sinr.check(&system.state.p, system.state.t)?;
-        }
-        Ok(())
+        self.step.after_outer_step(system)
     }
 
     fn notices(&self, system: &System) -> Vec<String> {
@@ -402,16 +355,13 @@ impl Integrator for Impulse {
             Some(mollifier) => mollifier.notices(system),
             None => Vec::new(),
         };
-        if let Some(Thermostat::Sinr(sinr)) = &self.thermostat {
-            notices.push(sinr.notice());
-        }
+        notices.extend(self.step.notices(system));
         notices
     }
 
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
-        match &self.thermostat {
-            Some(Thermostat::Langevin(langevin)) => Some(("langevin", langevin.report())),
-            Some(Thermostat::Sinr(sinr)) => Some(("sinr", sinr.report())),
+        match self.step.report() {
+            Some(report) => Some(report),
             None => Some(("mollifier", self.mollifier.as_ref()?.report()?)),
         }
     }

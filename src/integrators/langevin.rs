@@ -14,8 +14,11 @@
 //! the start velocities from the same `--seed`. The O step draws one normal per
 //! coordinate and is `O(n)` next to a force evaluation: not worth parallelising.
 
+use super::innermost::InnermostStep;
+use super::integrator::{StepFailure, drift};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
+use crate::system::System;
 use crate::units::Units;
 use rand::rngs::Xoshiro256PlusPlus;
 use rand::{RngExt, SeedableRng};
@@ -167,5 +170,38 @@ impl Langevin {
         for (pi, sigma) in p.iter_mut().zip(&self.noise) {
             *pi = a * *pi + sigma * self.gaussian.normal();
         }
+    }
+}
+
+/// BAOAB (LM13) as the innermost step of r-RESPA (`langevin-respa`, OpenMM's
+/// `MTSLangevinIntegrator`): kick `dt/2`, drift `dt/2`, the O step, drift `dt/2`, kick
+/// `dt/2`. With one force level it is plain BAOAB.
+pub struct Baoab(pub Langevin);
+
+impl InnermostStep for Baoab {
+    fn method_name(&self) -> Option<&'static str> {
+        Some("langevin-respa")
+    }
+
+    fn describe(&self) -> String {
+        self.0.describe()
+    }
+
+    fn setup(&mut self, dt: f64, system: &mut System) -> Result<()> {
+        self.0.setup(dt, &system.inverse_mass);
+        Ok(())
+    }
+
+    fn flight(&mut self, system: &mut System, dt: f64) -> Result<(), StepFailure> {
+        let half = 0.5 * dt;
+        let (state, w) = (&mut system.state, &system.inverse_mass);
+        drift(&mut state.q, &state.p, w, half);
+        self.0.apply(&mut state.p);
+        drift(&mut state.q, &state.p, w, half);
+        Ok(())
+    }
+
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        Some(("langevin", self.0.report()))
     }
 }

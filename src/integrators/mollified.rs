@@ -24,7 +24,7 @@
 
 use nalgebra::DMatrix;
 
-use super::StepFailure;
+use super::integrator::StepFailure;
 use crate::error::{Error, Result};
 use crate::split::ForceSplit;
 use crate::system::System;

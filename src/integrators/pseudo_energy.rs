@@ -33,8 +33,8 @@
 //! (uncounted) energy evaluation for the pseudo-energy monitor; rejected attempts cost
 //! the same again.
 
+use super::integrator::{Integrator, StepFailure};
 use super::quadrature::Quadrature;
-use super::{Integrator, StepFailure};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
 use crate::system::System;

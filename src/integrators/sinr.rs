@@ -1,6 +1,6 @@
 //! SIN(R): the stochastic isokinetic Nosé–Hoover RESPA method (LMT13: Leimkuhler, Margul
 //! & Tuckerman, Mol. Phys. 111:3579, 2013), run by the r-RESPA recursion of
-//! [`super::impulse`] with [`Thermostat::Sinr`](super::impulse::Thermostat).
+//! [`super::impulse`] with [`Sinr`] as its [`InnermostStep`].
 //!
 //! **Equations of motion** (LMT13; per Cartesian degree of freedom with position x,
 //! momentum p = m v, and L thermostat pairs `(v1_k, v2_k)`, `Q1 = Q2 = kT τ²`):
@@ -55,7 +55,8 @@
 //! such a degree of freedom untouched and the step fails with the time and the coordinate,
 //! before anything turns into NaN.
 
-use super::StepFailure;
+use super::innermost::InnermostStep;
+use super::integrator::{StepFailure, drift};
 use super::lane_exp;
 use super::langevin::{Gaussian, required_kt};
 use crate::error::{Error, Result};
@@ -205,7 +206,7 @@ impl Sinr {
 
     /// Draw the thermostat variables, put `(p, v1)` on the constraint, and size the OU step
     /// for the innermost step `dt`.
-    pub fn setup(&mut self, dt: f64, system: &mut System) -> Result<()> {
+    fn start(&mut self, dt: f64, system: &mut System) -> Result<()> {
         if system.mass_matrix.is_some() {
             return Err(Error::input(
                 "sinr needs a diagonal mass matrix (its constraint is per coordinate)",
@@ -346,7 +347,7 @@ impl Sinr {
     }
 
     /// The run header's part.
-    pub fn describe(&self) -> String {
+    fn header(&self) -> String {
         format!(
             ", kT = {}, L = {}, tau = {}, friction = {} (on v2), seed = {}",
             self.c.kt, self.thermostats, self.tau, self.friction, self.seed
@@ -354,7 +355,7 @@ impl Sinr {
     }
 
     /// The summary's `sinr` object.
-    pub fn report(&self) -> serde_json::Value {
+    fn summary(&self) -> serde_json::Value {
         serde_json::json!({
             "kT": self.c.kt,
             "thermostats": self.thermostats,
@@ -366,6 +367,49 @@ impl Sinr {
             "constraint_max_violation": self.max_violation,
             "smallest_thermostat_share": self.min_share,
         })
+    }
+}
+
+/// SIN(R) as the innermost step: isokinetic kicks at every level, the thermostat flow
+/// `N(dt/2)` around the step, `X(dt) OU(dt)` between the kicks.
+impl InnermostStep for Sinr {
+    fn method_name(&self) -> Option<&'static str> {
+        Some("sinr")
+    }
+
+    fn describe(&self) -> String {
+        self.header()
+    }
+
+    fn setup(&mut self, dt: f64, system: &mut System) -> Result<()> {
+        self.start(dt, system)
+    }
+
+    fn kick(&mut self, system: &mut System, gradient: &[f64], scale: f64) {
+        self.isokinetic_kick(&mut system.state.p, gradient, scale);
+    }
+
+    fn bracket(&mut self, system: &mut System, delta: f64) {
+        self.thermostat_flow(&mut system.state.p, delta);
+    }
+
+    fn flight(&mut self, system: &mut System, dt: f64) -> Result<(), StepFailure> {
+        let state = &mut system.state;
+        drift(&mut state.q, &state.p, &system.inverse_mass, dt);
+        self.ornstein_uhlenbeck();
+        Ok(())
+    }
+
+    fn after_outer_step(&mut self, system: &System) -> Result<(), StepFailure> {
+        self.check(&system.state.p, system.state.t)
+    }
+
+    fn notices(&self, _system: &System) -> Vec<String> {
+        vec![self.notice()]
+    }
+
+    fn report(&self) -> Option<(&'static str, serde_json::Value)> {
+        Some(("sinr", self.summary()))
     }
 }
 

@@ -5,7 +5,7 @@
 //! time-reversible; stable for `hω < 2` on the fastest frequency ω. Cost per step: one
 //! evaluation of every level (the end-of-step gradient is the next step's first).
 
-use super::{Integrator, StepFailure, drift, kick};
+use super::integrator::{Integrator, StepFailure, drift, kick};
 use crate::error::{Error, Result};
 use crate::system::System;
 

@@ -68,7 +68,7 @@ pub mod selection;
 use molecule::{Failure, MoleculeSolver};
 pub use selection::{ConstraintKind, ConstraintSet, MoleculePlan, Selection, select};
 
-use super::StepFailure;
+use super::integrator::StepFailure;
 use super::mollified::SlowMollifier;
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;

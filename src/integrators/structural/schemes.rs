@@ -5,7 +5,7 @@ use super::coefficients::StructuralCoefficients;
 use super::physics::PhysicalEquations;
 use super::solver::{BlockFailure, BlockSolver, Node};
 use crate::error::{Error, Result};
-use crate::integrators::{Integrator, StepFailure};
+use crate::integrators::integrator::{Integrator, StepFailure};
 use crate::system::System;
 
 /// Default relative tolerance of the fixed point: a few ulps above round-off.
