@@ -2,6 +2,11 @@
 
 pub mod drift;
 pub mod monitor;
+pub mod prepare;
+
+pub use prepare::{
+    PreparedRun, RunRequest, StartReport, check_seed_used, is_stochastic, prepare, start_velocities,
+};
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -9,14 +14,12 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
-use crate::io::scene::Scene;
 use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status, TemperatureSummary};
 use crate::io::trajectory::TrajectoryWriter;
 use crate::run::drift::{CONSERVED_COLUMNS, DriftFit};
 use crate::run::monitor::EnergyMonitor;
-use crate::settings::MethodSettings;
 use crate::system::System;
-use crate::system::velocities::{DEFAULT_SEED, DegreesOfFreedom, maxwell_boltzmann};
+use crate::system::velocities::DegreesOfFreedom;
 use crate::units::Units;
 
 #[derive(Clone, Debug)]
@@ -39,92 +42,6 @@ pub struct RunOptions {
     pub fit_from: Option<f64>,
     /// Advanced by one per outer step (a terminal's progress bar; hidden by default).
     pub progress: indicatif::ProgressBar,
-}
-
-/// Whether `method` is stochastic: its registry entry uses a seed
-/// ([`MethodInfo::uses`](crate::integrators::MethodInfo)).
-pub fn is_stochastic(method: &str) -> bool {
-    crate::integrators::METHODS
-        .iter()
-        .find(|m| m.name == method)
-        .is_some_and(|m| m.uses.contains(&"seed"))
-}
-
-/// A seed where nothing uses it (no temperature to draw start velocities at, and a method
-/// that is not stochastic) is a mistake worth stopping for: the user expects randomness
-/// that is not there. `source` names where the seed came from.
-pub fn check_seed_used(settings: &MethodSettings, source: &str) -> Result<()> {
-    match settings.seed {
-        Some(seed) if settings.temperature.is_none() && !is_stochastic(&settings.method) => {
-            Err(Error::input(format!(
-                "{source} {seed} is given, but nothing uses it: there is no temperature \
-                 (--temperature or the scene's [run] temperature) to draw start velocities \
-                 at, and {} is not a stochastic method; drop the seed or give a temperature",
-                settings.method
-            )))
-        }
-        _ => Ok(()),
-    }
-}
-
-/// What a start at a temperature did, for the run header.
-pub struct StartReport {
-    /// The degrees of freedom the temperature is counted over.
-    pub degrees_of_freedom: DegreesOfFreedom,
-    /// Lines for the run header.
-    pub lines: Vec<String>,
-}
-
-/// Start velocities: with a temperature, a Maxwell–Boltzmann draw
-/// ([`maxwell_boltzmann`]) replacing the scene's momenta (and its velocity file), seeded
-/// by the settings' seed or [`DEFAULT_SEED`]; without one, the scene's momenta, with a
-/// notice when every particle starts at rest. Returns `None` without a temperature.
-pub fn start_velocities(
-    scene: &mut Scene,
-    settings: &MethodSettings,
-    notices: &mut Vec<String>,
-) -> Result<Option<StartReport>> {
-    let Some(kt) = settings.kt() else {
-        if scene.system.state.p.iter().all(|&p| p == 0.0) {
-            notices.push(
-                "every particle starts at rest and no temperature is given: the motion comes \
-                 from the potential alone (--temperature T draws Maxwell–Boltzmann velocities)"
-                    .into(),
-            );
-        }
-        return Ok(None);
-    };
-    let had_momenta = scene.system.state.p.iter().any(|&p| p != 0.0);
-    let seed = settings.seed.unwrap_or(DEFAULT_SEED);
-    let start = maxwell_boltzmann(&mut scene.system, kt, seed)?;
-    let units = scene.units;
-    let temperature = match units {
-        Units::None => format!("k_B T = {}", kt),
-        _ => format!(
-            "{} {}",
-            crate::io::summary::significant(kt / units.boltzmann(), 6),
-            units.temperature_name()
-        ),
-    };
-    let seed_text = match settings.seed {
-        Some(seed) => format!("seed {seed}"),
-        None => format!("seed {DEFAULT_SEED}, the default: give --seed N for another draw"),
-    };
-    let replaced = match &scene.velocities_file {
-        Some(path) => format!(", replacing the velocities of {}", path.display()),
-        None if had_momenta => ", replacing the scene's momenta".to_string(),
-        None => String::new(),
-    };
-    let dofs = start.degrees_of_freedom;
-    let lines = vec![format!(
-        "start      Maxwell–Boltzmann velocities at {temperature} ({seed_text}){replaced}; \
-         rescaled to exactly that over {}",
-        dofs.describe(scene.system.dim, scene.system.n_particles())
-    )];
-    Ok(Some(StartReport {
-        degrees_of_freedom: dofs,
-        lines,
-    }))
 }
 
 /// A trajectory file: positions through chemfiles, format by extension.

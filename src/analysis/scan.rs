@@ -27,15 +27,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::integrators;
 use crate::io::scene::load_scene;
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
-use crate::run::{
-    RunOptions, TrajectoryOptions, check_seed_used, is_stochastic, run, start_velocities,
-};
+use crate::run::prepare::{RunRequest, prepare};
+use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value, whole_ratio};
-use crate::system::velocities::DegreesOfFreedom;
 use crate::units::Units;
 
 /// The default drift bound of a scan in a dimensionless scene, in kT per unit time per
@@ -258,24 +255,12 @@ pub fn run_once(
     h: f64,
     outputs: &PointOutputs,
 ) -> Result<RunSummary> {
-    let mut scene = load_scene(&setup.scene, &setup.set)?;
-    let settings = scene
-        .run
-        .overridden_by(&point_spec(setup, method, h)?)
-        .resolve_with_units(&scene.parameters, scene.units)?;
-    check_seed_used(&settings, "--seed")?;
-    let mut notices = Vec::new();
-    let mut integrator = integrators::build(&settings, &mut notices)?;
-    let start = start_velocities(&mut scene, &settings, &mut notices)?;
-    let degrees_of_freedom = match &start {
-        Some(start) => Some(start.degrees_of_freedom),
-        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
-        None => None,
-    };
+    let spec = point_spec(setup, method, h)?;
+    let mut prepared = prepare(&RunRequest::new(&setup.scene, &setup.set, &spec))?;
     let trajectory = outputs.dir.map(|dir| TrajectoryOptions {
         path: dir.join("trajectory.xyz"),
         every: outputs.frame_every.max(1),
-        names: scene.elements.clone(),
+        names: prepared.scene.elements.clone(),
     });
     if let Some(dir) = outputs.dir {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -283,22 +268,15 @@ pub fn run_once(
     let options = RunOptions {
         t_end: setup.t_end,
         energy_every: setup.energy_every,
-        blowup: settings.blowup,
+        blowup: prepared.settings.blowup,
         energy_csv: outputs.dir.map(|dir| dir.join("energy.csv")),
         trajectory,
-        units: scene.units,
-        temperature: degrees_of_freedom,
+        units: prepared.scene.units,
+        temperature: prepared.degrees_of_freedom,
         fit_from: setup.fit_from,
         ..RunOptions::default()
     };
-    let mut summary = run(
-        &scene.name,
-        &mut scene.system,
-        integrator.as_mut(),
-        &options,
-    )?;
-    summary.set_units(scene.units);
-    Ok(summary)
+    prepared.run(&options)
 }
 
 /// Run one point and judge it by drift.

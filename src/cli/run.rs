@@ -7,21 +7,15 @@ use clap::Args;
 
 use super::common::EXIT_UNSTABLE;
 use crate::error::{Error, Result};
-use crate::forces::Precision;
-use crate::integrators;
 use crate::io::energy_table::EnergyTable;
-use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
-use crate::run::{
-    RunOptions, StartReport, TrajectoryOptions, check_seed_used, is_stochastic, run,
-    start_velocities,
-};
+use crate::run::prepare::{OutputPlan, RunRequest, check_run_table, prepare};
+use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::split::ParticleClass;
 use crate::system::exact::position_error;
-use crate::system::velocities::DegreesOfFreedom;
 use crate::units::Units;
 
 #[derive(Args, Debug)]
@@ -124,28 +118,6 @@ impl DriftArgs {
     }
 }
 
-/// `--precision`: every term that has the choice computes in it; a notice when none has.
-fn set_precision(
-    scene: &crate::io::scene::Scene,
-    name: Option<&str>,
-    notices: &mut Vec<String>,
-) -> Result<()> {
-    let Some(name) = name else {
-        return Ok(());
-    };
-    let precision = Precision::parse(name).ok_or_else(|| {
-        Error::input(format!(
-            "--precision must be double or mixed, got \"{name}\""
-        ))
-    })?;
-    if scene.system.forces.set_precision(precision) == 0 && precision != Precision::Double {
-        notices.push(format!(
-            "--precision {name}: no term of this scene has a {name}-precision form; all run in double"
-        ));
-    }
-    Ok(())
-}
-
 /// Runs inside a rayon pool (threads from `RAYON_NUM_THREADS`, default all cores): parallel
 /// force loops then split their work from a worker thread, with no allocation per call.
 pub fn run_command(args: &RunArgs) -> Result<i32> {
@@ -156,60 +128,57 @@ pub fn run_command(args: &RunArgs) -> Result<i32> {
 }
 
 fn run_in_pool(args: &RunArgs) -> Result<i32> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
-    if let Some(path) = &args.start {
-        start_positions(&mut scene, path)?;
-    }
-    let settings = scene
-        .run
-        .overridden_by(&args.run)
-        .resolve_with_units(&scene.parameters, scene.units)
-        .map_err(|e| blame_run_table(&scene, e))?;
-    let t_end = settings.t_end.ok_or_else(|| {
-        Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
-    })?;
-    let (energy_every, trajectory_every) = output_intervals(args, &scene)?;
     let seed_source = match args.run.seed {
         Some(_) => "--seed",
         None => "the scene's [run] seed",
     };
-    check_seed_used(&settings, seed_source)?;
+    let request = RunRequest {
+        scene: &args.scene,
+        set: &args.set,
+        overrides: &args.run,
+        seed_source,
+        start: args.start.as_deref(),
+        precision: args.precision.as_deref(),
+    };
+    let mut prepared = prepare(&request)?;
+    let t_end = prepared.t_end()?;
+    let (energy_every, trajectory_every) = output_intervals(args, &prepared.scene)?;
     let drift_bound = args.drift.bound()?;
+    let scene = &prepared.scene;
     let fit_from = args.drift.fit_from(&scene.parameters, scene.units, t_end)?;
-
-    let mut notices = Vec::new();
-    set_precision(&scene, args.precision.as_deref(), &mut notices)?;
-    let mut integrator =
-        integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
-    let start = start_velocities(&mut scene, &settings, &mut notices)?;
-    let degrees_of_freedom = temperature_degrees_of_freedom(&scene, start.as_ref());
-    notices.extend(async_band_warning(args, &settings)?);
-    notices.extend(integrator.notices(&scene.system));
-
-    let steps = check_size(args, &scene, &settings, t_end, energy_every)?;
-    let out_dir = output_dir(args, &scene, &settings.method)?;
+    if let Some(warning) = async_band_warning(args, &prepared.settings)? {
+        // Before the integrator's own notices, as the header has always listed them.
+        let own = prepared.integrator.notices(&prepared.scene.system).len();
+        let at = prepared.notices.len() - own;
+        prepared.notices.insert(at, warning);
+    }
+    let plan = OutputPlan {
+        energy_every,
+        trajectory_every,
+        allow_large: args.allow_large,
+    };
+    let steps = prepared.check_size(t_end, &plan)?;
+    let out_dir = output_dir(args, &prepared.scene, &prepared.settings.method)?;
     if !args.quiet {
-        let start_lines = start.iter().flat_map(|s| &s.lines);
-        print_header(&scene, start_lines, &notices);
+        prepared
+            .header()
+            .iter()
+            .for_each(|line| eprintln!("{line}"));
     }
     let options = RunOptions {
         t_end,
         energy_every,
-        blowup: settings.blowup,
+        blowup: prepared.settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
-        trajectory: trajectory_every.map(|every| trajectory_options(&scene, &out_dir, every)),
-        units: scene.units,
-        temperature: degrees_of_freedom,
+        trajectory: trajectory_every
+            .map(|every| trajectory_options(&prepared.scene, &out_dir, every)),
+        units: prepared.scene.units,
+        temperature: prepared.degrees_of_freedom,
         fit_from,
         progress: run_progress(steps, args.quiet),
     };
-    let mut summary = run(
-        &scene.name,
-        &mut scene.system,
-        integrator.as_mut(),
-        &options,
-    )?;
-    complete_summary(args, &scene, &mut summary, drift_bound)?;
+    let mut summary = prepared.run(&options)?;
+    complete_summary(args, &prepared.scene, &mut summary, drift_bound)?;
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
     }
@@ -237,19 +206,6 @@ fn output_intervals(args: &RunArgs, scene: &Scene) -> Result<(usize, Option<usiz
     Ok((energy_every, trajectory_every))
 }
 
-/// The degrees of freedom the kinetic temperature is recorded over: in a real scene, and
-/// wherever a temperature is given; a dimensionless scene without one keeps its outputs.
-fn temperature_degrees_of_freedom(
-    scene: &Scene,
-    start: Option<&StartReport>,
-) -> Option<DegreesOfFreedom> {
-    match start {
-        Some(start) => Some(start.degrees_of_freedom),
-        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
-        None => None,
-    }
-}
-
 /// The asynchronous pseudo-energy scheme's warning before it enters an instability band;
 /// checked on a scratch copy of the scene, since the check steps it.
 fn async_band_warning(args: &RunArgs, settings: &MethodSettings) -> Result<Option<String>> {
@@ -273,24 +229,6 @@ fn output_dir(args: &RunArgs, scene: &Scene, method: &str) -> Result<PathBuf> {
         .unwrap_or_else(|| PathBuf::from("out").join(format!("{}-{method}", scene.name)));
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
     Ok(out_dir)
-}
-
-/// The lines before a run: force-field report, level table, start velocities, notices.
-fn print_header<'a>(
-    scene: &Scene,
-    start_lines: impl Iterator<Item = &'a String>,
-    notices: &[String],
-) {
-    for line in &scene.forcefield_report {
-        eprintln!("{line}");
-    }
-    eprintln!("{}", scene.system.forces.level_table());
-    for line in start_lines {
-        eprintln!("{line}");
-    }
-    for notice in notices {
-        eprintln!("notice: {notice}");
-    }
 }
 
 fn trajectory_options(scene: &Scene, out_dir: &std::path::Path, every: usize) -> TrajectoryOptions {
@@ -357,43 +295,6 @@ fn report(args: &RunArgs, summary: &RunSummary) -> Result<i32> {
     Ok(EXIT_UNSTABLE)
 }
 
-/// Most outer steps a run is allowed, and most bytes of output it writes, without
-/// `--allow-large`: beyond them a mistyped `--t-end 1e300` or `--h 1e-300` would run for
-/// ever or fill the disk.
-const MAX_STEPS: f64 = 1e10;
-const MAX_OUTPUT_BYTES: f64 = 2e9;
-
-/// The run's outer step count, estimated before anything is written, and the refusal of a
-/// run too long or too large to be meant (unless `--allow-large`).
-fn check_size(
-    args: &RunArgs,
-    scene: &Scene,
-    settings: &MethodSettings,
-    t_end: f64,
-    energy_every: usize,
-) -> Result<f64> {
-    let steps = ((t_end - scene.system.state.t) / settings.h)
-        .max(0.0)
-        .ceil();
-    // About 20 bytes a number: energy.csv's ~8 columns, a trajectory's 3 per particle.
-    let energy_bytes = steps / energy_every as f64 * 8.0 * 20.0;
-    let every = args.trajectory_every.or(scene.output.trajectory_every);
-    let frame_bytes = (scene.system.n_particles() * 3 * 20) as f64;
-    let trajectory_bytes = every.map_or(0.0, |e| steps / e as f64 * frame_bytes);
-    let bytes = energy_bytes + trajectory_bytes;
-    if args.allow_large || (steps <= MAX_STEPS && bytes <= MAX_OUTPUT_BYTES) {
-        return Ok(steps);
-    }
-    Err(Error::input(format!(
-        "this run would take {steps:.3e} outer steps (h = {}, t_end = {}) and write about {:.2e} bytes \
-         (limits {MAX_STEPS:.0e} steps, {MAX_OUTPUT_BYTES:.0e} bytes): check --h and --t-end, record less often \
-         (--energy-every, --trajectory-every), or give --allow-large",
-        Num(settings.h),
-        Num(t_end),
-        bytes,
-    )))
-}
-
 /// A progress bar on a terminal for runs long enough to wait for; hidden otherwise.
 fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
     if steps < 1e5 {
@@ -422,78 +323,6 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
     let report = judge(fit, summary.scene_units, summary.energy_reference, bound);
     summary.warnings.extend(report.warning());
     summary.drift = Some(report);
-}
-
-/// Replace the scene's positions by those of a structure file with the same atoms in the
-/// same order (the force field, built from the scene's own structure, is kept).
-fn start_positions(scene: &mut Scene, path: &std::path::Path) -> Result<()> {
-    let structure = crate::io::structure::read_structure_with(path, false)?;
-    let system = &mut scene.system;
-    let n = system.n_particles();
-    let mismatch = |message: String| Error::Structure {
-        path: path.to_path_buf(),
-        message,
-    };
-    if structure.atoms.len() != n {
-        return Err(mismatch(format!(
-            "--start: has {} atoms, the scene {n}",
-            structure.atoms.len()
-        )));
-    }
-    for (i, atom) in structure.atoms.iter().enumerate() {
-        if let Some(name) = scene.elements.get(i)
-            && !name.eq_ignore_ascii_case(&atom.name)
-        {
-            return Err(mismatch(format!(
-                "--start: atom {i} is {}, the scene's is {name}: the atoms must be the \
-                 scene's, in its order",
-                atom.name
-            )));
-        }
-        let dim = system.dim;
-        system.state.q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
-    }
-    Ok(())
-}
-
-/// Check the scene's own `[run]` table as a run would use it; a missing `h` (it may come
-/// from the command line) is stood in for by the inner step or 1.
-fn check_run_table(scene: &Scene) -> Result<()> {
-    let mut spec = scene.run.clone();
-    if spec.h.is_none() {
-        spec.h = Some(spec.dt.clone().unwrap_or(Value::Number(1.0)));
-    }
-    let settings = spec
-        .resolve_with_units(&scene.parameters, scene.units)
-        .map_err(|e| run_table_error(scene, e))?;
-    integrators::build(&settings, &mut Vec::new()).map_err(|e| run_table_error(scene, e))?;
-    Ok(())
-}
-
-/// An error of the merged run settings, located at the scene's `[run]` table when the table
-/// alone gives it (when the command line is not to blame).
-fn blame_run_table(scene: &Scene, error: Error) -> Error {
-    match check_run_table(scene) {
-        Err(located) if located.to_string().ends_with(&error.to_string()) => located,
-        _ => error,
-    }
-}
-
-/// `path:line: in [run]: message`, the line of the table's header.
-fn run_table_error(scene: &Scene, error: Error) -> Error {
-    let line = std::fs::read_to_string(&scene.path).ok().and_then(|text| {
-        text.lines()
-            .position(|l| l.trim_start().starts_with("[run]"))
-            .map(|i| i + 1)
-    });
-    let location = match line {
-        Some(line) => format!("{}:{line}", scene.path.display()),
-        None => scene.path.display().to_string(),
-    };
-    Error::Scene {
-        location,
-        message: format!("in [run]: {error}"),
-    }
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {

@@ -1,0 +1,350 @@
+//! The one place a run is prepared: a scene and the command line's settings become a
+//! ready run — the scene loaded (with `--start` positions), the settings merged over its
+//! `[run]` table and resolved, the force precision set, the integrator built, the start
+//! velocities drawn, the degrees of freedom counted, the size checked, and the header a
+//! run prints. `longstep run`, `scan steps` and the studies all start here; the command
+//! line only parses flags and prints.
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::forces::Precision;
+use crate::integrators::{self, Integrator};
+use crate::io::number::Num;
+use crate::io::scene::{Scene, load_scene};
+use crate::io::summary::RunSummary;
+use crate::run::{RunOptions, run};
+use crate::settings::{MethodSettings, RunSpec, Value};
+use crate::system::velocities::{DEFAULT_SEED, DegreesOfFreedom, maxwell_boltzmann};
+use crate::units::Units;
+
+/// What a run is asked for: the scene, its parameter overrides, the settings given on the
+/// command line, and the start.
+#[derive(Clone, Copy, Debug)]
+pub struct RunRequest<'a> {
+    pub scene: &'a Path,
+    /// `name=value` settings of the scene's parameters (`--set`).
+    pub set: &'a [String],
+    /// Settings given on the command line; each overrides the scene's `[run]` table.
+    pub overrides: &'a RunSpec,
+    /// Where a seed came from, for the message when nothing uses it.
+    pub seed_source: &'a str,
+    /// Start from the positions of this structure file (`--start`).
+    pub start: Option<&'a Path>,
+    /// `--precision` of the terms that have the choice.
+    pub precision: Option<&'a str>,
+}
+
+impl<'a> RunRequest<'a> {
+    /// A request for `scene` with `overrides` and nothing else.
+    pub fn new(scene: &'a Path, set: &'a [String], overrides: &'a RunSpec) -> Self {
+        RunRequest {
+            scene,
+            set,
+            overrides,
+            seed_source: "--seed",
+            start: None,
+            precision: None,
+        }
+    }
+}
+
+/// A run ready to start.
+pub struct PreparedRun {
+    pub scene: Scene,
+    pub settings: MethodSettings,
+    pub integrator: Box<dyn Integrator>,
+    /// What the start at a temperature did (`None` without a temperature).
+    pub start: Option<StartReport>,
+    /// The degrees of freedom the kinetic temperature is recorded over: in a real scene,
+    /// and wherever a temperature is given.
+    pub degrees_of_freedom: Option<DegreesOfFreedom>,
+    /// What the user should know before the run.
+    pub notices: Vec<String>,
+}
+
+/// Prepare the run `request` asks for.
+pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
+    let mut scene = load_scene(request.scene, request.set)?;
+    if let Some(path) = request.start {
+        start_positions(&mut scene, path)?;
+    }
+    let settings = scene
+        .run
+        .overridden_by(request.overrides)
+        .resolve_with_units(&scene.parameters, scene.units)
+        .map_err(|e| blame_run_table(&scene, e))?;
+    check_seed_used(&settings, request.seed_source)?;
+    let mut notices = Vec::new();
+    set_precision(&scene, request.precision, &mut notices)?;
+    let integrator =
+        integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
+    let start = start_velocities(&mut scene, &settings, &mut notices)?;
+    let degrees_of_freedom = match &start {
+        Some(start) => Some(start.degrees_of_freedom),
+        None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
+        None => None,
+    };
+    notices.extend(integrator.notices(&scene.system));
+    Ok(PreparedRun {
+        scene,
+        settings,
+        integrator,
+        start,
+        degrees_of_freedom,
+        notices,
+    })
+}
+
+impl PreparedRun {
+    /// The end time: `--t-end` or the scene's `[run] t_end`.
+    pub fn t_end(&self) -> Result<f64> {
+        self.settings.t_end.ok_or_else(|| {
+            Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
+        })
+    }
+
+    /// The lines before a run: force-field report, level table, start velocities, notices.
+    pub fn header(&self) -> Vec<String> {
+        let mut lines = self.scene.forcefield_report.clone();
+        lines.push(self.scene.system.forces.level_table());
+        lines.extend(self.start.iter().flat_map(|s| s.lines.iter().cloned()));
+        lines.extend(self.notices.iter().map(|n| format!("notice: {n}")));
+        lines
+    }
+
+    /// The outer steps from the scene's start time to `t_end`.
+    pub fn outer_steps(&self, t_end: f64) -> f64 {
+        ((t_end - self.scene.system.state.t) / self.settings.h)
+            .max(0.0)
+            .ceil()
+    }
+
+    /// The run's outer step count, and the refusal of a run too long or too large to be
+    /// meant (unless `plan.allow_large`).
+    pub fn check_size(&self, t_end: f64, plan: &OutputPlan) -> Result<f64> {
+        let steps = self.outer_steps(t_end);
+        // About 20 bytes a number: energy.csv's ~8 columns, a trajectory's 3 per particle.
+        let energy_bytes = steps / plan.energy_every as f64 * 8.0 * 20.0;
+        let frame_bytes = (self.scene.system.n_particles() * 3 * 20) as f64;
+        let trajectory_bytes = plan
+            .trajectory_every
+            .map_or(0.0, |e| steps / e as f64 * frame_bytes);
+        let bytes = energy_bytes + trajectory_bytes;
+        if plan.allow_large || (steps <= MAX_STEPS && bytes <= MAX_OUTPUT_BYTES) {
+            return Ok(steps);
+        }
+        Err(Error::input(format!(
+            "this run would take {steps:.3e} outer steps (h = {}, t_end = {}) and write about \
+             {:.2e} bytes (limits {MAX_STEPS:.0e} steps, {MAX_OUTPUT_BYTES:.0e} bytes): check \
+             --h and --t-end, record less often (--energy-every, --trajectory-every), or give \
+             --allow-large",
+            Num(self.settings.h),
+            Num(t_end),
+            bytes,
+        )))
+    }
+
+    /// Run to `options.t_end`; the summary carries the scene's units.
+    pub fn run(&mut self, options: &RunOptions) -> Result<RunSummary> {
+        let mut summary = run(
+            &self.scene.name,
+            &mut self.scene.system,
+            self.integrator.as_mut(),
+            options,
+        )?;
+        summary.set_units(self.scene.units);
+        Ok(summary)
+    }
+}
+
+/// How often a run records, for its size check.
+#[derive(Clone, Copy, Debug)]
+pub struct OutputPlan {
+    pub energy_every: usize,
+    pub trajectory_every: Option<usize>,
+    /// Run even when the run is huge (`--allow-large`).
+    pub allow_large: bool,
+}
+
+/// Most outer steps a run is allowed, and most bytes of output it writes, without
+/// `--allow-large`: beyond them a mistyped `--t-end 1e300` or `--h 1e-300` would run for
+/// ever or fill the disk.
+const MAX_STEPS: f64 = 1e10;
+const MAX_OUTPUT_BYTES: f64 = 2e9;
+
+/// `--precision`: every term that has the choice computes in it; a notice when none has.
+fn set_precision(scene: &Scene, name: Option<&str>, notices: &mut Vec<String>) -> Result<()> {
+    let Some(name) = name else {
+        return Ok(());
+    };
+    let precision = Precision::parse(name).ok_or_else(|| {
+        Error::input(format!(
+            "--precision must be double or mixed, got \"{name}\""
+        ))
+    })?;
+    if scene.system.forces.set_precision(precision) == 0 && precision != Precision::Double {
+        notices.push(format!(
+            "--precision {name}: no term of this scene has a {name}-precision form; all run in double"
+        ));
+    }
+    Ok(())
+}
+
+/// Replace the scene's positions by those of a structure file with the same atoms in the
+/// same order (the force field, built from the scene's own structure, is kept).
+fn start_positions(scene: &mut Scene, path: &Path) -> Result<()> {
+    let structure = crate::io::structure::read_structure_with(path, false)?;
+    let system = &mut scene.system;
+    let n = system.n_particles();
+    let mismatch = |message: String| Error::Structure {
+        path: path.to_path_buf(),
+        message,
+    };
+    if structure.atoms.len() != n {
+        return Err(mismatch(format!(
+            "--start: has {} atoms, the scene {n}",
+            structure.atoms.len()
+        )));
+    }
+    for (i, atom) in structure.atoms.iter().enumerate() {
+        if let Some(name) = scene.elements.get(i)
+            && !name.eq_ignore_ascii_case(&atom.name)
+        {
+            return Err(mismatch(format!(
+                "--start: atom {i} is {}, the scene's is {name}: the atoms must be the \
+                 scene's, in its order",
+                atom.name
+            )));
+        }
+        let dim = system.dim;
+        system.state.q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
+    }
+    Ok(())
+}
+
+/// Check the scene's own `[run]` table as a run would use it; a missing `h` (it may come
+/// from the command line) is stood in for by the inner step or 1.
+pub fn check_run_table(scene: &Scene) -> Result<()> {
+    let mut spec = scene.run.clone();
+    if spec.h.is_none() {
+        spec.h = Some(spec.dt.clone().unwrap_or(Value::Number(1.0)));
+    }
+    let settings = spec
+        .resolve_with_units(&scene.parameters, scene.units)
+        .map_err(|e| run_table_error(scene, e))?;
+    integrators::build(&settings, &mut Vec::new()).map_err(|e| run_table_error(scene, e))?;
+    Ok(())
+}
+
+/// An error of the merged run settings, located at the scene's `[run]` table when the table
+/// alone gives it (when the command line is not to blame).
+fn blame_run_table(scene: &Scene, error: Error) -> Error {
+    match check_run_table(scene) {
+        Err(located) if located.to_string().ends_with(&error.to_string()) => located,
+        _ => error,
+    }
+}
+
+/// `path:line: in [run]: message`, the line of the table's header.
+fn run_table_error(scene: &Scene, error: Error) -> Error {
+    let line = std::fs::read_to_string(&scene.path).ok().and_then(|text| {
+        text.lines()
+            .position(|l| l.trim_start().starts_with("[run]"))
+            .map(|i| i + 1)
+    });
+    let location = match line {
+        Some(line) => format!("{}:{line}", scene.path.display()),
+        None => scene.path.display().to_string(),
+    };
+    Error::Scene {
+        location,
+        message: format!("in [run]: {error}"),
+    }
+}
+
+/// Whether `method` is stochastic: its registry entry uses a seed
+/// ([`MethodInfo::uses`](crate::integrators::MethodInfo)).
+pub fn is_stochastic(method: &str) -> bool {
+    crate::integrators::METHODS
+        .iter()
+        .find(|m| m.name == method)
+        .is_some_and(|m| m.uses.contains(&"seed"))
+}
+
+/// A seed where nothing uses it (no temperature to draw start velocities at, and a method
+/// that is not stochastic) is a mistake worth stopping for: the user expects randomness
+/// that is not there. `source` names where the seed came from.
+pub fn check_seed_used(settings: &MethodSettings, source: &str) -> Result<()> {
+    match settings.seed {
+        Some(seed) if settings.temperature.is_none() && !is_stochastic(&settings.method) => {
+            Err(Error::input(format!(
+                "{source} {seed} is given, but nothing uses it: there is no temperature \
+                 (--temperature or the scene's [run] temperature) to draw start velocities \
+                 at, and {} is not a stochastic method; drop the seed or give a temperature",
+                settings.method
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// What a start at a temperature did, for the run header.
+pub struct StartReport {
+    /// The degrees of freedom the temperature is counted over.
+    pub degrees_of_freedom: DegreesOfFreedom,
+    /// Lines for the run header.
+    pub lines: Vec<String>,
+}
+
+/// Start velocities: with a temperature, a Maxwell–Boltzmann draw
+/// ([`maxwell_boltzmann`]) replacing the scene's momenta (and its velocity file), seeded
+/// by the settings' seed or [`DEFAULT_SEED`]; without one, the scene's momenta, with a
+/// notice when every particle starts at rest. Returns `None` without a temperature.
+pub fn start_velocities(
+    scene: &mut Scene,
+    settings: &MethodSettings,
+    notices: &mut Vec<String>,
+) -> Result<Option<StartReport>> {
+    let Some(kt) = settings.kt() else {
+        if scene.system.state.p.iter().all(|&p| p == 0.0) {
+            notices.push(
+                "every particle starts at rest and no temperature is given: the motion comes \
+                 from the potential alone (--temperature T draws Maxwell–Boltzmann velocities)"
+                    .into(),
+            );
+        }
+        return Ok(None);
+    };
+    let had_momenta = scene.system.state.p.iter().any(|&p| p != 0.0);
+    let seed = settings.seed.unwrap_or(DEFAULT_SEED);
+    let start = maxwell_boltzmann(&mut scene.system, kt, seed)?;
+    let units = scene.units;
+    let temperature = match units {
+        Units::None => format!("k_B T = {}", kt),
+        _ => format!(
+            "{} {}",
+            crate::io::summary::significant(kt / units.boltzmann(), 6),
+            units.temperature_name()
+        ),
+    };
+    let seed_text = match settings.seed {
+        Some(seed) => format!("seed {seed}"),
+        None => format!("seed {DEFAULT_SEED}, the default: give --seed N for another draw"),
+    };
+    let replaced = match &scene.velocities_file {
+        Some(path) => format!(", replacing the velocities of {}", path.display()),
+        None if had_momenta => ", replacing the scene's momenta".to_string(),
+        None => String::new(),
+    };
+    let dofs = start.degrees_of_freedom;
+    let lines = vec![format!(
+        "start      Maxwell–Boltzmann velocities at {temperature} ({seed_text}){replaced}; \
+         rescaled to exactly that over {}",
+        dofs.describe(scene.system.dim, scene.system.n_particles())
+    )];
+    Ok(Some(StartReport {
+        degrees_of_freedom: dofs,
+        lines,
+    }))
+}
