@@ -377,6 +377,39 @@ pub fn time_point(
     Ok(median(&mut walls))
 }
 
+/// The timing of one method at its largest safe step at one thread count.
+pub struct Timing {
+    pub method: String,
+    pub h: f64,
+    pub threads: usize,
+    pub repeats: usize,
+    pub median_seconds: f64,
+    pub t_end: f64,
+}
+
+/// Median wall times of every method that has a safe step, at 1 thread and at all threads.
+pub fn take_timings(setup: &ScanSetup, safe: &[SafeStep], repeats: usize) -> Result<Vec<Timing>> {
+    let all = rayon::current_num_threads();
+    let mut counts = vec![1, all];
+    counts.dedup();
+    let mut timings = Vec::new();
+    for s in safe {
+        let Some(h) = s.safe_up_to else { continue };
+        for &threads in &counts {
+            let median_seconds = time_point(setup, &s.method, h, Some(threads), repeats)?;
+            timings.push(Timing {
+                method: s.method.clone(),
+                h,
+                threads,
+                repeats,
+                median_seconds,
+                t_end: setup.t_end,
+            });
+        }
+    }
+    Ok(timings)
+}
+
 /// The median (the mean of the middle two for an even count); NaN for none.
 pub fn median(values: &mut [f64]) -> f64 {
     if values.is_empty() {

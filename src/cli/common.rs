@@ -166,9 +166,8 @@ pub fn check_methods(
     for method in methods {
         for &h in steps {
             let settings = point_settings(&scene, base, method, h)?;
-            crate::integrators::build(&settings, &mut Vec::new())
+            crate::run::prepare::check_settings(&settings)
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-            crate::run::check_seed_used(&settings, "--seed")?;
         }
     }
     Ok(scene)

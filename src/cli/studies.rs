@@ -12,8 +12,8 @@ use crate::analysis::sampling::{
     SamplingCriterion, check_reference_temperature, run_sampling_points,
 };
 use crate::analysis::scan::{
-    MAX_REPEATS, SafeStep, ScanSetup, StepResult, point_settings, run_points, safe_steps,
-    scan_points, time_point,
+    MAX_REPEATS, SafeStep, ScanSetup, StepResult, Timing, point_settings, run_points, safe_steps,
+    scan_points, take_timings,
 };
 use crate::error::{Error, Result};
 use crate::io::number::Num;
@@ -195,9 +195,8 @@ fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<
     for method in methods {
         for &h in steps {
             let settings = point_settings(setup, method, h)?;
-            crate::integrators::build(&settings, &mut Vec::new())
+            crate::run::prepare::check_settings(&settings)
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-            crate::run::check_seed_used(&settings, "--seed")?;
         }
     }
     Ok(())
@@ -598,39 +597,6 @@ fn write_timings(
         let timing = timing_table(meta, &timings, units);
         timing.write(&args.out.join("timing.csv"))?;
         super::draw::draw_ns_per_day(&timing, &args.out)?;
-    }
-    Ok(timings)
-}
-
-/// The timing of one method at its largest safe step at one thread count.
-pub struct Timing {
-    pub method: String,
-    pub h: f64,
-    pub threads: usize,
-    pub repeats: usize,
-    pub median_seconds: f64,
-    pub t_end: f64,
-}
-
-/// Median wall times of every method that has a safe step, at 1 thread and at all threads.
-fn take_timings(setup: &ScanSetup, safe: &[SafeStep], repeats: usize) -> Result<Vec<Timing>> {
-    let all = rayon::current_num_threads();
-    let mut counts = vec![1, all];
-    counts.dedup();
-    let mut timings = Vec::new();
-    for s in safe {
-        let Some(h) = s.safe_up_to else { continue };
-        for &threads in &counts {
-            let median_seconds = time_point(setup, &s.method, h, Some(threads), repeats)?;
-            timings.push(Timing {
-                method: s.method.clone(),
-                h,
-                threads,
-                repeats,
-                median_seconds,
-                t_end: setup.t_end,
-            });
-        }
     }
     Ok(timings)
 }

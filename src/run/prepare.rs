@@ -96,6 +96,13 @@ pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
     })
 }
 
+/// Check that `settings` make a run before any time is spent on runs: the integrator
+/// builds and a given seed is used (every point of a scan or study).
+pub fn check_settings(settings: &MethodSettings) -> Result<()> {
+    integrators::build(settings, &mut Vec::new())?;
+    check_seed_used(settings, "--seed")
+}
+
 impl PreparedRun {
     /// The end time: `--t-end` or the scene's `[run] t_end`.
     pub fn t_end(&self) -> Result<f64> {
