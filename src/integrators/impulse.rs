@@ -37,7 +37,7 @@
 
 use super::innermost::{InnermostStep, VerletStep};
 use super::integrator::{Integrator, StepFailure, drift, kick};
-use super::mollified::SlowMollifier;
+use super::mollified::{MollifyAt, SlowMollifier};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
 use crate::split::{Blocks, ForceSplit};
@@ -155,14 +155,16 @@ impl Impulse {
         let (lower, upper) = self.gradients.split_at_mut(level);
         let gradient = &mut upper[0];
         match (&mut self.mollifier, level == top) {
-            (Some(mollifier), true) => mollifier.mollified_gradient(
-                &mut system.forces,
-                &system.inverse_mass,
-                &system.state.q,
-                Some(&lower[0]),
-                level,
-                gradient,
-            ),
+            (Some(mollifier), true) => {
+                let at = MollifyAt {
+                    forces: &mut system.forces,
+                    inverse_mass: &system.inverse_mass,
+                    q: &system.state.q,
+                    fast_gradient_at_q: Some(&lower[0]),
+                    slow_level: level,
+                };
+                mollifier.mollified_gradient(at, gradient)
+            }
             _ => {
                 system.forces.gradient(level, &system.state.q, gradient);
                 Ok(())

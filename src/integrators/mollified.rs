@@ -37,6 +37,16 @@ use crate::system::System;
 ///
 /// Either way the mollified impulse is the gradient of `U(A(q))`, so the integrator is
 /// r-RESPA for `W(q) + U(A(q))` and conserves `K + W(q) + U(A(q))`.
+/// Where a [`SlowMollifier`] mollifies: the forces, the positions `q`, `∇W(q)` (level 0)
+/// when the caller has it, and the slow level `U`.
+pub struct MollifyAt<'a> {
+    pub forces: &'a mut ForceSplit,
+    pub inverse_mass: &'a [f64],
+    pub q: &'a [f64],
+    pub fast_gradient_at_q: Option<&'a [f64]>,
+    pub slow_level: usize,
+}
+
 pub trait SlowMollifier: Send {
     /// The method's name (`"long-average"`, `"equilibrium-molly"`).
     fn name(&self) -> &'static str;
@@ -59,11 +69,7 @@ pub trait SlowMollifier: Send {
     /// projection that does not converge).
     fn mollified_gradient(
         &mut self,
-        forces: &mut ForceSplit,
-        inverse_mass: &[f64],
-        q: &[f64],
-        fast_gradient_at_q: Option<&[f64]>,
-        slow_level: usize,
+        at: MollifyAt<'_>,
         out: &mut [f64],
     ) -> std::result::Result<(), StepFailure>;
 
@@ -560,24 +566,6 @@ impl Mollifier {
         }
         out.copy_from_slice(&self.q_adjoint);
     }
-
-    /// `out = A_q(h; q)ᵀ ∇U(A(h; q))`, U the slow level: the gradient whose negative is the
-    /// mollified impulse force. `fast_gradient_at_q` is `∇W(q)` when known.
-    pub fn mollified_gradient(
-        &mut self,
-        forces: &mut ForceSplit,
-        inverse_mass: &[f64],
-        q: &[f64],
-        fast_gradient_at_q: Option<&[f64]>,
-        slow_level: usize,
-        out: &mut [f64],
-    ) {
-        self.compute_average(forces, inverse_mass, q, fast_gradient_at_q);
-        forces.gradient(slow_level, &self.averaged, &mut self.slow_gradient);
-        let slow_gradient = std::mem::take(&mut self.slow_gradient);
-        self.transpose_product(forces, inverse_mass, &slow_gradient, out);
-        self.slow_gradient = slow_gradient;
-    }
 }
 
 impl SlowMollifier for Mollifier {
@@ -608,24 +596,25 @@ impl SlowMollifier for Mollifier {
         Ok(())
     }
 
+    /// `out = A_q(h; q)ᵀ ∇U(A(h; q))`, U the slow level: the gradient whose negative is
+    /// the mollified impulse force.
     fn mollified_gradient(
         &mut self,
-        forces: &mut ForceSplit,
-        inverse_mass: &[f64],
-        q: &[f64],
-        fast_gradient_at_q: Option<&[f64]>,
-        slow_level: usize,
+        at: MollifyAt<'_>,
         out: &mut [f64],
     ) -> std::result::Result<(), StepFailure> {
-        Mollifier::mollified_gradient(
-            self,
+        let MollifyAt {
             forces,
             inverse_mass,
             q,
             fast_gradient_at_q,
             slow_level,
-            out,
-        );
+        } = at;
+        self.compute_average(forces, inverse_mass, q, fast_gradient_at_q);
+        forces.gradient(slow_level, &self.averaged, &mut self.slow_gradient);
+        let slow_gradient = std::mem::take(&mut self.slow_gradient);
+        self.transpose_product(forces, inverse_mass, &slow_gradient, out);
+        self.slow_gradient = slow_gradient;
         Ok(())
     }
 

@@ -69,10 +69,9 @@ use molecule::{Failure, MoleculeSolver};
 pub use selection::{ConstraintKind, ConstraintSet, MoleculePlan, Selection, select};
 
 use super::integrator::StepFailure;
-use super::mollified::SlowMollifier;
+use super::mollified::{MollifyAt, SlowMollifier};
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
-use crate::split::ForceSplit;
 use crate::system::{PeriodicBox, System};
 
 /// Which Jacobian of `A` the slow force is multiplied by (`--molly-jacobian`).
@@ -388,13 +387,15 @@ impl SlowMollifier for EquilibriumMolly {
 
     fn mollified_gradient(
         &mut self,
-        forces: &mut ForceSplit,
-        _inverse_mass: &[f64],
-        q: &[f64],
-        _fast_gradient_at_q: Option<&[f64]>,
-        slow_level: usize,
+        at: MollifyAt<'_>,
         out: &mut [f64],
     ) -> Result<(), StepFailure> {
+        let MollifyAt {
+            forces,
+            q,
+            slow_level,
+            ..
+        } = at;
         self.project(q)?;
         forces.gradient(slow_level, &self.projected, &mut self.slow_gradient);
         let slow_gradient = std::mem::take(&mut self.slow_gradient);
