@@ -3,8 +3,9 @@
 //! derived from the estimator's variance, said where it is used.
 
 mod common;
+use common::run_cli as run;
 
-use common::{TestRng, longstep, scratch_dir};
+use common::{TestRng, scratch_dir};
 use longstep::analysis::block_average::{
     Estimate, blocks_long_enough, flyvbjerg_petersen, from_block_means, ratio_of_means,
 };
@@ -313,15 +314,6 @@ fn configurational_temperature_of_an_exactly_sampled_harmonic_network_is_t() {
             "Laplacian {mean} vs tr K {trace} (spread {spread})"
         );
     }
-}
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
 }
 
 /// A 20 fs water-box run with an energy row and a frame every step (10 steps).

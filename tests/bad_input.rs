@@ -2,19 +2,11 @@
 //! Every scene in tests/input/bad/ states the message it must produce in `# expect:` lines.
 
 mod common;
+use common::run_cli as run;
 
 use std::path::Path;
 
-use common::{longstep, scratch_dir};
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
+use common::scratch_dir;
 
 #[test]
 fn every_bad_scene_fails_with_its_message() {

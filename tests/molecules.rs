@@ -4,10 +4,11 @@
 //! units, trajectories that stay valid when a run blows up).
 
 mod common;
+use common::run_cli;
 
 use std::path::Path;
 
-use common::{longstep, scratch_dir};
+use common::scratch_dir;
 use longstep::io::scene::load_scene;
 use longstep::io::structure::read_structure;
 
@@ -158,15 +159,6 @@ fn nonbonded_forces_are_the_same_bit_for_bit_on_one_and_two_threads() {
             .zip(&two)
             .all(|(a, b)| a.to_bits() == b.to_bits())
     );
-}
-
-fn run_cli(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
 }
 
 /// Frames of a trajectory file, read back through chemfiles.

@@ -4,17 +4,9 @@
 //! form (item 7), and `stability-map` names the flag that is wrong (item 11).
 
 mod common;
+use common::run_cli as run;
 
-use common::{longstep, scratch_dir};
-
-fn run(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
+use common::scratch_dir;
 
 #[test]
 fn a_run_too_long_or_too_large_is_refused_before_it_writes() {

@@ -3,21 +3,13 @@
 //! criterion against a reference run, and bad input.
 
 mod common;
+use common::run_cli as run;
 
 use std::path::Path;
 
-use common::{longstep, scratch_dir};
+use common::scratch_dir;
 
 /// Run `longstep`; returns (exit code, stdout, stderr).
-fn run(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().unwrap();
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
-
 fn ok(args: &[&str]) -> String {
     let (code, stdout, stderr) = run(args);
     assert_eq!(code, 0, "{args:?}: {stderr}");

@@ -1,27 +1,25 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-/// A small deterministic generator (splitmix64), so tests need no RNG API and every run
-/// sees the same numbers.
-pub struct TestRng(u64);
+/// Seeded test numbers from the `rand` crate (Xoshiro256++), so every run sees the same
+/// numbers.
+pub struct TestRng(rand::rngs::Xoshiro256PlusPlus);
 
 impl TestRng {
     pub fn new(seed: u64) -> Self {
-        TestRng(seed)
+        use rand::SeedableRng;
+        TestRng(rand::rngs::Xoshiro256PlusPlus::seed_from_u64(seed))
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        use rand::Rng;
+        self.0.next_u64()
     }
 
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * unit
+        use rand::RngExt;
+        lo + (hi - lo) * self.0.random::<f64>()
     }
 
     pub fn vector(&mut self, n: usize, lo: f64, hi: f64) -> Vec<f64> {
@@ -43,6 +41,16 @@ pub fn longstep() -> std::process::Command {
     let binary =
         std::env::var_os("LONGSTEP_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_longstep").into());
     std::process::Command::new(binary)
+}
+
+/// Run `longstep` with `args`: its exit code (-1 when killed), stdout and stderr.
+pub fn run_cli(args: &[&str]) -> (i32, String, String) {
+    let output = longstep().args(args).output().expect("longstep runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
 }
 
 /// A fresh empty directory under the target dir for a test's outputs.
