@@ -52,7 +52,8 @@ fn group_of(component: &str) -> &'static str {
         "angle" => "angles",
         "torsion" => "torsions",
         "lennard-jones" | "lennard-jones-14" => "lennard_jones",
-        "coulomb" | "coulomb-14" => "coulomb",
+        "coulomb" | "coulomb-14" | "pme-reciprocal" | "ewald-exclusions" | "ewald-self"
+        | "ewald-background" => "coulomb",
         _ => "other",
     }
 }
