@@ -459,3 +459,103 @@ fn scene_keys_build_pme_and_bad_ones_name_the_key() {
     let message = build(&no_box).err().expect("no box");
     assert!(message.contains("box"), "{message}");
 }
+
+/// The `forces.csv` rows' forces.
+fn read_forces(path: &Path) -> Vec<[f64; 3]> {
+    let text = std::fs::read_to_string(path).expect("forces csv");
+    text.lines()
+        .skip(1)
+        .map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            std::array::from_fn(|a| fields[2 + a].parse().expect("a force"))
+        })
+        .collect()
+}
+
+#[test]
+fn the_water_box_matches_openmm_pme() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let data = std::fs::read_to_string(root.join("tests/data/openmm-pme-water.json"))
+        .expect("tests/data/openmm-pme-water.json (scripts/openmm_pme_reference.py)");
+    let reference: serde_json::Value = serde_json::from_str(&data).expect("JSON");
+    let dir = common::scratch_dir("ewald-openmm");
+    let csv = dir.join("forces.csv");
+    let output = common::longstep()
+        .arg("forces")
+        .arg(root.join("systems/water-box/scene.toml"))
+        .args([
+            "--coulomb",
+            "pme",
+            "--ewald-alpha",
+            "0.347",
+            "--pme-grid",
+            "16,16,16",
+        ])
+        .args(["--pme-order", "5", "--json", "--quiet", "--out"])
+        .arg(&csv)
+        .output()
+        .expect("longstep forces");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&output.stdout).expect("--json");
+    let energy = |v: &serde_json::Value, key: &str| v[key].as_f64().expect(key);
+    // The scene's k_e = 332.06371 and OpenMM's 138.935457644 kJ/mol·nm (332.0637133 in
+    // kcal/mol·Å) differ by 1e-8 relative; the rest is round-off and the solver's own
+    // differences far below. 1e-6 is the bound.
+    let coulomb = energy(&printed["energy"], "coulomb");
+    let openmm_coulomb = energy(&reference["energy"], "coulomb");
+    assert!(
+        relative(coulomb, openmm_coulomb) < 1e-6,
+        "{coulomb} {openmm_coulomb}"
+    );
+    // Like with like: the scene's Lennard-Jones is energy-shifted, so its total is OpenMM's
+    // minus n_pairs V_LJ(r_c) (the script's total_shifted).
+    let total = energy(&printed["energy"], "total");
+    let openmm_total = energy(&reference["energy"], "total_shifted");
+    assert!(
+        relative(total, openmm_total) < 1e-6,
+        "{total} {openmm_total}"
+    );
+    let forces = read_forces(&csv);
+    let openmm: Vec<[f64; 3]> = reference["forces"]
+        .as_array()
+        .expect("forces")
+        .iter()
+        .map(|f| std::array::from_fn(|a| f[a].as_f64().expect("a force")))
+        .collect();
+    assert_eq!(forces.len(), openmm.len());
+    let (mut difference, mut norm) = (0.0, 0.0);
+    for (f, g) in forces.iter().zip(&openmm) {
+        for a in 0..3 {
+            difference += (f[a] - g[a]) * (f[a] - g[a]);
+            norm += g[a] * g[a];
+        }
+    }
+    let rms = (difference / norm).sqrt();
+    assert!(rms <= 1e-6, "relative RMS force difference {rms:e}");
+}
+
+#[test]
+fn bad_pme_flags_exit_1_naming_the_key() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (flags, key) in [
+        (["--pme-grid", "16,16,6"], "pme_grid"),
+        (["--pme-grid", "16,16"], "--pme-grid"),
+        (["--ewald-alpha", "-1"], "ewald_alpha"),
+        (["--pme-order", "9"], "pme_order"),
+    ] {
+        let output = common::longstep()
+            .arg("forces")
+            .arg(root.join("systems/water-box/scene.toml"))
+            .args(["--coulomb", "pme", "--quiet"])
+            .args(flags)
+            .output()
+            .expect("longstep forces");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{flags:?}: {stderr}");
+        assert!(stderr.contains(key), "{flags:?}: {stderr}");
+    }
+}

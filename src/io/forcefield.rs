@@ -100,6 +100,60 @@ pub struct ForcefieldSpec {
     pub split: Option<SplitSection>,
 }
 
+/// Electrostatics settings that replace a scene's `[forcefield]` keys (the command line's
+/// `--coulomb`, `--ewald-alpha`, …): each given value overrides its key.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElectrostaticsOverrides {
+    pub coulomb: Option<String>,
+    pub ewald_tolerance: Option<f64>,
+    pub fourier_spacing: Option<f64>,
+    pub ewald_alpha: Option<InverseLength>,
+    pub pme_grid: Option<[usize; 3]>,
+    pub pme_order: Option<usize>,
+}
+
+impl ElectrostaticsOverrides {
+    pub fn is_empty(&self) -> bool {
+        *self == ElectrostaticsOverrides::default()
+    }
+
+    /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and
+    /// reaction-field keys, and switching away drops the PME keys, so the scene's other
+    /// model does not trip the check of stray keys.
+    pub fn apply(&self, spec: &mut ForcefieldSpec) {
+        if let Some(coulomb) = &self.coulomb {
+            if coulomb == "pme" {
+                spec.dsf_alpha = None;
+                spec.rf_dielectric = None;
+            } else {
+                spec.ewald_tolerance = None;
+                spec.fourier_spacing = None;
+                spec.ewald_alpha = None;
+                spec.pme_grid = None;
+                spec.pme_order = None;
+                spec.pme_level = None;
+            }
+            spec.coulomb = Some(coulomb.clone());
+        }
+        let set = |target: &mut Option<f64>, value: Option<f64>| {
+            if value.is_some() {
+                *target = value;
+            }
+        };
+        set(&mut spec.ewald_tolerance, self.ewald_tolerance);
+        set(&mut spec.fourier_spacing, self.fourier_spacing);
+        if let Some(alpha) = &self.ewald_alpha {
+            spec.ewald_alpha = Some(alpha.clone());
+        }
+        if let Some(grid) = self.pme_grid {
+            spec.pme_grid = Some(grid);
+        }
+        if let Some(order) = self.pme_order {
+            spec.pme_order = Some(order);
+        }
+    }
+}
+
 /// An inverse length: a plain number in the scene's unit, or text with a unit.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(untagged)]
