@@ -24,10 +24,11 @@ use longstep::forces::simd::Isa;
 use longstep::forces::{ForceTerm, Precision};
 use longstep::io::scene::{Scene, load_scene};
 
-const FORMS: [Electrostatics; 4] = [
+const FORMS: [Electrostatics; 5] = [
     Electrostatics::DampedShiftedForce { alpha: 0.0 },
     Electrostatics::DampedShiftedForce { alpha: 0.2 },
     Electrostatics::ReactionField { dielectric: 78.3 },
+    Electrostatics::Ewald { alpha: 0.45 },
     Electrostatics::None,
 ];
 const CUTOFF: f64 = 5.0;
@@ -215,6 +216,13 @@ fn pair(form: Electrostatics, p: LjPair, qq: f64, r: f64) -> (f64, f64, f64) {
             e += qq * (1.0 / r + k * r * r - (1.0 / rc + k * rc * rc));
             de += qq * (-1.0 / (r * r) + 2.0 * k * r);
             pieces += qq.abs() * (1.0 / (r * r) + 2.0 * k * r);
+        }
+        Electrostatics::Ewald { alpha } => {
+            let g = 2.0 * alpha / std::f64::consts::PI.sqrt();
+            e += qq * libm::erfc(alpha * r) / r;
+            let near = libm::erfc(alpha * r) / (r * r) + g * (-alpha * alpha * r * r).exp() / r;
+            de -= qq * near;
+            pieces += qq.abs() * near;
         }
         Electrostatics::Plain => {
             e += qq / r;

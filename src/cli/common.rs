@@ -5,13 +5,15 @@
 
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
+use std::path::Path;
 
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::error::{Error, Result};
 use crate::expr;
-use crate::io::scene::{Scene, load_scene};
+use crate::io::forcefield::{ElectrostaticsOverrides, InverseLength};
+use crate::io::scene::{Scene, load_scene, load_scene_with};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
 
@@ -230,4 +232,71 @@ pub fn progress_bar(total: u64, quiet: bool, label: &str) -> ProgressBar {
     );
     bar.set_message(label.to_string());
     bar
+}
+
+/// Electrostatics flags of `forces` and `check` (and, wired by their owners, `run` and
+/// `scan steps`): each overrides its `[forcefield]` key of the scene.
+#[derive(Args, Clone, Debug, Default)]
+pub struct ElectrostaticsArgs {
+    /// Coulomb form, overriding [forcefield] coulomb: pme, dsf, reaction-field, plain or none.
+    #[arg(long, value_name = "FORM")]
+    pub coulomb: Option<String>,
+    /// PME splitting coefficient α: a number in the scene's 1/length, or 0.347/Å, 3.47/nm.
+    #[arg(long, value_name = "ALPHA", allow_negative_numbers = true)]
+    pub ewald_alpha: Option<String>,
+    /// PME grid points per axis, NX,NY,NZ.
+    #[arg(long, value_name = "NX,NY,NZ")]
+    pub pme_grid: Option<String>,
+    /// PME B-spline order (4 to 6).
+    #[arg(long, value_name = "N")]
+    pub pme_order: Option<usize>,
+    /// α from erfc(α r_c) = TOL (GROMACS ewald-rtol), when --ewald-alpha is not given.
+    #[arg(long, value_name = "TOL", allow_negative_numbers = true)]
+    pub ewald_tolerance: Option<f64>,
+    /// PME grid spacing (length) when --pme-grid is not given.
+    #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
+    pub fourier_spacing: Option<f64>,
+}
+
+impl ElectrostaticsArgs {
+    /// The flags as overrides of the scene's keys.
+    pub fn overrides(&self) -> Result<ElectrostaticsOverrides> {
+        let pme_grid = match &self.pme_grid {
+            None => None,
+            Some(text) => {
+                let parts: Vec<usize> = text
+                    .split(',')
+                    .map(|p| p.trim().parse::<usize>())
+                    .collect::<std::result::Result<_, _>>()
+                    .map_err(|_| grid_error(text))?;
+                let grid: [usize; 3] = parts.try_into().map_err(|_| grid_error(text))?;
+                Some(grid)
+            }
+        };
+        Ok(ElectrostaticsOverrides {
+            coulomb: self.coulomb.clone(),
+            ewald_tolerance: self.ewald_tolerance,
+            fourier_spacing: self.fourier_spacing,
+            ewald_alpha: self
+                .ewald_alpha
+                .as_ref()
+                .map(|text| match text.trim().parse() {
+                    Ok(x) => InverseLength::Number(x),
+                    Err(_) => InverseLength::Text(text.clone()),
+                }),
+            pme_grid,
+            pme_order: self.pme_order,
+        })
+    }
+
+    /// The scene at `path` with `--set` values and these overrides.
+    pub fn load(&self, path: &Path, set: &[String]) -> Result<Scene> {
+        load_scene_with(path, set, &self.overrides()?)
+    }
+}
+
+fn grid_error(text: &str) -> Error {
+    Error::input(format!(
+        "--pme-grid takes three whole numbers NX,NY,NZ (e.g. 16,16,16), got \"{text}\""
+    ))
 }

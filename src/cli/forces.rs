@@ -12,9 +12,10 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use serde_json::json;
 
+use super::common::ElectrostaticsArgs;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
-use crate::io::scene::{Scene, load_scene};
+use crate::io::scene::Scene;
 use crate::io::structure::read_structure;
 use crate::system::System;
 
@@ -43,6 +44,8 @@ pub struct ForcesArgs {
     /// Print no force-field report or level table on stderr.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub electrostatics: ElectrostaticsArgs,
 }
 
 /// The report group of an energy component named by its kind.
@@ -52,7 +55,8 @@ fn group_of(component: &str) -> &'static str {
         "angle" => "angles",
         "torsion" => "torsions",
         "lennard-jones" | "lennard-jones-14" => "lennard_jones",
-        "coulomb" | "coulomb-14" => "coulomb",
+        "coulomb" | "coulomb-14" | "pme-reciprocal" | "ewald-exclusions" | "ewald-self"
+        | "ewald-background" => "coulomb",
         _ => "other",
     }
 }
@@ -67,7 +71,7 @@ const GROUPS: [&str; 6] = [
 ];
 
 pub fn forces_command(args: &ForcesArgs) -> Result<()> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
+    let mut scene = args.electrostatics.load(&args.scene, &args.set)?;
     if !args.quiet {
         report_forcefield(&scene);
     }

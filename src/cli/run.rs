@@ -70,6 +70,8 @@ pub struct CheckArgs {
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
+    #[command(flatten)]
+    pub electrostatics: super::common::ElectrostaticsArgs,
 }
 
 /// How a run's energy drift is judged: fitted at the end of the run over the recorded
@@ -326,7 +328,7 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, &args.set)?;
+    let scene = args.electrostatics.load(&args.scene, &args.set)?;
     check_run_table(&scene)?;
     for line in &scene.forcefield_report {
         println!("{line}");

@@ -17,6 +17,7 @@ pub mod clusters;
 pub mod coulomb;
 pub mod distance_split;
 pub mod dual;
+pub mod ewald;
 pub mod external_field;
 pub mod field;
 pub mod gravity;

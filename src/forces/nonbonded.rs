@@ -62,8 +62,17 @@ const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;
 pub enum Electrostatics {
     None,
     Plain,
-    DampedShiftedForce { alpha: f64 },
-    ReactionField { dielectric: f64 },
+    DampedShiftedForce {
+        alpha: f64,
+    },
+    ReactionField {
+        dielectric: f64,
+    },
+    /// The real-space part of an Ewald sum, `erfc(αr)/r` cut at `r_c` (not shifted, as
+    /// OpenMM and GROMACS compute it); the rest is in [`super::ewald`].
+    Ewald {
+        alpha: f64,
+    },
 }
 
 impl Electrostatics {
@@ -76,6 +85,9 @@ impl Electrostatics {
             }
             Electrostatics::ReactionField { dielectric } => {
                 format!("reaction field, eps_rf = {dielectric}")
+            }
+            Electrostatics::Ewald { alpha } => {
+                format!("Ewald real space erfc(alpha r)/r, alpha = {alpha} 1/length")
             }
         }
     }
@@ -221,12 +233,43 @@ impl CoulombForm for ReactionField {
     }
 }
 
+/// Ewald real space `V = Q erfc(αr)/r` (unshifted, cut at `r_c` by the caller).
+#[derive(Clone, Copy)]
+struct EwaldReal {
+    alpha: f64,
+}
+
+impl CoulombForm for EwaldReal {
+    #[inline(always)]
+    fn energy_force(&self, qq: f64, s: f64, inv_r: f64) -> (f64, f64) {
+        let r = s * inv_r;
+        let ar = self.alpha * r;
+        let erfc = libm::erfc(ar);
+        let gauss = TWO_OVER_SQRT_PI * self.alpha * (-ar * ar).exp();
+        let e = qq * erfc * inv_r;
+        // −V′/r = Q (erfc/r² + (2α/√π) e^{−α²r²}/r)/r
+        let f = qq * inv_r * inv_r * (erfc * inv_r + gauss);
+        (e, f)
+    }
+    fn derivatives(&self, qq: f64, r: f64) -> (f64, f64, f64) {
+        let ar = self.alpha * r;
+        let erfc = libm::erfc(ar);
+        let gauss = TWO_OVER_SQRT_PI * self.alpha * (-ar * ar).exp();
+        let v = qq * erfc / r;
+        let d1 = -qq * (erfc / (r * r) + gauss / r);
+        let d2 = qq
+            * (2.0 * erfc / (r * r * r) + gauss * (2.0 / (r * r) + 2.0 * self.alpha * self.alpha));
+        (v, d1, d2)
+    }
+}
+
 #[derive(Clone, Copy)]
 enum Kernel {
     Plain(Plain),
     ShiftedForce(ShiftedForce),
     Damped(DampedShiftedForce),
     ReactionField(ReactionField),
+    Ewald(EwaldReal),
 }
 
 /// The Coulomb form of a term, pair by pair: `V`, `V′`, `V″` of one pair with its cutoff
@@ -247,35 +290,12 @@ pub(crate) trait CoulombLanes {
 impl CoulombPair {
     /// The form for `electrostatics` with `cutoff` (`f64::INFINITY` for none).
     pub fn new(electrostatics: Electrostatics, cutoff: f64) -> Result<Self, String> {
-        let needs_cutoff = |name: &str| {
-            if cutoff.is_finite() {
-                Ok(())
-            } else {
-                Err(format!("{name} Coulomb needs a cutoff"))
-            }
-        };
-        Ok(CoulombPair(match electrostatics {
-            Electrostatics::None | Electrostatics::Plain => Kernel::Plain(Plain),
-            Electrostatics::DampedShiftedForce { alpha } => {
-                needs_cutoff("damped shifted force")?;
-                if alpha == 0.0 {
-                    Kernel::ShiftedForce(ShiftedForce {
-                        two_over_rc: 2.0 / cutoff,
-                        inv_rc2: 1.0 / (cutoff * cutoff),
-                    })
-                } else {
-                    Kernel::Damped(DampedShiftedForce::new(alpha, cutoff))
-                }
-            }
-            Electrostatics::ReactionField { dielectric } => {
-                needs_cutoff("reaction-field")?;
-                let k = (dielectric - 1.0) / ((2.0 * dielectric + 1.0) * cutoff.powi(3));
-                Kernel::ReactionField(ReactionField {
-                    k,
-                    c: 1.0 / cutoff + k * cutoff * cutoff,
-                })
-            }
-        }))
+        // Plain Coulomb with a cutoff is the caller's choice here (the distance split
+        // multiplies it by a switch).
+        if electrostatics == Electrostatics::Plain {
+            return Ok(CoulombPair(Kernel::Plain(Plain)));
+        }
+        coulomb_kernel(electrostatics, cutoff).map(CoulombPair)
     }
 
     /// `(V, −V′/r)` of a pair with `k_e q_i q_j = charge_product` at `r² = s`, `1/r = inv_r`.
@@ -286,6 +306,7 @@ impl CoulombPair {
             Kernel::ShiftedForce(c) => c.energy_force(charge_product, s, inv_r),
             Kernel::Damped(c) => c.energy_force(charge_product, s, inv_r),
             Kernel::ReactionField(c) => c.energy_force(charge_product, s, inv_r),
+            Kernel::Ewald(c) => c.energy_force(charge_product, s, inv_r),
         }
     }
 
@@ -322,6 +343,7 @@ impl CoulombPair {
             Kernel::ShiftedForce(c) => block(c, charge_product, s, inv_r, energy, force),
             Kernel::Damped(c) => block(c, charge_product, s, inv_r, energy, force),
             Kernel::ReactionField(c) => block(c, charge_product, s, inv_r, energy, force),
+            Kernel::Ewald(c) => block(c, charge_product, s, inv_r, energy, force),
         }
     }
 
@@ -332,6 +354,7 @@ impl CoulombPair {
             Kernel::ShiftedForce(c) => with.with(c),
             Kernel::Damped(c) => with.with(c),
             Kernel::ReactionField(c) => with.with(c),
+            Kernel::Ewald(c) => with.with(c),
         }
     }
 
@@ -342,6 +365,7 @@ impl CoulombPair {
             Kernel::ShiftedForce(c) => c.derivatives(charge_product, r),
             Kernel::Damped(c) => c.derivatives(charge_product, r),
             Kernel::ReactionField(c) => c.derivatives(charge_product, r),
+            Kernel::Ewald(c) => c.derivatives(charge_product, r),
         }
     }
 }
@@ -556,6 +580,7 @@ impl Nonbonded {
                 Kernel::ShiftedForce(c) => c.derivatives(qq, r),
                 Kernel::Damped(c) => c.derivatives(qq, r),
                 Kernel::ReactionField(c) => c.derivatives(qq, r),
+                Kernel::Ewald(c) => c.derivatives(qq, r),
             };
             d1 += a;
             d2 += b;
@@ -611,6 +636,12 @@ fn coulomb_kernel(electrostatics: Electrostatics, cutoff: f64) -> Result<Kernel,
                 k,
                 c: 1.0 / cutoff + k * cutoff * cutoff,
             })
+        }
+        Electrostatics::Ewald { alpha } => {
+            if !cutoff.is_finite() {
+                return Err("Ewald (PME) real space needs a cutoff".into());
+            }
+            Kernel::Ewald(EwaldReal { alpha })
         }
     })
 }

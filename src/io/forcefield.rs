@@ -47,6 +47,8 @@ mod bonded;
 mod distance_split;
 mod nonbonded;
 
+pub use nonbonded::inverse_length;
+
 pub use distance_split::SplitSection;
 
 use atoms::AtomTable;
@@ -65,6 +67,19 @@ pub struct ForcefieldSpec {
     pub coulomb: Option<String>,
     pub dsf_alpha: Option<f64>,
     pub rf_dielectric: Option<f64>,
+    /// PME (`coulomb = "pme"`): `erfc(α r_c)` = this, GROMACS `ewald-rtol` (default 1e-5).
+    pub ewald_tolerance: Option<f64>,
+    /// PME grid spacing (length), default 1.2 Å (GROMACS `fourier-spacing`).
+    pub fourier_spacing: Option<f64>,
+    /// PME splitting coefficient α: a number in the scene's inverse length unit, or text
+    /// with its unit (`"0.347/Å"`, `"3.47/nm"`); overrides `ewald_tolerance`.
+    pub ewald_alpha: Option<InverseLength>,
+    /// PME grid points per axis; overrides `fourier_spacing`.
+    pub pme_grid: Option<[usize; 3]>,
+    /// PME B-spline order, 4 to 6 (default 5).
+    pub pme_order: Option<usize>,
+    /// The level of the `pme-reciprocal` term (default: the slowest).
+    pub pme_level: Option<usize>,
     pub lj_shift: Option<bool>,
     pub scale_12: Option<f64>,
     pub scale_13: Option<f64>,
@@ -83,6 +98,68 @@ pub struct ForcefieldSpec {
     pub torsions: Option<BTreeMap<String, Vec<CosineSpec>>>,
     /// The cutoff term split by distance across two levels (`[forcefield.split]`).
     pub split: Option<SplitSection>,
+}
+
+/// Electrostatics settings that replace a scene's `[forcefield]` keys (the command line's
+/// `--coulomb`, `--ewald-alpha`, …): each given value overrides its key.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ElectrostaticsOverrides {
+    pub coulomb: Option<String>,
+    pub ewald_tolerance: Option<f64>,
+    pub fourier_spacing: Option<f64>,
+    pub ewald_alpha: Option<InverseLength>,
+    pub pme_grid: Option<[usize; 3]>,
+    pub pme_order: Option<usize>,
+}
+
+impl ElectrostaticsOverrides {
+    pub fn is_empty(&self) -> bool {
+        *self == ElectrostaticsOverrides::default()
+    }
+
+    /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and
+    /// reaction-field keys, and switching away drops the PME keys, so the scene's other
+    /// model does not trip the check of stray keys.
+    pub fn apply(&self, spec: &mut ForcefieldSpec) {
+        if let Some(coulomb) = &self.coulomb {
+            if coulomb == "pme" {
+                spec.dsf_alpha = None;
+                spec.rf_dielectric = None;
+            } else {
+                spec.ewald_tolerance = None;
+                spec.fourier_spacing = None;
+                spec.ewald_alpha = None;
+                spec.pme_grid = None;
+                spec.pme_order = None;
+                spec.pme_level = None;
+            }
+            spec.coulomb = Some(coulomb.clone());
+        }
+        let set = |target: &mut Option<f64>, value: Option<f64>| {
+            if value.is_some() {
+                *target = value;
+            }
+        };
+        set(&mut spec.ewald_tolerance, self.ewald_tolerance);
+        set(&mut spec.fourier_spacing, self.fourier_spacing);
+        if let Some(alpha) = &self.ewald_alpha {
+            spec.ewald_alpha = Some(alpha.clone());
+        }
+        if let Some(grid) = self.pme_grid {
+            spec.pme_grid = Some(grid);
+        }
+        if let Some(order) = self.pme_order {
+            spec.pme_order = Some(order);
+        }
+    }
+}
+
+/// An inverse length: a plain number in the scene's unit, or text with a unit.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum InverseLength {
+    Number(f64),
+    Text(String),
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -295,6 +372,7 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
         bonded::angles(&ctx, &graph.angles, &mut terms, &mut report)?,
         bonded::torsions(&ctx, &graph.dihedrals, &mut terms, &mut report)?,
     ];
+    nonbonded::stray_pme_keys(input.spec)?;
     let exclusions = nonbonded::exclusions(input.spec, &graph, &mut report)?;
     let settings = nonbonded::settings(input, &atoms.charges)?;
     let lj = nonbonded::lennard_jones(input.spec, &atoms, &settings, &mut report);
@@ -311,6 +389,14 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
             distance_split::terms(input, &atoms, section, cutoff_spec, &mut terms, &mut report)?
         }
     }
+    nonbonded::pme_term(
+        input,
+        &atoms,
+        &settings,
+        &exclusions,
+        &mut terms,
+        &mut report,
+    )?;
     nonbonded::pairs_14_terms(input, &atoms, &settings, &lj, &exclusions, &mut terms);
     Ok(BuiltForcefield {
         terms,
@@ -339,7 +425,11 @@ fn parameters(
         Electrostatics::Plain => ("plain", None, None),
         Electrostatics::DampedShiftedForce { alpha } => ("dsf", Some(alpha), None),
         Electrostatics::ReactionField { dielectric } => ("reaction-field", None, Some(dielectric)),
+        Electrostatics::Ewald { .. } => ("pme", None, None),
     };
+    let ewald = settings
+        .ewald
+        .map(|p| serde_json::json!({"alpha": p.alpha, "grid": p.grid, "order": p.order}));
     serde_json::json!({
         "units": ctx.input.units.name(),
         "elements": atoms.elements,
@@ -371,6 +461,7 @@ fn parameters(
             "coulomb": coulomb_name,
             "dsf_alpha": alpha,
             "rf_dielectric": dielectric,
+            "pme": ewald,
             "lj_shift": settings.lj_shift && cutoff.is_finite(),
             "coulomb_constant": settings.coulomb_constant,
         },
@@ -378,7 +469,8 @@ fn parameters(
         "doc": "bonds [i, j, k, r0] (E = k/2 (r - r0)^2); angles [i, j, k, k, theta0 rad] \
                 (E = k/2 (theta - theta0)^2); torsions [[i, j, k, l], [[k, n, phase rad], ...]] \
                 (E = sum k (1 + cos(n phi - phase))); exclusions: pairs left out of the \
-                cutoff term; pairs_14: scaled, no cutoff, plain Coulomb",
+                cutoff term (with PME, corrected by -q_i q_j erf(alpha r)/r); pairs_14: scaled, \
+                no cutoff, plain Coulomb; nonbonded.pme: alpha (1/length), grid, order",
     })
 }
 

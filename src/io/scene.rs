@@ -27,6 +27,7 @@ pub use schema::*;
 
 use crate::error::{Error, Result};
 use crate::forces::ForceTerm;
+use crate::io::forcefield::ElectrostaticsOverrides;
 use crate::settings::RunSpec;
 use crate::split::{Assignment, ForceSplit};
 use crate::system::exact::ExactSolution;
@@ -74,6 +75,32 @@ pub struct Scene {
 pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     build_scene(&text, path, overrides)
+}
+
+/// [`load_scene`] with the electrostatics of its `[forcefield]` replaced (the command
+/// line's `--coulomb pme …`); an error when overrides are given and the scene has no
+/// `[forcefield]`.
+pub fn load_scene_with(
+    path: &Path,
+    overrides: &[String],
+    electrostatics: &ElectrostaticsOverrides,
+) -> Result<Scene> {
+    if electrostatics.is_empty() {
+        return load_scene(path, overrides);
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut file = parse_scene(&text, path)?;
+    match file.forcefield.as_mut() {
+        Some(spec) => electrostatics.apply(spec.get_mut()),
+        None => {
+            return Err(Error::Scene {
+                location: path.display().to_string(),
+                message: "--coulomb and the PME flags need a scene with a [forcefield] section"
+                    .into(),
+            });
+        }
+    }
+    build_parsed_scene(&file, &text, path, overrides)
 }
 
 /// Build a scene from its text (`path` names it in messages and anchors relative files).

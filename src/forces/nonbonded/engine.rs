@@ -248,6 +248,7 @@ impl Nonbonded {
             Kernel::ShiftedForce(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
             Kernel::Damped(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
             Kernel::ReactionField(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+            Kernel::Ewald(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
         }
     }
 

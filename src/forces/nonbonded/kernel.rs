@@ -29,7 +29,7 @@
 //! shift) are formed in f64 and rounded once, the j-positions are rounded once per
 //! evaluation; every cluster pair's contributions go into f64 buffers.
 
-use super::{CoulombForm, DampedShiftedForce, Plain, ReactionField, ShiftedForce};
+use super::{CoulombForm, DampedShiftedForce, EwaldReal, Plain, ReactionField, ShiftedForce};
 use crate::forces::clusters::{CLUSTER, Cluster, Entry, PairList};
 use crate::forces::simd::{Isa, Portable, Real, Simd, row, row_lanes};
 
@@ -183,6 +183,48 @@ impl Coulomb for DampedShiftedForce {
         rinv: S::V,
         _: S::V,
     ) -> (S::V, S::V) {
+        scalar_lanes(
+            s,
+            |qq, s, inv_r| self.energy_force(qq, s, inv_r),
+            qq,
+            r2,
+            rinv,
+        )
+    }
+}
+
+impl Coulomb for EwaldReal {
+    /// Lane by lane in f64 through the scalar form, as DSF: libm's erfc, so the same bits
+    /// on every instruction set (a SIMD erfc is a later step).
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        _: S::V,
+    ) -> (S::V, S::V) {
+        scalar_lanes(
+            s,
+            |qq, s, inv_r| self.energy_force(qq, s, inv_r),
+            qq,
+            r2,
+            rinv,
+        )
+    }
+}
+
+/// `(V, −V′/r)` lane by lane in f64 through a scalar form.
+#[inline(always)]
+fn scalar_lanes<S: Simd>(
+    s: S,
+    form: impl Fn(f64, f64, f64) -> (f64, f64),
+    qq: S::V,
+    r2: S::V,
+    rinv: S::V,
+) -> (S::V, S::V) {
+    {
         let (mut q, mut r, mut i) = (
             [S::R::default(); 16],
             [S::R::default(); 16],
@@ -193,7 +235,7 @@ impl Coulomb for DampedShiftedForce {
         s.store(rinv, &mut i);
         let (mut e, mut f) = ([S::R::default(); 16], [S::R::default(); 16]);
         for k in 0..S::WIDTH {
-            let (ek, fk) = self.energy_force(q[k].to_f64(), r[k].to_f64(), i[k].to_f64());
+            let (ek, fk) = form(q[k].to_f64(), r[k].to_f64(), i[k].to_f64());
             e[k] = S::R::of(ek);
             f[k] = S::R::of(fk);
         }

@@ -80,6 +80,7 @@ impl Nonbonded {
                 Kernel::ShiftedForce(c) => c.energy_force(qq, s, inv_r),
                 Kernel::Damped(c) => c.energy_force(qq, s, inv_r),
                 Kernel::ReactionField(c) => c.energy_force(qq, s, inv_r),
+                Kernel::Ewald(c) => c.energy_force(qq, s, inv_r),
             };
             e += ec;
             f += fc;

@@ -5,8 +5,9 @@ use std::collections::BTreeSet;
 
 use super::atoms::AtomTable;
 use super::bonded::Topology;
-use super::{ForcefieldInput, ForcefieldSpec, Symmetry, Terms, lookup};
+use super::{ForcefieldInput, ForcefieldSpec, InverseLength, Symmetry, Terms, lookup};
 use crate::forces::coulomb::Coulomb;
+use crate::forces::ewald::{EwaldParameters, EwaldRequest, PmeReciprocal, resolve};
 use crate::forces::lennard_jones::LennardJones;
 use crate::forces::nonbonded::{Electrostatics, LjPair, NonbondedSpec};
 use crate::forces::pair::{Pair, PairTerm};
@@ -121,6 +122,8 @@ pub(super) struct Settings {
     pub electrostatics: Electrostatics,
     pub coulomb_constant: f64,
     pub lj_shift: bool,
+    /// With `coulomb = "pme"`: its parameters.
+    pub ewald: Option<EwaldParameters>,
 }
 
 /// Cutoff, skin, Coulomb form and constant, LJ shift.
@@ -138,10 +141,25 @@ pub(super) fn settings(input: &ForcefieldInput, charges: &[f64]) -> Result<Setti
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("[forcefield] skin must be ≥ 0, got {skin}"));
     }
+    let mut electrostatics = coulomb(spec, charges)?;
+    let ewald = match electrostatics {
+        Electrostatics::Ewald { .. } => {
+            let request = ewald_request(spec, input.units)?;
+            let lengths = input.periodic_box.map(|b| b.lengths);
+            let params =
+                resolve(&request, cutoff, lengths).map_err(|e| format!("[forcefield] {e}"))?;
+            electrostatics = Electrostatics::Ewald {
+                alpha: params.alpha,
+            };
+            Some(params)
+        }
+        _ => None,
+    };
     Ok(Settings {
         cutoff,
         skin,
-        electrostatics: coulomb(spec, charges)?,
+        electrostatics,
+        ewald,
         coulomb_constant: match input.units {
             Units::Real => COULOMB_KCAL_ANGSTROM,
             Units::None => 1.0,
@@ -171,9 +189,12 @@ fn coulomb(spec: &ForcefieldSpec, charges: &[f64]) -> Result<Electrostatics, Str
         Some("reaction-field") => Electrostatics::ReactionField {
             dielectric: spec.rf_dielectric.unwrap_or(78.3),
         },
+        // α is resolved with the box and cutoff (`settings`).
+        Some("pme") => Electrostatics::Ewald { alpha: 0.0 },
         Some(other) => {
             return Err(format!(
-                "unknown [forcefield] coulomb \"{other}\"; use dsf, reaction-field, plain or none"
+                "unknown [forcefield] coulomb \"{other}\"; use pme, dsf, reaction-field, plain \
+                 or none"
             ));
         }
     })
@@ -309,4 +330,123 @@ pub(super) fn pairs_14_terms(
         let term = PairTerm::new(kind, TermClass::Nonbonded, 3, coulomb_pairs, periodic_box);
         terms.push(("coulomb-14".into(), Box::new(term), Assignment::Default));
     }
+}
+
+/// The PME keys of `[forcefield]`, checked where a value alone can be wrong; keys that
+/// need `coulomb = "pme"` are an error without it.
+fn ewald_request(spec: &ForcefieldSpec, units: Units) -> Result<EwaldRequest, String> {
+    let alpha = match &spec.ewald_alpha {
+        None => None,
+        Some(value) => Some(
+            inverse_length(value, units).map_err(|e| format!("[forcefield] ewald_alpha {e}"))?,
+        ),
+    };
+    Ok(EwaldRequest {
+        tolerance: spec.ewald_tolerance,
+        spacing: spec.fourier_spacing,
+        alpha,
+        grid: spec.pme_grid,
+        order: spec.pme_order,
+    })
+}
+
+/// Keys that only PME reads, when given without it: an error naming the first.
+pub(super) fn stray_pme_keys(spec: &ForcefieldSpec) -> Result<(), String> {
+    if spec.coulomb.as_deref() == Some("pme") {
+        return Ok(());
+    }
+    let given = [
+        ("ewald_tolerance", spec.ewald_tolerance.is_some()),
+        ("fourier_spacing", spec.fourier_spacing.is_some()),
+        ("ewald_alpha", spec.ewald_alpha.is_some()),
+        ("pme_grid", spec.pme_grid.is_some()),
+        ("pme_order", spec.pme_order.is_some()),
+        ("pme_level", spec.pme_level.is_some()),
+    ];
+    match given.iter().find(|(_, set)| *set) {
+        Some((key, _)) => Err(format!(
+            "[forcefield] {key} is a PME setting: it needs coulomb = \"pme\""
+        )),
+        None => Ok(()),
+    }
+}
+
+/// An inverse length in the scene's unit from a number (already in it) or text such as
+/// `"0.347/Å"` or `"3.47/nm"` (real units only).
+pub fn inverse_length(value: &InverseLength, units: Units) -> Result<f64, String> {
+    let text = match value {
+        InverseLength::Number(x) => return Ok(*x),
+        InverseLength::Text(text) => text.trim(),
+    };
+    let Some((number, unit)) = text.split_once('/') else {
+        return text
+            .parse::<f64>()
+            .map_err(|_| format!("\"{text}\" is no number (write 0.347 or \"0.347/Å\")"));
+    };
+    let number: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{text}\": \"{}\" is no number", number.trim()))?;
+    // Length of the unit in Å.
+    let length = match unit.trim() {
+        "Å" | "A" | "angstrom" | "Angstrom" => 1.0,
+        "nm" => 10.0,
+        "pm" => 0.01,
+        other => {
+            return Err(format!(
+                "\"{text}\": unknown length unit \"{other}\" (use Å, A, angstrom, nm or pm)"
+            ));
+        }
+    };
+    match units {
+        Units::Real => Ok(number / length),
+        Units::None => Err(format!(
+            "\"{text}\" has a unit, but the scene has none: give a plain number"
+        )),
+    }
+}
+
+/// With `coulomb = "pme"`: the `"pme-reciprocal"` term (mesh, exclusion correction, self
+/// and background), on `pme_level` or the slowest level; report lines, with a notice for a
+/// charged box.
+pub(super) fn pme_term(
+    input: &ForcefieldInput,
+    atoms: &AtomTable,
+    settings: &Settings,
+    exclusions: &Exclusions,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<(), String> {
+    let (Some(params), Some(periodic_box)) = (settings.ewald, input.periodic_box) else {
+        return Ok(());
+    };
+    let term = PmeReciprocal::new(
+        params,
+        periodic_box.lengths,
+        settings.coulomb_constant,
+        atoms.charges.clone(),
+        &exclusions.excluded,
+    )?;
+    report.push(format!(
+        "pme-reciprocal: {}; {} excluded pairs corrected; level {}",
+        params.describe(),
+        exclusions.excluded.len(),
+        match input.spec.pme_level {
+            Some(level) => level.to_string(),
+            None => "slowest (default)".into(),
+        }
+    ));
+    let net = term.net_charge();
+    if net.abs() > 1e-6 {
+        report.push(format!(
+            "notice: the box carries a net charge of {net:.6} e; PME adds the neutralising \
+             background -pi Q^2/(2 V alpha^2) (energy component ewald-background)"
+        ));
+    }
+    let assignment = match input.spec.pme_level {
+        Some(level) => Assignment::Level(level),
+        None => Assignment::Default,
+    };
+    terms.push(("pme-reciprocal".into(), Box::new(term), assignment));
+    Ok(())
 }

@@ -1,0 +1,500 @@
+//! The smooth-PME reciprocal term `"pme-reciprocal"` (EPBDLP95) with the Ewald corrections
+//! that move with it: the excluded pairs `−Q_ij erf(αr)/r`, the self energy and the
+//! neutralising background (formulas in [`super`]). Each is its own energy component
+//! (`pme-reciprocal`, `ewald-exclusions`, `ewald-self`, `ewald-background`). The
+//! exclusion correction stays with the mesh term, as in OpenMM's reciprocal force group:
+//! on excluded pairs the two nearly cancel, so splitting them across levels would give
+//! large opposite impulses.
+//!
+//! **Mesh.** Charges are spread with B-splines of order `n` (`Q(k) = Σ_i q_i Π_a
+//! M_n(u_ia − k_a)`, EPBDLP95 eq. (4.6)); with `F` the 3-D FFT and the influence function
+//! `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))`, `B(m) = Π_a 1/|b_a(m_a)|²` (eq. (4.7), (4.8)),
+//! `E = ½ Σ_{m≠0} θ(m) |F(Q)(m)|²`. Its derivative on the grid is the potential
+//! `φ = F⁻¹(θ F(Q))` (unnormalised inverse), and `∂E/∂r_i = q_i Σ_k φ(k) ∇_i W_i(k)` with
+//! `W_i(k) = Π_a M_n(u_ia − k_a)`, `∂u_a/∂x_a = K_a/L_a` (eq. (4.9)).
+//!
+//! **Hessian-vector product.** `E = ½ QᵀΘQ` with `Q` a function of the positions, so
+//! `∇²E v = Jᵀ Θ (J v) + Σ_k φ(k) ∇²Q(k) v` with `J = ∂Q/∂r`. `J v` spreads the
+//! displacement-weighted spline derivatives `Σ_i q_i v_i·∇W_i`; `Θ` is one more
+//! convolution (FFT, `θ`, inverse); `Jᵀ` gathers with the first derivatives as the
+//! gradient does; the second sum gathers `φ` with the splines' second derivatives
+//! (`q_i Σ_k φ(k) ∂_a∂_b W_i(k) v_ib`). Two passes of the pipeline.
+//!
+//! **Cost.** Per gradient: `N n³` spreading and gathering, two 3-D FFTs of `K_x K_y K_z`
+//! points (`O(K³ log K)`), `O(K³)` for the influence function; per Hessian-vector product
+//! twice that. The exclusions are `O(N_excl)`. The per-atom splines and the gathering run
+//! in parallel for large systems (each atom's result is its own, so the bits do not depend
+//! on the thread count); spreading and the FFT are serial. The workspace is sized at
+//! construction: an evaluation allocates nothing.
+
+use std::sync::Mutex;
+
+use rayon::prelude::*;
+
+use super::fft::{C64, Fft3, FftScratch};
+use super::spline::{self, MAX_ORDER, Weights};
+use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
+use crate::forces::scratch::parallel;
+use crate::forces::{ForceTerm, TermClass};
+
+/// One atom's splines on the three axes: grid indices and weights.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stencil {
+    index: [[u32; MAX_ORDER]; 3],
+    weights: [Weights; 3],
+}
+
+struct Workspace {
+    stencils: Vec<Stencil>,
+    grid: Vec<f64>,
+    /// `φ`, the derivative of the energy on the grid.
+    potential: Vec<f64>,
+    spectrum: Vec<C64>,
+    fft: FftScratch,
+}
+
+/// What one evaluation computes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Want {
+    Energy,
+    Potential,
+}
+
+pub struct PmeReciprocal {
+    params: EwaldParameters,
+    lengths: [f64; 3],
+    coulomb_constant: f64,
+    charges: Vec<f64>,
+    excluded: Vec<(u32, u32)>,
+    /// `θ(m)` over the half spectrum; zero at `m = 0`.
+    influence: Vec<f64>,
+    self_energy: f64,
+    background: f64,
+    fft: Fft3,
+    workspace: Mutex<Workspace>,
+}
+
+impl PmeReciprocal {
+    /// The term for `charges` in a box of `lengths`, `k_e = coulomb_constant`, leaving out
+    /// of the Ewald sum (by the erf correction) the `excluded` pairs.
+    pub fn new(
+        params: EwaldParameters,
+        lengths: [f64; 3],
+        coulomb_constant: f64,
+        charges: Vec<f64>,
+        excluded: &[(usize, usize)],
+    ) -> Result<Self, String> {
+        let n = charges.len();
+        if let Some(&(i, j)) = excluded.iter().find(|&&(i, j)| i >= n || j >= n) {
+            return Err(format!("excluded pair ({i}, {j}) names a missing particle"));
+        }
+        if !super::ORDERS.contains(&params.order) {
+            return Err(format!("pme_order must be 4, 5 or 6, got {}", params.order));
+        }
+        let mut pairs: Vec<(u32, u32)> = excluded
+            .iter()
+            .filter(|(i, j)| i != j)
+            .map(|&(i, j)| (i.min(j) as u32, i.max(j) as u32))
+            .collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        let fft = Fft3::new(params.grid);
+        let volume: f64 = lengths.iter().product();
+        let workspace = Workspace {
+            stencils: vec![Stencil::default(); n],
+            grid: vec![0.0; fft.real_len()],
+            potential: vec![0.0; fft.real_len()],
+            spectrum: vec![C64::default(); fft.spectrum_len()],
+            fft: fft.scratch(),
+        };
+        Ok(PmeReciprocal {
+            influence: influence(&params, lengths, coulomb_constant, fft.half),
+            self_energy: self_energy(params.alpha, coulomb_constant, &charges),
+            background: background_energy(params.alpha, coulomb_constant, &charges, volume),
+            params,
+            lengths,
+            coulomb_constant,
+            charges,
+            excluded: pairs,
+            fft,
+            workspace: Mutex::new(workspace),
+        })
+    }
+
+    pub fn parameters(&self) -> EwaldParameters {
+        self.params
+    }
+
+    /// The net charge `Σ q_i`.
+    pub fn net_charge(&self) -> f64 {
+        self.charges.iter().sum()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Workspace> {
+        // A panic elsewhere while the lock was held leaves buffers that are overwritten.
+        self.workspace.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// `K_a / L_a`.
+    fn scale(&self) -> [f64; 3] {
+        std::array::from_fn(|a| self.params.grid[a] as f64 / self.lengths[a])
+    }
+
+    /// Every atom's stencil at `q`.
+    fn place(&self, q: &[f64], stencils: &mut [Stencil]) {
+        let order = self.params.order;
+        let place_one = |i: usize, stencil: &mut Stencil| {
+            for a in 0..3 {
+                let size = self.params.grid[a];
+                let s = q[3 * i + a] / self.lengths[a];
+                let u = (s - s.floor()) * size as f64;
+                // u may round up to `size` for s just below 1.
+                let base = (u.floor() as usize).min(size - 1);
+                stencil.weights[a] = spline::weights(order, u - base as f64);
+                for k in 0..order {
+                    stencil.index[a][k] = ((base + size - k) % size) as u32;
+                }
+            }
+        };
+        if parallel(stencils.len()) {
+            stencils
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(i, s)| place_one(i, s));
+        } else {
+            for (i, s) in stencils.iter_mut().enumerate() {
+                place_one(i, s);
+            }
+        }
+    }
+
+    /// `grid = Σ_i c_i(k) ...`: the charges (`v = None`) or, with `v`, the
+    /// displacement-weighted derivatives `Σ_i q_i v_i·∇W_i` spread on the grid.
+    fn spread(&self, stencils: &[Stencil], v: Option<&[f64]>, grid: &mut [f64]) {
+        grid.fill(0.0);
+        let [_, ny, nz] = self.params.grid;
+        let order = self.params.order;
+        let scale = self.scale();
+        for (i, st) in stencils.iter().enumerate() {
+            let q = self.charges[i];
+            if q == 0.0 {
+                continue;
+            }
+            let [wx, wy, wz] = &st.weights;
+            let d: [f64; 3] = match v {
+                Some(v) => std::array::from_fn(|a| scale[a] * v[3 * i + a]),
+                None => [0.0; 3],
+            };
+            for kx in 0..order {
+                let gx = st.index[0][kx] as usize * ny;
+                for ky in 0..order {
+                    let row = (gx + st.index[1][ky] as usize) * nz;
+                    let (vx, vy) = (wx.value[kx], wy.value[ky]);
+                    let (fx, fy) = (wx.first[kx], wy.first[ky]);
+                    for kz in 0..order {
+                        let value = match v {
+                            None => vx * vy * wz.value[kz],
+                            Some(_) => {
+                                d[0] * fx * vy * wz.value[kz]
+                                    + d[1] * vx * fy * wz.value[kz]
+                                    + d[2] * vx * vy * wz.first[kz]
+                            }
+                        };
+                        grid[row + st.index[2][kz] as usize] += q * value;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The mesh energy of the grid in `ws.grid` and, for [`Want::Potential`], `θ * grid`
+    /// into `out` (the grid is consumed).
+    fn convolve(&self, ws: &mut Workspace, want: Want, out_is_potential: bool) -> f64 {
+        let Workspace {
+            grid,
+            potential,
+            spectrum,
+            fft,
+            ..
+        } = ws;
+        self.fft.forward(grid, spectrum, fft);
+        let h = self.fft.half;
+        let nz = self.params.grid[2];
+        let mut energy = 0.0;
+        for (index, (value, theta)) in spectrum.iter_mut().zip(&self.influence).enumerate() {
+            if want == Want::Energy {
+                let kz = index % h;
+                // Bins other than 0 and the Nyquist bin stand for two (m and −m).
+                let weight = if kz == 0 || (nz % 2 == 0 && kz == h - 1) {
+                    0.5
+                } else {
+                    1.0
+                };
+                energy += weight * theta * value.norm_sqr();
+            } else {
+                *value *= *theta;
+            }
+        }
+        if want == Want::Potential {
+            let target = if out_is_potential { potential } else { grid };
+            self.fft.inverse(spectrum, target, fft);
+        }
+        energy
+    }
+
+    /// The mesh energy at `q`.
+    fn mesh_energy(&self, q: &[f64]) -> f64 {
+        let mut guard = self.lock();
+        let ws = &mut *guard;
+        self.place(q, &mut ws.stencils);
+        self.spread(&ws.stencils, None, &mut ws.grid);
+        self.convolve(ws, Want::Energy, false)
+    }
+
+    /// `φ` at `q` into `ws.potential` (stencils placed).
+    fn potential(&self, q: &[f64], ws: &mut Workspace) {
+        self.place(q, &mut ws.stencils);
+        self.spread(&ws.stencils, None, &mut ws.grid);
+        self.convolve(ws, Want::Potential, true);
+    }
+
+    /// Per atom `i`: `out_i += q_i Σ_k g(k) ∇_i W_i(k)` and, with `v`, `+ q_i Σ_k h(k)
+    /// ∇_i∇_iᵀ W_i(k) v_i` (`h` is the second grid).
+    fn gather(
+        &self,
+        stencils: &[Stencil],
+        g: &[f64],
+        hv: Option<(&[f64], &[f64])>,
+        out: &mut [f64],
+    ) {
+        let scale = self.scale();
+        let one = |i: usize, out: &mut [f64]| {
+            let q = self.charges[i];
+            if q == 0.0 {
+                return;
+            }
+            let (first, second) = self.gather_one(&stencils[i], g, hv.map(|(h, _)| h));
+            for a in 0..3 {
+                let mut value = scale[a] * first[a];
+                if let Some((_, v)) = hv {
+                    for b in 0..3 {
+                        value += scale[a] * scale[b] * second[a][b] * v[3 * i + b];
+                    }
+                }
+                out[a] += q * value;
+            }
+        };
+        if parallel(stencils.len()) {
+            out.par_chunks_mut(3)
+                .enumerate()
+                .for_each(|(i, out)| one(i, out));
+        } else {
+            for (i, out) in out.chunks_mut(3).enumerate() {
+                one(i, out);
+            }
+        }
+    }
+
+    /// `Σ_k g(k) ∂_a W(k)` (in `u`) and, with `h`, `Σ_k h(k) ∂_a∂_b W(k)`.
+    fn gather_one(&self, st: &Stencil, g: &[f64], h: Option<&[f64]>) -> ([f64; 3], [[f64; 3]; 3]) {
+        let [_, ny, nz] = self.params.grid;
+        let order = self.params.order;
+        let [wx, wy, wz] = &st.weights;
+        let mut first = [0.0; 3];
+        let mut second = [[0.0; 3]; 3];
+        for kx in 0..order {
+            let gx = st.index[0][kx] as usize * ny;
+            for ky in 0..order {
+                let row = (gx + st.index[1][ky] as usize) * nz;
+                for kz in 0..order {
+                    let at = row + st.index[2][kz] as usize;
+                    let (x, y, z) = (wx.value[kx], wy.value[ky], wz.value[kz]);
+                    let (dx, dy, dz) = (wx.first[kx], wy.first[ky], wz.first[kz]);
+                    let p = g[at];
+                    first[0] += p * dx * y * z;
+                    first[1] += p * x * dy * z;
+                    first[2] += p * x * y * dz;
+                    if let Some(h) = h {
+                        let p = h[at];
+                        let (sx, sy, sz) = (wx.second[kx], wy.second[ky], wz.second[kz]);
+                        second[0][0] += p * sx * y * z;
+                        second[1][1] += p * x * sy * z;
+                        second[2][2] += p * x * y * sz;
+                        second[0][1] += p * dx * dy * z;
+                        second[0][2] += p * dx * y * dz;
+                        second[1][2] += p * x * dy * dz;
+                    }
+                }
+            }
+        }
+        second[1][0] = second[0][1];
+        second[2][0] = second[0][2];
+        second[2][1] = second[1][2];
+        (first, second)
+    }
+
+    /// Minimum-image `r_j − r_i`.
+    fn difference(&self, q: &[f64], i: usize, j: usize) -> [f64; 3] {
+        std::array::from_fn(|a| {
+            let d = q[3 * j + a] - q[3 * i + a];
+            let l = self.lengths[a];
+            d - l * (d / l).round()
+        })
+    }
+
+    /// `E_excl = −Σ Q_ij erf(αr)/r`.
+    fn exclusion_energy(&self, q: &[f64]) -> f64 {
+        let mut energy = 0.0;
+        for &(i, j) in &self.excluded {
+            let (i, j) = (i as usize, j as usize);
+            let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
+            if qq == 0.0 {
+                continue;
+            }
+            let d = self.difference(q, i, j);
+            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            energy -= qq * erf_over_r(self.params.alpha, r).0;
+        }
+        energy
+    }
+
+    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`.
+    fn exclusion_derivative(&self, q: &[f64], v: Option<&[f64]>, out: &mut [f64]) {
+        for &(i, j) in &self.excluded {
+            let (i, j) = (i as usize, j as usize);
+            let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
+            if qq == 0.0 {
+                continue;
+            }
+            let d = self.difference(q, i, j);
+            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let (_, f1, f2) = erf_over_r(self.params.alpha, r);
+            // V(r) = −Q f(r).
+            let (v1, v2) = (-qq * f1, -qq * f2);
+            let change: [f64; 3] = match v {
+                None => std::array::from_fn(|a| v1 / r * d[a]),
+                Some(v) => {
+                    // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
+                    let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
+                    let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
+                    let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
+                    std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
+                }
+            };
+            for a in 0..3 {
+                out[3 * j + a] += change[a];
+                out[3 * i + a] -= change[a];
+            }
+        }
+    }
+}
+
+/// `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))` over the half spectrum `[nx][ny][half]`, with
+/// `m_a = k_a` for `k_a < (K_a + 1)/2`, else `k_a − K_a`, and `m² = Σ (m_a/L_a)²`; zero at
+/// `m = 0` (the background term stands for it).
+fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, half: usize) -> Vec<f64> {
+    let [nx, ny, nz] = params.grid;
+    let moduli: [Vec<f64>; 3] =
+        std::array::from_fn(|a| spline::moduli(params.order, params.grid[a]));
+    let volume: f64 = lengths.iter().product();
+    let pi = std::f64::consts::PI;
+    let factor = pi * pi / (params.alpha * params.alpha);
+    let signed = |k: usize, size: usize| -> f64 {
+        if k < size.div_ceil(2) {
+            k as f64
+        } else {
+            k as f64 - size as f64
+        }
+    };
+    let mut out = vec![0.0; nx * ny * half];
+    for kx in 0..nx {
+        let mx = signed(kx, nx) / lengths[0];
+        for ky in 0..ny {
+            let my = signed(ky, ny) / lengths[1];
+            for kz in 0..half {
+                if kx == 0 && ky == 0 && kz == 0 {
+                    continue;
+                }
+                let mz = signed(kz, nz) / lengths[2];
+                let m2 = mx * mx + my * my + mz * mz;
+                let denominator = pi * volume * m2 * moduli[0][kx] * moduli[1][ky] * moduli[2][kz];
+                out[(kx * ny + ky) * half + kz] = ke * (-factor * m2).exp() / denominator;
+            }
+        }
+    }
+    out
+}
+
+impl ForceTerm for PmeReciprocal {
+    fn kind(&self) -> &'static str {
+        "pme-reciprocal"
+    }
+
+    fn class(&self) -> TermClass {
+        TermClass::Nonbonded
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        self.mesh_energy(q) + self.exclusion_energy(q) + self.self_energy + self.background
+    }
+
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+        {
+            let mut guard = self.lock();
+            let ws = &mut *guard;
+            self.potential(q, ws);
+            self.gather(&ws.stencils, &ws.potential, None, gradient);
+        }
+        self.exclusion_derivative(q, None, gradient);
+    }
+
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+        {
+            let mut guard = self.lock();
+            let ws = &mut *guard;
+            self.potential(q, ws);
+            self.spread(&ws.stencils, Some(v), &mut ws.grid);
+            // ψ = Θ (J v) into the grid itself.
+            self.convolve(ws, Want::Potential, false);
+            let Workspace {
+                stencils,
+                grid,
+                potential,
+                ..
+            } = ws;
+            self.gather(stencils, grid, Some((potential, v)), out);
+        }
+        self.exclusion_derivative(q, Some(v), out);
+    }
+
+    /// Every charged particle with every other: one interaction of all of them.
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        let charged: Vec<usize> = (0..self.charges.len())
+            .filter(|&i| self.charges[i] != 0.0)
+            .collect();
+        let mut out = vec![charged];
+        out.extend(
+            self.excluded
+                .iter()
+                .map(|&(i, j)| vec![i as usize, j as usize]),
+        );
+        out
+    }
+
+    fn interaction_count(&self) -> usize {
+        self.charges.len() + self.excluded.len()
+    }
+
+    fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
+        vec![
+            ("pme-reciprocal", self.mesh_energy(q)),
+            ("ewald-exclusions", self.exclusion_energy(q)),
+            ("ewald-self", self.self_energy),
+            ("ewald-background", self.background),
+        ]
+    }
+
+    fn as_any(&self) -> Option<&dyn std::any::Any> {
+        Some(self)
+    }
+}
