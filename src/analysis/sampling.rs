@@ -21,7 +21,6 @@ use super::block_average::Estimate;
 use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use super::scan::{PointOutputs, ScanSetup, StepResult, Verdict, run_once, step_result};
 use crate::error::{Error, Result};
-use crate::io::scene::load_scene;
 use crate::io::summary::Status;
 
 /// What the sampling criterion compares, and its bounds.
@@ -232,7 +231,7 @@ pub fn run_sampling_point(
             &summary,
         ));
     }
-    let scene = load_scene(&setup.scene, &setup.set)?;
+    let scene = setup.load_scene()?;
     let analyzer = Analyzer::new(&scene, criterion.analysis_options())?;
     let analysis = analyzer.analyze(&RunFiles {
         energy: dir.join("energy.csv"),

@@ -27,7 +27,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::io::scene::load_scene;
+use crate::io::forcefield::ElectrostaticsOverrides;
+use crate::io::scene::{Scene, load_scene_with};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
 use crate::run::prepare::{RunRequest, prepare};
@@ -188,6 +189,15 @@ pub struct ScanSetup {
     /// The steps of the inner levels, outermost first, held fixed while `h` varies: each
     /// point's `level_steps` are `h/T1, T1/T2, …` (empty: the base's `level_steps`).
     pub level_dts: Vec<f64>,
+    /// `--coulomb`, `--ewald-alpha`, … over the scene's `[forcefield]` keys.
+    pub electrostatics: ElectrostaticsOverrides,
+}
+
+impl ScanSetup {
+    /// The scene with `--set` values and the electrostatics overrides.
+    pub fn load_scene(&self) -> Result<Scene> {
+        load_scene_with(&self.scene, &self.set, &self.electrostatics)
+    }
 }
 
 /// A scan's points, method-major: index = method × (number of steps) + step index.
@@ -211,7 +221,7 @@ pub struct PointOutputs<'a> {
 
 /// The settings of one point.
 pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodSettings> {
-    let scene = load_scene(&setup.scene, &setup.set)?;
+    let scene = setup.load_scene()?;
     scene
         .run
         .overridden_by(&point_spec(setup, method, h)?)
@@ -256,7 +266,11 @@ pub fn run_once(
     outputs: &PointOutputs,
 ) -> Result<RunSummary> {
     let spec = point_spec(setup, method, h)?;
-    let mut prepared = prepare(&RunRequest::new(&setup.scene, &setup.set, &spec))?;
+    let request = RunRequest {
+        electrostatics: setup.electrostatics.clone(),
+        ..RunRequest::new(&setup.scene, &setup.set, &spec)
+    };
+    let mut prepared = prepare(&request)?;
     let trajectory = outputs.dir.map(|dir| TrajectoryOptions {
         path: dir.join("trajectory.xyz"),
         every: outputs.frame_every.max(1),

@@ -256,6 +256,15 @@ pub struct ElectrostaticsArgs {
     /// PME grid spacing (length) when --pme-grid is not given.
     #[arg(long, value_name = "LENGTH", allow_negative_numbers = true)]
     pub fourier_spacing: Option<f64>,
+    /// The force level of the pme-reciprocal term (default: the slowest); a level above
+    /// the others makes the reciprocal sum its own MTS level.
+    #[arg(long, value_name = "LEVEL")]
+    pub pme_level: Option<usize>,
+    /// The force level of the cutoff (real-space) non-bonded term (default: the slowest):
+    /// `--nonbonded-level 0 --pme-level 1` is GROMACS's `mts-level2-forces =
+    /// longrange-nonbonded`.
+    #[arg(long, value_name = "LEVEL")]
+    pub nonbonded_level: Option<usize>,
 }
 
 impl ElectrostaticsArgs {
@@ -286,6 +295,8 @@ impl ElectrostaticsArgs {
                 }),
             pme_grid,
             pme_order: self.pme_order,
+            pme_level: self.pme_level,
+            nonbonded_level: self.nonbonded_level,
         })
     }
 

@@ -61,6 +61,8 @@ pub struct RunArgs {
     /// arithmetic, f64 accumulation and integration).
     #[arg(long, value_parser = ["double", "mixed"])]
     pub precision: Option<String>,
+    #[command(flatten)]
+    pub electrostatics: super::common::ElectrostaticsArgs,
 }
 
 #[derive(Args, Debug)]
@@ -141,6 +143,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         seed_source,
         start: args.start.as_deref(),
         precision: args.precision.as_deref(),
+        electrostatics: args.electrostatics.overrides()?,
     };
     let mut prepared = prepare(&request)?;
     let t_end = prepared.t_end()?;

@@ -117,6 +117,8 @@ pub struct ScanStepsArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub electrostatics: super::common::ElectrostaticsArgs,
 }
 
 /// The options of `--criterion sampling`.
@@ -385,6 +387,7 @@ fn scan_setup(
         energy_every: args.energy_every,
         fit_from: args.drift.fit_from(&scene.parameters, units, t_end)?,
         level_dts,
+        electrostatics: args.electrostatics.overrides()?,
     };
     Ok((setup, steps))
 }
@@ -471,7 +474,7 @@ fn reference_analysis(
 }
 
 pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, &args.set)?;
+    let scene = args.electrostatics.load(&args.scene, &args.set)?;
     let methods = scan_methods(args)?;
     let (setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
@@ -560,7 +563,7 @@ fn async_band_warnings(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> 
         return Ok(());
     }
     for &h in steps {
-        let mut scene = load_scene(&setup.scene, &setup.set)?;
+        let mut scene = setup.load_scene()?;
         let settings = point_settings(setup, "async-pseudo-energy", h)?;
         if let Some(warning) =
             crate::analysis::async_stability::band_warning(&mut scene.system, &settings)

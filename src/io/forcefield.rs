@@ -80,6 +80,9 @@ pub struct ForcefieldSpec {
     pub pme_order: Option<usize>,
     /// The level of the `pme-reciprocal` term (default: the slowest).
     pub pme_level: Option<usize>,
+    /// The level of the cutoff (real-space) term, `"nonbonded"` (default: the slowest);
+    /// not with `[forcefield.split]`, which places its two parts itself.
+    pub nonbonded_level: Option<usize>,
     pub lj_shift: Option<bool>,
     pub scale_12: Option<f64>,
     pub scale_13: Option<f64>,
@@ -110,6 +113,8 @@ pub struct ElectrostaticsOverrides {
     pub ewald_alpha: Option<InverseLength>,
     pub pme_grid: Option<[usize; 3]>,
     pub pme_order: Option<usize>,
+    pub pme_level: Option<usize>,
+    pub nonbonded_level: Option<usize>,
 }
 
 impl ElectrostaticsOverrides {
@@ -147,6 +152,12 @@ impl ElectrostaticsOverrides {
         }
         if let Some(grid) = self.pme_grid {
             spec.pme_grid = Some(grid);
+        }
+        if let Some(level) = self.pme_level {
+            spec.pme_level = Some(level);
+        }
+        if let Some(level) = self.nonbonded_level {
+            spec.nonbonded_level = Some(level);
         }
         if let Some(order) = self.pme_order {
             spec.pme_order = Some(order);
@@ -379,13 +390,20 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     report.push(nonbonded::report_line(&settings));
     let parameters = parameters(&ctx, &settings, &lj, &exclusions, dumps);
     let cutoff_spec = nonbonded::cutoff_spec(input, &atoms, &settings, &lj, &exclusions.excluded);
-    match &input.spec.split {
-        None => terms.push((
+    match (&input.spec.split, input.spec.nonbonded_level) {
+        (None, level) => terms.push((
             "nonbonded".into(),
             Box::new(Nonbonded::new(cutoff_spec, input.q)?),
-            Assignment::Default,
+            level.map_or(Assignment::Default, Assignment::Level),
         )),
-        Some(section) => {
+        (Some(_), Some(_)) => {
+            return Err(
+                "[forcefield] nonbonded_level places the whole cutoff term; with \
+                        [forcefield.split] give its short_level and remainder_level instead"
+                    .into(),
+            );
+        }
+        (Some(section), None) => {
             distance_split::terms(input, &atoms, section, cutoff_spec, &mut terms, &mut report)?
         }
     }

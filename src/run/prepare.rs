@@ -10,8 +10,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators::{self, Integrator};
+use crate::io::forcefield::ElectrostaticsOverrides;
 use crate::io::number::Num;
-use crate::io::scene::{Scene, load_scene};
+use crate::io::scene::{Scene, load_scene_with};
 use crate::io::summary::RunSummary;
 use crate::run::{RunOptions, run};
 use crate::settings::{MethodSettings, RunSpec, Value};
@@ -20,7 +21,7 @@ use crate::units::Units;
 
 /// What a run is asked for: the scene, its parameter overrides, the settings given on the
 /// command line, and the start.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct RunRequest<'a> {
     pub scene: &'a Path,
     /// `name=value` settings of the scene's parameters (`--set`).
@@ -33,6 +34,8 @@ pub struct RunRequest<'a> {
     pub start: Option<&'a Path>,
     /// `--precision` of the terms that have the choice.
     pub precision: Option<&'a str>,
+    /// `--coulomb`, `--ewald-alpha`, … over the scene's `[forcefield]` keys.
+    pub electrostatics: ElectrostaticsOverrides,
 }
 
 impl<'a> RunRequest<'a> {
@@ -45,6 +48,7 @@ impl<'a> RunRequest<'a> {
             seed_source: "--seed",
             start: None,
             precision: None,
+            electrostatics: ElectrostaticsOverrides::default(),
         }
     }
 }
@@ -65,7 +69,7 @@ pub struct PreparedRun {
 
 /// Prepare the run `request` asks for.
 pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
-    let mut scene = load_scene(request.scene, request.set)?;
+    let mut scene = load_scene_with(request.scene, request.set, &request.electrostatics)?;
     if let Some(path) = request.start {
         start_positions(&mut scene, path)?;
     }
