@@ -19,9 +19,12 @@
 //! round-off. A wrong factor 2 in a constant, a missed 1-4 pair or a wrong scale is off by
 //! ≥ 1e-3.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use longstep::forces::{ForceTerm, TermClass};
+use longstep::io::scene::{Scene, load_scene, load_scene_with_coordinates};
 use longstep::io::topology::build_terms;
 use longstep::io::topology::inpcrd::read_inpcrd;
 use longstep::io::topology::prmtop::{parse_prmtop, read_prmtop};
@@ -302,4 +305,106 @@ fn garbage_is_not_a_prmtop() {
     assert!(e.starts_with("bad.prmtop:1:"), "{e}");
     let e = parse_error("%FLAG POINTERS\n%FORMAT(10I8)\n      2x\n");
     assert!(e.starts_with("bad.prmtop:3:"), "{e}");
+}
+
+// --- Scenes and the command line -------------------------------------------------------
+
+/// Energy of every term of a scene's system at its start, by name.
+fn term_energies(scene: &Scene) -> Vec<(String, f64)> {
+    let q = &scene.system.state.q;
+    scene
+        .system
+        .forces
+        .terms()
+        .iter()
+        .map(|t| (t.name.clone(), t.term.energy(q)))
+        .collect()
+}
+
+#[test]
+fn a_scene_and_the_bare_topology_build_the_same_terms() {
+    for name in ["ala2", "ala2-solvated"] {
+        let from_scene = load_scene(&system_path(&format!("{name}.toml")), &[]).expect("scene");
+        let from_file = load_scene_with_coordinates(
+            &system_path(&format!("{name}.prmtop")),
+            Some(&system_path(&format!("{name}.inpcrd"))),
+            &[],
+        )
+        .expect("topology");
+        // Same file, same options (the scenes spell out the defaults): the same terms in
+        // the same order, so the same bits.
+        assert_eq!(
+            term_energies(&from_scene),
+            term_energies(&from_file),
+            "{name}"
+        );
+        assert_eq!(
+            from_scene.system.periodic_box,
+            from_file.system.periodic_box
+        );
+        assert_eq!(
+            from_scene.system.particles.masses,
+            from_file.system.particles.masses
+        );
+    }
+}
+
+#[test]
+fn a_scene_cannot_mix_a_topology_with_a_structure() {
+    let dir = common::scratch_dir("topology_mixed_scene");
+    let scene = dir.join("mixed.toml");
+    let prmtop = system_path("ala2.prmtop");
+    let text = format!(
+        "version = 1\nname = \"x\"\ndim = 3\nunits = \"real\"\n[structure]\nfile = \"a.xyz\"\n\
+         [topology]\nfile = \"{}\"\n",
+        prmtop.display()
+    );
+    std::fs::write(&scene, text).expect("write");
+    let e = load_scene(&scene, &[]).err().expect("refused").to_string();
+    assert!(e.contains("leave out [structure]"), "{e}");
+}
+
+fn run_check(args: &[&std::ffi::OsStr]) -> (i32, String) {
+    let output = common::longstep()
+        .arg("check")
+        .args(args)
+        .output()
+        .expect("runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stderr).to_string(),
+    )
+}
+
+#[test]
+fn check_refuses_coordinates_of_another_system_with_exit_1() {
+    let prmtop = system_path("ala2.prmtop");
+    let inpcrd = system_path("ala2-solvated.inpcrd");
+    let (code, stderr) = run_check(&[
+        prmtop.as_os_str(),
+        "--coordinates".as_ref(),
+        inpcrd.as_os_str(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("ala2-solvated.inpcrd:2: has 1291 atoms"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("has 22"), "{stderr}");
+}
+
+#[test]
+fn check_refuses_a_cmap_topology_with_exit_1() {
+    let dir = common::scratch_dir("topology_cmap");
+    let prmtop = dir.join("cmap.prmtop");
+    let text = format!(
+        "{}%FLAG CMAP_COUNT\n%FORMAT(2I8)\n       1       1\n",
+        text("ala2.prmtop")
+    );
+    std::fs::write(&prmtop, text).expect("write");
+    std::fs::copy(system_path("ala2.inpcrd"), dir.join("cmap.inpcrd")).expect("copy");
+    let (code, stderr) = run_check(&[prmtop.as_os_str()]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("cmap.prmtop:"), "{stderr}");
+    assert!(stderr.contains("%FLAG CMAP_COUNT"), "{stderr}");
 }

@@ -14,14 +14,17 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
-use crate::io::scene::{Scene, load_scene};
+use crate::io::scene::{Scene, load_scene_with_coordinates};
 use crate::io::structure::read_structure;
 use crate::system::System;
 
 #[derive(Args, Debug)]
 pub struct ForcesArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology (.prmtop) with its coordinates.
     pub scene: PathBuf,
+    /// The coordinates of a topology (.inpcrd, .rst7); default: beside it, same name.
+    #[arg(long, value_name = "FILE")]
+    pub coordinates: Option<PathBuf>,
     /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -67,7 +70,8 @@ const GROUPS: [&str; 6] = [
 ];
 
 pub fn forces_command(args: &ForcesArgs) -> Result<()> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
+    let mut scene =
+        load_scene_with_coordinates(&args.scene, args.coordinates.as_deref(), &args.set)?;
     if !args.quiet {
         report_forcefield(&scene);
     }

@@ -71,8 +71,11 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology (.prmtop) with its coordinates.
     pub scene: PathBuf,
+    /// The coordinates of a topology (.inpcrd, .rst7); default: beside it, same name.
+    #[arg(long, value_name = "FILE")]
+    pub coordinates: Option<PathBuf>,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -497,7 +500,11 @@ fn run_table_error(scene: &Scene, error: Error) -> Error {
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, &args.set)?;
+    let scene = crate::io::scene::load_scene_with_coordinates(
+        &args.scene,
+        args.coordinates.as_deref(),
+        &args.set,
+    )?;
     check_run_table(&scene)?;
     for line in &scene.forcefield_report {
         println!("{line}");

@@ -238,7 +238,7 @@ impl<'a> Sections<'a> {
     /// An atom index of a bond/angle/dihedral list: `3 × (atom − 1)`, sign dropped.
     fn atom(&self, name: &str, value: i64, n_atoms: usize) -> Result<usize> {
         let raw = value.unsigned_abs() as usize;
-        if raw % 3 != 0 || raw / 3 >= n_atoms {
+        if !raw.is_multiple_of(3) || raw / 3 >= n_atoms {
             let section = self.section(name)?;
             return Err(self.error(
                 section,
