@@ -27,13 +27,14 @@ exceptions get plain Coulomb and no reaction field), ε_rf = 78.3 (OpenMM's defa
 neither shifted nor switched, no long-range dispersion correction — the conventions of
 longstep's forces/nonbonded.rs.
 
-A second check ("other tool"): the same vacuum dipeptide written by ParmEd from OpenMM's
-ForceField is one tool chain; if openmmtools is installed, its alanine dipeptide prmtop
-(made by tleap) is a second one: --other writes tests/data/openmm-ala2-tleap.json and copies
-that prmtop/inpcrd next to the shipped systems.
+A second tool chain: the shipped systems are ParmEd's writing of OpenMM's ForceField; with
+--other and openmmtools installed, its alanine dipeptide prmtop (made by tleap, AMBER's own
+tool) is copied next to them as ala2-tleap.prmtop/.inpcrd and checked the same way
+(tests/data/openmm-ala2-tleap.json).
 
     pip install openmm parmed
     python3 scripts/openmm_topology_reference.py
+    pip install --no-deps openmmtools && python3 scripts/openmm_topology_reference.py --other
 """
 import argparse
 import json
@@ -167,19 +168,20 @@ def write(name, prmtop, inpcrd, periodic, source):
 
 
 def other_tool():
-    """openmmtools' alanine dipeptide (tleap-made prmtop), when installed."""
-    try:
-        from openmmtools import testsystems  # noqa: F401
-    except ImportError:
+    """openmmtools' alanine dipeptide (a tleap-made prmtop), when installed; only its data
+    files are used (`pip install --no-deps openmmtools` is enough)."""
+    import importlib.util
+    spec = importlib.util.find_spec("openmmtools")
+    if spec is None:
         print("openmmtools is not installed: no prmtop of another tool to check")
         return
-    from importlib import resources
-    data = resources.files("openmmtools") / "data" / "alanine-dipeptide-gbsa"
-    for ext in ("prmtop", "crd"):
-        shutil.copy(data / f"alanine-dipeptide.{ext}",
-                    os.path.join(SYSTEMS, f"ala2-tleap.{'inpcrd' if ext == 'crd' else ext}"))
+    data = os.path.join(os.path.dirname(spec.origin), "data", "alanine-dipeptide-gbsa")
+    for ext, target in (("prmtop", "prmtop"), ("crd", "inpcrd")):
+        shutil.copy(os.path.join(data, f"alanine-dipeptide.{ext}"),
+                    os.path.join(SYSTEMS, f"ala2-tleap.{target}"))
     write("ala2-tleap", "ala2-tleap.prmtop", "ala2-tleap.inpcrd", False,
-          "openmmtools data/alanine-dipeptide-gbsa (tleap), copied unchanged")
+          "openmmtools 'data/alanine-dipeptide-gbsa' (made by tleap), copied unchanged; "
+          "evaluated in vacuum (its GBSA radii are not used)")
 
 
 def main():

@@ -197,6 +197,25 @@ fn solvated_dipeptide_matches_openmm_term_by_term() {
     compare_with_openmm("ala2-solvated");
 }
 
+/// A prmtop of another tool chain: openmmtools' alanine dipeptide, made by tleap in 2009
+/// (ff96-era parameters), copied unchanged by `openmm_topology_reference.py --other`. It
+/// has no SCEE/SCNB and no ATOMIC_NUMBER sections, so the defaults (1.2, 2.0) and elements
+/// by mass are used, as OpenMM does.
+#[test]
+fn a_tleap_prmtop_matches_openmm_term_by_term() {
+    compare_with_openmm("ala2-tleap");
+    let topology = read_prmtop(&system_path("ala2-tleap.prmtop")).expect("reads");
+    assert!(
+        topology
+            .notes
+            .iter()
+            .any(|n| n.contains("no SCEE_SCALE_FACTOR section, 1.2")),
+        "{:?}",
+        topology.notes
+    );
+    assert_eq!(topology.atoms[1].element, "C");
+}
+
 #[test]
 fn the_reader_counts_what_parmed_wrote() {
     let topology = read_prmtop(&system_path("ala2-solvated.prmtop")).expect("reads");

@@ -135,6 +135,8 @@ pub struct TopologySpec {
     pub dsf_alpha: Option<f64>,
     /// Neighbour-list skin (Å), default 2.
     pub skin: Option<f64>,
+    /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
+    pub lj_shift: Option<bool>,
 }
 
 /// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.

@@ -118,6 +118,7 @@ impl Builder<'_> {
             epsilon_rf: spec.epsilon_rf,
             dsf_alpha: spec.dsf_alpha,
             skin: spec.skin,
+            lj_shift: spec.lj_shift,
         };
         Ok(Some(Loaded {
             topology,

@@ -10,7 +10,8 @@
 //! molecule in vacuum, OpenMM `NoCutoff`); with a box, or a cutoff, reaction field (OpenMM
 //! `CutoffPeriodic`/`CutoffNonPeriodic`, ε_rf 78.3 by default) or damped shifted force.
 //! Lennard-Jones is cut at the cutoff, neither shifted nor switched, without a long-range
-//! correction (OpenMM's `NonbondedForce` with its defaults off).
+//! correction (OpenMM's `NonbondedForce` with its defaults off); `lj_shift` shifts its energy
+//! to zero at the cutoff, so the total energy no longer jumps as pairs cross it.
 
 use std::collections::BTreeMap;
 
@@ -67,6 +68,9 @@ pub struct NonbondedOptions {
     pub dsf_alpha: Option<f64>,
     /// Neighbour-list skin (Å), default 2 as `[forcefield]`.
     pub skin: Option<f64>,
+    /// Shift the Lennard-Jones energy to zero at the cutoff (the force is unchanged), so
+    /// the energy does not jump as pairs cross it; default false, as OpenMM.
+    pub lj_shift: Option<bool>,
 }
 
 /// The terms with what the scene needs besides them.
@@ -300,11 +304,13 @@ fn nonbonded(
         return Err(format!("skin must be ≥ 0, got {skin}"));
     }
     let lj = &topology.lj;
+    let shifted = options.lj_shift.unwrap_or(false) && cutoff.is_finite();
+    let inv6 = if shifted { cutoff.powi(-6) } else { 0.0 };
     let table = (0..lj.c12.len())
         .map(|k| LjPair {
             c12: lj.c12[k],
             c6: lj.c6[k],
-            shift: 0.0,
+            shift: inv6 * (lj.c12[k] * inv6 - lj.c6[k]),
         })
         .collect();
     let spec = NonbondedSpec {
@@ -320,8 +326,13 @@ fn nonbonded(
     };
     report.push(format!(
         "Lennard-Jones: {} atom types, c12/r¹² − c6/r⁶ per type pair from the file (no \
-         mixing rule), cut at the cutoff, not shifted",
-        lj.n_types
+         mixing rule), cut at the cutoff, {}",
+        lj.n_types,
+        if shifted {
+            "energy shifted to zero there"
+        } else {
+            "not shifted"
+        }
     ));
     report.push(format!(
         "exclusions: {} pairs left out of the non-bonded term (1-2, 1-3, 1-4)",

@@ -43,7 +43,17 @@ fn error_at(path: &Path, line: usize, message: impl Into<String>) -> Error {
 }
 
 pub fn read_inpcrd(path: &Path) -> Result<Coordinates> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.starts_with(b"CDF") || bytes.starts_with(b"\x89HDF") {
+        return Err(error_at(
+            path,
+            1,
+            "a binary (NetCDF) restart: longstep reads ASCII inpcrd/rst7 (convert it, e.g. \
+             with cpptraj or ParmEd)",
+        ));
+    }
+    let text = String::from_utf8(bytes)
+        .map_err(|_| error_at(path, 1, "not a text file: longstep reads ASCII inpcrd/rst7"))?;
     parse_inpcrd(&text, path)
 }
 
