@@ -24,7 +24,9 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use longstep::forces::{ForceTerm, TermClass};
-use longstep::io::scene::{Scene, load_scene, load_scene_with_coordinates};
+use longstep::io::scene::{
+    Scene, TopologyFlags, load_scene, load_scene_with, load_scene_with_coordinates,
+};
 use longstep::io::topology::build_terms;
 use longstep::io::topology::inpcrd::read_inpcrd;
 use longstep::io::topology::prmtop::{parse_prmtop, read_prmtop};
@@ -426,4 +428,49 @@ fn check_refuses_a_cmap_topology_with_exit_1() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("cmap.prmtop:"), "{stderr}");
     assert!(stderr.contains("%FLAG CMAP_COUNT"), "{stderr}");
+}
+
+#[test]
+fn flags_choose_the_electrostatics_of_a_bare_topology() {
+    let prmtop = system_path("ala2.prmtop");
+    let flags = TopologyFlags {
+        cutoff: Some(8.0),
+        coulomb: Some("reaction-field".into()),
+        epsilon_rf: Some(50.0),
+        ..TopologyFlags::default()
+    };
+    let scene = load_scene_with(&prmtop, &flags, &[]).expect("builds");
+    assert!(
+        scene
+            .forcefield_report
+            .iter()
+            .any(|l| l.contains("cutoff 8 Å") && l.contains("eps_rf = 50")),
+        "{:?}",
+        scene.forcefield_report
+    );
+    // Plain Coulomb has no cutoff; a scene file takes no flags.
+    let plain_with_cutoff = TopologyFlags {
+        cutoff: Some(8.0),
+        coulomb: Some("none".into()),
+        ..TopologyFlags::default()
+    };
+    let e = load_scene_with(&prmtop, &plain_with_cutoff, &[])
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("has no cutoff"), "{e}");
+    let e = load_scene_with(&system_path("ala2.toml"), &flags, &[])
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("are for a topology file"), "{e}");
+    let unknown = TopologyFlags {
+        coulomb: Some("pme".into()),
+        ..TopologyFlags::default()
+    };
+    let e = load_scene_with(&prmtop, &unknown, &[])
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("coulomb \"pme\" is not one of"), "{e}");
 }

@@ -86,15 +86,35 @@ pub fn load_scene_with_coordinates(
     coordinates: Option<&Path>,
     overrides: &[String],
 ) -> Result<Scene> {
+    let flags = TopologyFlags {
+        coordinates: coordinates.map(Path::to_path_buf),
+        ..TopologyFlags::default()
+    };
+    load_scene_with(path, &flags, overrides)
+}
+
+/// What a command line may say about a topology given in place of a scene
+/// (`--coordinates`, `--cutoff`, `--coulomb`, `--epsilon-rf`); `None` takes the default of
+/// `[topology]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TopologyFlags {
+    pub coordinates: Option<PathBuf>,
+    pub cutoff: Option<f64>,
+    pub coulomb: Option<String>,
+    pub epsilon_rf: Option<f64>,
+}
+
+/// [`load_scene`] with the topology flags; a scene file takes none (its `[topology]` says
+/// them).
+pub fn load_scene_with(path: &Path, flags: &TopologyFlags, overrides: &[String]) -> Result<Scene> {
     if is_topology_path(path) {
-        let text = topology_scene_text(path, coordinates)?;
+        let text = topology_scene_text(path, flags)?;
         return build_scene(&text, path, overrides);
     }
-    if let Some(c) = coordinates {
+    if *flags != TopologyFlags::default() {
         return Err(Error::input(format!(
-            "--coordinates {} is for a topology file (.prmtop); {} is a scene, whose \
-             [topology] or [structure] names its coordinates",
-            c.display(),
+            "--coordinates, --cutoff, --coulomb and --epsilon-rf are for a topology file \
+             (.prmtop); {} is a scene, whose [topology] says them",
             path.display()
         )));
     }
@@ -103,16 +123,16 @@ pub fn load_scene_with_coordinates(
 }
 
 /// The scene a topology file stands for: `[topology]` with its coordinates (given, or
-/// beside it), default non-bonded options, and the run defaults of a molecular system
-/// (impulse, h = 2 fs, 4 inner steps: bonded terms at 0.5 fs, non-bonded at 2 fs).
-pub fn topology_scene_text(path: &Path, coordinates: Option<&Path>) -> Result<String> {
+/// beside it) and the flags, and the run defaults of a molecular system (impulse,
+/// h = 2 fs, 4 inner steps: bonded terms at 0.5 fs, non-bonded at 2 fs).
+pub fn topology_scene_text(path: &Path, flags: &TopologyFlags) -> Result<String> {
     let absolute = |p: &Path| -> Result<String> {
         std::path::absolute(p)
             .map(|a| a.display().to_string())
             .map_err(|e| Error::io(p, e))
     };
-    let coordinates = match coordinates {
-        Some(c) => c.to_path_buf(),
+    let coordinates = match &flags.coordinates {
+        Some(c) => c.clone(),
         None => default_coordinates(path).ok_or_else(|| {
             Error::input(format!(
                 "{}: no coordinates beside it ({}); give --coordinates FILE",
@@ -131,6 +151,15 @@ pub fn topology_scene_text(path: &Path, coordinates: Option<&Path>) -> Result<St
     let mut topology = toml::Table::new();
     topology.insert("file".into(), absolute(path)?.into());
     topology.insert("coordinates".into(), absolute(&coordinates)?.into());
+    if let Some(cutoff) = flags.cutoff {
+        topology.insert("cutoff".into(), cutoff.into());
+    }
+    if let Some(coulomb) = &flags.coulomb {
+        topology.insert("coulomb".into(), coulomb.clone().into());
+    }
+    if let Some(epsilon_rf) = flags.epsilon_rf {
+        topology.insert("epsilon_rf".into(), epsilon_rf.into());
+    }
     let mut run = toml::Table::new();
     run.insert("method".into(), "impulse".into());
     run.insert("h".into(), "2fs".into());
