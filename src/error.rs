@@ -21,6 +21,11 @@ pub enum Error {
     #[error("{path}: {message}")]
     Structure { path: PathBuf, message: String },
 
+    /// A topology or its coordinate file (AMBER prmtop, inpcrd) that does not parse or
+    /// holds what longstep does not model. `location` is `path:line`.
+    #[error("{location}: {message}")]
+    Topology { location: String, message: String },
+
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,

@@ -27,8 +27,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::io::forcefield::ElectrostaticsOverrides;
-use crate::io::scene::{Scene, load_scene_with};
+use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
 use crate::run::prepare::{RunRequest, prepare};
@@ -189,14 +188,14 @@ pub struct ScanSetup {
     /// The steps of the inner levels, outermost first, held fixed while `h` varies: each
     /// point's `level_steps` are `h/T1, T1/T2, …` (empty: the base's `level_steps`).
     pub level_dts: Vec<f64>,
-    /// `--coulomb`, `--ewald-alpha`, … over the scene's `[forcefield]` keys.
-    pub electrostatics: ElectrostaticsOverrides,
+    /// A topology's coordinates, `--coulomb`, the PME flags, … ([`SceneFlags`]).
+    pub flags: SceneFlags,
 }
 
 impl ScanSetup {
     /// The scene with `--set` values and the electrostatics overrides.
     pub fn load_scene(&self) -> Result<Scene> {
-        load_scene_with(&self.scene, &self.set, &self.electrostatics)
+        load_scene_with(&self.scene, &self.flags, &self.set)
     }
 }
 
@@ -267,7 +266,7 @@ pub fn run_once(
 ) -> Result<RunSummary> {
     let spec = point_spec(setup, method, h)?;
     let request = RunRequest {
-        electrostatics: setup.electrostatics.clone(),
+        flags: setup.flags.clone(),
         ..RunRequest::new(&setup.scene, &setup.set, &spec)
     };
     let mut prepared = prepare(&request)?;

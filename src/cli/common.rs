@@ -13,7 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::io::forcefield::{ElectrostaticsOverrides, InverseLength};
-use crate::io::scene::{Scene, load_scene, load_scene_with};
+use crate::io::scene::{Scene, SceneFlags, load_scene, load_scene_with};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
 
@@ -234,10 +234,21 @@ pub fn progress_bar(total: u64, quiet: bool, label: &str) -> ProgressBar {
     bar
 }
 
-/// Electrostatics flags of `forces` and `check` (and, wired by their owners, `run` and
-/// `scan steps`): each overrides its `[forcefield]` key of the scene.
+/// Where the scene comes from, for `run`, `check`, `forces` and `scan steps`: a
+/// topology's coordinates and non-bonded settings, and the electrostatics, each over its
+/// key of the scene's `[forcefield]` or the topology's `[topology]`.
 #[derive(Args, Clone, Debug, Default)]
-pub struct ElectrostaticsArgs {
+pub struct SceneArgs {
+    /// The coordinates of a topology given in place of a scene (.inpcrd, .rst7); default:
+    /// beside it, same name.
+    #[arg(long, value_name = "FILE")]
+    pub coordinates: Option<std::path::PathBuf>,
+    /// Non-bonded cutoff of a topology (length; default 9 Å).
+    #[arg(long, value_name = "LENGTH")]
+    pub cutoff: Option<f64>,
+    /// Reaction-field dielectric of a topology (default 78.3, as OpenMM).
+    #[arg(long, value_name = "EPS")]
+    pub epsilon_rf: Option<f64>,
     /// Coulomb form, overriding [forcefield] coulomb: pme, dsf, reaction-field, plain or none.
     #[arg(long, value_name = "FORM")]
     pub coulomb: Option<String>,
@@ -267,9 +278,18 @@ pub struct ElectrostaticsArgs {
     pub nonbonded_level: Option<usize>,
 }
 
-impl ElectrostaticsArgs {
-    /// The flags as overrides of the scene's keys.
-    pub fn overrides(&self) -> Result<ElectrostaticsOverrides> {
+impl SceneArgs {
+    /// The flags as overrides of the scene's (or topology's) keys.
+    pub fn flags(&self) -> Result<SceneFlags> {
+        Ok(SceneFlags {
+            coordinates: self.coordinates.clone(),
+            cutoff: self.cutoff,
+            epsilon_rf: self.epsilon_rf,
+            electrostatics: self.electrostatics()?,
+        })
+    }
+
+    fn electrostatics(&self) -> Result<ElectrostaticsOverrides> {
         let pme_grid = match &self.pme_grid {
             None => None,
             Some(text) => {
@@ -302,7 +322,7 @@ impl ElectrostaticsArgs {
 
     /// The scene at `path` with `--set` values and these overrides.
     pub fn load(&self, path: &Path, set: &[String]) -> Result<Scene> {
-        load_scene_with(path, set, &self.overrides()?)
+        load_scene_with(path, &self.flags()?, set)
     }
 }
 

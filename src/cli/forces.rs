@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use serde_json::json;
 
-use super::common::ElectrostaticsArgs;
+use super::common::SceneArgs;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::scene::Scene;
@@ -45,7 +45,7 @@ pub struct ForcesArgs {
     #[arg(long)]
     pub quiet: bool,
     #[command(flatten)]
-    pub electrostatics: ElectrostaticsArgs,
+    pub source: SceneArgs,
 }
 
 /// The report group of an energy component named by its kind.
@@ -71,7 +71,7 @@ const GROUPS: [&str; 6] = [
 ];
 
 pub fn forces_command(args: &ForcesArgs) -> Result<()> {
-    let mut scene = args.electrostatics.load(&args.scene, &args.set)?;
+    let mut scene = args.source.load(&args.scene, &args.set)?;
     if !args.quiet {
         report_forcefield(&scene);
     }

@@ -62,7 +62,7 @@ pub struct RunArgs {
     #[arg(long, value_parser = ["double", "mixed"])]
     pub precision: Option<String>,
     #[command(flatten)]
-    pub electrostatics: super::common::ElectrostaticsArgs,
+    pub source: super::common::SceneArgs,
 }
 
 #[derive(Args, Debug)]
@@ -73,7 +73,7 @@ pub struct CheckArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     #[command(flatten)]
-    pub electrostatics: super::common::ElectrostaticsArgs,
+    pub source: super::common::SceneArgs,
 }
 
 /// How a run's energy drift is judged: fitted at the end of the run over the recorded
@@ -143,7 +143,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         seed_source,
         start: args.start.as_deref(),
         precision: args.precision.as_deref(),
-        electrostatics: args.electrostatics.overrides()?,
+        flags: args.source.flags()?,
     };
     let mut prepared = prepare(&request)?;
     let t_end = prepared.t_end()?;
@@ -331,7 +331,7 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {
-    let scene = args.electrostatics.load(&args.scene, &args.set)?;
+    let scene = args.source.load(&args.scene, &args.set)?;
     check_run_table(&scene)?;
     for line in &scene.forcefield_report {
         println!("{line}");

@@ -118,7 +118,7 @@ pub struct ScanStepsArgs {
     #[arg(long)]
     pub quiet: bool,
     #[command(flatten)]
-    pub electrostatics: super::common::ElectrostaticsArgs,
+    pub source: super::common::SceneArgs,
 }
 
 /// The options of `--criterion sampling`.
@@ -387,7 +387,7 @@ fn scan_setup(
         energy_every: args.energy_every,
         fit_from: args.drift.fit_from(&scene.parameters, units, t_end)?,
         level_dts,
-        electrostatics: args.electrostatics.overrides()?,
+        flags: args.source.flags()?,
     };
     Ok((setup, steps))
 }
@@ -474,7 +474,7 @@ fn reference_analysis(
 }
 
 pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
-    let scene = args.electrostatics.load(&args.scene, &args.set)?;
+    let scene = args.source.load(&args.scene, &args.set)?;
     let methods = scan_methods(args)?;
     let (setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;

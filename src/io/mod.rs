@@ -8,4 +8,5 @@ pub mod scene;
 pub mod structure;
 pub mod study_csv;
 pub mod summary;
+pub mod topology;
 pub mod trajectory;

@@ -21,9 +21,11 @@ mod schema;
 mod sites;
 mod system;
 mod terms;
+mod topology;
 mod values;
 
 pub use schema::*;
+pub use topology::{COORDINATE_EXTENSIONS, default_coordinates, is_topology_path};
 
 use crate::error::{Error, Result};
 use crate::forces::ForceTerm;
@@ -71,36 +73,164 @@ pub struct Scene {
     pub velocities_file: Option<PathBuf>,
 }
 
-/// Read and build a scene; `overrides` are `name=value` settings of its parameters.
+/// Read and build a scene; `overrides` are `name=value` settings of its parameters. A
+/// topology file (`.prmtop`, [`is_topology_path`]) is read as the scene
+/// [`topology_scene_text`] writes for it, with the coordinates beside it.
 pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    build_scene(&text, path, overrides)
+    load_scene_with_coordinates(path, None, overrides)
 }
 
-/// [`load_scene`] with the electrostatics of its `[forcefield]` replaced (the command
-/// line's `--coulomb pme …`); an error when overrides are given and the scene has no
-/// `[forcefield]`.
-pub fn load_scene_with(
+/// [`load_scene`], with the coordinates of a topology given (`--coordinates FILE`); a
+/// scene file takes none.
+pub fn load_scene_with_coordinates(
     path: &Path,
+    coordinates: Option<&Path>,
     overrides: &[String],
-    electrostatics: &ElectrostaticsOverrides,
 ) -> Result<Scene> {
-    if electrostatics.is_empty() {
-        return load_scene(path, overrides);
+    let flags = SceneFlags {
+        coordinates: coordinates.map(Path::to_path_buf),
+        ..SceneFlags::default()
+    };
+    load_scene_with(path, &flags, overrides)
+}
+
+/// What a command line may say about where a scene comes from: a topology's coordinates
+/// and non-bonded settings (`--coordinates`, `--cutoff`, `--epsilon-rf`), and the
+/// electrostatics (`--coulomb`, the PME flags) over a scene's `[forcefield]` or a
+/// topology's `[topology]`. `None` takes the file's own value.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneFlags {
+    pub coordinates: Option<PathBuf>,
+    pub cutoff: Option<f64>,
+    pub epsilon_rf: Option<f64>,
+    pub electrostatics: ElectrostaticsOverrides,
+}
+
+/// The flags a topology file takes (the `[topology]` keys the command line can set).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TopologyFlags {
+    pub coordinates: Option<PathBuf>,
+    pub cutoff: Option<f64>,
+    pub coulomb: Option<String>,
+    pub epsilon_rf: Option<f64>,
+}
+
+/// [`load_scene`] with the command line's flags: a topology file takes its coordinates and
+/// non-bonded settings; a scene file takes only the electrostatics, over its
+/// `[forcefield]`.
+pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Scene> {
+    if is_topology_path(path) {
+        let topology = topology_flags(flags)?;
+        let text = topology_scene_text(path, &topology)?;
+        return build_scene(&text, path, overrides);
+    }
+    if flags.coordinates.is_some() || flags.cutoff.is_some() || flags.epsilon_rf.is_some() {
+        return Err(Error::input(format!(
+            "--coordinates, --cutoff and --epsilon-rf are for a topology file (.prmtop); {} \
+             is a scene, whose [topology] or [forcefield] says them",
+            path.display()
+        )));
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    if flags.electrostatics.is_empty() {
+        return build_scene(&text, path, overrides);
+    }
     let mut file = parse_scene(&text, path)?;
     match file.forcefield.as_mut() {
-        Some(spec) => electrostatics.apply(spec.get_mut()),
+        Some(spec) => flags.electrostatics.apply(spec.get_mut()),
         None => {
             return Err(Error::Scene {
                 location: path.display().to_string(),
-                message: "--coulomb and the PME flags need a scene with a [forcefield] section"
+                message: "--coulomb and the PME flags need a scene with a [forcefield] section \
+                          (or a topology file given in place of the scene)"
                     .into(),
             });
         }
     }
     build_parsed_scene(&file, &text, path, overrides)
+}
+
+/// The topology's flags; the PME keys are refused, since a topology's non-bonded term has
+/// no PME yet.
+fn topology_flags(flags: &SceneFlags) -> Result<TopologyFlags> {
+    let coulomb = flags.electrostatics.coulomb.clone();
+    let pme_only = ElectrostaticsOverrides {
+        coulomb: None,
+        ..flags.electrostatics.clone()
+    };
+    if coulomb.as_deref() == Some("pme") || !pme_only.is_empty() {
+        return Err(Error::input(
+            "a topology's non-bonded term has no PME in this version: give --coulomb \
+             reaction-field, dsf or none",
+        ));
+    }
+    Ok(TopologyFlags {
+        coordinates: flags.coordinates.clone(),
+        cutoff: flags.cutoff,
+        coulomb,
+        epsilon_rf: flags.epsilon_rf,
+    })
+}
+
+/// The scene a topology file stands for: `[topology]` with its coordinates (given, or
+/// beside it) and the flags, and the run defaults of a molecular system (impulse,
+/// h = 2 fs, 4 inner steps: bonded terms at 0.5 fs, non-bonded at 2 fs).
+pub fn topology_scene_text(path: &Path, flags: &TopologyFlags) -> Result<String> {
+    let absolute = |p: &Path| -> Result<String> {
+        std::path::absolute(p)
+            .map(|a| a.display().to_string())
+            .map_err(|e| Error::io(p, e))
+    };
+    let coordinates = match &flags.coordinates {
+        Some(c) => c.clone(),
+        None => default_coordinates(path).ok_or_else(|| {
+            Error::input(format!(
+                "{}: no coordinates beside it ({}); give --coordinates FILE",
+                path.display(),
+                COORDINATE_EXTENSIONS
+                    .iter()
+                    .map(|e| format!(".{e}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })?,
+    };
+    let stem = path
+        .file_stem()
+        .map_or("topology".into(), |s| s.to_string_lossy().to_string());
+    let mut topology = toml::Table::new();
+    topology.insert("file".into(), absolute(path)?.into());
+    topology.insert("coordinates".into(), absolute(&coordinates)?.into());
+    if let Some(cutoff) = flags.cutoff {
+        topology.insert("cutoff".into(), cutoff.into());
+    }
+    if let Some(coulomb) = &flags.coulomb {
+        topology.insert("coulomb".into(), coulomb.clone().into());
+    }
+    if let Some(epsilon_rf) = flags.epsilon_rf {
+        topology.insert("epsilon_rf".into(), epsilon_rf.into());
+    }
+    let mut run = toml::Table::new();
+    run.insert("method".into(), "impulse".into());
+    run.insert("h".into(), "2fs".into());
+    run.insert("inner_steps".into(), 4.into());
+    let mut scene = toml::Table::new();
+    scene.insert("version".into(), (SCENE_VERSION as i64).into());
+    scene.insert("name".into(), stem.into());
+    scene.insert(
+        "description".into(),
+        format!(
+            "topology {} with coordinates {}",
+            path.display(),
+            coordinates.display()
+        )
+        .into(),
+    );
+    scene.insert("dim".into(), 3.into());
+    scene.insert("units".into(), "real".into());
+    scene.insert("topology".into(), topology.into());
+    scene.insert("run".into(), run.into());
+    toml::to_string(&scene).map_err(|e| Error::input(format!("cannot write the scene: {e}")))
 }
 
 /// Build a scene from its text (`path` names it in messages and anchors relative files).
@@ -208,14 +338,21 @@ impl Builder<'_> {
     fn build(&self, file: &SceneFile, overrides: &[String]) -> Result<Scene> {
         let (dim, units) = self.header(file)?;
         let parameters = self.resolve_parameters(&file.parameters, overrides)?;
-        let mut start = self.particles(file, dim, &parameters)?;
+        let topology = self.read_topology(file)?;
+        let mut start = match &topology {
+            Some(loaded) => loaded.start(),
+            None => self.particles(file, dim, &parameters)?,
+        };
         let names = self.names(file, &start, dim, &parameters)?;
-        let periodic_box = self.periodic_box(
-            file.periodic_box.as_ref(),
-            dim,
-            &parameters,
-            start.structure.as_ref(),
-        )?;
+        let periodic_box = match &topology {
+            Some(loaded) => loaded.periodic_box(),
+            None => self.periodic_box(
+                file.periodic_box.as_ref(),
+                dim,
+                &parameters,
+                start.structure.as_ref(),
+            )?,
+        };
         // A non-diagonal mass matrix, or its lumped diagonal.
         let mass_matrix = match &file.mass_matrix {
             Some(spanned) => {
@@ -232,7 +369,10 @@ impl Builder<'_> {
             periodic_box,
         };
         let mut terms = self.build_terms(file, &scene)?;
-        let molecule = self.apply_forcefield(file, &mut start, periodic_box, units, &mut terms)?;
+        let molecule = match &topology {
+            Some(loaded) => self.apply_topology(file, loaded, &mut terms)?,
+            None => self.apply_forcefield(file, &mut start, periodic_box, units, &mut terms)?,
+        };
         if terms.is_empty() {
             return Err(self.error(
                 "the scene has no force terms, so nothing acts on its particles: add \
@@ -323,6 +463,14 @@ impl Builder<'_> {
                 .map_err(|e| self.error_at(spanned.span().start, e))?,
             None => Units::None,
         };
+        if let Some(spanned) = &file.topology
+            && (units != Units::Real || dim != 3)
+        {
+            return Err(self.error_at(
+                spanned.span().start,
+                "[topology] needs units = \"real\" (Å, fs, amu, kcal/mol, e) and dim = 3",
+            ));
+        }
         if let Some(spanned) = &file.forcefield {
             if units != Units::Real {
                 return Err(self.error_at(

@@ -10,9 +10,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators::{self, Integrator};
-use crate::io::forcefield::ElectrostaticsOverrides;
+
 use crate::io::number::Num;
-use crate::io::scene::{Scene, load_scene_with};
+use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::io::summary::RunSummary;
 use crate::run::{RunOptions, run};
 use crate::settings::{MethodSettings, RunSpec, Value};
@@ -34,8 +34,8 @@ pub struct RunRequest<'a> {
     pub start: Option<&'a Path>,
     /// `--precision` of the terms that have the choice.
     pub precision: Option<&'a str>,
-    /// `--coulomb`, `--ewald-alpha`, … over the scene's `[forcefield]` keys.
-    pub electrostatics: ElectrostaticsOverrides,
+    /// A topology's coordinates, `--coulomb`, the PME flags, … ([`SceneFlags`]).
+    pub flags: SceneFlags,
 }
 
 impl<'a> RunRequest<'a> {
@@ -48,7 +48,7 @@ impl<'a> RunRequest<'a> {
             seed_source: "--seed",
             start: None,
             precision: None,
-            electrostatics: ElectrostaticsOverrides::default(),
+            flags: SceneFlags::default(),
         }
     }
 }
@@ -69,7 +69,7 @@ pub struct PreparedRun {
 
 /// Prepare the run `request` asks for.
 pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
-    let mut scene = load_scene_with(request.scene, request.set, &request.electrostatics)?;
+    let mut scene = load_scene_with(request.scene, &request.flags, request.set)?;
     if let Some(path) = request.start {
         start_positions(&mut scene, path)?;
     }

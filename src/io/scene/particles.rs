@@ -150,7 +150,7 @@ impl Builder<'_> {
     }
 
     /// A path relative to the scene file.
-    fn beside_scene(&self, file: &str) -> std::path::PathBuf {
+    pub(super) fn beside_scene(&self, file: &str) -> std::path::PathBuf {
         self.path.parent().unwrap_or(Path::new(".")).join(file)
     }
 

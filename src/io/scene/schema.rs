@@ -109,6 +109,34 @@ pub struct SceneFile {
     pub exact: Option<Spanned<ExactSpec>>,
     /// A molecular force field over the structure's atoms and bonds.
     pub forcefield: Option<Spanned<ForcefieldSpec>>,
+    /// A complete force field and its atoms from a topology file (AMBER prmtop).
+    pub topology: Option<Spanned<TopologySpec>>,
+}
+
+/// `[topology]`: the atoms, their coordinates and every force-field term from a
+/// simulation package's files (`src/io/topology`), in place of `[structure]` and
+/// `[forcefield]`.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TopologySpec {
+    /// The topology (`.prmtop`, `.parm7`), relative to the scene file.
+    pub file: String,
+    /// Its coordinates (`.inpcrd`, `.rst7`, `.crd`); default: the topology's name with one
+    /// of these extensions.
+    pub coordinates: Option<String>,
+    /// Non-bonded cutoff (Å); default none in vacuum with plain Coulomb, else 9.
+    pub cutoff: Option<f64>,
+    /// `none` (plain Coulomb without cutoff, vacuum), `reaction-field` or `dsf`; default
+    /// none without a box, reaction field with one.
+    pub coulomb: Option<String>,
+    /// Reaction-field dielectric, default 78.3 (OpenMM's).
+    pub epsilon_rf: Option<f64>,
+    /// DSF damping α (1/Å), default 0.
+    pub dsf_alpha: Option<f64>,
+    /// Neighbour-list skin (Å), default 2.
+    pub skin: Option<f64>,
+    /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
+    pub lj_shift: Option<bool>,
 }
 
 /// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.

@@ -142,7 +142,8 @@ impl Builder<'_> {
         parameters: &BTreeMap<String, f64>,
     ) -> Result<Names> {
         let mut sites = BTreeMap::new();
-        if start.structure.is_none() {
+        // Atoms of a structure or topology repeat names (H1, …): they are no sites.
+        if start.structure.is_none() && file.topology.is_none() {
             for (i, name) in start.names.iter().enumerate() {
                 if sites.insert(name.clone(), Site::Particle(i)).is_some() {
                     return Err(self.error(format!("two particles are named \"{name}\"")));

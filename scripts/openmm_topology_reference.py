@@ -1,0 +1,200 @@
+#!/usr/bin/env python3
+"""OpenMM's per-term energies and per-atom forces for the shipped AMBER topologies.
+
+For each system, OpenMM's own AMBER reader (app.AmberPrmtopFile, app.AmberInpcrdFile) builds
+the system exactly as a user of OpenMM would (no constraints, flexible water), on the
+Reference platform (double precision), and this script writes
+tests/data/openmm-<name>.json with, in longstep's units (kcal/mol, kcal/mol/Å):
+
+* "energy": per group — "bonds" (HarmonicBondForce), "angles" (HarmonicAngleForce),
+  "torsions" (PeriodicTorsionForce: proper and improper dihedrals together, as OpenMM holds
+  them), "lj" and "coulomb" (NonbondedForce's pairs, 1-4 pairs and exclusions left out),
+  "lj_14" and "coulomb_14" (NonbondedForce's exceptions: the scaled 1-4 pairs), "total";
+* "forces": per-atom forces, n × 3: "bonded" (bonds, angles, torsions), "nonbonded" (the
+  whole NonbondedForce, 1-4 pairs included) and "total". At a minimised structure the total
+  is a small difference of large bonded and non-bonded forces, so a test compares each part
+  on its own scale.
+
+The non-bonded parts come from copies of the NonbondedForce, each in its own force group:
+charges zeroed (LJ only) or ε zeroed (Coulomb only), with the exceptions zeroed (pairs only)
+or the particles zeroed (exceptions only); the script checks that the four parts add up to
+the unsplit force's energy.
+
+Settings: vacuum — NoCutoff (plain Coulomb, every pair); solvated — CutoffPeriodic at 9 Å,
+which in OpenMM is the reaction field (k_rf = (ε_rf − 1)/((2ε_rf + 1) r_c³),
+c_rf = 1/r_c + k_rf r_c², applied to the pairs within the cutoff; exclusions and 1-4
+exceptions get plain Coulomb and no reaction field), ε_rf = 78.3 (OpenMM's default), LJ
+neither shifted nor switched, no long-range dispersion correction — the conventions of
+longstep's forces/nonbonded.rs.
+
+A second tool chain: the shipped systems are ParmEd's writing of OpenMM's ForceField; with
+--other and openmmtools installed, its alanine dipeptide prmtop (made by tleap, AMBER's own
+tool) is copied next to them as ala2-tleap.prmtop/.inpcrd and checked the same way
+(tests/data/openmm-ala2-tleap.json).
+
+    pip install openmm parmed
+    python3 scripts/openmm_topology_reference.py
+    pip install --no-deps openmmtools && python3 scripts/openmm_topology_reference.py --other
+"""
+import argparse
+import json
+import os
+import shutil
+
+import numpy as np
+import openmm
+from openmm import app, unit
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.abspath(os.path.join(HERE, ".."))
+SYSTEMS = os.path.join(ROOT, "systems", "alanine-dipeptide-amber")
+DATA = os.path.join(ROOT, "tests", "data")
+KCAL = 4.184  # kJ per kcal
+EPSILON_RF = 78.3
+CUTOFF_NM = 0.9
+
+# name -> (prmtop, inpcrd, periodic)
+SHIPPED = {
+    "ala2": ("ala2.prmtop", "ala2.inpcrd", False),
+    "ala2-solvated": ("ala2-solvated.prmtop", "ala2-solvated.inpcrd", True),
+}
+
+GROUPS = {"bonds": 0, "angles": 1, "torsions": 2, "lj": 3, "coulomb": 4, "lj_14": 5, "coulomb_14": 6}
+FULL_NONBONDED = 7
+
+
+def nonbonded_copy(force, charges, lj, pairs, exceptions):
+    """A copy of `force` keeping the charges and/or LJ, of the pairs and/or exceptions."""
+    copy = openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(force))
+    for i in range(copy.getNumParticles()):
+        q, sigma, eps = copy.getParticleParameters(i)
+        copy.setParticleParameters(i, q if (charges and pairs) else 0.0, sigma,
+                                   eps if (lj and pairs) else 0.0)
+    for k in range(copy.getNumExceptions()):
+        i, j, qq, sigma, eps = copy.getExceptionParameters(k)
+        copy.setExceptionParameters(k, i, j, qq if (charges and exceptions) else 0.0, sigma,
+                                    eps if (lj and exceptions) else 0.0)
+    return copy
+
+
+def build(prmtop, periodic):
+    if periodic:
+        system = prmtop.createSystem(nonbondedMethod=app.CutoffPeriodic,
+                                     nonbondedCutoff=CUTOFF_NM * unit.nanometer,
+                                     constraints=None, rigidWater=False)
+    else:
+        system = prmtop.createSystem(nonbondedMethod=app.NoCutoff, constraints=None,
+                                     rigidWater=False)
+    kinds = {}
+    for force in system.getForces():
+        kinds.setdefault(type(force).__name__, []).append(force)
+    unknown = set(kinds) - {"HarmonicBondForce", "HarmonicAngleForce", "PeriodicTorsionForce",
+                            "NonbondedForce", "CMMotionRemover"}
+    assert not unknown, f"forces this script does not split: {unknown}"
+    (nb,) = kinds["NonbondedForce"]
+    nb.setUseDispersionCorrection(False)
+    nb.setUseSwitchingFunction(False)
+    if periodic:
+        nb.setReactionFieldDielectric(EPSILON_RF)
+    for name, group in [("HarmonicBondForce", 0), ("HarmonicAngleForce", 1),
+                        ("PeriodicTorsionForce", 2)]:
+        for force in kinds.get(name, []):
+            force.setForceGroup(group)
+    parts = {
+        "lj": nonbonded_copy(nb, False, True, True, False),
+        "coulomb": nonbonded_copy(nb, True, False, True, False),
+        "lj_14": nonbonded_copy(nb, False, True, False, True),
+        "coulomb_14": nonbonded_copy(nb, True, False, False, True),
+    }
+    nb.setForceGroup(FULL_NONBONDED)
+    for name, force in parts.items():
+        force.setForceGroup(GROUPS[name])
+        system.addForce(force)
+    return system
+
+
+def evaluate(prmtop_path, inpcrd_path, periodic):
+    prmtop = app.AmberPrmtopFile(prmtop_path)
+    inpcrd = app.AmberInpcrdFile(inpcrd_path)
+    system = build(prmtop, periodic)
+    platform = openmm.Platform.getPlatformByName("Reference")
+    context = openmm.Context(system, openmm.VerletIntegrator(0.001), platform)
+    if periodic:
+        context.setPeriodicBoxVectors(*inpcrd.boxVectors)
+    context.setPositions(inpcrd.positions)
+
+    def energy(groups):
+        state = context.getState(getEnergy=True, groups=groups)
+        return state.getPotentialEnergy().value_in_unit(unit.kilojoule_per_mole) / KCAL
+
+    energies = {name: energy({group}) for name, group in GROUPS.items()}
+    full = energy({FULL_NONBONDED})
+    split = sum(energies[k] for k in ("lj", "coulomb", "lj_14", "coulomb_14"))
+    assert abs(split - full) <= 1e-9 * max(1.0, abs(full)), (split, full)
+    def forces(groups):
+        state = context.getState(getForces=True, groups=groups)
+        return np.asarray(state.getForces(asNumpy=True).value_in_unit(
+            unit.kilojoule_per_mole / unit.angstrom) / KCAL)
+
+    bonded = {GROUPS["bonds"], GROUPS["angles"], GROUPS["torsions"]}
+    split_forces = {"bonded": forces(bonded), "nonbonded": forces({FULL_NONBONDED}),
+                    "total": forces(bonded | {FULL_NONBONDED})}
+    energies["total"] = sum(energies.values())
+    return energies, split_forces
+
+
+def write(name, prmtop, inpcrd, periodic, source):
+    energies, forces = evaluate(os.path.join(SYSTEMS, prmtop), os.path.join(SYSTEMS, inpcrd),
+                                periodic)
+    record = {
+        "system": name,
+        "prmtop": f"systems/alanine-dipeptide-amber/{prmtop}",
+        "inpcrd": f"systems/alanine-dipeptide-amber/{inpcrd}",
+        "source": source,
+        "openmm": openmm.__version__,
+        "platform": "Reference",
+        "nonbonded": ({"method": "CutoffPeriodic (reaction field)", "cutoff": CUTOFF_NM * 10.0,
+                       "epsilon_rf": EPSILON_RF} if periodic else {"method": "NoCutoff"}),
+        "dispersion_correction": False,
+        "units": {"energy": "kcal/mol", "forces": "kcal/mol/angstrom"},
+        "energy": energies,
+        "forces": {k: v.tolist() for k, v in forces.items()},
+    }
+    path = os.path.join(DATA, f"openmm-{name}.json")
+    with open(path, "w") as f:
+        json.dump(record, f)
+        f.write("\n")
+    print(path, {k: round(v, 6) for k, v in energies.items()})
+
+
+def other_tool():
+    """openmmtools' alanine dipeptide (a tleap-made prmtop), when installed; only its data
+    files are used (`pip install --no-deps openmmtools` is enough)."""
+    import importlib.util
+    spec = importlib.util.find_spec("openmmtools")
+    if spec is None:
+        print("openmmtools is not installed: no prmtop of another tool to check")
+        return
+    data = os.path.join(os.path.dirname(spec.origin), "data", "alanine-dipeptide-gbsa")
+    for ext, target in (("prmtop", "prmtop"), ("crd", "inpcrd")):
+        shutil.copy(os.path.join(data, f"alanine-dipeptide.{ext}"),
+                    os.path.join(SYSTEMS, f"ala2-tleap.{target}"))
+    write("ala2-tleap", "ala2-tleap.prmtop", "ala2-tleap.inpcrd", False,
+          "openmmtools 'data/alanine-dipeptide-gbsa' (made by tleap), copied unchanged; "
+          "evaluated in vacuum (its GBSA radii are not used)")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--other", action="store_true",
+                        help="also the prmtop of another tool (openmmtools, if installed)")
+    args = parser.parse_args()
+    for name, (prmtop, inpcrd, periodic) in SHIPPED.items():
+        write(name, prmtop, inpcrd, periodic, "scripts/make_topologies.py (OpenMM ForceField "
+              "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
+    if args.other:
+        other_tool()
+
+
+if __name__ == "__main__":
+    main()

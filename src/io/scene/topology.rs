@@ -1,0 +1,234 @@
+//! The `[topology]` section: the atoms, their coordinates (and velocities, when the file
+//! has them), the box and every force term from a topology file ([`crate::io::topology`]).
+
+use std::path::{Path, PathBuf};
+
+use super::molecule::Molecule;
+use super::particles::Start;
+use super::{Builder, SceneFile, Terms};
+use crate::error::{Error, Result};
+use crate::io::topology::inpcrd::{Coordinates, read_inpcrd};
+use crate::io::topology::prmtop::read_prmtop;
+use crate::io::topology::{Coulomb, NonbondedOptions, Topology, build_terms};
+use crate::system::PeriodicBox;
+
+/// Extensions read as AMBER prmtop.
+pub const PRMTOP_EXTENSIONS: &[&str] = &["prmtop", "parm7", "top7"];
+/// Extensions of AMBER coordinates, tried in this order beside a topology.
+pub const COORDINATE_EXTENSIONS: &[&str] = &["inpcrd", "rst7", "crd"];
+
+/// Whether `path` names a topology file the scene loader reads in place of a scene.
+pub fn is_topology_path(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| PRMTOP_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// The coordinates beside a topology: its name with the first coordinate extension
+/// that exists.
+pub fn default_coordinates(topology: &Path) -> Option<PathBuf> {
+    COORDINATE_EXTENSIONS
+        .iter()
+        .map(|e| topology.with_extension(e))
+        .find(|p| p.is_file())
+}
+
+/// A topology with its coordinates and the non-bonded options of the section.
+pub(super) struct Loaded {
+    topology: Topology,
+    coordinates: Coordinates,
+    options: NonbondedOptions,
+}
+
+impl Loaded {
+    pub fn periodic_box(&self) -> Option<PeriodicBox> {
+        self.topology
+            .periodic_box
+            .map(|lengths| PeriodicBox { lengths })
+    }
+
+    /// The particles: names, masses (amu), positions and momenta (amu·Å/fs).
+    pub fn start(&self) -> Start {
+        let atoms = &self.topology.atoms;
+        let p = match &self.coordinates.velocities {
+            Some(v) => v
+                .iter()
+                .enumerate()
+                .map(|(k, v)| atoms[k / 3].mass * v)
+                .collect(),
+            None => vec![0.0; 3 * atoms.len()],
+        };
+        Start {
+            names: atoms.iter().map(|a| a.name.clone()).collect(),
+            masses: atoms.iter().map(|a| a.mass).collect(),
+            q: self.coordinates.positions.clone(),
+            p,
+            structure: None,
+        }
+    }
+}
+
+impl Builder<'_> {
+    /// Read `[topology]`, if the scene has one, and its coordinates.
+    pub(super) fn read_topology(&self, file: &SceneFile) -> Result<Option<Loaded>> {
+        let Some(spanned) = &file.topology else {
+            return Ok(None);
+        };
+        let offset = spanned.span().start;
+        if file.structure.is_some()
+            || !file.particles.is_empty()
+            || file.forcefield.is_some()
+            || file.periodic_box.is_some()
+        {
+            return Err(self.error_at(
+                offset,
+                "[topology] gives the atoms, their force field and the box: leave out \
+                 [structure], [[particles]], [forcefield] and box",
+            ));
+        }
+        let spec = spanned.get_ref();
+        let path = self.beside_scene(&spec.file);
+        let mut topology = read_topology_file(&path)?;
+        let coordinates_path = match &spec.coordinates {
+            Some(c) => self.beside_scene(c),
+            None => default_coordinates(&path).ok_or_else(|| {
+                self.error_at(
+                    offset,
+                    format!(
+                        "[topology] no coordinates: none of {} beside {} (give coordinates = \
+                         \"…\", or --coordinates FILE)",
+                        COORDINATE_EXTENSIONS.join(", "),
+                        path.display()
+                    ),
+                )
+            })?,
+        };
+        let coordinates = read_coordinates(&coordinates_path, &topology)?;
+        box_from_coordinates(&mut topology, &coordinates, &coordinates_path)?;
+        let coulomb = match &spec.coulomb {
+            Some(name) => Some(
+                Coulomb::parse(name)
+                    .map_err(|e| self.error_at(offset, format!("[topology] {e}")))?,
+            ),
+            None => None,
+        };
+        let options = NonbondedOptions {
+            cutoff: spec.cutoff,
+            coulomb,
+            epsilon_rf: spec.epsilon_rf,
+            dsf_alpha: spec.dsf_alpha,
+            skin: spec.skin,
+            lj_shift: spec.lj_shift,
+        };
+        Ok(Some(Loaded {
+            topology,
+            coordinates,
+            options,
+        }))
+    }
+
+    /// The topology's terms into `terms`; its elements and report.
+    pub(super) fn apply_topology(
+        &self,
+        file: &SceneFile,
+        loaded: &Loaded,
+        terms: &mut Terms,
+    ) -> Result<Molecule> {
+        let offset = file.topology.as_ref().map_or(0, |t| t.span().start);
+        let built = build_terms(
+            &loaded.topology,
+            &loaded.coordinates.positions,
+            &loaded.options,
+        )
+        .map_err(|e| self.error_at(offset, format!("[topology] {e}")))?;
+        let mut report = built.report;
+        report.insert(
+            1,
+            format!(
+                "coordinates: {} atoms{}",
+                loaded.coordinates.n_atoms(),
+                if loaded.coordinates.velocities.is_some() {
+                    ", with velocities"
+                } else {
+                    ""
+                }
+            ),
+        );
+        report.push("refused: nothing (the reader refuses CMAP, 10-12 terms, polarisabilities, extra points and non-orthogonal boxes by section)".into());
+        terms.extend(built.terms);
+        Ok(Molecule {
+            elements: built.elements,
+            report,
+            parameters: None,
+        })
+    }
+}
+
+/// A topology file by its extension.
+fn read_topology_file(path: &Path) -> Result<Topology> {
+    if !path.is_file() {
+        return Err(Error::Topology {
+            location: path.display().to_string(),
+            message: "no such file".into(),
+        });
+    }
+    if is_topology_path(path) {
+        read_prmtop(path)
+    } else {
+        Err(Error::Topology {
+            location: path.display().to_string(),
+            message: format!(
+                "not a topology format longstep reads (AMBER prmtop: {})",
+                PRMTOP_EXTENSIONS.join(", ")
+            ),
+        })
+    }
+}
+
+/// The coordinates, with as many atoms as the topology.
+fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
+    if !path.is_file() {
+        return Err(Error::Topology {
+            location: path.display().to_string(),
+            message: "no such coordinate file".into(),
+        });
+    }
+    let coordinates = read_inpcrd(path)?;
+    if coordinates.n_atoms() != topology.atoms.len() {
+        return Err(Error::Topology {
+            location: format!("{}:2", path.display()),
+            message: format!(
+                "has {} atoms, the topology {} has {}",
+                coordinates.n_atoms(),
+                topology.source.display(),
+                topology.atoms.len()
+            ),
+        });
+    }
+    Ok(coordinates)
+}
+
+/// A periodic topology takes the coordinates' box when they give one (a restart's current
+/// box); it must be orthogonal.
+fn box_from_coordinates(
+    topology: &mut Topology,
+    coordinates: &Coordinates,
+    path: &Path,
+) -> Result<()> {
+    if let Some(angles) = coordinates.box_angles
+        && angles.iter().any(|a| (a - 90.0).abs() > 1e-6)
+    {
+        return Err(Error::Topology {
+            location: path.display().to_string(),
+            message: format!(
+                "box angles {angles:?}: a non-orthogonal box, longstep does not model it"
+            ),
+        });
+    }
+    if topology.periodic_box.is_some()
+        && let Some(lengths) = coordinates.box_lengths
+    {
+        topology.periodic_box = Some(lengths);
+    }
+    Ok(())
+}

@@ -1,0 +1,424 @@
+//! A [`Topology`] as longstep's force terms: `bonds` (harmonic pairs, [`PairTerm`] of
+//! [`HarmonicBond`]), `angles` ([`HarmonicAngles`]), `torsions` and `impropers`
+//! ([`Torsions`], a cosine series per quartet), `nonbonded` (the cluster-pair
+//! [`Nonbonded`] term with the topology's per-type-pair Lennard-Jones table and its
+//! exclusions), `lj-14` and `coulomb-14` (the scaled 1-4 pairs, no cutoff, plain Coulomb,
+//! as OpenMM computes `NonbondedForce` exceptions). Bonded terms are fast by default,
+//! non-bonded ones slow.
+//!
+//! Electrostatics of the non-bonded term: plain Coulomb over every pair without a box (a
+//! molecule in vacuum, OpenMM `NoCutoff`); with a box, or a cutoff, reaction field (OpenMM
+//! `CutoffPeriodic`/`CutoffNonPeriodic`, ε_rf 78.3 by default) or damped shifted force.
+//! Lennard-Jones is cut at the cutoff, neither shifted nor switched, without a long-range
+//! correction (OpenMM's `NonbondedForce` with its defaults off); `lj_shift` shifts its energy
+//! to zero at the cutoff, so the total energy no longer jumps as pairs cross it.
+
+use std::collections::BTreeMap;
+
+use super::Topology;
+use crate::forces::angle::{AngleBend, HarmonicAngles};
+use crate::forces::coulomb::Coulomb as CoulombPair;
+use crate::forces::lennard_jones::LennardJones;
+use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use crate::forces::pair::{Pair, PairTerm};
+use crate::forces::spring::HarmonicBond;
+use crate::forces::torsion::{Cosine, Dihedral, Torsions};
+use crate::forces::{ForceTerm, PeriodicBox, Site, TermClass};
+use crate::split::Assignment;
+use crate::units::COULOMB_KCAL_ANGSTROM;
+
+/// The cutoff when none is given but one is needed (Å).
+pub const DEFAULT_CUTOFF: f64 = 9.0;
+/// OpenMM's default reaction-field dielectric.
+pub const DEFAULT_EPSILON_RF: f64 = 78.3;
+
+/// The Coulomb form of the non-bonded term.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coulomb {
+    /// `k_e q_i q_j / r` over every pair, no cutoff, no box.
+    Plain,
+    ReactionField,
+    Dsf,
+}
+
+impl Coulomb {
+    /// `plain` (or `none`: no cutoff, the vacuum form), `reaction-field`, `dsf`.
+    pub fn parse(name: &str) -> Result<Coulomb, String> {
+        match name {
+            "plain" | "none" => Ok(Coulomb::Plain),
+            "reaction-field" => Ok(Coulomb::ReactionField),
+            "dsf" => Ok(Coulomb::Dsf),
+            other => Err(format!(
+                "coulomb \"{other}\" is not one of none (plain Coulomb without cutoff), \
+                 reaction-field, dsf"
+            )),
+        }
+    }
+}
+
+/// How the non-bonded term is computed; `None` takes the default.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NonbondedOptions {
+    /// Å; default none in vacuum with plain Coulomb, else [`DEFAULT_CUTOFF`].
+    pub cutoff: Option<f64>,
+    /// Default plain without a box or cutoff, else reaction field.
+    pub coulomb: Option<Coulomb>,
+    pub epsilon_rf: Option<f64>,
+    /// 1/Å, default 0 (shifted force).
+    pub dsf_alpha: Option<f64>,
+    /// Neighbour-list skin (Å), default 2 as `[forcefield]`.
+    pub skin: Option<f64>,
+    /// Shift the Lennard-Jones energy to zero at the cutoff (the force is unchanged), so
+    /// the energy does not jump as pairs cross it; default false, as OpenMM.
+    pub lj_shift: Option<bool>,
+}
+
+/// The terms with what the scene needs besides them.
+pub struct BuiltTopology {
+    pub terms: Vec<(String, Box<dyn ForceTerm>, Assignment)>,
+    /// amu.
+    pub masses: Vec<f64>,
+    pub charges: Vec<f64>,
+    pub elements: Vec<String>,
+    pub names: Vec<String>,
+    /// What was read and built, one line each (`longstep check` prints it).
+    pub report: Vec<String>,
+}
+
+type Terms = Vec<(String, Box<dyn ForceTerm>, Assignment)>;
+
+/// Build the force terms of `topology` at positions `q` (`n × 3`, Å).
+pub fn build_terms(
+    topology: &Topology,
+    q: &[f64],
+    options: &NonbondedOptions,
+) -> Result<BuiltTopology, String> {
+    let n = topology.atoms.len();
+    if q.len() != 3 * n {
+        return Err(format!(
+            "{} atoms in the topology, {} in the coordinates",
+            n,
+            q.len() / 3
+        ));
+    }
+    let periodic_box = topology.periodic_box.map(|lengths| PeriodicBox { lengths });
+    let mut terms = Terms::new();
+    let mut report = vec![summary_line(topology)];
+    bonds(topology, periodic_box, &mut terms, &mut report);
+    angles(topology, periodic_box, &mut terms, &mut report);
+    torsions(topology, periodic_box, &mut terms, &mut report);
+    let electrostatics = nonbonded(topology, q, options, &mut terms, &mut report)?;
+    pairs_14(
+        topology,
+        electrostatics,
+        periodic_box,
+        &mut terms,
+        &mut report,
+    );
+    report.extend(topology.notes.iter().cloned());
+    Ok(BuiltTopology {
+        terms,
+        masses: topology.atoms.iter().map(|a| a.mass).collect(),
+        charges: topology.atoms.iter().map(|a| a.charge).collect(),
+        elements: topology
+            .atoms
+            .iter()
+            .map(|a| {
+                if a.element.is_empty() {
+                    a.name.clone()
+                } else {
+                    a.element.clone()
+                }
+            })
+            .collect(),
+        names: topology.atoms.iter().map(|a| a.name.clone()).collect(),
+        report,
+    })
+}
+
+fn summary_line(topology: &Topology) -> String {
+    format!(
+        "topology: {} ({}), {} atoms in {} residues, total charge {:.6} e, box {}",
+        topology.source.display(),
+        topology.format,
+        topology.atoms.len(),
+        topology.residues.len(),
+        topology.total_charge(),
+        match topology.periodic_box {
+            Some(b) => format!("{} × {} × {} Å", b[0], b[1], b[2]),
+            None => "none".into(),
+        }
+    )
+}
+
+fn bonds(
+    topology: &Topology,
+    periodic_box: Option<PeriodicBox>,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) {
+    let pairs: Vec<_> = topology
+        .bonds
+        .iter()
+        .map(|b| Pair {
+            a: Site::Particle(b.atoms[0]),
+            b: Site::Particle(b.atoms[1]),
+            potential: HarmonicBond {
+                stiffness: b.k,
+                rest_length: b.r0,
+            },
+        })
+        .collect();
+    report.push(format!(
+        "bonds: {} ({} with hydrogen), (k/2)(r − r0)², term \"bonds\"",
+        pairs.len(),
+        topology.bonds_with_hydrogen
+    ));
+    if !pairs.is_empty() {
+        let term = PairTerm::new("bond", TermClass::Bonded, 3, pairs, periodic_box);
+        terms.push(("bonds".into(), Box::new(term), Assignment::Default));
+    }
+}
+
+fn angles(
+    topology: &Topology,
+    periodic_box: Option<PeriodicBox>,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) {
+    let bends: Vec<_> = topology
+        .angles
+        .iter()
+        .map(|a| AngleBend {
+            sites: a.atoms.map(Site::Particle),
+            stiffness: a.k,
+            rest_angle: a.theta0,
+        })
+        .collect();
+    report.push(format!(
+        "angles: {}, (k/2)(θ − θ0)², term \"angles\"",
+        bends.len()
+    ));
+    if !bends.is_empty() {
+        let term = HarmonicAngles::new(3, bends, periodic_box);
+        terms.push(("angles".into(), Box::new(term), Assignment::Default));
+    }
+}
+
+/// Proper and improper dihedrals, each quartet's cosines in one series, in two terms.
+fn torsions(
+    topology: &Topology,
+    periodic_box: Option<PeriodicBox>,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) {
+    for (improper, name, what) in [
+        (false, "torsions", "proper dihedrals"),
+        (true, "impropers", "improper dihedrals"),
+    ] {
+        let mut quartets: BTreeMap<[usize; 4], Vec<Cosine>> = BTreeMap::new();
+        let mut count = 0;
+        for d in topology.dihedrals.iter().filter(|d| d.improper == improper) {
+            count += 1;
+            quartets.entry(d.atoms).or_default().push(Cosine {
+                k: d.k,
+                periodicity: d.periodicity,
+                phase: d.phase,
+            });
+        }
+        report.push(format!(
+            "{what}: {} quartets, {count} cosine terms, k (1 + cos(nφ − δ)), term \"{name}\"",
+            quartets.len()
+        ));
+        if quartets.is_empty() {
+            continue;
+        }
+        let list = quartets
+            .into_iter()
+            .map(|(atoms, series)| Dihedral { atoms, series })
+            .collect();
+        let term = Torsions::new(list, periodic_box);
+        terms.push((name.into(), Box::new(term), Assignment::Default));
+    }
+}
+
+/// The electrostatics and cutoff the options ask for.
+fn electrostatics(
+    topology: &Topology,
+    options: &NonbondedOptions,
+) -> Result<(Electrostatics, f64), String> {
+    let periodic = topology.periodic_box.is_some();
+    let coulomb = options
+        .coulomb
+        .unwrap_or(if periodic || options.cutoff.is_some() {
+            Coulomb::ReactionField
+        } else {
+            Coulomb::Plain
+        });
+    if let Some(c) = options.cutoff
+        && !(c > 0.0 && c.is_finite())
+    {
+        return Err(format!("cutoff must be a positive length, got {c}"));
+    }
+    let cutoff = match coulomb {
+        Coulomb::Plain if periodic => {
+            return Err(
+                "plain Coulomb (coulomb = none) is for a molecule in vacuum; the \
+                        topology has a periodic box: choose reaction-field or dsf"
+                    .into(),
+            );
+        }
+        Coulomb::Plain if options.cutoff.is_some() => {
+            return Err(
+                "plain Coulomb (coulomb = none) has no cutoff: leave cutoff out, or \
+                        choose reaction-field or dsf"
+                    .into(),
+            );
+        }
+        Coulomb::Plain => f64::INFINITY,
+        _ => options.cutoff.unwrap_or(DEFAULT_CUTOFF),
+    };
+    let form = match coulomb {
+        Coulomb::Plain => Electrostatics::Plain,
+        Coulomb::ReactionField => Electrostatics::ReactionField {
+            dielectric: options.epsilon_rf.unwrap_or(DEFAULT_EPSILON_RF),
+        },
+        Coulomb::Dsf => Electrostatics::DampedShiftedForce {
+            alpha: options.dsf_alpha.unwrap_or(0.0),
+        },
+    };
+    Ok((form, cutoff))
+}
+
+/// The cutoff term over every pair not excluded; returns its electrostatics.
+fn nonbonded(
+    topology: &Topology,
+    q: &[f64],
+    options: &NonbondedOptions,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<Electrostatics, String> {
+    let (electrostatics, cutoff) = electrostatics(topology, options)?;
+    let skin = options.skin.unwrap_or(2.0);
+    if !(skin >= 0.0 && skin.is_finite()) {
+        return Err(format!("skin must be ≥ 0, got {skin}"));
+    }
+    let lj = &topology.lj;
+    let shifted = options.lj_shift.unwrap_or(false) && cutoff.is_finite();
+    let inv6 = if shifted { cutoff.powi(-6) } else { 0.0 };
+    let table = (0..lj.c12.len())
+        .map(|k| LjPair {
+            c12: lj.c12[k],
+            c6: lj.c6[k],
+            shift: inv6 * (lj.c12[k] * inv6 - lj.c6[k]),
+        })
+        .collect();
+    let spec = NonbondedSpec {
+        cutoff,
+        skin,
+        electrostatics,
+        coulomb_constant: COULOMB_KCAL_ANGSTROM,
+        box_lengths: topology.periodic_box,
+        types: topology.atoms.iter().map(|a| a.lj_type as u32).collect(),
+        lj: table,
+        charges: topology.atoms.iter().map(|a| a.charge).collect(),
+        excluded: topology.exclusions.clone(),
+    };
+    report.push(format!(
+        "Lennard-Jones: {} atom types, c12/r¹² − c6/r⁶ per type pair from the file (no \
+         mixing rule), cut at the cutoff, {}",
+        lj.n_types,
+        if shifted {
+            "energy shifted to zero there"
+        } else {
+            "not shifted"
+        }
+    ));
+    report.push(format!(
+        "exclusions: {} pairs left out of the non-bonded term (1-2, 1-3, 1-4)",
+        topology.exclusions.len()
+    ));
+    report.push(format!(
+        "nonbonded: cutoff {}, skin {skin}, Coulomb {}, term \"nonbonded\"",
+        if cutoff.is_finite() {
+            format!("{cutoff} Å")
+        } else {
+            "none".into()
+        },
+        electrostatics.describe()
+    ));
+    terms.push((
+        "nonbonded".into(),
+        Box::new(Nonbonded::new(spec, q)?),
+        Assignment::Default,
+    ));
+    Ok(electrostatics)
+}
+
+/// The scaled 1-4 pairs, without cutoff, plain Coulomb: `lj-14` and `coulomb-14`.
+fn pairs_14(
+    topology: &Topology,
+    electrostatics: Electrostatics,
+    periodic_box: Option<PeriodicBox>,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) {
+    let mut lj_pairs = Vec::new();
+    let mut coulomb_pairs = Vec::new();
+    let mut scales: BTreeMap<String, usize> = BTreeMap::new();
+    for pair in &topology.pairs_14 {
+        let [i, j] = pair.atoms;
+        let key = format!(
+            "Coulomb × {:.6}, LJ × {:.6}",
+            pair.coulomb_scale, pair.lj_scale
+        );
+        *scales.entry(key).or_insert(0) += 1;
+        let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
+        let (c12, c6) = topology.lj.pair(a, b);
+        if pair.lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
+            // ε and σ of the pair: σ⁶ = c12/c6, ε = c6²/(4 c12).
+            let sigma = (c12 / c6).powf(1.0 / 6.0);
+            let epsilon = c6 * c6 / (4.0 * c12);
+            lj_pairs.push(Pair {
+                a: Site::Particle(i),
+                b: Site::Particle(j),
+                potential: LennardJones::new(pair.lj_scale * epsilon, sigma, f64::INFINITY, false),
+            });
+        }
+        let qq = pair.coulomb_scale
+            * COULOMB_KCAL_ANGSTROM
+            * topology.atoms[i].charge
+            * topology.atoms[j].charge;
+        if electrostatics != Electrostatics::None && qq != 0.0 {
+            coulomb_pairs.push(Pair {
+                a: Site::Particle(i),
+                b: Site::Particle(j),
+                potential: CoulombPair { charge_product: qq },
+            });
+        }
+    }
+    let scales: Vec<String> = scales
+        .iter()
+        .map(|(key, count)| format!("{count} with {key}"))
+        .collect();
+    report.push(format!(
+        "1-4 pairs: {} ({}), no cutoff, plain Coulomb, terms \"lj-14\" and \"coulomb-14\"",
+        topology.pairs_14.len(),
+        if scales.is_empty() {
+            "none".into()
+        } else {
+            scales.join("; ")
+        }
+    ));
+    for (name, kind, list) in [("lj-14", "lennard-jones-14", lj_pairs)] {
+        if !list.is_empty() {
+            let term = PairTerm::new(kind, TermClass::Nonbonded, 3, list, periodic_box);
+            terms.push((name.into(), Box::new(term), Assignment::Default));
+        }
+    }
+    if !coulomb_pairs.is_empty() {
+        let kind = "coulomb-14";
+        let term = PairTerm::new(kind, TermClass::Nonbonded, 3, coulomb_pairs, periodic_box);
+        terms.push(("coulomb-14".into(), Box::new(term), Assignment::Default));
+    }
+}
