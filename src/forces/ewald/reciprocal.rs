@@ -225,7 +225,7 @@ impl PmeReciprocal {
             if want == Want::Energy {
                 let kz = index % h;
                 // Bins other than 0 and the Nyquist bin stand for two (m and −m).
-                let weight = if kz == 0 || (nz % 2 == 0 && kz == h - 1) {
+                let weight = if kz == 0 || (nz.is_multiple_of(2) && kz == h - 1) {
                     0.5
                 } else {
                     1.0
