@@ -559,3 +559,33 @@ fn bad_pme_flags_exit_1_naming_the_key() {
         assert!(stderr.contains(key), "{flags:?}: {stderr}");
     }
 }
+
+#[test]
+fn pme_gives_the_same_bits_on_one_and_two_threads() {
+    // Above the parallel threshold (1024 atoms): the per-atom splines and the gathering
+    // run in parallel on two threads, serially on one.
+    let lengths = [30.0, 31.0, 32.0];
+    let (q, charges) = charges_in_box(2000, lengths, true, 21);
+    let v = TestRng::new(5).vector(q.len(), -1.0, 1.0);
+    let params = EwaldParameters {
+        alpha: 0.35,
+        grid: [32, 32, 32],
+        order: 5,
+    };
+    let term = PmeReciprocal::new(params, lengths, KE, charges, &EXCLUDED).expect("PME term");
+    let evaluate = |threads: usize| -> (Vec<u64>, Vec<u64>, u64) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut g = vec![0.0; q.len()];
+            term.add_gradient(&q, &mut g);
+            let mut hv = vec![0.0; q.len()];
+            term.add_hessian_vector(&q, &v, &mut hv);
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            (bits(&g), bits(&hv), term.energy(&q).to_bits())
+        })
+    };
+    assert!(evaluate(1) == evaluate(2));
+}
