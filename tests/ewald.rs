@@ -455,6 +455,32 @@ fn scene_keys_build_pme_and_bad_ones_name_the_key() {
         let message = build(&water_scene(lines)).err().expect(key);
         assert!(message.contains(key), "{key}: {message}");
     }
+    // A charged box: a notice and the background term.
+    let charged = water_scene("coulomb = \"pme\"").replace("charge = 0.41", "charge = 0.42");
+    let scene = build(&charged).expect("charged box");
+    assert!(
+        scene
+            .forcefield_report
+            .iter()
+            .any(|l| l.contains("net charge"))
+    );
+    let term = scene
+        .system
+        .forces
+        .terms()
+        .iter()
+        .find(|t| t.term.kind() == "pme-reciprocal");
+    let q = &scene.system.state.q;
+    let background = term.expect("pme-reciprocal").term.energy_components(q)[3];
+    // −k_e π Q²/(2Vα²) with Q = 432 × 0.01 e.
+    let volume = 18.644491075500707f64.powi(3);
+    let alpha = alpha_for_tolerance(1e-5, 9.0);
+    let expected = -KE * std::f64::consts::PI * 4.32 * 4.32 / (2.0 * volume * alpha * alpha);
+    assert_eq!(background.0, "ewald-background");
+    assert!(
+        relative(background.1, expected) < 1e-12,
+        "{background:?} {expected}"
+    );
     let no_box = water_scene("coulomb = \"pme\"").replace("box = [", "# box = [");
     let message = build(&no_box).err().expect("no box");
     assert!(message.contains("box"), "{message}");
