@@ -100,7 +100,13 @@ pub fn load_scene_with(
             });
         }
     }
-    build_parsed_scene(&file, &text, path, overrides)
+    build_parsed_scene(&file, &text, path, overrides).map_err(|e| match e {
+        Error::Scene { location, message } => Error::Scene {
+            location,
+            message: format!("{message} (with the command line's electrostatics flags)"),
+        },
+        other => other,
+    })
 }
 
 /// Build a scene from its text (`path` names it in messages and anchors relative files).
