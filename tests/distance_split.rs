@@ -376,6 +376,7 @@ fn molecule_blocks_give_the_same_bits_on_every_instruction_set() {
         Electrostatics::DampedShiftedForce { alpha: 0.0 },
         Electrostatics::DampedShiftedForce { alpha: 0.2 },
         Electrostatics::ReactionField { dielectric: 78.0 },
+        Electrostatics::Ewald { alpha: 0.35 },
     ] {
         let spec = water_spec(n, 6.0, electrostatics, Some([length; 3]), true);
         // r_in 2.5 < R < r_out 3.5 puts many pairs on the switch's slope.

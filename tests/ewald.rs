@@ -455,6 +455,32 @@ fn scene_keys_build_pme_and_bad_ones_name_the_key() {
         let message = build(&water_scene(lines)).err().expect(key);
         assert!(message.contains(key), "{key}: {message}");
     }
+    // A charged box: a notice and the background term.
+    let charged = water_scene("coulomb = \"pme\"").replace("charge = 0.41", "charge = 0.42");
+    let scene = build(&charged).expect("charged box");
+    assert!(
+        scene
+            .forcefield_report
+            .iter()
+            .any(|l| l.contains("net charge"))
+    );
+    let term = scene
+        .system
+        .forces
+        .terms()
+        .iter()
+        .find(|t| t.term.kind() == "pme-reciprocal");
+    let q = &scene.system.state.q;
+    let background = term.expect("pme-reciprocal").term.energy_components(q)[3];
+    // −k_e π Q²/(2Vα²) with Q = 432 × 0.01 e.
+    let volume = 18.644491075500707f64.powi(3);
+    let alpha = alpha_for_tolerance(1e-5, 9.0);
+    let expected = -KE * std::f64::consts::PI * 4.32 * 4.32 / (2.0 * volume * alpha * alpha);
+    assert_eq!(background.0, "ewald-background");
+    assert!(
+        relative(background.1, expected) < 1e-12,
+        "{background:?} {expected}"
+    );
     let no_box = water_scene("coulomb = \"pme\"").replace("box = [", "# box = [");
     let message = build(&no_box).err().expect("no box");
     assert!(message.contains("box"), "{message}");
@@ -558,4 +584,34 @@ fn bad_pme_flags_exit_1_naming_the_key() {
         assert_eq!(output.status.code(), Some(1), "{flags:?}: {stderr}");
         assert!(stderr.contains(key), "{flags:?}: {stderr}");
     }
+}
+
+#[test]
+fn pme_gives_the_same_bits_on_one_and_two_threads() {
+    // Above the parallel threshold (1024 atoms): the per-atom splines and the gathering
+    // run in parallel on two threads, serially on one.
+    let lengths = [30.0, 31.0, 32.0];
+    let (q, charges) = charges_in_box(2000, lengths, true, 21);
+    let v = TestRng::new(5).vector(q.len(), -1.0, 1.0);
+    let params = EwaldParameters {
+        alpha: 0.35,
+        grid: [32, 32, 32],
+        order: 5,
+    };
+    let term = PmeReciprocal::new(params, lengths, KE, charges, &EXCLUDED).expect("PME term");
+    let evaluate = |threads: usize| -> (Vec<u64>, Vec<u64>, u64) {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            let mut g = vec![0.0; q.len()];
+            term.add_gradient(&q, &mut g);
+            let mut hv = vec![0.0; q.len()];
+            term.add_hessian_vector(&q, &v, &mut hv);
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            (bits(&g), bits(&hv), term.energy(&q).to_bits())
+        })
+    };
+    assert!(evaluate(1) == evaluate(2));
 }

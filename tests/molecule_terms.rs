@@ -127,10 +127,11 @@ fn spec(
     }
 }
 
-const FORMS: [Electrostatics; 4] = [
+const FORMS: [Electrostatics; 5] = [
     Electrostatics::DampedShiftedForce { alpha: 0.0 },
     Electrostatics::DampedShiftedForce { alpha: 0.2 },
     Electrostatics::ReactionField { dielectric: 78.3 },
+    Electrostatics::Ewald { alpha: 0.35 },
     Electrostatics::None,
 ];
 
@@ -209,6 +210,12 @@ fn brute_force(spec: &NonbondedSpec, q: &[f64]) -> (f64, Vec<f64>) {
                     let c = 1.0 / rc + k * rc * rc;
                     e += qq * (1.0 / r + k * r * r - c);
                     de += qq * (-1.0 / (r * r) + 2.0 * k * r);
+                }
+                Electrostatics::Ewald { alpha } => {
+                    let gauss =
+                        2.0 * alpha / std::f64::consts::PI.sqrt() * (-alpha * alpha * r * r).exp();
+                    e += qq * libm::erfc(alpha * r) / r;
+                    de -= qq * (libm::erfc(alpha * r) / (r * r) + gauss / r);
                 }
                 Electrostatics::Plain => {
                     e += qq / r;

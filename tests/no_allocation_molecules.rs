@@ -51,6 +51,14 @@ fn molecule_steps_allocate_nothing() {
             Double,
         ),
         (
+            "systems/water-box/pme.toml",
+            "impulse",
+            2.0,
+            4,
+            None,
+            Double,
+        ),
+        (
             "systems/water-box/scene.toml",
             "impulse",
             2.0,

@@ -147,7 +147,13 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
             });
         }
     }
-    build_parsed_scene(&file, &text, path, overrides)
+    build_parsed_scene(&file, &text, path, overrides).map_err(|e| match e {
+        Error::Scene { location, message } => Error::Scene {
+            location,
+            message: format!("{message} (with the command line's electrostatics flags)"),
+        },
+        other => other,
+    })
 }
 
 /// The topology's flags; the PME keys are refused, since a topology's non-bonded term has

@@ -103,9 +103,9 @@ impl DirectEwald {
                             let weight = if i == j { 0.5 } else { 1.0 };
                             parts.real += weight * qq * erfc / r;
                             let dv_over_r = -weight * qq * (erfc / r + gauss) / (r * r);
-                            for a in 0..3 {
-                                parts.real_gradient[3 * j + a] += dv_over_r * d[a];
-                                parts.real_gradient[3 * i + a] -= dv_over_r * d[a];
+                            for (a, &da) in d.iter().enumerate() {
+                                parts.real_gradient[3 * j + a] += dv_over_r * da;
+                                parts.real_gradient[3 * i + a] -= dv_over_r * da;
                             }
                         }
                     }
@@ -149,8 +149,8 @@ impl DirectEwald {
                     // ∂|S|²/∂r_i = 2 q_i 2π m (cos_i S_im − sin_i S_re).
                     for (i, &(ci, si)) in phase.iter().enumerate() {
                         let g = f * 4.0 * pi * self.charges[i] * (ci * s - si * c);
-                        for a in 0..3 {
-                            parts.reciprocal_gradient[3 * i + a] += g * m[a];
+                        for (a, &ma) in m.iter().enumerate() {
+                            parts.reciprocal_gradient[3 * i + a] += g * ma;
                         }
                     }
                 }
@@ -169,9 +169,9 @@ impl DirectEwald {
             let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let (f, f1, _) = erf_over_r(self.alpha, r);
             parts.exclusions -= qq * f;
-            for a in 0..3 {
-                parts.reciprocal_gradient[3 * j + a] -= qq * f1 / r * d[a];
-                parts.reciprocal_gradient[3 * i + a] += qq * f1 / r * d[a];
+            for (a, &da) in d.iter().enumerate() {
+                parts.reciprocal_gradient[3 * j + a] -= qq * f1 / r * da;
+                parts.reciprocal_gradient[3 * i + a] += qq * f1 / r * da;
             }
         }
     }

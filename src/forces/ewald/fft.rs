@@ -94,7 +94,7 @@ impl Fft3 {
             // The zero and Nyquist bins of a real signal are real; the complex passes
             // leave round-off in their imaginary parts, which c2r must not see.
             row[0].im = 0.0;
-            if nz % 2 == 0 {
+            if nz.is_multiple_of(2) {
                 row[self.half - 1].im = 0.0;
             }
             let _ = self.c2r.process_with_scratch(row, out, &mut work.scratch);

@@ -24,7 +24,9 @@
 //! points (`O(K³ log K)`), `O(K³)` for the influence function; per Hessian-vector product
 //! twice that. The exclusions are `O(N_excl)`. The per-atom splines and the gathering run
 //! in parallel for large systems (each atom's result is its own, so the bits do not depend
-//! on the thread count); spreading and the FFT are serial. The workspace is sized at
+//! on the thread count), and so does spreading, by slabs of grid planes that each take
+//! their part of every atom in atom order (the same additions in the same order as the
+//! serial pass); the FFT is serial. The workspace is sized at
 //! construction: an evaluation allocates nothing.
 
 use std::sync::Mutex;
@@ -36,6 +38,9 @@ use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
 use crate::forces::scratch::parallel;
 use crate::forces::{ForceTerm, TermClass};
+
+/// x-planes per parallel spreading task.
+const SLAB: usize = 4;
 
 /// One atom's splines on the three axes: grid indices and weights.
 #[derive(Clone, Copy, Debug, Default)]
@@ -169,8 +174,34 @@ impl PmeReciprocal {
     }
 
     /// `grid = Σ_i c_i(k) ...`: the charges (`v = None`) or, with `v`, the
-    /// displacement-weighted derivatives `Σ_i q_i v_i·∇W_i` spread on the grid.
+    /// displacement-weighted derivatives `Σ_i q_i v_i·∇W_i` spread on the grid. For large
+    /// systems in parallel over slabs of [`SLAB`] x-planes, each slab taking its part of
+    /// every atom's stencil in atom order: each grid point gains the same terms in the same
+    /// order as in the serial pass (an atom touches a point once, as `K ≥ 2n`), so the same
+    /// bits at any thread count.
     fn spread(&self, stencils: &[Stencil], v: Option<&[f64]>, grid: &mut [f64]) {
+        let [nx, ny, nz] = self.params.grid;
+        if parallel(stencils.len()) && nx > SLAB {
+            grid.par_chunks_mut(SLAB * ny * nz)
+                .enumerate()
+                .for_each(|(slab, planes)| {
+                    let first = slab * SLAB;
+                    self.spread_planes(stencils, v, planes, first..(first + SLAB).min(nx));
+                });
+        } else {
+            self.spread_planes(stencils, v, grid, 0..nx);
+        }
+    }
+
+    /// [`Self::spread`] into the x-planes `planes` only, held by `grid` (from plane
+    /// `planes.start`).
+    fn spread_planes(
+        &self,
+        stencils: &[Stencil],
+        v: Option<&[f64]>,
+        grid: &mut [f64],
+        planes: std::ops::Range<usize>,
+    ) {
         grid.fill(0.0);
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
@@ -186,7 +217,11 @@ impl PmeReciprocal {
                 None => [0.0; 3],
             };
             for kx in 0..order {
-                let gx = st.index[0][kx] as usize * ny;
+                let x = st.index[0][kx] as usize;
+                if !planes.contains(&x) {
+                    continue;
+                }
+                let gx = (x - planes.start) * ny;
                 for ky in 0..order {
                     let row = (gx + st.index[1][ky] as usize) * nz;
                     let (vx, vy) = (wx.value[kx], wy.value[ky]);
@@ -225,7 +260,7 @@ impl PmeReciprocal {
             if want == Want::Energy {
                 let kz = index % h;
                 // Bins other than 0 and the Nyquist bin stand for two (m and −m).
-                let weight = if kz == 0 || (nz % 2 == 0 && kz == h - 1) {
+                let weight = if kz == 0 || (nz.is_multiple_of(2) && kz == h - 1) {
                     0.5
                 } else {
                     1.0
