@@ -52,11 +52,15 @@ DATA = os.path.join(ROOT, "tests", "data")
 KCAL = 4.184  # kJ per kcal
 EPSILON_RF = 78.3
 CUTOFF_NM = 0.9
+# PME of the solvated system: alpha, grid and order given explicitly (OpenMM's order is 5).
+PME_ALPHA_PER_NM = 3.5
+PME_GRID = 24
 
-# name -> (prmtop, inpcrd, periodic)
+# name -> (prmtop, inpcrd, nonbonded method: "vacuum", "reaction-field" or "pme")
 SHIPPED = {
-    "ala2": ("ala2.prmtop", "ala2.inpcrd", False),
-    "ala2-solvated": ("ala2-solvated.prmtop", "ala2-solvated.inpcrd", True),
+    "ala2": ("ala2.prmtop", "ala2.inpcrd", "vacuum"),
+    "ala2-solvated": ("ala2-solvated.prmtop", "ala2-solvated.inpcrd", "reaction-field"),
+    "ala2-solvated-pme": ("ala2-solvated.prmtop", "ala2-solvated.inpcrd", "pme"),
 }
 
 GROUPS = {"bonds": 0, "angles": 1, "torsions": 2, "lj": 3, "coulomb": 4, "lj_14": 5, "coulomb_14": 6}
@@ -77,8 +81,12 @@ def nonbonded_copy(force, charges, lj, pairs, exceptions):
     return copy
 
 
-def build(prmtop, periodic):
-    if periodic:
+def build(prmtop, method):
+    if method == "pme":
+        system = prmtop.createSystem(nonbondedMethod=app.PME,
+                                     nonbondedCutoff=CUTOFF_NM * unit.nanometer,
+                                     constraints=None, rigidWater=False)
+    elif method == "reaction-field":
         system = prmtop.createSystem(nonbondedMethod=app.CutoffPeriodic,
                                      nonbondedCutoff=CUTOFF_NM * unit.nanometer,
                                      constraints=None, rigidWater=False)
@@ -94,8 +102,10 @@ def build(prmtop, periodic):
     (nb,) = kinds["NonbondedForce"]
     nb.setUseDispersionCorrection(False)
     nb.setUseSwitchingFunction(False)
-    if periodic:
+    if method == "reaction-field":
         nb.setReactionFieldDielectric(EPSILON_RF)
+    if method == "pme":
+        nb.setPMEParameters(PME_ALPHA_PER_NM, PME_GRID, PME_GRID, PME_GRID)
     for name, group in [("HarmonicBondForce", 0), ("HarmonicAngleForce", 1),
                         ("PeriodicTorsionForce", 2)]:
         for force in kinds.get(name, []):
@@ -113,10 +123,11 @@ def build(prmtop, periodic):
     return system
 
 
-def evaluate(prmtop_path, inpcrd_path, periodic):
+def evaluate(prmtop_path, inpcrd_path, method):
+    periodic = method != "vacuum"
     prmtop = app.AmberPrmtopFile(prmtop_path)
     inpcrd = app.AmberInpcrdFile(inpcrd_path)
-    system = build(prmtop, periodic)
+    system = build(prmtop, method)
     platform = openmm.Platform.getPlatformByName("Reference")
     context = openmm.Context(system, openmm.VerletIntegrator(0.001), platform)
     if periodic:
@@ -143,9 +154,18 @@ def evaluate(prmtop_path, inpcrd_path, periodic):
     return energies, split_forces
 
 
-def write(name, prmtop, inpcrd, periodic, source):
+NONBONDED = {
+    "vacuum": {"method": "NoCutoff"},
+    "reaction-field": {"method": "CutoffPeriodic (reaction field)", "cutoff": CUTOFF_NM * 10.0,
+                       "epsilon_rf": EPSILON_RF},
+    "pme": {"method": "PME", "cutoff": CUTOFF_NM * 10.0, "alpha": PME_ALPHA_PER_NM / 10.0,
+            "grid": [PME_GRID] * 3, "order": 5},
+}
+
+
+def write(name, prmtop, inpcrd, method, source):
     energies, forces = evaluate(os.path.join(SYSTEMS, prmtop), os.path.join(SYSTEMS, inpcrd),
-                                periodic)
+                                method)
     record = {
         "system": name,
         "prmtop": f"systems/alanine-dipeptide-amber/{prmtop}",
@@ -153,8 +173,7 @@ def write(name, prmtop, inpcrd, periodic, source):
         "source": source,
         "openmm": openmm.__version__,
         "platform": "Reference",
-        "nonbonded": ({"method": "CutoffPeriodic (reaction field)", "cutoff": CUTOFF_NM * 10.0,
-                       "epsilon_rf": EPSILON_RF} if periodic else {"method": "NoCutoff"}),
+        "nonbonded": NONBONDED[method],
         "dispersion_correction": False,
         "units": {"energy": "kcal/mol", "forces": "kcal/mol/angstrom"},
         "energy": energies,
@@ -179,7 +198,7 @@ def other_tool():
     for ext, target in (("prmtop", "prmtop"), ("crd", "inpcrd")):
         shutil.copy(os.path.join(data, f"alanine-dipeptide.{ext}"),
                     os.path.join(SYSTEMS, f"ala2-tleap.{target}"))
-    write("ala2-tleap", "ala2-tleap.prmtop", "ala2-tleap.inpcrd", False,
+    write("ala2-tleap", "ala2-tleap.prmtop", "ala2-tleap.inpcrd", "vacuum",
           "openmmtools 'data/alanine-dipeptide-gbsa' (made by tleap), copied unchanged; "
           "evaluated in vacuum (its GBSA radii are not used)")
 
@@ -189,8 +208,8 @@ def main():
     parser.add_argument("--other", action="store_true",
                         help="also the prmtop of another tool (openmmtools, if installed)")
     args = parser.parse_args()
-    for name, (prmtop, inpcrd, periodic) in SHIPPED.items():
-        write(name, prmtop, inpcrd, periodic, "scripts/make_topologies.py (OpenMM ForceField "
+    for name, (prmtop, inpcrd, method) in SHIPPED.items():
+        write(name, prmtop, inpcrd, method, "scripts/make_topologies.py (OpenMM ForceField "
               "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
     if args.other:
         other_tool()

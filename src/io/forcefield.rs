@@ -122,6 +122,40 @@ impl ElectrostaticsOverrides {
         *self == ElectrostaticsOverrides::default()
     }
 
+    /// The given keys into a `[topology]` table (the command line over a topology file).
+    pub fn write_to(&self, table: &mut toml::Table) {
+        let mut put = |key: &str, value: Option<toml::Value>| {
+            if let Some(value) = value {
+                table.insert(key.into(), value);
+            }
+        };
+        let whole = |n: usize| toml::Value::Integer(n as i64);
+        put("coulomb", self.coulomb.clone().map(toml::Value::String));
+        put(
+            "ewald_tolerance",
+            self.ewald_tolerance.map(toml::Value::Float),
+        );
+        put(
+            "fourier_spacing",
+            self.fourier_spacing.map(toml::Value::Float),
+        );
+        put(
+            "ewald_alpha",
+            self.ewald_alpha.as_ref().map(|a| match a {
+                InverseLength::Number(x) => toml::Value::Float(*x),
+                InverseLength::Text(t) => toml::Value::String(t.clone()),
+            }),
+        );
+        put(
+            "pme_grid",
+            self.pme_grid
+                .map(|g| toml::Value::Array(g.iter().map(|&n| whole(n)).collect())),
+        );
+        put("pme_order", self.pme_order.map(whole));
+        put("pme_level", self.pme_level.map(whole));
+        put("nonbonded_level", self.nonbonded_level.map(whole));
+    }
+
     /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and
     /// reaction-field keys, and switching away drops the PME keys, so the scene's other
     /// model does not trip the check of stray keys.

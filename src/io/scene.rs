@@ -106,22 +106,12 @@ pub struct SceneFlags {
     pub electrostatics: ElectrostaticsOverrides,
 }
 
-/// The flags a topology file takes (the `[topology]` keys the command line can set).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TopologyFlags {
-    pub coordinates: Option<PathBuf>,
-    pub cutoff: Option<f64>,
-    pub coulomb: Option<String>,
-    pub epsilon_rf: Option<f64>,
-}
-
 /// [`load_scene`] with the command line's flags: a topology file takes its coordinates and
 /// non-bonded settings; a scene file takes only the electrostatics, over its
 /// `[forcefield]`.
 pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Scene> {
     if is_topology_path(path) {
-        let topology = topology_flags(flags)?;
-        let text = topology_scene_text(path, &topology)?;
+        let text = topology_scene_text(path, flags)?;
         return build_scene(&text, path, overrides);
     }
     if flags.coordinates.is_some() || flags.cutoff.is_some() || flags.epsilon_rf.is_some() {
@@ -156,32 +146,10 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
     })
 }
 
-/// The topology's flags; the PME keys are refused, since a topology's non-bonded term has
-/// no PME yet.
-fn topology_flags(flags: &SceneFlags) -> Result<TopologyFlags> {
-    let coulomb = flags.electrostatics.coulomb.clone();
-    let pme_only = ElectrostaticsOverrides {
-        coulomb: None,
-        ..flags.electrostatics.clone()
-    };
-    if coulomb.as_deref() == Some("pme") || !pme_only.is_empty() {
-        return Err(Error::input(
-            "a topology's non-bonded term has no PME in this version: give --coulomb \
-             reaction-field, dsf or none",
-        ));
-    }
-    Ok(TopologyFlags {
-        coordinates: flags.coordinates.clone(),
-        cutoff: flags.cutoff,
-        coulomb,
-        epsilon_rf: flags.epsilon_rf,
-    })
-}
-
 /// The scene a topology file stands for: `[topology]` with its coordinates (given, or
 /// beside it) and the flags, and the run defaults of a molecular system (impulse,
 /// h = 2 fs, 4 inner steps: bonded terms at 0.5 fs, non-bonded at 2 fs).
-pub fn topology_scene_text(path: &Path, flags: &TopologyFlags) -> Result<String> {
+pub fn topology_scene_text(path: &Path, flags: &SceneFlags) -> Result<String> {
     let absolute = |p: &Path| -> Result<String> {
         std::path::absolute(p)
             .map(|a| a.display().to_string())
@@ -210,9 +178,7 @@ pub fn topology_scene_text(path: &Path, flags: &TopologyFlags) -> Result<String>
     if let Some(cutoff) = flags.cutoff {
         topology.insert("cutoff".into(), cutoff.into());
     }
-    if let Some(coulomb) = &flags.coulomb {
-        topology.insert("coulomb".into(), coulomb.clone().into());
-    }
+    flags.electrostatics.write_to(&mut topology);
     if let Some(epsilon_rf) = flags.epsilon_rf {
         topology.insert("epsilon_rf".into(), epsilon_rf.into());
     }

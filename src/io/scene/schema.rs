@@ -137,6 +137,16 @@ pub struct TopologySpec {
     pub skin: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
     pub lj_shift: Option<bool>,
+    /// PME (`coulomb = "pme"`): as the `[forcefield]` keys of the same names.
+    pub ewald_tolerance: Option<f64>,
+    pub fourier_spacing: Option<f64>,
+    pub ewald_alpha: Option<crate::io::forcefield::InverseLength>,
+    pub pme_grid: Option<[usize; 3]>,
+    pub pme_order: Option<usize>,
+    /// The level of the `pme-reciprocal` term (default: the slowest).
+    pub pme_level: Option<usize>,
+    /// The level of the cutoff (real-space) term (default: the slowest).
+    pub nonbonded_level: Option<usize>,
 }
 
 /// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.

@@ -7,10 +7,13 @@ use super::molecule::Molecule;
 use super::particles::Start;
 use super::{Builder, SceneFile, Terms};
 use crate::error::{Error, Result};
+use crate::forces::ewald::EwaldRequest;
+use crate::io::forcefield::inverse_length;
 use crate::io::topology::inpcrd::{Coordinates, read_inpcrd};
 use crate::io::topology::prmtop::read_prmtop;
 use crate::io::topology::{Coulomb, NonbondedOptions, Topology, build_terms};
 use crate::system::PeriodicBox;
+use crate::units::Units;
 
 /// Extensions read as AMBER prmtop.
 pub const PRMTOP_EXTENSIONS: &[&str] = &["prmtop", "parm7", "top7"];
@@ -112,6 +115,13 @@ impl Builder<'_> {
             ),
             None => None,
         };
+        let alpha = match &spec.ewald_alpha {
+            Some(value) => Some(
+                inverse_length(value, Units::Real)
+                    .map_err(|e| self.error_at(offset, format!("[topology] ewald_alpha {e}")))?,
+            ),
+            None => None,
+        };
         let options = NonbondedOptions {
             cutoff: spec.cutoff,
             coulomb,
@@ -119,6 +129,15 @@ impl Builder<'_> {
             dsf_alpha: spec.dsf_alpha,
             skin: spec.skin,
             lj_shift: spec.lj_shift,
+            ewald: EwaldRequest {
+                tolerance: spec.ewald_tolerance,
+                spacing: spec.fourier_spacing,
+                alpha,
+                grid: spec.pme_grid,
+                order: spec.pme_order,
+            },
+            pme_level: spec.pme_level,
+            nonbonded_level: spec.nonbonded_level,
         };
         Ok(Some(Loaded {
             topology,

@@ -18,6 +18,7 @@ use std::collections::BTreeMap;
 use super::Topology;
 use crate::forces::angle::{AngleBend, HarmonicAngles};
 use crate::forces::coulomb::Coulomb as CoulombPair;
+use crate::forces::ewald::{EwaldParameters, EwaldRequest, PmeReciprocal, resolve};
 use crate::forces::lennard_jones::LennardJones;
 use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use crate::forces::pair::{Pair, PairTerm};
@@ -39,6 +40,8 @@ pub enum Coulomb {
     Plain,
     ReactionField,
     Dsf,
+    /// Smooth PME: Ewald real space in the cutoff term and the `pme-reciprocal` term.
+    Pme,
 }
 
 impl Coulomb {
@@ -48,9 +51,10 @@ impl Coulomb {
             "plain" | "none" => Ok(Coulomb::Plain),
             "reaction-field" => Ok(Coulomb::ReactionField),
             "dsf" => Ok(Coulomb::Dsf),
+            "pme" => Ok(Coulomb::Pme),
             other => Err(format!(
                 "coulomb \"{other}\" is not one of none (plain Coulomb without cutoff), \
-                 reaction-field, dsf"
+                 reaction-field, dsf, pme"
             )),
         }
     }
@@ -71,6 +75,12 @@ pub struct NonbondedOptions {
     /// Shift the Lennard-Jones energy to zero at the cutoff (the force is unchanged), so
     /// the energy does not jump as pairs cross it; default false, as OpenMM.
     pub lj_shift: Option<bool>,
+    /// PME's parameters (with `coulomb = pme`; the defaults of [`crate::forces::ewald`]).
+    pub ewald: EwaldRequest,
+    /// The level of the `pme-reciprocal` term (default: the slowest).
+    pub pme_level: Option<usize>,
+    /// The level of the cutoff term (default: the slowest).
+    pub nonbonded_level: Option<usize>,
 }
 
 /// The terms with what the scene needs besides them.
@@ -246,7 +256,7 @@ fn torsions(
 fn electrostatics(
     topology: &Topology,
     options: &NonbondedOptions,
-) -> Result<(Electrostatics, f64), String> {
+) -> Result<(Electrostatics, f64, Option<EwaldParameters>), String> {
     let periodic = topology.periodic_box.is_some();
     let coulomb = options
         .coulomb
@@ -276,7 +286,22 @@ fn electrostatics(
             );
         }
         Coulomb::Plain => f64::INFINITY,
+        Coulomb::Pme if !periodic => {
+            return Err("PME (coulomb = pme) needs a periodic box: the topology has none".into());
+        }
         _ => options.cutoff.unwrap_or(DEFAULT_CUTOFF),
+    };
+    let pme_only = options.ewald != EwaldRequest::default() || options.pme_level.is_some();
+    if coulomb != Coulomb::Pme && pme_only {
+        return Err(
+            "ewald_tolerance, fourier_spacing, ewald_alpha, pme_grid, pme_order and \
+                    pme_level are PME settings: they need coulomb = pme"
+                .into(),
+        );
+    }
+    let ewald = match coulomb {
+        Coulomb::Pme => Some(resolve(&options.ewald, cutoff, topology.periodic_box)?),
+        _ => None,
     };
     let form = match coulomb {
         Coulomb::Plain => Electrostatics::Plain,
@@ -286,8 +311,11 @@ fn electrostatics(
         Coulomb::Dsf => Electrostatics::DampedShiftedForce {
             alpha: options.dsf_alpha.unwrap_or(0.0),
         },
+        Coulomb::Pme => Electrostatics::Ewald {
+            alpha: ewald.map_or(0.0, |p| p.alpha),
+        },
     };
-    Ok((form, cutoff))
+    Ok((form, cutoff, ewald))
 }
 
 /// The cutoff term over every pair not excluded; returns its electrostatics.
@@ -298,7 +326,7 @@ fn nonbonded(
     terms: &mut Terms,
     report: &mut Vec<String>,
 ) -> Result<Electrostatics, String> {
-    let (electrostatics, cutoff) = electrostatics(topology, options)?;
+    let (electrostatics, cutoff, ewald) = electrostatics(topology, options)?;
     let skin = options.skin.unwrap_or(2.0);
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("skin must be ≥ 0, got {skin}"));
@@ -347,11 +375,33 @@ fn nonbonded(
         },
         electrostatics.describe()
     ));
+    let level = |l: Option<usize>| l.map_or(Assignment::Default, Assignment::Level);
     terms.push((
         "nonbonded".into(),
         Box::new(Nonbonded::new(spec, q)?),
-        Assignment::Default,
+        level(options.nonbonded_level),
     ));
+    if let (Some(params), Some(lengths)) = (ewald, topology.periodic_box) {
+        let charges = topology.atoms.iter().map(|a| a.charge).collect();
+        let term = PmeReciprocal::new(
+            params,
+            lengths,
+            COULOMB_KCAL_ANGSTROM,
+            charges,
+            &topology.exclusions,
+        )?;
+        report.push(format!(
+            "pme-reciprocal: {}; {} excluded pairs corrected (1-2, 1-3, 1-4: the 1-4 pairs' \
+             scaled Coulomb is in coulomb-14); term \"pme-reciprocal\"",
+            params.describe(),
+            topology.exclusions.len()
+        ));
+        terms.push((
+            "pme-reciprocal".into(),
+            Box::new(term),
+            level(options.pme_level),
+        ));
+    }
     Ok(electrostatics)
 }
 
