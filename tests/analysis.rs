@@ -433,3 +433,55 @@ fn analyze_rejects_missing_elements_files_and_mismatched_scenes() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("too few for 6 blocks"), "{stderr}");
 }
+
+/// A molecule in vacuum has no density for g(r): analyze leaves g(r) out unless pairs are
+/// asked for (it used to default to O–O and fail), and still reports the rest.
+#[test]
+fn analyze_in_vacuum_skips_the_default_pair_distribution() {
+    let out = scratch_dir("analyze-vacuum");
+    let out_arg = out.to_str().unwrap();
+    let (code, _, stderr) = run(&[
+        "run",
+        "systems/molecules/butane.toml",
+        "--method",
+        "verlet",
+        "--h",
+        "0.5fs",
+        "--t-end",
+        "50fs",
+        "--energy-every",
+        "1",
+        "--trajectory-every",
+        "1",
+        "--quiet",
+        "--out",
+        out_arg,
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let (code, stdout, stderr) = run(&[
+        "analyze",
+        "systems/molecules/butane.toml",
+        out_arg,
+        "--blocks",
+        "4",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+    let runs = json.as_array().map_or(&json, |a| &a[0]);
+    let rdf = &runs["rdf"];
+    assert!(
+        rdf.as_object().is_none_or(|m| m.is_empty()),
+        "no g(r) without a box: {rdf}"
+    );
+    // Asked for explicitly, it is an error naming the missing box.
+    let (code, _, stderr) = run(&[
+        "analyze",
+        "systems/molecules/butane.toml",
+        out_arg,
+        "--pairs",
+        "C-C",
+    ]);
+    assert_ne!(code, 0, "g(r) without a box must be refused");
+    assert!(stderr.contains("box"), "{stderr}");
+}

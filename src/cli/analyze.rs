@@ -29,8 +29,9 @@ pub struct AnalyzeArgs {
     /// Run directories, each with energy.csv and a trajectory.
     #[arg(required = true, value_name = "RUN_DIR")]
     pub runs: Vec<PathBuf>,
-    /// Element pairs for g(r), comma-separated, or "none".
-    #[arg(long, default_value = "O-O", value_delimiter = ',')]
+    /// Element pairs for g(r), comma-separated, or "none" (default: O-O in a periodic
+    /// box, none without one).
+    #[arg(long, value_delimiter = ',')]
     pub pairs: Vec<String>,
     /// Count pairs within one molecule in g(r) (default: only pairs in different molecules).
     #[arg(long)]
@@ -109,6 +110,12 @@ fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {
     let none = args.pairs.len() == 1 && args.pairs[0].trim() == "none";
     let pairs = if none {
         Vec::new()
+    } else if args.pairs.is_empty() {
+        // g(r) needs a density, which only a periodic box gives.
+        match scene.system.periodic_box {
+            Some(_) => vec![parse_pair("O-O")?],
+            None => Vec::new(),
+        }
     } else {
         args.pairs
             .iter()
