@@ -21,6 +21,7 @@ mod schema;
 mod sites;
 mod system;
 mod terms;
+mod molecular;
 mod topology;
 mod values;
 

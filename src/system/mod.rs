@@ -7,8 +7,11 @@
 //! for a banded non-diagonal mass matrix instead ([`MassMatrix`], the consistent P1 mass of
 //! MEMM18 3.3); then the masses are its diagonal and only methods that solve with it run.
 
+pub mod constraints;
 pub mod exact;
+pub mod hydrogen_mass;
 mod mass;
+pub mod topology;
 pub mod velocities;
 
 pub use crate::forces::PeriodicBox;
