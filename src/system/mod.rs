@@ -55,6 +55,10 @@ pub struct System {
     /// A non-diagonal mass matrix, when the scene gives one (`None`: `M` is diagonal and
     /// `inverse_mass` is `M⁻¹`). Its diagonal is `particles.masses`.
     pub mass_matrix: Option<MassMatrix>,
+    /// Rigid bonds and waters the integrator holds ([`constraints`]); `None`: none.
+    /// Their count comes off the degrees of freedom and the start velocities are drawn
+    /// on them.
+    pub constraints: Option<constraints::Constraints>,
 }
 
 impl System {
@@ -79,6 +83,7 @@ impl System {
             forces,
             periodic_box,
             mass_matrix: None,
+            constraints: None,
         }
     }
 

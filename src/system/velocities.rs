@@ -12,6 +12,9 @@
 //! counted, so an isolated molecule keeps the rotation its draw gave it (on average
 //! `k_B T / 2` per axis, a small part of `n_dof k_B T / 2` for all but the smallest).
 //!
+//! **Constraints** ([`super::constraints`]) each remove one more degree of freedom:
+//! `n_dof = dim·N − N_c − dim`, and a start at a temperature is projected onto them.
+//!
 //! **The kinetic temperature** is `T = 2K / (n_dof k_B)` (`k_B = 1` in a dimensionless
 //! scene, where a temperature is the number `k_B T`).
 
@@ -58,9 +61,10 @@ pub struct DegreesOfFreedom {
 }
 
 impl DegreesOfFreedom {
-    /// Without constraints: `dim·N − dim` or `dim·N`.
+    /// `dim·N − N_c − dim` or `dim·N − N_c`, with the system's constraints (if any).
     pub fn of(system: &System) -> Self {
-        Self::constrained(system, 0)
+        let n_constraints = system.constraints.as_ref().map_or(0, |c| c.count());
+        Self::constrained(system, n_constraints)
     }
 
     /// With `constraints` scalar constraints ([`Constraints::count`]), each removing one
@@ -171,8 +175,17 @@ pub struct ThermalStart {
 /// drawn in particle order on one thread; then the centre-of-mass momentum is removed
 /// when the forces conserve it, and the momenta are rescaled so the kinetic temperature
 /// is exactly `T` over [`DegreesOfFreedom::count`].
+/// With the system's own constraints ([`System::constraints`]) the draw is put on them as
+/// [`maxwell_boltzmann_constrained`] does.
 pub fn maxwell_boltzmann(system: &mut System, kt: f64, seed: u64) -> Result<ThermalStart> {
-    thermal_start(system, None, kt, seed)
+    match system.constraints.take() {
+        Some(mut constraints) => {
+            let start = thermal_start(system, Some(&mut constraints), kt, seed);
+            system.constraints = Some(constraints);
+            start
+        }
+        None => thermal_start(system, None, kt, seed),
+    }
 }
 
 /// [`maxwell_boltzmann`] on the constraint manifold: the draw, with the centre-of-mass

@@ -5,6 +5,8 @@ use serde_json::Value;
 
 use super::Scene;
 use crate::error::{Error, Result};
+use crate::settings::MethodSettings;
+use crate::system::constraints::Constraints;
 use crate::system::topology::{Angle, Bond, BondedTopology};
 
 impl Scene {
@@ -36,6 +38,76 @@ impl Scene {
             })
             .collect();
         BondedTopology::new(self.elements.clone(), bonds, angles)
+    }
+
+    /// What the settings ask of the molecule before a run: hydrogen mass repartitioning
+    /// (`hydrogen_mass`), then the constraints (`constraints`, `rigid_water`,
+    /// `constraint_tolerance`) built, the positions and momenta put on them, and attached
+    /// to the system ([`System::constraints`](crate::system::System)). What was done goes
+    /// into the force-field report (the run header and `check`).
+    pub fn apply_molecular_settings(
+        &mut self,
+        settings: &MethodSettings,
+        notices: &mut Vec<String>,
+    ) -> Result<()> {
+        if settings.hydrogen_mass.is_none() && !settings.constrained() {
+            return Ok(());
+        }
+        let topology = self.bonded_topology()?;
+        if let Some(mass) = settings.hydrogen_mass {
+            let report = self
+                .system
+                .repartition_hydrogen_mass(&topology, mass, self.units)?;
+            self.forcefield_report.extend(report.lines);
+        }
+        if !settings.constrained() {
+            return Ok(());
+        }
+        let system = &mut self.system;
+        let mut constraints = Constraints::from_topology(
+            &topology,
+            settings.constraints,
+            settings.rigid_water,
+            system.periodic_box,
+        )?;
+        if let Some(tolerance) = settings.constraint_tolerance {
+            constraints = constraints.with_tolerance(tolerance)?;
+        }
+        constraints.check_masses(&system.inverse_mass)?;
+        let (state, w) = (&mut system.state, &system.inverse_mass);
+        let unsolvable = |e: crate::system::constraints::ConstraintFailure| {
+            Error::input(format!("the start positions cannot be constrained: {e}"))
+        };
+        constraints
+            .project_positions(&mut state.q, w)
+            .map_err(unsolvable)?;
+        constraints
+            .constrain_velocities(&state.q, &mut state.p, w)
+            .map_err(unsolvable)?;
+        if constraints.is_empty() {
+            notices.push(format!(
+                "constraints {}{}: the scene has no such bond and no water, so nothing is \
+                 constrained",
+                settings.constraints.name(),
+                if settings.rigid_water {
+                    " with rigid water"
+                } else {
+                    ""
+                }
+            ));
+        }
+        self.forcefield_report.push(format!(
+            "constraints: {} ({} bonds by SHAKE/RATTLE, {} rigid waters by SETTLE: {} scalar \
+             constraints), relative tolerance {:e}; the start was put on them; constrained bonds \
+             keep their force-field terms, at their rest length (no force along them)",
+            settings.constraints.name(),
+            constraints.pairs().len(),
+            constraints.waters().len(),
+            constraints.count(),
+            constraints.tolerance()
+        ));
+        system.constraints = Some(constraints);
+        Ok(())
     }
 }
 

@@ -40,6 +40,7 @@ use std::fmt;
 use super::PeriodicBox;
 use super::topology::BondedTopology;
 use crate::error::{Error, Result};
+pub use crate::settings::ConstraintSet;
 
 /// The relative constraint tolerance used when none is given.
 pub const DEFAULT_TOLERANCE: f64 = 1e-8;
@@ -47,40 +48,6 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 /// SHAKE/RATTLE sweeps before a step is declared failed. A sweep over decoupled bonds
 /// converges in one; coupled all-bond networks of organic molecules in tens to hundreds.
 pub const DEFAULT_MAX_ITERATIONS: usize = 1000;
-
-/// Which bonds are constrained (`--constraints`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum ConstraintSet {
-    #[default]
-    None,
-    /// Every bond with a hydrogen at one end.
-    HBonds,
-    AllBonds,
-}
-
-impl ConstraintSet {
-    /// The names of the command line and scenes.
-    pub const NAMES: [&'static str; 3] = ["none", "h-bonds", "all-bonds"];
-
-    pub fn parse(text: &str) -> Result<Self, String> {
-        match text {
-            "none" => Ok(ConstraintSet::None),
-            "h-bonds" => Ok(ConstraintSet::HBonds),
-            "all-bonds" => Ok(ConstraintSet::AllBonds),
-            other => Err(format!(
-                "constraints must be one of none, h-bonds, all-bonds; got \"{other}\""
-            )),
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            ConstraintSet::None => "none",
-            ConstraintSet::HBonds => "h-bonds",
-            ConstraintSet::AllBonds => "all-bonds",
-        }
-    }
-}
 
 /// One constrained distance `|qᵢ − qⱼ| = length`.
 #[derive(Clone, Copy, Debug, PartialEq)]
