@@ -31,7 +31,7 @@ use super::innermost::InnermostStep;
 use super::integrator::{Integrator, StepFailure, drift, kick};
 use super::langevin::Langevin;
 use crate::error::{Error, Result};
-use crate::settings::MethodSettings;
+use crate::settings::{ConstraintSet, MethodSettings};
 use crate::system::System;
 use crate::system::constraints::ConstraintFailure;
 
@@ -90,17 +90,21 @@ pub fn build(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
                 step("langevin-respa", Flight::Baoab(langevin)),
             )?))
         }
-        other => Err(Error::input(format!(
-            "{other} does not run with constraints (--constraints {}{}): constraints are \
-             applied on the innermost level of {}; run one of those, or drop the constraints",
-            settings.constraints.name(),
+        other => {
+            let mut asked = Vec::new();
+            if settings.constraints != ConstraintSet::None {
+                asked.push(format!("constraints = {}", settings.constraints.name()));
+            }
             if settings.rigid_water {
-                ", --rigid-water"
-            } else {
-                ""
-            },
-            CONSTRAINED_METHODS.join(", ")
-        ))),
+                asked.push("rigid_water".to_string());
+            }
+            Err(Error::input(format!(
+                "{other} does not run with constraints ({}): constraints act on the innermost \
+                 level of {} only; run one of those, or drop the constraints",
+                asked.join(", "),
+                CONSTRAINED_METHODS.join(", ")
+            )))
+        }
     }
 }
 
