@@ -75,47 +75,8 @@ pub(super) fn positions(
     let frame = |v: &V3| V3::new(v.dot(&x), v.dot(&y), v.dot(&z));
     let (b0, c0) = (frame(&b0), frame(&c0));
     let (a1, b1, c1) = (frame(&a1), frame(&b1), frame(&c1));
-    // The canonical triangle.
-    let rc = 0.5 * water.hh;
-    let height = (water.oh * water.oh - rc * rc).sqrt();
-    let ra = 2.0 * m_h * height / total;
-    let rb = height - ra;
-    let sin_phi = a1.z / ra;
-    if sin_phi.abs() >= 1.0 {
-        return Err(failure(water, "oxygen moved out of the plane beyond reach"));
-    }
-    let cos_phi = (1.0 - sin_phi * sin_phi).sqrt();
-    let sin_psi = (b1.z - c1.z) / (2.0 * rc * cos_phi);
-    if sin_psi.abs() >= 1.0 {
-        return Err(failure(
-            water,
-            "hydrogens moved out of the plane beyond reach",
-        ));
-    }
-    let cos_psi = (1.0 - sin_psi * sin_psi).sqrt();
-    // Tilted by φ and ψ, before the in-plane turn θ.
-    let a2 = V3::new(0.0, ra * cos_phi, ra * sin_phi);
-    let b2 = V3::new(
-        -rc * cos_psi,
-        -rb * cos_phi - rc * sin_psi * sin_phi,
-        -rb * sin_phi + rc * sin_psi * cos_phi,
-    );
-    let c2 = V3::new(
-        rc * cos_psi,
-        -rb * cos_phi + rc * sin_psi * sin_phi,
-        -rb * sin_phi - rc * sin_psi * cos_phi,
-    );
-    // Zero torque of the in-plane constraint displacements about the old positions.
-    let alpha = b2.x * (b0.x - c0.x) + b0.y * b2.y + c0.y * c2.y;
-    let beta = b2.x * (c0.y - b0.y) + b0.x * b2.y + c0.x * c2.y;
-    let gamma = b0.x * b1.y - b1.x * b0.y + c0.x * c1.y - c1.x * c0.y;
-    let norm2 = alpha * alpha + beta * beta;
-    let discriminant = norm2 - gamma * gamma;
-    if !(discriminant >= 0.0 && norm2 > 0.0) {
-        return Err(failure(water, "turned in its plane beyond reach"));
-    }
-    let sin_theta = (alpha * gamma - beta * discriminant.sqrt()) / norm2;
-    let cos_theta = (1.0 - sin_theta * sin_theta).sqrt();
+    let [a2, b2, c2] = tilted_triangle(water, m_o, m_h, [a1.z, b1.z, c1.z])?;
+    let (sin_theta, cos_theta) = in_plane_turn(water, [b0, c0], [b1, c1], [b2, c2])?;
     let turn = |v: V3| {
         V3::new(
             v.x * cos_theta - v.y * sin_theta,
@@ -134,6 +95,69 @@ pub(super) fn positions(
         }
     }
     Ok(())
+}
+
+/// The canonical triangle (oxygen at `(0, r_a, 0)`, hydrogens at `(∓r_c, −r_b, 0)` about the
+/// centre of mass) tilted by φ about x and ψ about y so that its out-of-plane coordinates
+/// are `z = [z_O, z_H₁, z_H₂]` (MK92 (A1)–(A3)).
+fn tilted_triangle(
+    water: &RigidWater,
+    m_o: f64,
+    m_h: f64,
+    z: [f64; 3],
+) -> Result<[V3; 3], ConstraintFailure> {
+    let rc = 0.5 * water.hh;
+    let height = (water.oh * water.oh - rc * rc).sqrt();
+    let ra = 2.0 * m_h * height / (m_o + 2.0 * m_h);
+    let rb = height - ra;
+    let sin_phi = z[0] / ra;
+    if sin_phi.abs() >= 1.0 {
+        return Err(failure(water, "oxygen moved out of the plane beyond reach"));
+    }
+    let cos_phi = (1.0 - sin_phi * sin_phi).sqrt();
+    let sin_psi = (z[1] - z[2]) / (2.0 * rc * cos_phi);
+    if sin_psi.abs() >= 1.0 {
+        return Err(failure(
+            water,
+            "hydrogens moved out of the plane beyond reach",
+        ));
+    }
+    let cos_psi = (1.0 - sin_psi * sin_psi).sqrt();
+    Ok([
+        V3::new(0.0, ra * cos_phi, ra * sin_phi),
+        V3::new(
+            -rc * cos_psi,
+            -rb * cos_phi - rc * sin_psi * sin_phi,
+            -rb * sin_phi + rc * sin_psi * cos_phi,
+        ),
+        V3::new(
+            rc * cos_psi,
+            -rb * cos_phi + rc * sin_psi * sin_phi,
+            -rb * sin_phi - rc * sin_psi * cos_phi,
+        ),
+    ])
+}
+
+/// `(sin θ, cos θ)` of the in-plane turn: zero torque of the in-plane constraint
+/// displacements about the old positions, `α sin θ + β cos θ = γ` (MK92 (A8)–(A10)), the
+/// root near `θ = 0`. `old` are the old hydrogens relative to the old oxygen, `new` the
+/// new ones and `tilted` the tilted triangle's, relative to the new centre of mass.
+fn in_plane_turn(
+    water: &RigidWater,
+    [b0, c0]: [V3; 2],
+    [b1, c1]: [V3; 2],
+    [b2, c2]: [V3; 2],
+) -> Result<(f64, f64), ConstraintFailure> {
+    let alpha = b2.x * (b0.x - c0.x) + b0.y * b2.y + c0.y * c2.y;
+    let beta = b2.x * (c0.y - b0.y) + b0.x * b2.y + c0.x * c2.y;
+    let gamma = b0.x * b1.y - b1.x * b0.y + c0.x * c1.y - c1.x * c0.y;
+    let norm2 = alpha * alpha + beta * beta;
+    let discriminant = norm2 - gamma * gamma;
+    if !(discriminant >= 0.0 && norm2 > 0.0) {
+        return Err(failure(water, "turned in its plane beyond reach"));
+    }
+    let sin_theta = (alpha * gamma - beta * discriminant.sqrt()) / norm2;
+    Ok((sin_theta, (1.0 - sin_theta * sin_theta).sqrt()))
 }
 
 /// Project one water's momenta at rigid positions `q` so no distance in it changes.
