@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 mod bonds;
 mod fields;
+mod molecular;
 mod molecule;
 mod pairs;
 mod particles;
@@ -21,7 +22,6 @@ mod schema;
 mod sites;
 mod system;
 mod terms;
-mod molecular;
 mod topology;
 mod values;
 
