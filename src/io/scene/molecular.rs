@@ -97,10 +97,15 @@ impl Scene {
             ));
         }
         self.forcefield_report.push(format!(
-            "constraints: {} ({} bonds by SHAKE/RATTLE, {} rigid waters by SETTLE: {} scalar \
+            "constraints: {}{} ({} bonds by SHAKE/RATTLE, {} rigid waters by SETTLE: {} scalar \
              constraints), relative tolerance {:e}; the start was put on them; constrained bonds \
              keep their force-field terms, at their rest length (no force along them)",
             settings.constraints.name(),
+            if settings.rigid_water {
+                " + rigid water"
+            } else {
+                ""
+            },
             constraints.pairs().len(),
             constraints.waters().len(),
             constraints.count(),
