@@ -820,3 +820,31 @@ fn hydrogen_mass_repartitioning_makes_four_femtoseconds_conserve_energy() {
     assert_eq!(without["exceeded"], true, "{without}");
     assert_eq!(without["resolved"], true, "{without}");
 }
+
+#[test]
+fn a_topology_file_gives_its_bonds_and_waters_to_the_constraints() {
+    // The solvated alanine dipeptide from its AMBER prmtop: 12 bonds to hydrogen in the
+    // peptide, 423 TIP3P waters (listed with an H–H bond, whose rest length SETTLE uses).
+    let scene = scene_file("systems/alanine-dipeptide-amber/ala2-solvated.toml", &[]);
+    let constraints = constraints_of(&scene, ConstraintSet::HBonds, true);
+    assert_eq!(constraints.pairs().len(), 12);
+    assert_eq!(constraints.waters().len(), 423);
+    assert_eq!(constraints.count(), 12 + 3 * 423);
+    let mut q = scene.system.state.q.clone();
+    constraints
+        .project_positions(&mut q, &scene.system.inverse_mass)
+        .unwrap();
+    let violation = constraints.max_violation(&q);
+    assert!(
+        violation <= constraints.tolerance() * (1.0 + 1e-6),
+        "{violation:e}"
+    );
+    // HMR on the peptide in vacuum: 12 hydrogens on 4 carbons and 2 nitrogens.
+    let mut vacuum = scene_file("systems/alanine-dipeptide-amber/ala2.toml", &[]);
+    let topology = vacuum.bonded_topology().unwrap();
+    let report = vacuum
+        .system
+        .repartition_hydrogen_mass(&topology, 3.0, vacuum.units)
+        .unwrap();
+    assert_eq!((report.hydrogens, report.heavy_atoms), (12, 6));
+}

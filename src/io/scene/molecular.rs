@@ -14,11 +14,15 @@ impl Scene {
     /// with the rest lengths and angles its bonded terms use. Only a molecular scene (a
     /// `[forcefield]` over a `[structure]`) has one.
     pub fn bonded_topology(&self) -> Result<BondedTopology> {
+        if let Some(bonded) = &self.bonded {
+            return Ok(bonded.clone());
+        }
         let Some(parameters) = &self.forcefield_parameters else {
             return Err(Error::Scene {
                 location: self.path.display().to_string(),
                 message: "constraints and hydrogen_mass need a molecular scene: a \
-                          [forcefield] over the atoms of a [structure] (its bonds and elements)"
+                          [forcefield] over the atoms of a [structure], or a [topology] (its \
+                          bonds and elements)"
                     .into(),
             });
         };
