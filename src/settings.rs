@@ -102,6 +102,41 @@ impl Value {
     }
 }
 
+/// Which bonds are constrained (`--constraints`, scene key `constraints`): as OpenMM's
+/// `constraints=None|HBonds|AllBonds`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ConstraintSet {
+    #[default]
+    None,
+    /// Every bond with a hydrogen at one end.
+    HBonds,
+    AllBonds,
+}
+
+impl ConstraintSet {
+    /// The names of the command line and scenes.
+    pub const NAMES: [&'static str; 3] = ["none", "h-bonds", "all-bonds"];
+
+    pub fn parse(text: &str) -> Result<Self, String> {
+        match text {
+            "none" => Ok(ConstraintSet::None),
+            "h-bonds" => Ok(ConstraintSet::HBonds),
+            "all-bonds" => Ok(ConstraintSet::AllBonds),
+            other => Err(format!(
+                "constraints must be one of none, h-bonds, all-bonds; got \"{other}\""
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ConstraintSet::None => "none",
+            ConstraintSet::HBonds => "h-bonds",
+            ConstraintSet::AllBonds => "all-bonds",
+        }
+    }
+}
+
 /// The `[run]` table of a scene, and the same settings as `longstep run` flags.
 /// Everything is optional: the command line overrides the scene, field by field.
 #[derive(Args, Clone, Debug, Default, Deserialize)]
@@ -193,6 +228,21 @@ pub struct RunSpec {
     /// projection (the older literature's; does not conserve).
     #[arg(long)]
     pub molly_jacobian: Option<String>,
+    /// Constrained bonds: none, h-bonds (bonds to hydrogen) or all-bonds, held at their
+    /// force-field rest lengths by SHAKE/RATTLE (verlet, impulse, langevin-respa).
+    #[arg(long)]
+    pub constraints: Option<String>,
+    /// Rigid three-site water (SETTLE), whatever --constraints says; `--rigid-water` alone
+    /// means true.
+    #[arg(long, num_args = 0..=1, default_missing_value = "true", value_name = "BOOL")]
+    pub rigid_water: Option<bool>,
+    /// Relative tolerance of the SHAKE/RATTLE iterations (default 1e-8).
+    #[arg(long, allow_negative_numbers = true)]
+    pub constraint_tolerance: Option<Value>,
+    /// Hydrogen mass repartitioning: every hydrogen bonded to a heavy atom (water aside)
+    /// gets this mass (`3amu`), taken from its heavy atom.
+    #[arg(long, allow_negative_numbers = true)]
+    pub hydrogen_mass: Option<Value>,
 }
 
 macro_rules! override_fields {
@@ -210,7 +260,8 @@ impl RunSpec {
         let mut merged = override_fields!(base, over;
             method, h, inner_steps, dt, t_end, blowup, level_steps, jacobian, quadrature, h_slow, h_fast,
             ratio, adaptive, control, h_min, h_max, block, tol, max_iter, temperature, seed,
-            friction, thermostats, tau, mollifier, molly_constraints, molly_jacobian);
+            friction, thermostats, tau, mollifier, molly_constraints, molly_jacobian, constraints,
+            rigid_water, constraint_tolerance, hydrogen_mass);
         if other.inner_steps.is_some() || other.dt.is_some() {
             merged.inner_steps = other.inner_steps;
             merged.dt = other.dt.clone();
@@ -298,8 +349,52 @@ impl RunSpec {
             mollifier: self.mollifier.clone(),
             molly_constraints: self.molly_constraints.clone(),
             molly_jacobian: self.molly_jacobian.clone(),
+            constraints: match &self.constraints {
+                Some(text) => ConstraintSet::parse(text).map_err(Error::input)?,
+                None => ConstraintSet::None,
+            },
+            rigid_water: self.rigid_water.unwrap_or(false),
+            constraint_tolerance: self.constraint_tolerance_of(parameters)?,
+            hydrogen_mass: self.hydrogen_mass_of(parameters, units)?,
             units,
         })
+    }
+
+    /// The relative constraint tolerance, in (0, 1).
+    fn constraint_tolerance_of(&self, parameters: &BTreeMap<String, f64>) -> Result<Option<f64>> {
+        let Some(value) = &self.constraint_tolerance else {
+            return Ok(None);
+        };
+        let tolerance = value.evaluate(parameters, "constraint_tolerance")?;
+        if !(tolerance > 0.0 && tolerance < 1.0) {
+            return Err(Error::input(format!(
+                "constraint_tolerance must lie between 0 and 1 (a relative error, e.g. 1e-8), \
+                 got {tolerance}"
+            )));
+        }
+        Ok(Some(tolerance))
+    }
+
+    /// The hydrogen mass in the scene's mass unit (`3amu` or `3` in a real scene), positive.
+    fn hydrogen_mass_of(
+        &self,
+        parameters: &BTreeMap<String, f64>,
+        units: crate::units::Units,
+    ) -> Result<Option<f64>> {
+        let Some(value) = &self.hydrogen_mass else {
+            return Ok(None);
+        };
+        let mass_units: &[(&str, f64)] = match units {
+            crate::units::Units::Real => &[("amu", 1.0), ("Da", 1.0)],
+            crate::units::Units::None => &[],
+        };
+        let mass = value.evaluate_time(parameters, "hydrogen_mass", mass_units)?;
+        if mass <= 0.0 {
+            return Err(Error::input(format!(
+                "hydrogen_mass must be positive, got {mass}"
+            )));
+        }
+        Ok(Some(mass))
     }
 
     /// The inner steps per outer step, from `inner_steps` or `dt` (not both).
@@ -422,6 +517,14 @@ pub struct MethodSettings {
     pub mollifier: Option<String>,
     pub molly_constraints: Option<String>,
     pub molly_jacobian: Option<String>,
+    /// Constrained bonds.
+    pub constraints: ConstraintSet,
+    /// Rigid three-site water (SETTLE).
+    pub rigid_water: bool,
+    /// Relative SHAKE/RATTLE tolerance (`None`: the default, 1e-8).
+    pub constraint_tolerance: Option<f64>,
+    /// Hydrogen mass repartitioning, in the scene's mass unit (amu in a real scene).
+    pub hydrogen_mass: Option<f64>,
     /// The scene's units, for `k_B` and for reports.
     pub units: crate::units::Units,
 }
@@ -440,6 +543,11 @@ impl MethodSettings {
             blowup: 10.0,
             ..Default::default()
         }
+    }
+
+    /// Whether the run holds constraints (bonds or rigid water).
+    pub fn constrained(&self) -> bool {
+        self.constraints != ConstraintSet::None || self.rigid_water
     }
 
     pub fn with_inner_steps(mut self, inner_steps: usize) -> Self {

@@ -9,6 +9,7 @@
 
 pub mod adaptive_verlet;
 pub mod async_pseudo_energy;
+pub mod constrained;
 pub mod equilibrium_molly;
 pub mod impulse;
 pub mod innermost;

@@ -149,6 +149,9 @@ pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box
     use impulse::Variant;
     use mollified::Average;
     let info = method_info(settings, notices)?;
+    if settings.constrained() {
+        return super::constrained::build(settings);
+    }
     let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
         let mollifier = averaging(settings, average)?;
         Ok(Box::new(Impulse::new(

@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 mod bonds;
 mod fields;
+mod molecular;
 mod molecule;
 mod pairs;
 mod particles;
@@ -69,6 +70,9 @@ pub struct Scene {
     pub forcefield_report: Vec<String>,
     /// Every force-field parameter per interaction (`None` without `[forcefield]`).
     pub forcefield_parameters: Option<serde_json::Value>,
+    /// Elements, bonds and angles with their rest values from a topology file (`None`
+    /// otherwise: a `[forcefield]` scene's come from `forcefield_parameters`).
+    pub bonded: Option<crate::system::topology::BondedTopology>,
     /// The `[structure] velocities` file the start momenta came from, if any.
     pub velocities_file: Option<PathBuf>,
 }
@@ -373,6 +377,7 @@ impl Builder<'_> {
             elements: molecule.elements,
             forcefield_report: molecule.report,
             forcefield_parameters: molecule.parameters,
+            bonded: molecule.bonded,
             velocities_file: structure_spec
                 .and_then(|s| s.velocities.as_ref())
                 .map(|v| self.path.parent().unwrap_or(Path::new(".")).join(v)),

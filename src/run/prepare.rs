@@ -81,6 +81,7 @@ pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
     check_seed_used(&settings, request.seed_source)?;
     let mut notices = Vec::new();
     set_precision(&scene, request.precision, &mut notices)?;
+    scene.apply_molecular_settings(&settings, &mut notices)?;
     let integrator =
         integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
     let start = start_velocities(&mut scene, &settings, &mut notices)?;

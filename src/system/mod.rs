@@ -7,8 +7,11 @@
 //! for a banded non-diagonal mass matrix instead ([`MassMatrix`], the consistent P1 mass of
 //! MEMM18 3.3); then the masses are its diagonal and only methods that solve with it run.
 
+pub mod constraints;
 pub mod exact;
+pub mod hydrogen_mass;
 mod mass;
+pub mod topology;
 pub mod velocities;
 
 pub use crate::forces::PeriodicBox;
@@ -52,6 +55,10 @@ pub struct System {
     /// A non-diagonal mass matrix, when the scene gives one (`None`: `M` is diagonal and
     /// `inverse_mass` is `M⁻¹`). Its diagonal is `particles.masses`.
     pub mass_matrix: Option<MassMatrix>,
+    /// Rigid bonds and waters the integrator holds ([`constraints`]); `None`: none.
+    /// Their count comes off the degrees of freedom and the start velocities are drawn
+    /// on them.
+    pub constraints: Option<constraints::Constraints>,
 }
 
 impl System {
@@ -76,6 +83,7 @@ impl System {
             forces,
             periodic_box,
             mass_matrix: None,
+            constraints: None,
         }
     }
 

@@ -12,6 +12,9 @@
 //! counted, so an isolated molecule keeps the rotation its draw gave it (on average
 //! `k_B T / 2` per axis, a small part of `n_dof k_B T / 2` for all but the smallest).
 //!
+//! **Constraints** ([`super::constraints`]) each remove one more degree of freedom:
+//! `n_dof = dim·N − N_c − dim`, and a start at a temperature is projected onto them.
+//!
 //! **The kinetic temperature** is `T = 2K / (n_dof k_B)` (`k_B = 1` in a dimensionless
 //! scene, where a temperature is the number `k_B T`).
 
@@ -20,6 +23,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 
 use super::System;
+use super::constraints::Constraints;
 use crate::error::{Error, Result};
 
 /// The seed used when none is given (`--seed`, `[run] seed`), so a run is reproducible by
@@ -47,16 +51,28 @@ pub fn fill_normal(rng: &mut Xoshiro256PlusPlus, out: &mut [f64]) {
 /// The degrees of freedom a kinetic temperature is counted over.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DegreesOfFreedom {
-    /// `dim·N − dim` when the total momentum is conserved (and removed), else `dim·N`.
+    /// `dim·N − N_c − dim` when the total momentum is conserved (and removed), else
+    /// `dim·N − N_c`, with `N_c` scalar constraints.
     pub count: usize,
     /// Whether the forces conserve the total momentum (no anchors, no external field).
     pub momentum_conserved: bool,
+    /// The scalar constraints `N_c` (one per rigid bond, three per rigid water).
+    pub constraints: usize,
 }
 
 impl DegreesOfFreedom {
+    /// `dim·N − N_c − dim` or `dim·N − N_c`, with the system's constraints (if any).
     pub fn of(system: &System) -> Self {
+        let n_constraints = system.constraints.as_ref().map_or(0, |c| c.count());
+        Self::constrained(system, n_constraints)
+    }
+
+    /// With `constraints` scalar constraints ([`Constraints::count`]), each removing one
+    /// degree of freedom: `dim·N − N_c − dim` (or `dim·N − N_c`). Constraint forces are
+    /// internal, so they conserve the total momentum and do not change which case holds.
+    pub fn constrained(system: &System, constraints: usize) -> Self {
         let momentum_conserved = momentum_is_conserved(system);
-        let all = system.n_dofs();
+        let all = system.n_dofs().saturating_sub(constraints);
         let count = if momentum_conserved {
             all.saturating_sub(system.dim)
         } else {
@@ -65,6 +81,7 @@ impl DegreesOfFreedom {
         DegreesOfFreedom {
             count,
             momentum_conserved,
+            constraints,
         }
     }
 
@@ -79,15 +96,20 @@ impl DegreesOfFreedom {
 
     /// How they are counted, for the run header.
     pub fn describe(&self, dim: usize, n_particles: usize) -> String {
+        let constraints = match self.constraints {
+            0 => String::new(),
+            n => format!(" − {n} constraints"),
+        };
         if self.momentum_conserved {
             format!(
-                "{} degrees of freedom ({dim}·{n_particles} − {dim}: centre-of-mass momentum removed)",
+                "{} degrees of freedom ({dim}·{n_particles}{constraints} − {dim}: centre-of-mass \
+                 momentum removed)",
                 self.count
             )
         } else {
             format!(
-                "{} degrees of freedom ({dim}·{n_particles}: anchors or external fields, the \
-                 momentum is not conserved and is not removed)",
+                "{} degrees of freedom ({dim}·{n_particles}{constraints}: anchors or external \
+                 fields, the momentum is not conserved and is not removed)",
                 self.count
             )
         }
@@ -153,7 +175,40 @@ pub struct ThermalStart {
 /// drawn in particle order on one thread; then the centre-of-mass momentum is removed
 /// when the forces conserve it, and the momenta are rescaled so the kinetic temperature
 /// is exactly `T` over [`DegreesOfFreedom::count`].
+/// With the system's own constraints ([`System::constraints`]) the draw is put on them as
+/// [`maxwell_boltzmann_constrained`] does.
 pub fn maxwell_boltzmann(system: &mut System, kt: f64, seed: u64) -> Result<ThermalStart> {
+    match system.constraints.take() {
+        Some(mut constraints) => {
+            let start = thermal_start(system, Some(&mut constraints), kt, seed);
+            system.constraints = Some(constraints);
+            start
+        }
+        None => thermal_start(system, None, kt, seed),
+    }
+}
+
+/// [`maxwell_boltzmann`] on the constraint manifold: the draw, with the centre-of-mass
+/// momentum removed, is projected onto the velocities that keep every constraint
+/// ([`Constraints::constrain_velocities`], the RATTLE projection, which leaves the total
+/// momentum alone), then rescaled to exactly `T` over the `dim·N − N_c (− dim)` degrees of
+/// freedom left. The positions must satisfy the constraints (see
+/// [`Constraints::constrain_positions`]).
+pub fn maxwell_boltzmann_constrained(
+    system: &mut System,
+    constraints: &mut Constraints,
+    kt: f64,
+    seed: u64,
+) -> Result<ThermalStart> {
+    thermal_start(system, Some(constraints), kt, seed)
+}
+
+fn thermal_start(
+    system: &mut System,
+    constraints: Option<&mut Constraints>,
+    kt: f64,
+    seed: u64,
+) -> Result<ThermalStart> {
     if !(kt.is_finite() && kt > 0.0) {
         return Err(Error::input(format!(
             "a temperature must be positive and finite, got k_B T = {kt}"
@@ -165,7 +220,8 @@ pub fn maxwell_boltzmann(system: &mut System, kt: f64, seed: u64) -> Result<Ther
              non-diagonal one (lump it with lump = true in [mass_matrix], or give its momenta)",
         ));
     }
-    let dofs = DegreesOfFreedom::of(system);
+    let n_constraints = constraints.as_ref().map_or(0, |c| c.count());
+    let dofs = DegreesOfFreedom::constrained(system, n_constraints);
     if dofs.count == 0 {
         return Err(Error::input(format!(
             "a temperature needs degrees of freedom to heat, and this scene has none ({} \
@@ -185,6 +241,11 @@ pub fn maxwell_boltzmann(system: &mut System, kt: f64, seed: u64) -> Result<Ther
     }
     if dofs.momentum_conserved {
         remove_centre_of_mass_momentum(p, masses, dim);
+    }
+    if let Some(constraints) = constraints {
+        constraints
+            .constrain_velocities(&system.state.q, p, &system.inverse_mass)
+            .map_err(|e| Error::input(format!("start velocities on the constraints: {e}")))?;
     }
     let kinetic = super::kinetic_energy(p, &system.inverse_mass);
     let target = 0.5 * dofs.count as f64 * kt;

@@ -6,6 +6,7 @@ use super::{Builder, OVERLAP_LIMIT, SceneFile, Terms};
 use crate::error::Result;
 use crate::io::forcefield::{FfAtom, ForcefieldInput, build_forcefield, closest_overlap};
 use crate::system::PeriodicBox;
+use crate::system::topology::BondedTopology;
 use crate::units::Units;
 
 /// What the force field adds to a scene besides its terms.
@@ -16,6 +17,9 @@ pub(super) struct Molecule {
     pub report: Vec<String>,
     /// Every force-field parameter per interaction (`None` without `[forcefield]`).
     pub parameters: Option<serde_json::Value>,
+    /// Elements, bonds and angles with their rest values, where the source gives them
+    /// directly (a topology file); a `[forcefield]` scene's come from `parameters`.
+    pub bonded: Option<BondedTopology>,
 }
 
 impl Builder<'_> {
@@ -34,6 +38,7 @@ impl Builder<'_> {
                 elements: start.names.clone(),
                 report: Vec::new(),
                 parameters: None,
+                bonded: None,
             });
         };
         let offset = ff.span().start;
@@ -89,6 +94,7 @@ impl Builder<'_> {
             elements: built.elements,
             report,
             parameters: Some(built.parameters),
+            bonded: None,
         })
     }
 }

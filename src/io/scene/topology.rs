@@ -13,6 +13,7 @@ use crate::io::topology::inpcrd::{Coordinates, read_inpcrd};
 use crate::io::topology::prmtop::read_prmtop;
 use crate::io::topology::{Coulomb, NonbondedOptions, Topology, build_terms};
 use crate::system::PeriodicBox;
+use crate::system::topology::{Angle as BondedAngle, Bond as BondedBond, BondedTopology};
 use crate::units::Units;
 
 /// Extensions read as AMBER prmtop.
@@ -175,10 +176,13 @@ impl Builder<'_> {
         );
         report.push("refused: nothing (the reader refuses CMAP, 10-12 terms, polarisabilities, extra points and non-orthogonal boxes by section)".into());
         terms.extend(built.terms);
+        let bonded = bonded_topology(&loaded.topology, &built.elements)
+            .map_err(|e| self.error_at(offset, format!("[topology] {e}")))?;
         Ok(Molecule {
             elements: built.elements,
             report,
             parameters: None,
+            bonded: Some(bonded),
         })
     }
 }
@@ -250,4 +254,29 @@ fn box_from_coordinates(
         topology.periodic_box = Some(lengths);
     }
     Ok(())
+}
+
+/// The topology's bonds and angles with their rest values, for constraints and hydrogen
+/// mass repartitioning ([`Scene::bonded_topology`](super::Scene::bonded_topology)).
+fn bonded_topology(topology: &Topology, elements: &[String]) -> Result<BondedTopology> {
+    let bonds = topology
+        .bonds
+        .iter()
+        .map(|b| BondedBond {
+            i: b.atoms[0],
+            j: b.atoms[1],
+            length: b.r0,
+        })
+        .collect();
+    let angles = topology
+        .angles
+        .iter()
+        .map(|a| BondedAngle {
+            i: a.atoms[0],
+            centre: a.atoms[1],
+            k: a.atoms[2],
+            theta0: a.theta0,
+        })
+        .collect();
+    BondedTopology::new(elements.to_vec(), bonds, angles)
 }

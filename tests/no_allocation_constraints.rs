@@ -1,0 +1,87 @@
+//! A constrained step allocates nothing: SETTLE works on the stack, SHAKE/RATTLE use the
+//! buffer of old bond vectors sized when the constraints are built, and the constrained
+//! innermost step sizes its copy of the positions in `setup`. A global counter (this file
+//! holds one test, so nothing else runs meanwhile) counts allocations on every thread.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use longstep::run::prepare::{RunRequest, prepare};
+use longstep::settings::{RunSpec, Value};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn constrained_steps_allocate_nothing() {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let probe = std::hint::black_box(vec![1.0f64; 16]);
+    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let cases = [
+        ("systems/water-box/scene.toml", "verlet", "none", true),
+        (
+            "systems/water-box/scene.toml",
+            "langevin-respa",
+            "none",
+            true,
+        ),
+        (
+            "systems/molecules/alanine-dipeptide.toml",
+            "impulse",
+            "all-bonds",
+            false,
+        ),
+    ];
+    for (scene, method, set, rigid_water) in cases {
+        let overrides = RunSpec {
+            method: Some(method.into()),
+            h: Some(Value::Expression("2fs".into())),
+            inner_steps: Some(2),
+            constraints: Some(set.into()),
+            rigid_water: Some(rigid_water),
+            temperature: Some(Value::Expression("300K".into())),
+            ..Default::default()
+        };
+        pool.install(|| {
+            let mut run = prepare(&RunRequest::new(Path::new(scene), &[], &overrides)).unwrap();
+            let system = &mut run.scene.system;
+            run.integrator.setup(system).unwrap();
+            // Warm up past the first neighbour-list rebuilds.
+            for _ in 0..40 {
+                run.integrator.step(system).unwrap();
+            }
+            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            for _ in 0..40 {
+                run.integrator.step(system).unwrap();
+            }
+            let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+            assert_eq!(
+                during, 0,
+                "{scene} {method}: {during} allocations in 40 steps"
+            );
+        });
+    }
+}
