@@ -11,7 +11,7 @@ use crate::io::energy_table::EnergyTable;
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
-use crate::run::prepare::{OutputPlan, RunRequest, check_run_table, prepare};
+use crate::run::prepare::{OutputPlan, RunRequest, check_scene, prepare};
 use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::split::ParticleClass;
@@ -74,6 +74,10 @@ pub struct CheckArgs {
     pub set: Vec<String>,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
+    /// Run settings checked as `run` would take them (and the constraints and hydrogen
+    /// masses they ask for, applied and reported); each overrides the scene's [run] table.
+    #[command(flatten)]
+    pub run: RunSpec,
 }
 
 /// How a run's energy drift is judged: fitted at the end of the run over the recorded
@@ -331,10 +335,16 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
 }
 
 pub fn check_command(args: &CheckArgs) -> Result<()> {
-    let scene = args.source.load(&args.scene, &args.set)?;
-    check_run_table(&scene)?;
+    let request = RunRequest {
+        flags: args.source.flags()?,
+        ..RunRequest::new(&args.scene, &args.set, &args.run)
+    };
+    let (scene, notices) = check_scene(&request)?;
     for line in &scene.forcefield_report {
         println!("{line}");
+    }
+    for notice in &notices {
+        println!("notice: {notice}");
     }
     let system = &scene.system;
     println!("scene      {} — {}", scene.name, scene.description);

@@ -235,6 +235,25 @@ fn start_positions(scene: &mut Scene, path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The scene `longstep check` shows: loaded with the command line's flags, its `[run]`
+/// table checked, and what `overrides` (with the table) ask of the molecule before a run —
+/// hydrogen masses, constraints — applied, as a run would; the notices that gives. A
+/// missing `h` is stood in for as in [`check_run_table`].
+pub fn check_scene(request: &RunRequest) -> Result<(Scene, Vec<String>)> {
+    let mut scene = load_scene_with(request.scene, &request.flags, request.set)?;
+    check_run_table(&scene)?;
+    let mut spec = scene.run.overridden_by(request.overrides);
+    if spec.h.is_none() {
+        spec.h = Some(spec.dt.clone().unwrap_or(Value::Number(1.0)));
+    }
+    let settings = spec
+        .resolve_with_units(&scene.parameters, scene.units)
+        .map_err(|e| blame_run_table(&scene, e))?;
+    let mut notices = Vec::new();
+    scene.apply_molecular_settings(&settings, &mut notices)?;
+    Ok((scene, notices))
+}
+
 /// Check the scene's own `[run]` table as a run would use it; a missing `h` (it may come
 /// from the command line) is stood in for by the inner step or 1.
 pub fn check_run_table(scene: &Scene) -> Result<()> {
