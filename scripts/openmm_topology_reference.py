@@ -32,6 +32,11 @@ A second tool chain: the shipped systems are ParmEd's writing of OpenMM's ForceF
 tool) is copied next to them as ala2-tleap.prmtop/.inpcrd and checked the same way
 (tests/data/openmm-ala2-tleap.json).
 
+The same systems as GROMACS top/gro (scripts/make_gromacs_topologies.py) go through OpenMM's
+GROMACS reader (app.GromacsTopFile with FLEXIBLE defined, so the water is flexible;
+app.GromacsGroFile: positions as the .gro prints them, 1e-3 nm) into
+tests/data/openmm-<name>-gromacs.json, in the same groups.
+
     pip install openmm parmed
     python3 scripts/openmm_topology_reference.py
     pip install --no-deps openmmtools && python3 scripts/openmm_topology_reference.py --other
@@ -77,6 +82,13 @@ def nonbonded_copy(force, charges, lj, pairs, exceptions):
     return copy
 
 
+# name -> (top, gro, periodic)
+SHIPPED_GROMACS = {
+    "ala2-gromacs": ("ala2.top", "ala2.gro", False),
+    "ala2-solvated-gromacs": ("ala2-solvated.top", "ala2-solvated.gro", True),
+}
+
+
 def build(prmtop, periodic):
     if periodic:
         system = prmtop.createSystem(nonbondedMethod=app.CutoffPeriodic,
@@ -90,6 +102,12 @@ def build(prmtop, periodic):
         kinds.setdefault(type(force).__name__, []).append(force)
     unknown = set(kinds) - {"HarmonicBondForce", "HarmonicAngleForce", "PeriodicTorsionForce",
                             "NonbondedForce", "CMMotionRemover"}
+    empty = {k for k in unknown if all(getattr(f, "getNumTorsions", lambda: 1)() == 0
+                                       for f in kinds[k])}
+    for name in empty:  # GromacsTopFile adds an RBTorsionForce even when it has no terms
+        for force in kinds[name]:
+            system.removeForce(list(system.getForces()).index(force))
+    unknown -= empty
     assert not unknown, f"forces this script does not split: {unknown}"
     (nb,) = kinds["NonbondedForce"]
     nb.setUseDispersionCorrection(False)
@@ -114,14 +132,22 @@ def build(prmtop, periodic):
 
 
 def evaluate(prmtop_path, inpcrd_path, periodic):
-    prmtop = app.AmberPrmtopFile(prmtop_path)
-    inpcrd = app.AmberInpcrdFile(inpcrd_path)
+    if prmtop_path.endswith(".top"):
+        gro = app.GromacsGroFile(inpcrd_path)
+        box = gro.getPeriodicBoxVectors() if periodic else None
+        prmtop = app.GromacsTopFile(prmtop_path, periodicBoxVectors=box,
+                                    defines={"FLEXIBLE": True})
+        positions, box_vectors = gro.positions, box
+    else:
+        prmtop = app.AmberPrmtopFile(prmtop_path)
+        inpcrd = app.AmberInpcrdFile(inpcrd_path)
+        positions, box_vectors = inpcrd.positions, inpcrd.boxVectors
     system = build(prmtop, periodic)
     platform = openmm.Platform.getPlatformByName("Reference")
     context = openmm.Context(system, openmm.VerletIntegrator(0.001), platform)
     if periodic:
-        context.setPeriodicBoxVectors(*inpcrd.boxVectors)
-    context.setPositions(inpcrd.positions)
+        context.setPeriodicBoxVectors(*box_vectors)
+    context.setPositions(positions)
 
     def energy(groups):
         state = context.getState(getEnergy=True, groups=groups)
@@ -148,8 +174,10 @@ def write(name, prmtop, inpcrd, periodic, source):
                                 periodic)
     record = {
         "system": name,
-        "prmtop": f"systems/alanine-dipeptide-amber/{prmtop}",
-        "inpcrd": f"systems/alanine-dipeptide-amber/{inpcrd}",
+        ("top" if prmtop.endswith(".top") else "prmtop"):
+            f"systems/alanine-dipeptide-amber/{prmtop}",
+        ("gro" if inpcrd.endswith(".gro") else "inpcrd"):
+            f"systems/alanine-dipeptide-amber/{inpcrd}",
         "source": source,
         "openmm": openmm.__version__,
         "platform": "Reference",
@@ -192,6 +220,9 @@ def main():
     for name, (prmtop, inpcrd, periodic) in SHIPPED.items():
         write(name, prmtop, inpcrd, periodic, "scripts/make_topologies.py (OpenMM ForceField "
               "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
+    for name, (top, gro, periodic) in SHIPPED_GROMACS.items():
+        write(name, top, gro, periodic, "scripts/make_gromacs_topologies.py (ParmEd's GROMACS "
+              "writing of the shipped prmtop), read by OpenMM's GromacsTopFile with FLEXIBLE")
     if args.other:
         other_tool()
 
