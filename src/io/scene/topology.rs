@@ -256,9 +256,7 @@ fn box_from_coordinates(
         });
     }
     let takes_box = topology.periodic_box.is_some() || topology.format == GROMACS_FORMAT;
-    if takes_box
-        && let Some(lengths) = coordinates.box_lengths
-    {
+    if takes_box && let Some(lengths) = coordinates.box_lengths {
         topology.periodic_box = Some(lengths);
     }
     Ok(())

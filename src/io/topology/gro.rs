@@ -70,7 +70,10 @@ pub fn parse_gro(text: &str, path: &Path) -> Result<(Coordinates, Vec<String>)> 
         return Err(error(
             path,
             lines.len(),
-            format!("{n} atoms and a box line announced, the file ends after {} lines", lines.len()),
+            format!(
+                "{n} atoms and a box line announced, the file ends after {} lines",
+                lines.len()
+            ),
         ));
     }
     let width = column_width(lines.get(2).copied().unwrap_or(""))
@@ -124,7 +127,10 @@ pub fn parse_gro(text: &str, path: &Path) -> Result<(Coordinates, Vec<String>)> 
 /// after column 20.
 fn column_width(line: &str) -> Option<usize> {
     let tail = line.get(20..)?;
-    let mut dots = tail.char_indices().filter(|(_, c)| *c == '.').map(|(k, _)| k);
+    let mut dots = tail
+        .char_indices()
+        .filter(|(_, c)| *c == '.')
+        .map(|(k, _)| k);
     let first = dots.next()?;
     let second = dots.next()?;
     Some(second - first)

@@ -235,12 +235,9 @@ fn defaults(parsed: &mut Parsed, f: &[String], at: &str) -> Result<()> {
             format!("[ defaults ] comb-rule {comb_rule}: not 1, 2 or 3"),
         ));
     }
-    let gen_pairs = f
-        .get(2)
-        .is_some_and(|g| g.eq_ignore_ascii_case("yes"));
-    let fudge = |k: usize, what: &str| -> Result<f64> {
-        f.get(k).map_or(Ok(1.0), |v| number(v, what, at))
-    };
+    let gen_pairs = f.get(2).is_some_and(|g| g.eq_ignore_ascii_case("yes"));
+    let fudge =
+        |k: usize, what: &str| -> Result<f64> { f.get(k).map_or(Ok(1.0), |v| number(v, what, at)) };
     parsed.defaults = Some(Defaults {
         comb_rule,
         gen_pairs,
@@ -262,7 +259,10 @@ fn atomtype(parsed: &mut Parsed, f: &[String], at: &str) -> Result<()> {
     if f[n - 3] != "A" {
         return Err(error(
             at,
-            format!("[ atomtypes ] ptype {}: only A (atom) is modelled", f[n - 3]),
+            format!(
+                "[ atomtypes ] ptype {}: only A (atom) is modelled",
+                f[n - 3]
+            ),
         ));
     }
     let middle = &f[1..n - 5];

@@ -20,8 +20,8 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 use super::{
-    Angle, Bond, DihedralTerm, LjTable, Pair14, Residue, Topology, TopologyAtom,
-    element_of_mass, element_of_number,
+    Angle, Bond, DihedralTerm, LjTable, Pair14, Residue, Topology, TopologyAtom, element_of_mass,
+    element_of_number,
 };
 use crate::error::Result;
 use directives::{AtomType, Defaults, Interaction, MoleculeType, Parsed, TypeEntry, error};
@@ -41,7 +41,10 @@ pub fn read_gromacs_top(path: &Path, defines: &[String]) -> Result<Topology> {
         .clone()
         .ok_or_else(|| error(&location, "no [ defaults ] directive"))?;
     if parsed.counts.is_empty() {
-        return Err(error(&location, "no [ molecules ]: the system has no atoms"));
+        return Err(error(
+            &location,
+            "no [ molecules ]: the system has no atoms",
+        ));
     }
     let mut topology = Topology {
         source: path.to_path_buf(),
@@ -168,7 +171,11 @@ impl Layout {
             pairs: Vec::new(),
             exclusions: Vec::new(),
         };
-        let type_names: Vec<&str> = molecule.atoms.iter().map(|a| a.type_name.as_str()).collect();
+        let type_names: Vec<&str> = molecule
+            .atoms
+            .iter()
+            .map(|a| a.type_name.as_str())
+            .collect();
         let ctx = Context {
             parsed,
             bond_types: &bond_types,
@@ -194,14 +201,18 @@ impl Layout {
     fn append(&self, topology: &mut Topology) {
         let o = topology.atoms.len();
         let r = topology.residues.len();
-        topology.atoms.extend(self.atoms.iter().map(|a| TopologyAtom {
-            residue: a.residue + r,
-            ..a.clone()
-        }));
-        topology.residues.extend(self.residues.iter().map(|res| Residue {
-            name: res.name.clone(),
-            first_atom: res.first_atom + o,
-        }));
+        topology
+            .atoms
+            .extend(self.atoms.iter().map(|a| TopologyAtom {
+                residue: a.residue + r,
+                ..a.clone()
+            }));
+        topology
+            .residues
+            .extend(self.residues.iter().map(|res| Residue {
+                name: res.name.clone(),
+                first_atom: res.first_atom + o,
+            }));
         let shift = |atoms: &[usize]| atoms.iter().map(|a| a + o).collect::<Vec<_>>();
         for b in &self.bonds {
             let a = shift(&b.atoms);
@@ -385,7 +396,10 @@ impl Context<'_> {
         if p.len() < n {
             return Err(error(
                 self.at(item),
-                format!("[ {what} ] function {}: needs {n} parameters", item.function),
+                format!(
+                    "[ {what} ] function {}: needs {n} parameters",
+                    item.function
+                ),
             ));
         }
         Ok(())
@@ -395,7 +409,9 @@ impl Context<'_> {
         if item.function != 1 {
             return Err(self.unsupported(item, "bonds"));
         }
-        let p = self.params(item, &self.parsed.bondtypes, &[1], "bond")?.remove(0);
+        let p = self
+            .params(item, &self.parsed.bondtypes, &[1], "bond")?
+            .remove(0);
         self.need(item, &p, 2, "bonds")?;
         Ok(harmonic_bond([item.atoms[0], item.atoms[1]], p[0], p[1]))
     }
@@ -505,7 +521,10 @@ impl Context<'_> {
 fn explicit_lj(comb: u32, v: f64, w: f64) -> (f64, f64) {
     let length6 = ANGSTROM_PER_NM.powi(6);
     if comb == 1 {
-        return (w * length6 * length6 / KJ_PER_KCAL, v * length6 / KJ_PER_KCAL);
+        return (
+            w * length6 * length6 / KJ_PER_KCAL,
+            v * length6 / KJ_PER_KCAL,
+        );
     }
     let s6 = (v * ANGSTROM_PER_NM).powi(6);
     let epsilon = w / KJ_PER_KCAL;
@@ -530,10 +549,7 @@ fn lookup<'t>(table: &'t [TypeEntry], names: &[&str], functions: &[u32]) -> Vec<
             return None;
         }
         let matches = |order: &mut dyn Iterator<Item = &&str>| {
-            e.types
-                .iter()
-                .zip(order)
-                .all(|(t, n)| t == "X" || t == *n)
+            e.types.iter().zip(order).all(|(t, n)| t == "X" || t == *n)
         };
         let fits = matches(&mut names.iter()) || matches(&mut names.iter().rev());
         fits.then(|| e.types.iter().filter(|t| *t != "X").count())
