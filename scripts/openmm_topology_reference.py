@@ -32,6 +32,11 @@ A second tool chain: the shipped systems are ParmEd's writing of OpenMM's ForceF
 tool) is copied next to them as ala2-tleap.prmtop/.inpcrd and checked the same way
 (tests/data/openmm-ala2-tleap.json).
 
+The same systems as GROMACS top/gro (scripts/make_gromacs_topologies.py) go through OpenMM's
+GROMACS reader (app.GromacsTopFile with FLEXIBLE defined, so the water is flexible;
+app.GromacsGroFile: positions as the .gro prints them, 1e-3 nm) into
+tests/data/openmm-<name>-gromacs.json, in the same groups.
+
     pip install openmm parmed
     python3 scripts/openmm_topology_reference.py
     pip install --no-deps openmmtools && python3 scripts/openmm_topology_reference.py --other
@@ -81,6 +86,13 @@ def nonbonded_copy(force, charges, lj, pairs, exceptions):
     return copy
 
 
+# name -> (top, gro, nonbonded method)
+SHIPPED_GROMACS = {
+    "ala2-gromacs": ("ala2.top", "ala2.gro", "vacuum"),
+    "ala2-solvated-gromacs": ("ala2-solvated.top", "ala2-solvated.gro", "reaction-field"),
+}
+
+
 def build(prmtop, method):
     if method == "pme":
         system = prmtop.createSystem(nonbondedMethod=app.PME,
@@ -98,6 +110,12 @@ def build(prmtop, method):
         kinds.setdefault(type(force).__name__, []).append(force)
     unknown = set(kinds) - {"HarmonicBondForce", "HarmonicAngleForce", "PeriodicTorsionForce",
                             "NonbondedForce", "CMMotionRemover"}
+    empty = {k for k in unknown if all(getattr(f, "getNumTorsions", lambda: 1)() == 0
+                                       for f in kinds[k])}
+    for name in empty:  # GromacsTopFile adds an RBTorsionForce even when it has no terms
+        for force in kinds[name]:
+            system.removeForce(list(system.getForces()).index(force))
+    unknown -= empty
     assert not unknown, f"forces this script does not split: {unknown}"
     (nb,) = kinds["NonbondedForce"]
     nb.setUseDispersionCorrection(False)
@@ -125,14 +143,22 @@ def build(prmtop, method):
 
 def evaluate(prmtop_path, inpcrd_path, method):
     periodic = method != "vacuum"
-    prmtop = app.AmberPrmtopFile(prmtop_path)
-    inpcrd = app.AmberInpcrdFile(inpcrd_path)
+    if prmtop_path.endswith(".top"):
+        gro = app.GromacsGroFile(inpcrd_path)
+        box = gro.getPeriodicBoxVectors() if periodic else None
+        prmtop = app.GromacsTopFile(prmtop_path, periodicBoxVectors=box,
+                                    defines={"FLEXIBLE": True})
+        positions, box_vectors = gro.positions, box
+    else:
+        prmtop = app.AmberPrmtopFile(prmtop_path)
+        inpcrd = app.AmberInpcrdFile(inpcrd_path)
+        positions, box_vectors = inpcrd.positions, inpcrd.boxVectors
     system = build(prmtop, method)
     platform = openmm.Platform.getPlatformByName("Reference")
     context = openmm.Context(system, openmm.VerletIntegrator(0.001), platform)
     if periodic:
-        context.setPeriodicBoxVectors(*inpcrd.boxVectors)
-    context.setPositions(inpcrd.positions)
+        context.setPeriodicBoxVectors(*box_vectors)
+    context.setPositions(positions)
 
     def energy(groups):
         state = context.getState(getEnergy=True, groups=groups)
@@ -168,8 +194,10 @@ def write(name, prmtop, inpcrd, method, source):
                                 method)
     record = {
         "system": name,
-        "prmtop": f"systems/alanine-dipeptide-amber/{prmtop}",
-        "inpcrd": f"systems/alanine-dipeptide-amber/{inpcrd}",
+        ("top" if prmtop.endswith(".top") else "prmtop"):
+            f"systems/alanine-dipeptide-amber/{prmtop}",
+        ("gro" if inpcrd.endswith(".gro") else "inpcrd"):
+            f"systems/alanine-dipeptide-amber/{inpcrd}",
         "source": source,
         "openmm": openmm.__version__,
         "platform": "Reference",
@@ -211,6 +239,9 @@ def main():
     for name, (prmtop, inpcrd, method) in SHIPPED.items():
         write(name, prmtop, inpcrd, method, "scripts/make_topologies.py (OpenMM ForceField "
               "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
+    for name, (top, gro, method) in SHIPPED_GROMACS.items():
+        write(name, top, gro, method, "scripts/make_gromacs_topologies.py (ParmEd's GROMACS "
+              "writing of the shipped prmtop), read by OpenMM's GromacsTopFile with FLEXIBLE")
     if args.other:
         other_tool()
 

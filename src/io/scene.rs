@@ -78,7 +78,7 @@ pub struct Scene {
 }
 
 /// Read and build a scene; `overrides` are `name=value` settings of its parameters. A
-/// topology file (`.prmtop`, [`is_topology_path`]) is read as the scene
+/// topology file (`.prmtop`, `.top`, [`is_topology_path`]) is read as the scene
 /// [`topology_scene_text`] writes for it, with the coordinates beside it.
 pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene> {
     load_scene_with_coordinates(path, None, overrides)
@@ -120,7 +120,7 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
     }
     if flags.coordinates.is_some() || flags.cutoff.is_some() || flags.epsilon_rf.is_some() {
         return Err(Error::input(format!(
-            "--coordinates, --cutoff and --epsilon-rf are for a topology file (.prmtop); {} \
+            "--coordinates, --cutoff and --epsilon-rf are for a topology file (.prmtop, .top); {} \
              is a scene, whose [topology] or [forcefield] says them",
             path.display()
         )));

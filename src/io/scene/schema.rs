@@ -119,10 +119,10 @@ pub struct SceneFile {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TopologySpec {
-    /// The topology (`.prmtop`, `.parm7`), relative to the scene file.
+    /// The topology (`.prmtop`, `.parm7`; GROMACS `.top`), relative to the scene file.
     pub file: String,
-    /// Its coordinates (`.inpcrd`, `.rst7`, `.crd`); default: the topology's name with one
-    /// of these extensions.
+    /// Its coordinates (`.inpcrd`, `.rst7`, `.crd`, `.gro`); default: the topology's name
+    /// with one of these extensions (`.gro` first for a `.top`).
     pub coordinates: Option<String>,
     /// Non-bonded cutoff (Å); default none in vacuum with plain Coulomb, else 9.
     pub cutoff: Option<f64>,
@@ -147,6 +147,9 @@ pub struct TopologySpec {
     pub pme_level: Option<usize>,
     /// The level of the cutoff (real-space) term (default: the slowest).
     pub nonbonded_level: Option<usize>,
+    /// A GROMACS topology's preprocessor defines (`"FLEXIBLE"`, `"NAME=value"`), as
+    /// `grompp`'s `define = -DFLEXIBLE`.
+    pub defines: Option<Vec<String>>,
 }
 
 /// `[mass_matrix]`: symmetric off-diagonal entries `M_ij = M_ji`, the same on every axis.

@@ -9,6 +9,8 @@ use super::{Builder, SceneFile, Terms};
 use crate::error::{Error, Result};
 use crate::forces::ewald::EwaldRequest;
 use crate::io::forcefield::inverse_length;
+use crate::io::topology::gro::read_gro_for;
+use crate::io::topology::gromacs::read_gromacs_top;
 use crate::io::topology::inpcrd::{Coordinates, read_inpcrd};
 use crate::io::topology::prmtop::read_prmtop;
 use crate::io::topology::{Coulomb, NonbondedOptions, Topology, build_terms};
@@ -18,21 +20,29 @@ use crate::units::Units;
 
 /// Extensions read as AMBER prmtop.
 pub const PRMTOP_EXTENSIONS: &[&str] = &["prmtop", "parm7", "top7"];
-/// Extensions of AMBER coordinates, tried in this order beside a topology.
-pub const COORDINATE_EXTENSIONS: &[&str] = &["inpcrd", "rst7", "crd"];
+/// Extensions read as a GROMACS topology.
+pub const GROMACS_EXTENSIONS: &[&str] = &["top"];
+/// Extensions of coordinates (AMBER's, then GROMACS's `.gro`), tried in this order beside
+/// an AMBER topology; a GROMACS topology tries `.gro` first.
+pub const COORDINATE_EXTENSIONS: &[&str] = &["inpcrd", "rst7", "crd", "gro"];
+
+fn extension_in(path: &Path, list: &[&str]) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| list.contains(&e.to_ascii_lowercase().as_str()))
+}
 
 /// Whether `path` names a topology file the scene loader reads in place of a scene.
 pub fn is_topology_path(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| PRMTOP_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+    extension_in(path, PRMTOP_EXTENSIONS) || extension_in(path, GROMACS_EXTENSIONS)
 }
 
 /// The coordinates beside a topology: its name with the first coordinate extension
-/// that exists.
+/// that exists (`.gro` first for a GROMACS topology).
 pub fn default_coordinates(topology: &Path) -> Option<PathBuf> {
-    COORDINATE_EXTENSIONS
-        .iter()
+    let gro_first = extension_in(topology, GROMACS_EXTENSIONS);
+    let gro = std::iter::once("gro").filter(|_| gro_first);
+    gro.chain(COORDINATE_EXTENSIONS.iter().copied())
         .map(|e| topology.with_extension(e))
         .find(|p| p.is_file())
 }
@@ -92,7 +102,8 @@ impl Builder<'_> {
         }
         let spec = spanned.get_ref();
         let path = self.beside_scene(&spec.file);
-        let mut topology = read_topology_file(&path)?;
+        let defines = spec.defines.clone().unwrap_or_default();
+        let mut topology = read_topology_file(&path, &defines)?;
         let coordinates_path = match &spec.coordinates {
             Some(c) => self.beside_scene(c),
             None => default_coordinates(&path).ok_or_else(|| {
@@ -174,7 +185,16 @@ impl Builder<'_> {
                 }
             ),
         );
-        report.push("refused: nothing (the reader refuses CMAP, 10-12 terms, polarisabilities, extra points and non-orthogonal boxes by section)".into());
+        report.push(if loaded.topology.format == GROMACS_FORMAT {
+            "refused: nothing (the reader refuses unknown directives, restraints, constraints, \
+             virtual sites, harmonic and Ryckaert-Bellemans dihedrals and triclinic boxes by \
+             file and line)"
+                .into()
+        } else {
+            "refused: nothing (the reader refuses CMAP, 10-12 terms, polarisabilities, extra \
+             points and non-orthogonal boxes by section)"
+                .into()
+        });
         terms.extend(built.terms);
         let bonded = bonded_topology(&loaded.topology, &built.elements)
             .map_err(|e| self.error_at(offset, format!("[topology] {e}")))?;
@@ -187,22 +207,28 @@ impl Builder<'_> {
     }
 }
 
-/// A topology file by its extension.
-fn read_topology_file(path: &Path) -> Result<Topology> {
+/// [`Topology::format`] of a GROMACS topology.
+const GROMACS_FORMAT: &str = "GROMACS top";
+
+/// A topology file by its extension (`defines`: a GROMACS topology's `-D` names).
+fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
     if !path.is_file() {
         return Err(Error::Topology {
             location: path.display().to_string(),
             message: "no such file".into(),
         });
     }
-    if is_topology_path(path) {
+    if extension_in(path, GROMACS_EXTENSIONS) {
+        read_gromacs_top(path, defines)
+    } else if extension_in(path, PRMTOP_EXTENSIONS) {
         read_prmtop(path)
     } else {
         Err(Error::Topology {
             location: path.display().to_string(),
             message: format!(
-                "not a topology format longstep reads (AMBER prmtop: {})",
-                PRMTOP_EXTENSIONS.join(", ")
+                "not a topology format longstep reads (AMBER prmtop: {}; GROMACS: {})",
+                PRMTOP_EXTENSIONS.join(", "),
+                GROMACS_EXTENSIONS.join(", ")
             ),
         })
     }
@@ -215,6 +241,9 @@ fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
             location: path.display().to_string(),
             message: "no such coordinate file".into(),
         });
+    }
+    if extension_in(path, &["gro"]) {
+        return read_gro_for(path, topology);
     }
     let coordinates = read_inpcrd(path)?;
     if coordinates.n_atoms() != topology.atoms.len() {
@@ -232,7 +261,8 @@ fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
 }
 
 /// A periodic topology takes the coordinates' box when they give one (a restart's current
-/// box); it must be orthogonal.
+/// box), a GROMACS topology (which has no box) the box of its coordinates; it must be
+/// orthogonal.
 fn box_from_coordinates(
     topology: &mut Topology,
     coordinates: &Coordinates,
@@ -248,9 +278,8 @@ fn box_from_coordinates(
             ),
         });
     }
-    if topology.periodic_box.is_some()
-        && let Some(lengths) = coordinates.box_lengths
-    {
+    let takes_box = topology.periodic_box.is_some() || topology.format == GROMACS_FORMAT;
+    if takes_box && let Some(lengths) = coordinates.box_lengths {
         topology.periodic_box = Some(lengths);
     }
     Ok(())

@@ -1,5 +1,6 @@
 //! Topologies: a user's complete force field read from a simulation package's files, one
-//! file per format ([`prmtop`]: AMBER prmtop; [`inpcrd`]: its coordinates), into one
+//! file per format ([`prmtop`]: AMBER prmtop; [`inpcrd`]: its coordinates; [`gromacs`]:
+//! GROMACS top/itp; [`gro`]: its coordinates), into one
 //! format-neutral [`Topology`], which [`build`] turns into longstep's force terms.
 //!
 //! Units are longstep's real units: Å, amu, kcal/mol, e, radians. Every interaction is
@@ -18,6 +19,8 @@
 
 pub mod build;
 mod fortran;
+pub mod gro;
+pub mod gromacs;
 pub mod inpcrd;
 pub mod prmtop;
 
