@@ -615,3 +615,66 @@ fn pme_gives_the_same_bits_on_one_and_two_threads() {
     };
     assert!(evaluate(1) == evaluate(2));
 }
+
+/// The drift verdict of a 0.5 ps NVE run of the PME water box with `flags`.
+fn pme_water_drift(name: &str, flags: &[&str]) -> serde_json::Value {
+    let out = common::scratch_dir(name);
+    let mut args = vec![
+        "run",
+        "systems/water-box/scene.toml",
+        "--coulomb",
+        "pme",
+        "--t-end",
+        "0.5ps",
+        "--json",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(flags);
+    let (code, stdout, stderr) = common::run_cli(&args);
+    assert_eq!(code, 0, "{flags:?}: {stderr}");
+    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON summary");
+    json["drift"].clone()
+}
+
+/// The reciprocal sum as its own level (GROMACS's `mts-level2-forces =
+/// longrange-nonbonded`, factor 2): impulse with the mesh every 2 inner steps of 0.5 fs
+/// keeps the energy as plain Verlet at 0.5 fs does, by the same drift criterion
+/// (|drift| ≤ 0.05 kT/ns/dof, or a change within twice the energy's fluctuation). A kick
+/// of the wrong length or a mesh force on the wrong level drifts far beyond both.
+#[test]
+fn reciprocal_sum_every_two_inner_steps_keeps_the_energy_as_verlet_does() {
+    let mts = pme_water_drift(
+        "pme-mts",
+        &[
+            "--nonbonded-level",
+            "0",
+            "--pme-level",
+            "1",
+            "--method",
+            "impulse",
+            "--h",
+            "1fs",
+            "--inner",
+            "2",
+        ],
+    );
+    let verlet = pme_water_drift("pme-verlet", &["--method", "verlet", "--h", "0.5fs"]);
+    for (label, drift) in [("impulse 1 fs / 2", &mts), ("verlet 0.5 fs", &verlet)] {
+        let exceeded = drift["exceeded"].as_bool().expect("exceeded");
+        let resolved = drift["resolved"].as_bool().expect("resolved");
+        assert!(
+            !(exceeded && resolved),
+            "{label}: a resolved drift beyond the bound: {drift}"
+        );
+    }
+    // Both fluctuate by the inner step's error, which the slow impulse barely adds to.
+    let fluctuation = |d: &serde_json::Value| d["fluctuation"].as_f64().expect("fluctuation");
+    assert!(
+        fluctuation(&mts) <= 2.0 * fluctuation(&verlet),
+        "impulse's energy fluctuates {} against Verlet's {}",
+        fluctuation(&mts),
+        fluctuation(&verlet)
+    );
+}
