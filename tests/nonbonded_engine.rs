@@ -20,7 +20,9 @@ use std::path::Path;
 
 use common::{TestRng, max_abs, max_abs_difference};
 use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
-use longstep::forces::simd::Isa;
+#[cfg(target_arch = "x86_64")]
+use longstep::forces::simd::{Avx2F32, Avx2F64, Avx512F32, Avx512F64};
+use longstep::forces::simd::{ERFC_X_MAX, Isa, Portable, Real, Simd, erfc_exp};
 use longstep::forces::{ForceTerm, Precision};
 use longstep::io::scene::{Scene, load_scene};
 
@@ -396,5 +398,115 @@ fn the_1728_water_box_gives_the_same_bits_on_one_and_two_threads() {
             one.1 == two.1,
             "{precision:?}: positions after 10 steps differ"
         );
+    }
+}
+
+/// `(erfc, e^{−x²})` of [`erfc_exp`] in the lanes of `s` at every `x` (as `S::R`), in f64.
+fn erfc_lanes<S: Simd>(s: S, xs: &[f64]) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(xs.len());
+    for chunk in xs.chunks(S::WIDTH) {
+        let mut lanes = [S::R::default(); 16];
+        for (k, &x) in chunk.iter().enumerate() {
+            lanes[k] = S::R::of(x);
+        }
+        let (erfc, gauss) = erfc_exp(s, s.load(&lanes));
+        let (mut e, mut g) = ([S::R::default(); 16], [S::R::default(); 16]);
+        s.store(erfc, &mut e);
+        s.store(gauss, &mut g);
+        out.extend((0..chunk.len()).map(|k| (e[k].to_f64(), g[k].to_f64())));
+    }
+    out
+}
+
+/// [`erfc_lanes`] on the instruction set `isa` in precision `R`.
+fn erfc_on<R: Real>(isa: Isa, xs: &[f64]) -> Vec<(f64, f64)>
+where
+    Portable<R>: Simd<R = R>,
+{
+    let wide = std::mem::size_of::<R>() == 8;
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY (all four): `Isa::run` asserts the instruction set is available.
+        Isa::Avx2 if wide => isa.run(|| erfc_lanes(unsafe { Avx2F64::new_unchecked() }, xs)),
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => isa.run(|| erfc_lanes(unsafe { Avx2F32::new_unchecked() }, xs)),
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 if wide => isa.run(|| erfc_lanes(unsafe { Avx512F64::new_unchecked() }, xs)),
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => isa.run(|| erfc_lanes(unsafe { Avx512F32::new_unchecked() }, xs)),
+        _ => erfc_lanes(Portable::<R>::new(), xs),
+    }
+}
+
+/// A dense grid of `x` over the fit's range, `[0, ERFC_X_MAX]` in steps of 1e-5, and a
+/// little beyond (clamped there).
+fn erfc_grid() -> Vec<f64> {
+    let n = (ERFC_X_MAX * 1e5).round() as usize;
+    (0..=n + 1000).map(|k| k as f64 * 1e-5).collect()
+}
+
+/// The lanes' erfc and Gaussian against libm over the dense grid, relative error.
+///
+/// Bounds, from the operations of `erfc_exp` (unit round-off `u`, 2⁻⁵³ or 2⁻²⁴): the
+/// fit's own error (1.4e-17 in double, 2.0e-9 in single: `scripts/fit_erfc.py`), Horner
+/// in fused multiply-adds on non-negative coefficients at `x ≥ 0` (`m u` for degree `m`:
+/// 8 + 9 u in double, 4 + 5 u in single), the division and the product with the
+/// Gaussian (2 u); the Gaussian: the reduction (2 u), the Taylor polynomial's Horner,
+/// its terms falling by ≥ 2.9× (2 u), its remainder (4.4e-18 and 5e-9), the scaling
+/// and the `x²` correction (2 u); libm's erfc and exp, at most 1 ulp (2 u). In all
+/// ≤ 27 u + fit: 3.0e-15 in double and 1.7e-6 + 7e-9 in single (`u = 6e-8`; 1.8e-6).
+/// Beyond the range the lanes hold the value at `ERFC_X_MAX` (not checked: the kernel
+/// computes in lanes only where `α r_c ≤ ERFC_X_MAX`).
+#[test]
+fn the_lanes_erfc_is_libm_s_within_its_bound() {
+    let xs = erfc_grid();
+    let inside = |x: f64| x <= ERFC_X_MAX;
+    for (wide, bound) in [(true, 3.0e-15), (false, 1.8e-6)] {
+        let lanes = if wide {
+            erfc_on::<f64>(Isa::Portable, &xs)
+        } else {
+            erfc_on::<f32>(Isa::Portable, &xs)
+        };
+        let (mut worst_erfc, mut worst_gauss) = (0.0f64, 0.0f64);
+        for (&x, &(erfc, gauss)) in xs.iter().zip(&lanes) {
+            if !inside(x) {
+                continue;
+            }
+            // The lanes' own argument (rounded to f32 in single), and e^{−x²} at it:
+            // e^{−t}(1 − δ) with t = x² rounded, δ its exact rounding error.
+            let x = if wide { x } else { x as f32 as f64 };
+            let t = x * x;
+            let delta = x.mul_add(x, -t);
+            let exact_gauss = libm::exp(-t) * (1.0 - delta);
+            worst_erfc = worst_erfc.max((erfc / libm::erfc(x) - 1.0).abs());
+            worst_gauss = worst_gauss.max((gauss / exact_gauss - 1.0).abs());
+        }
+        eprintln!("wide {wide}: max relative error erfc {worst_erfc:e}, exp {worst_gauss:e}");
+        assert!(
+            worst_erfc <= bound,
+            "wide {wide}: erfc off by {worst_erfc:e}"
+        );
+        assert!(
+            worst_gauss <= bound,
+            "wide {wide}: exp off by {worst_gauss:e}"
+        );
+    }
+}
+
+/// Every instruction set gives the portable lanes' bits of erfc and the Gaussian, in both
+/// precisions, over the dense grid and beyond the fit's range.
+#[test]
+fn the_lanes_erfc_is_the_same_bits_on_every_instruction_set() {
+    let xs = erfc_grid();
+    let bits = |v: &[(f64, f64)]| -> Vec<[u64; 2]> {
+        v.iter().map(|(a, b)| [a.to_bits(), b.to_bits()]).collect()
+    };
+    let (double, single) = (
+        bits(&erfc_on::<f64>(Isa::Portable, &xs)),
+        bits(&erfc_on::<f32>(Isa::Portable, &xs)),
+    );
+    for isa in Isa::available() {
+        assert_eq!(bits(&erfc_on::<f64>(isa, &xs)), double, "{isa:?} double");
+        assert_eq!(bits(&erfc_on::<f32>(isa, &xs)), single, "{isa:?} single");
     }
 }

@@ -44,7 +44,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::simd::Isa;
+use super::simd::{ERFC_X_MAX, Isa};
 use super::{ForceTerm, TermClass};
 
 mod engine;
@@ -172,6 +172,9 @@ struct DampedShiftedForce {
     e_shift: f64,
     /// `erfc(α r_c)/r_c² + 2α/√π exp(−α² r_c²)/r_c`.
     f_shift: f64,
+    /// `α r_c` within the SIMD erfc's range ([`ERFC_X_MAX`]): the kernel's lanes compute
+    /// erfc, else they go through libm lane by lane.
+    simd: bool,
 }
 
 impl DampedShiftedForce {
@@ -183,6 +186,7 @@ impl DampedShiftedForce {
             e_shift: erfc_rc / rc,
             f_shift: erfc_rc / (rc * rc)
                 + TWO_OVER_SQRT_PI * alpha * (-alpha * alpha * rc * rc).exp() / rc,
+            simd: alpha * rc <= ERFC_X_MAX,
         }
     }
 }
@@ -237,6 +241,8 @@ impl CoulombForm for ReactionField {
 #[derive(Clone, Copy)]
 struct EwaldReal {
     alpha: f64,
+    /// As [`DampedShiftedForce`]'s.
+    simd: bool,
 }
 
 impl CoulombForm for EwaldReal {
@@ -641,7 +647,10 @@ fn coulomb_kernel(electrostatics: Electrostatics, cutoff: f64) -> Result<Kernel,
             if !cutoff.is_finite() {
                 return Err("Ewald (PME) real space needs a cutoff".into());
             }
-            Kernel::Ewald(EwaldReal { alpha })
+            Kernel::Ewald(EwaldReal {
+                alpha,
+                simd: alpha * cutoff <= ERFC_X_MAX,
+            })
         }
     })
 }

@@ -10,7 +10,10 @@
 //! fused multiply-add (all correctly rounded; the portable path's `mul_add` is the same
 //! single rounding), and `1/√x` is Newton's iteration from a seed made by integer
 //! arithmetic on the bits (no approximate-reciprocal instruction, whose results differ
-//! between processors): each lane computes exactly what the portable path computes. The only
+//! between processors): each lane computes exactly what the portable path computes. So
+//! are [`exp_neg`] and [`erfc_exp`] (`e^{−t}` and erfc for the Ewald real space): range
+//! reduction, polynomials and a rational in those operations, `2ⁿ` by integer arithmetic
+//! on the bits. The only
 //! cross-lane operation, [`Simd::fold4`], folds a register to four lanes by adding its
 //! upper half to its lower half until four remain; together with the kernel's order of
 //! rows (rows 0, 2 summed first, then 1, 3: `(r₀ + r₂) + (r₁ + r₃)`) every width sums a
@@ -54,10 +57,27 @@ pub trait Real:
     /// `1/√x` within 3.5 %: the exponent halved and negated by integer arithmetic on the
     /// bits (Lomont's constants).
     fn rsqrt_seed(self) -> Self;
+    /// `1.5 · 2^p` (`p` the mantissa bits): `y + ROUND_MAGIC` rounds `y` to an integer `n`,
+    /// held in the low mantissa bits of the sum (for `|n| < 2^(p−1)`).
+    const ROUND_MAGIC: f64;
+    /// The largest `t` [`exp_neg`] takes: `2^n` of `e^{−t}` stays normal.
+    const EXP_T_MAX: f64;
+    /// Degree of the Taylor polynomial of `e^r` on `|r| ≤ ln 2 / 2` in [`exp_neg`].
+    const EXP_DEGREE: usize;
+    /// `2^n` from `self = n + ROUND_MAGIC`: the low bits of `self`, shifted into the exponent
+    /// field, plus the bias (exact integer arithmetic; `−bias < n ≤ bias`).
+    fn pow2_from_magic(self) -> Self;
 }
 
 impl Real for f64 {
     const NEWTON: usize = 4;
+    const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
+    const EXP_T_MAX: f64 = 708.0;
+    const EXP_DEGREE: usize = 13;
+    #[inline(always)]
+    fn pow2_from_magic(self) -> Self {
+        f64::from_bits((self.to_bits() << 52).wrapping_add(1023 << 52))
+    }
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
         f64::mul_add(self, b, c)
@@ -82,6 +102,13 @@ impl Real for f64 {
 
 impl Real for f32 {
     const NEWTON: usize = 3;
+    const ROUND_MAGIC: f64 = 12_582_912.0; // 1.5 · 2^23
+    const EXP_T_MAX: f64 = 87.0;
+    const EXP_DEGREE: usize = 7;
+    #[inline(always)]
+    fn pow2_from_magic(self) -> Self {
+        f32::from_bits((self.to_bits() << 23).wrapping_add(127 << 23))
+    }
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
         f32::mul_add(self, b, c)
@@ -131,6 +158,8 @@ pub trait Simd: Copy + Send + Sync {
     fn fms(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// [`Real::rsqrt_seed`] of each lane.
     fn rsqrt_seed(self, x: Self::V) -> Self::V;
+    /// [`Real::pow2_from_magic`] of each lane.
+    fn pow2_from_magic(self, y: Self::V) -> Self::V;
     /// `1/√x` to about one unit in the last place: Newton's step `y ← y (3/2 − (x/2) y²)`
     /// from the seed, the same operations on every path (no approximate-reciprocal
     /// instruction, whose results differ between processors).
@@ -174,6 +203,128 @@ pub fn row_lanes<S: Simd>(s: S, values: &[f64; 4], offset: f64, group: usize) ->
         a[k] = S::R::of(values[row::<S>(group, k)] + offset);
     }
     s.load(&a)
+}
+
+/// `e^{−t}` for `0 ≤ t` (clamped at [`Real::EXP_T_MAX`], where it is below 1e-307 in f64
+/// and 2e-38 in f32): `n = round(−t/ln 2)` by adding [`Real::ROUND_MAGIC`] in one fused
+/// multiply-add, the reduced `r = −t − n ln 2` by two fused steps (Cody & Waite's split of
+/// ln 2, here exact products in the fma), `e^r` by its Taylor polynomial of degree
+/// [`Real::EXP_DEGREE`] (remainder below `0.347^14/14! = 4.4e-18` in f64 and
+/// `0.347^8/8! = 5e-9` in f32) and `2^n` by integer arithmetic on the bits. Only
+/// correctly rounded operations: the same bits on every instruction set.
+#[inline(always)]
+pub fn exp_neg<S: Simd>(s: S, t: S::V) -> S::V {
+    let r = |x: f64| s.splat(S::R::of(x));
+    let t = s.select(s.less(r(S::R::EXP_T_MAX), t), r(S::R::EXP_T_MAX), t);
+    let ln2_hi = S::R::of(std::f64::consts::LN_2);
+    // ln 2 − ln2_hi: the f64 difference plus ln 2's own rounding error in f64.
+    let ln2_lo = (std::f64::consts::LN_2 - ln2_hi.to_f64()) + LN2_F64_ERROR;
+    let y = s.fnma(t, r(std::f64::consts::LOG2_E), r(S::R::ROUND_MAGIC));
+    let n = s.sub(y, r(S::R::ROUND_MAGIC));
+    let reduced = s.fnma(n, s.splat(ln2_hi), s.sub(r(0.0), t));
+    let reduced = s.fnma(n, r(ln2_lo), reduced);
+    let mut p = r(1.0 / factorial(S::R::EXP_DEGREE));
+    for k in (0..S::R::EXP_DEGREE).rev() {
+        p = s.fma(p, reduced, r(1.0 / factorial(k)));
+    }
+    s.mul(p, s.pow2_from_magic(y))
+}
+
+/// `ln 2 − fl₆₄(ln 2)`.
+const LN2_F64_ERROR: f64 = 2.319_046_813_846_299_6e-17;
+
+/// `k!` as a double (exact for the degrees used).
+#[inline(always)]
+const fn factorial(k: usize) -> f64 {
+    let mut f = 1.0;
+    let mut i = 2;
+    while i <= k {
+        f *= i as f64;
+        i += 1;
+    }
+    f
+}
+
+/// Largest argument of [`erfc_exp`]: the range of its fit (`scripts/fit_erfc.py`).
+pub const ERFC_X_MAX: f64 = 6.5;
+
+/// `erfcx(x) = e^{x²} erfc(x) ≈ P(x)/Q(x)` on `[0, 6.5]` in double, coefficients of
+/// `x⁰, x¹, …` from `python3 scripts/fit_erfc.py 8 6.5 f64`, which printed
+/// `m = 8, x_max = 6.5: max |P/Q / erfcx - 1| = 1.41e-17 exact, 9.04e-16 in float64 Horner`.
+const ERFCX_P64: [f64; 9] = [
+    1.0,
+    1.8815960140267078,
+    1.7644072431015372,
+    1.0389474834510497,
+    0.41463642394123335,
+    0.11419690481065771,
+    0.021184475475905407,
+    0.0024292458938850103,
+    0.0001330332605307374,
+];
+const ERFCX_Q64: [f64; 10] = [
+    1.0,
+    3.0099751811222246,
+    4.1608005309542,
+    3.476185717964869,
+    1.940553629958927,
+    0.753578754788258,
+    0.20456172029455857,
+    0.037666396758551886,
+    0.004305726443542722,
+    0.00023579531163551873,
+];
+/// As above for single precision: `python3 scripts/fit_erfc.py 4 6.5 f32`,
+/// `m = 4, x_max = 6.5: max |P/Q / erfcx - 1| = 2.0e-9 exact, 3.58e-7 in float32 Horner`.
+const ERFCX_P32: [f64; 5] = [
+    1.0000000020026314,
+    1.1968106201356192,
+    0.6888287489993737,
+    0.2091107506063759,
+    0.028670602082449273,
+];
+const ERFCX_Q32: [f64; 6] = [
+    1.0,
+    2.325190005822822,
+    2.312520876029662,
+    1.2456002992988735,
+    0.370692468481339,
+    0.05081556252399063,
+];
+
+/// `P(x)` by Horner's rule in fused multiply-adds.
+#[inline(always)]
+fn horner<S: Simd>(s: S, coefficients: &[f64], x: S::V) -> S::V {
+    let (last, rest) = coefficients.split_last().expect("a coefficient");
+    let mut p = s.splat(S::R::of(*last));
+    for &c in rest.iter().rev() {
+        p = s.fma(p, x, s.splat(S::R::of(c)));
+    }
+    p
+}
+
+/// `(erfc(x), e^{−x²})` for `0 ≤ x ≤` [`ERFC_X_MAX`] (larger `x` is clamped there):
+/// `erfc(x) = e^{−x²} · erfcx(x)` with the scaled function `erfcx` as the rational `P/Q`
+/// fitted by `scripts/fit_erfc.py` (degrees 8/9 in double, 4/5 in single), and `e^{−x²}`
+/// by [`exp_neg`] of `t = x²` corrected by the rounding error `δ = x² − t` (one fused
+/// multiply-subtract, exact): `e^{−t}(1 − δ)`. Relative error of both at the lanes' `x`,
+/// against libm on a dense grid (`tests/nonbonded_engine.rs`, which derives its bounds
+/// 3.0e-15 and 1.8e-6): see the measured figures in the kernel's module doc
+/// (`forces/nonbonded/kernel.rs`).
+#[inline(always)]
+pub fn erfc_exp<S: Simd>(s: S, x: S::V) -> (S::V, S::V) {
+    let x_max = s.splat(S::R::of(ERFC_X_MAX));
+    let x = s.select(s.less(x_max, x), x_max, x);
+    let t = s.mul(x, x);
+    let delta = s.fms(x, x, t);
+    let e = exp_neg(s, t);
+    let gauss = s.fnma(e, delta, e);
+    let (p, q) = if std::mem::size_of::<S::R>() == 8 {
+        (horner(s, &ERFCX_P64, x), horner(s, &ERFCX_Q64, x))
+    } else {
+        (horner(s, &ERFCX_P32, x), horner(s, &ERFCX_Q32, x))
+    };
+    (s.mul(gauss, s.div(p, q)), gauss)
 }
 
 /// The instruction set of the kernel.
@@ -336,6 +487,10 @@ impl<R: Real> Simd for Portable<R> {
     #[inline(always)]
     fn rsqrt_seed(self, x: [R; 4]) -> [R; 4] {
         std::array::from_fn(|k| x[k].rsqrt_seed())
+    }
+    #[inline(always)]
+    fn pow2_from_magic(self, y: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| y[k].pow2_from_magic())
     }
     #[inline(always)]
     fn less(self, a: [R; 4], b: [R; 4]) -> [bool; 4] {
@@ -510,6 +665,14 @@ mod x86 {
             }
         }
         #[inline(always)]
+        fn pow2_from_magic(self, y: __m256d) -> __m256d {
+            // SAFETY: the token proves the instruction set.
+            unsafe {
+                let low = _mm256_slli_epi64::<52>(_mm256_castpd_si256(y));
+                _mm256_castsi256_pd(_mm256_add_epi64(low, _mm256_set1_epi64x(1023 << 52)))
+            }
+        }
+        #[inline(always)]
         fn less(self, a: __m256d, b: __m256d) -> __m256d {
             // SAFETY: AVX2.
             unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(a, b) }
@@ -591,6 +754,14 @@ mod x86 {
                 let magic = _mm256_set1_epi32(super::RSQRT_MAGIC_F32 as i32);
                 let bits = _mm256_srli_epi32::<1>(_mm256_castps_si256(x));
                 _mm256_castsi256_ps(_mm256_sub_epi32(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, y: __m256) -> __m256 {
+            // SAFETY: the token proves the instruction set.
+            unsafe {
+                let low = _mm256_slli_epi32::<23>(_mm256_castps_si256(y));
+                _mm256_castsi256_ps(_mm256_add_epi32(low, _mm256_set1_epi32(127 << 23)))
             }
         }
         #[inline(always)]
@@ -681,6 +852,14 @@ mod x86 {
             }
         }
         #[inline(always)]
+        fn pow2_from_magic(self, y: __m512d) -> __m512d {
+            // SAFETY: the token proves the instruction set.
+            unsafe {
+                let low = _mm512_slli_epi64::<52>(_mm512_castpd_si512(y));
+                _mm512_castsi512_pd(_mm512_add_epi64(low, _mm512_set1_epi64(1023 << 52)))
+            }
+        }
+        #[inline(always)]
         fn less(self, a: __m512d, b: __m512d) -> __mmask8 {
             // SAFETY: AVX-512F.
             unsafe { _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a, b) }
@@ -757,6 +936,14 @@ mod x86 {
                 let magic = _mm512_set1_epi32(super::RSQRT_MAGIC_F32 as i32);
                 let bits = _mm512_srli_epi32::<1>(_mm512_castps_si512(x));
                 _mm512_castsi512_ps(_mm512_sub_epi32(magic, bits))
+            }
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, y: __m512) -> __m512 {
+            // SAFETY: the token proves the instruction set.
+            unsafe {
+                let low = _mm512_slli_epi32::<23>(_mm512_castps_si512(y));
+                _mm512_castsi512_ps(_mm512_add_epi32(low, _mm512_set1_epi32(127 << 23)))
             }
         }
         #[inline(always)]
