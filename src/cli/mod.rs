@@ -46,7 +46,7 @@ enum Command {
     /// Integrate a scene and report energy conservation and force-evaluation counts.
     Run(Box<run::RunArgs>),
     /// Print a scene's level table, particle classes and fast components without running.
-    Check(run::CheckArgs),
+    Check(Box<run::CheckArgs>),
     /// List the integration methods.
     Methods,
     /// Normal modes of the fast forces and the outer steps where MTS methods resonate.
