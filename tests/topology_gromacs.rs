@@ -11,10 +11,11 @@
 //! longstep's) and unit conversions exact to round-off.
 
 mod common;
+use common::{flat, group_energy, rms};
 
 use std::path::{Path, PathBuf};
 
-use longstep::forces::{ForceTerm, TermClass};
+use longstep::forces::TermClass;
 use longstep::io::topology::gro::{parse_gro, read_gro_for};
 use longstep::io::topology::gromacs::read_gromacs_top;
 use longstep::io::topology::inpcrd::read_inpcrd;
@@ -49,20 +50,6 @@ fn json(name: &str) -> serde_json::Value {
     serde_json::from_str(&text).expect("valid JSON")
 }
 
-fn flat(forces: &serde_json::Value) -> Vec<f64> {
-    forces
-        .as_array()
-        .expect("forces")
-        .iter()
-        .flat_map(|row| {
-            row.as_array()
-                .expect("row")
-                .iter()
-                .map(|x| x.as_f64().expect("number"))
-        })
-        .collect()
-}
-
 fn build(topology: &Topology, q: &[f64]) -> BuiltTopology {
     build_terms(topology, q, &NonbondedOptions::default()).expect("terms build")
 }
@@ -74,42 +61,6 @@ fn load_top(stem: &str) -> (Topology, Vec<f64>) {
     let gro = read_gro_for(&system_path(&format!("{stem}.gro")), &topology).expect("gro reads");
     topology.periodic_box = gro.box_lengths;
     (topology, gro.positions)
-}
-
-/// longstep's energy per OpenMM group.
-fn group_energy(built: &BuiltTopology, q: &[f64], group: &str) -> f64 {
-    let term = |name: &str| -> Option<&dyn ForceTerm> {
-        built
-            .terms
-            .iter()
-            .find(|(n, _, _)| n == name)
-            .map(|(_, t, _)| t.as_ref())
-    };
-    let energy = |name: &str| term(name).map_or(0.0, |t| t.energy(q));
-    let component = |part: &str| -> f64 {
-        term("nonbonded")
-            .expect("a nonbonded term")
-            .energy_components(q)
-            .iter()
-            .find(|(n, _)| *n == part)
-            .map(|(_, e)| *e)
-            .expect("component")
-    };
-    match group {
-        "bonds" => energy("bonds"),
-        "angles" => energy("angles"),
-        "torsions" => energy("torsions") + energy("impropers"),
-        "lj" => component("lennard-jones"),
-        "coulomb" => component("coulomb"),
-        "lj_14" => energy("lj-14"),
-        "coulomb_14" => energy("coulomb-14"),
-        other => panic!("unknown group {other}"),
-    }
-}
-
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (sum, count) = v.fold((0.0, 0), |(s, c), x| (s + x * x, c + 1));
-    (sum / count as f64).sqrt()
 }
 
 /// Per-group energies, then the bonded, non-bonded and total forces (the total against

@@ -20,11 +20,12 @@
 //! ≥ 1e-3.
 
 mod common;
+use common::{flat, group_energy, rms};
 
 use std::path::{Path, PathBuf};
 
+use longstep::forces::TermClass;
 use longstep::forces::ewald::EwaldRequest;
-use longstep::forces::{ForceTerm, TermClass};
 use longstep::io::forcefield::ElectrostaticsOverrides;
 use longstep::io::scene::{
     Scene, SceneFlags, load_scene, load_scene_with, load_scene_with_coordinates,
@@ -50,20 +51,6 @@ struct Reference {
     forces: serde_json::Map<String, serde_json::Value>,
 }
 
-fn flat(forces: &serde_json::Value) -> Vec<f64> {
-    forces
-        .as_array()
-        .expect("forces")
-        .iter()
-        .flat_map(|row| {
-            row.as_array()
-                .expect("row")
-                .iter()
-                .map(|x| x.as_f64().expect("number"))
-        })
-        .collect()
-}
-
 fn reference(name: &str) -> Reference {
     let path = root().join(format!("tests/data/openmm-{name}.json"));
     let text = std::fs::read_to_string(&path).expect("reference JSON");
@@ -79,39 +66,6 @@ fn load(name: &str, options: &NonbondedOptions) -> (BuiltTopology, Vec<f64>) {
     assert_eq!(coordinates.n_atoms(), topology.atoms.len());
     let built = build_terms(&topology, &coordinates.positions, options).expect("terms build");
     (built, coordinates.positions)
-}
-
-/// longstep's energy per OpenMM group.
-fn group_energy(built: &BuiltTopology, q: &[f64], group: &str) -> f64 {
-    let term = |name: &str| -> Option<&dyn ForceTerm> {
-        built
-            .terms
-            .iter()
-            .find(|(n, _, _)| n == name)
-            .map(|(_, t, _)| t.as_ref())
-    };
-    let energy = |name: &str| term(name).map_or(0.0, |t| t.energy(q));
-    let component = |part: &str| -> f64 {
-        term("nonbonded")
-            .expect("a nonbonded term")
-            .energy_components(q)
-            .iter()
-            .find(|(n, _)| *n == part)
-            .map(|(_, e)| *e)
-            .expect("component")
-    };
-    match group {
-        "bonds" => energy("bonds"),
-        "angles" => energy("angles"),
-        "torsions" => energy("torsions") + energy("impropers"),
-        "lj" => component("lennard-jones"),
-        // With PME, the mesh term carries the reciprocal sum, the excluded-pair
-        // correction and the self energy, all in OpenMM's Coulomb group.
-        "coulomb" => component("coulomb") + energy("pme-reciprocal"),
-        "lj_14" => energy("lj-14"),
-        "coulomb_14" => energy("coulomb-14"),
-        other => panic!("unknown group {other}"),
-    }
 }
 
 fn compare_with_openmm(name: &str) {
@@ -145,11 +99,6 @@ fn compare_with_openmm_as(name: &str, file: &str, options: &NonbondedOptions) {
     let expected_total = reference.energy["total"].as_f64().expect("total");
     assert!((total - expected_total).abs() <= TOLERANCE * expected_total.abs());
     compare_forces(name, &built, &q, &reference);
-}
-
-fn rms(v: impl Iterator<Item = f64>) -> f64 {
-    let (sum, count) = v.fold((0.0, 0), |(s, c), x| (s + x * x, c + 1));
-    (sum / count as f64).sqrt()
 }
 
 /// Forces of the bonded terms, of the non-bonded ones, and in total. At a minimised

@@ -181,3 +181,57 @@ pub fn verlet_blowup_stiffness_scan(
     );
     (csv, svg)
 }
+
+// The OpenMM force-field comparisons of the topology tests (prmtop and GROMACS top).
+
+pub fn flat(forces: &serde_json::Value) -> Vec<f64> {
+    forces
+        .as_array()
+        .expect("forces")
+        .iter()
+        .flat_map(|row| {
+            row.as_array()
+                .expect("row")
+                .iter()
+                .map(|x| x.as_f64().expect("number"))
+        })
+        .collect()
+}
+
+/// longstep's energy per OpenMM group.
+pub fn group_energy(built: &longstep::io::topology::BuiltTopology, q: &[f64], group: &str) -> f64 {
+    let term = |name: &str| -> Option<&dyn longstep::forces::ForceTerm> {
+        built
+            .terms
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .map(|(_, t, _)| t.as_ref())
+    };
+    let energy = |name: &str| term(name).map_or(0.0, |t| t.energy(q));
+    let component = |part: &str| -> f64 {
+        term("nonbonded")
+            .expect("a nonbonded term")
+            .energy_components(q)
+            .iter()
+            .find(|(n, _)| *n == part)
+            .map(|(_, e)| *e)
+            .expect("component")
+    };
+    match group {
+        "bonds" => energy("bonds"),
+        "angles" => energy("angles"),
+        "torsions" => energy("torsions") + energy("impropers"),
+        "lj" => component("lennard-jones"),
+        // With PME, the mesh term carries the reciprocal sum, the excluded-pair
+        // correction and the self energy, all in OpenMM's Coulomb group.
+        "coulomb" => component("coulomb") + energy("pme-reciprocal"),
+        "lj_14" => energy("lj-14"),
+        "coulomb_14" => energy("coulomb-14"),
+        other => panic!("unknown group {other}"),
+    }
+}
+
+pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (sum, count) = v.fold((0.0, 0), |(s, c), x| (s + x * x, c + 1));
+    (sum / count as f64).sqrt()
+}
