@@ -377,17 +377,28 @@ impl PmeReciprocal {
         })
     }
 
-    /// `E_excl = −Σ Q_ij erf(αr)/r`.
-    fn exclusion_energy(&self, q: &[f64]) -> f64 {
-        let mut energy = 0.0;
-        for &(i, j) in &self.excluded {
+    /// The excluded pairs with a charge product: `(i, j, Q_ij, d = q_j − q_i, r)`, in list
+    /// order (minimum image).
+    fn charged_exclusions<'a>(
+        &'a self,
+        q: &'a [f64],
+    ) -> impl Iterator<Item = (usize, usize, f64, [f64; 3], f64)> + 'a {
+        self.excluded.iter().filter_map(move |&(i, j)| {
             let (i, j) = (i as usize, j as usize);
             let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
             if qq == 0.0 {
-                continue;
+                return None;
             }
             let d = self.difference(q, i, j);
             let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            Some((i, j, qq, d, r))
+        })
+    }
+
+    /// `E_excl = −Σ Q_ij erf(αr)/r`.
+    fn exclusion_energy(&self, q: &[f64]) -> f64 {
+        let mut energy = 0.0;
+        for (_, _, qq, _, r) in self.charged_exclusions(q) {
             energy -= qq * erf_over_r(self.params.alpha, r).0;
         }
         energy
@@ -395,14 +406,7 @@ impl PmeReciprocal {
 
     /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`.
     fn exclusion_derivative(&self, q: &[f64], v: Option<&[f64]>, out: &mut [f64]) {
-        for &(i, j) in &self.excluded {
-            let (i, j) = (i as usize, j as usize);
-            let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
-            if qq == 0.0 {
-                continue;
-            }
-            let d = self.difference(q, i, j);
-            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        for (i, j, qq, d, r) in self.charged_exclusions(q) {
             let (_, f1, f2) = erf_over_r(self.params.alpha, r);
             // V(r) = −Q f(r).
             let (v1, v2) = (-qq * f1, -qq * f2);
