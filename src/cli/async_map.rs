@@ -19,33 +19,41 @@ use crate::integrators::quadrature::Quadrature;
 use crate::io::scene::load_scene;
 use crate::settings::Value;
 
+// The defaults, shared with `stability-map --method async-pseudo-energy`.
+pub const DEFAULT_PARAM: &str = "h-slow";
+pub const DEFAULT_N: usize = 101;
+pub const DEFAULT_QUADRATURE: &str = "midpoint";
+pub const DEFAULT_OUT: &str = "async-stability-map.csv";
+pub const DEFAULT_TOLERANCE: f64 = 1e-8;
+pub const DEFAULT_MAX_DENSE: usize = 1500;
+
 #[derive(Args, Debug)]
 pub struct AsyncMapArgs {
     /// Linear scene (TOML): springs of rest length 0, for example systems/wave-inhomogeneous.toml.
     pub scene: PathBuf,
     /// The step varied along the map: h-slow (h_fast = h_slow / K) or h-fast (h_slow = K h_fast).
-    #[arg(long, default_value = "h-slow")]
+    #[arg(long, default_value = DEFAULT_PARAM)]
     pub param: String,
     /// Range FROM:TO of the varied step; numbers or expressions in the scene's parameters (0.2*dx:1.2*dx).
     #[arg(long, value_name = "FROM:TO")]
     pub range: String,
     /// Number of points along the range (ends included).
-    #[arg(long, default_value_t = 101)]
+    #[arg(long, default_value_t = DEFAULT_N)]
     pub n: usize,
     /// Ratio K = h_slow / h_fast, or a range of ratios A:B (every whole K in it).
     #[arg(long, value_name = "K|A:B")]
     pub ratio: String,
     /// Quadrature (midpoint is exact for linear forces).
-    #[arg(long, default_value = "midpoint")]
+    #[arg(long, default_value = DEFAULT_QUADRATURE)]
     pub quadrature: String,
     /// Output CSV.
-    #[arg(long, default_value = "async-stability-map.csv")]
+    #[arg(long, default_value = DEFAULT_OUT)]
     pub out: PathBuf,
     /// Spectral radius above 1 + TOL counts as unstable.
-    #[arg(long, default_value_t = 1e-8, value_name = "TOL")]
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE, value_name = "TOL")]
     pub tolerance: f64,
     /// Largest state size 3 n_dofs for the dense eigenvalue method; power iteration beyond.
-    #[arg(long, default_value_t = 1500)]
+    #[arg(long, default_value_t = DEFAULT_MAX_DENSE)]
     pub max_dense: usize,
     /// Set a scene parameter, e.g. --set n=100 (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]

@@ -50,15 +50,15 @@ enum Command {
     /// List the integration methods.
     Methods,
     /// Normal modes of the fast forces and the outer steps where MTS methods resonate.
-    Modes(studies::ModesArgs),
+    Modes(Box<studies::ModesArgs>),
     /// Minimise a scene's potential energy (FIRE) and report it.
-    Minimize(studies::MinimizeArgs),
+    Minimize(Box<studies::MinimizeArgs>),
     /// Scans over outer steps (and, for the three-spring maps, stiffness).
     #[command(subcommand)]
     Scan(studies::ScanCommand),
     /// Charts of accuracy against cost.
     #[command(subcommand)]
-    Chart(charts::ChartCommand),
+    Chart(Box<charts::ChartCommand>),
     /// Combine the outputs of --shard runs into what a single run writes.
     Merge(merge::MergeArgs),
     /// Map the spectral radius of one outer step over (Γ1, Γ2) = (hΩ1, hΩ2) for the
@@ -78,27 +78,9 @@ enum Command {
     Analyze(Box<analyze::AnalyzeArgs>),
 }
 
-/// `stability-map --method async-pseudo-energy SCENE …` maps the asynchronous scheme of
-/// MEMM18 over h_slow and K (issue 5); it has its own arguments, so it is routed to the
-/// `async-stability-map` command before parsing.
-fn route_async_map(mut args: Vec<String>) -> Vec<String> {
-    let is_async = |a: &[String], i: usize| {
-        (a[i] == "--method" && a.get(i + 1).is_some_and(|m| m == "async-pseudo-energy"))
-            || a[i] == "--method=async-pseudo-energy"
-    };
-    if args.get(1).is_some_and(|c| c == "stability-map")
-        && let Some(i) = (2..args.len()).find(|&i| is_async(&args, i))
-    {
-        let width = if args[i] == "--method" { 2 } else { 1 };
-        args.drain(i..i + width);
-        args[1] = "async-stability-map".into();
-    }
-    args
-}
-
 /// Run the command line; returns the process exit code.
 pub fn main() -> i32 {
-    let cli = match Cli::try_parse_from(route_async_map(std::env::args().collect())) {
+    let cli = match Cli::try_parse_from(std::env::args()) {
         Ok(cli) => cli,
         Err(e) => {
             let code = e.exit_code();
@@ -114,9 +96,11 @@ pub fn main() -> i32 {
         Command::Scan(studies::ScanCommand::Steps(args)) => {
             studies::scan_steps_command(&args).map(|()| 0)
         }
-        Command::Chart(charts::ChartCommand::WorkPrecision(args)) => {
-            charts::work_precision_command(&args).map(|()| 0)
-        }
+        Command::Chart(chart) => match *chart {
+            charts::ChartCommand::WorkPrecision(args) => {
+                charts::work_precision_command(&args).map(|()| 0)
+            }
+        },
         Command::Merge(args) => merge::merge_command(&args).map(|()| 0),
         Command::Scan(studies::ScanCommand::Stiffness(args)) => {
             stiffness::scan_stiffness_command(&args).map(|()| 0)
@@ -124,7 +108,7 @@ pub fn main() -> i32 {
         Command::Scan(studies::ScanCommand::Growth(args)) => {
             growth::scan_growth_command(&args).map(|()| 0)
         }
-        Command::StabilityMap(args) => stability::stability_map_command(&args).map(|()| 0),
+        Command::StabilityMap(args) => stability::stability_map_command(&args),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),
         Command::Forces(args) => forces::forces_command(&args).map(|()| 0),

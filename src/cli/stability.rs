@@ -39,9 +39,10 @@ pub struct ModelArgs {
     /// method of `longstep methods` (integrator mode).
     #[arg(long)]
     pub method: String,
-    /// Outer step h (number or expression).
+    /// Outer step h (number or expression); not with async-pseudo-energy, whose map
+    /// varies the step over --range.
     #[arg(long, allow_negative_numbers = true)]
-    pub h: String,
+    pub h: Option<String>,
     /// Slow coupling U = [[alpha1, beta], [beta, alpha2]] of GSS98 eq. (27) (analytic mode;
     /// default 1/2, the three-spring system).
     #[arg(long, allow_negative_numbers = true)]
@@ -74,12 +75,13 @@ pub struct StabilityMapArgs {
     /// Range of Γ2 = hΩ2 as START:END.
     #[arg(long, default_value = "0:6.5")]
     pub gamma2: String,
-    /// Points along each axis.
-    #[arg(long, default_value_t = 400)]
-    pub n: usize,
-    /// CSV output: gamma1,gamma2,spectral_radius,type (type 0 = stable, -1 = overflow).
+    /// Points along each axis (default 400; along the range, 101, with async-pseudo-energy).
     #[arg(long)]
-    pub out: PathBuf,
+    pub n: Option<usize>,
+    /// CSV output: gamma1,gamma2,spectral_radius,type (type 0 = stable, -1 = overflow);
+    /// required but with async-pseudo-energy (default async-stability-map.csv).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
     /// Heat-map picture (PNG).
     #[arg(long)]
     pub png: Option<PathBuf>,
@@ -96,6 +98,102 @@ pub struct StabilityMapArgs {
     /// No progress bar, notices or summary on stderr.
     #[arg(long)]
     pub quiet: bool,
+    /// The asynchronous map's own arguments (with --method async-pseudo-energy).
+    #[command(flatten)]
+    pub asynchronous: AsyncArgs,
+}
+
+/// `stability-map --method async-pseudo-energy SCENE …`: MEMM18's asynchronous scheme over
+/// h_slow and K, with the arguments of `async-stability-map`.
+#[derive(Args, Debug, Default)]
+pub struct AsyncArgs {
+    /// Linear scene of the asynchronous map (async-pseudo-energy only).
+    #[arg(value_name = "SCENE")]
+    pub linear_scene: Option<PathBuf>,
+    /// The step varied: h-slow or h-fast (async-pseudo-energy only; default h-slow).
+    #[arg(long)]
+    pub param: Option<String>,
+    /// Range FROM:TO of the varied step (async-pseudo-energy only).
+    #[arg(long, value_name = "FROM:TO")]
+    pub range: Option<String>,
+    /// Ratio K = h_slow / h_fast, or A:B (async-pseudo-energy only).
+    #[arg(long, value_name = "K|A:B")]
+    pub ratio: Option<String>,
+    /// Quadrature (async-pseudo-energy only; default midpoint).
+    #[arg(long)]
+    pub quadrature: Option<String>,
+    /// Spectral radius above 1 + TOL counts as unstable (async-pseudo-energy only).
+    #[arg(long, value_name = "TOL")]
+    pub tolerance: Option<f64>,
+    /// Largest state for the dense eigenvalue method (async-pseudo-energy only).
+    #[arg(long)]
+    pub max_dense: Option<usize>,
+    /// Set a scene parameter (async-pseudo-energy only; repeatable).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+}
+
+impl AsyncArgs {
+    fn given(&self) -> Option<&'static str> {
+        [
+            (self.linear_scene.is_some(), "SCENE"),
+            (self.param.is_some(), "--param"),
+            (self.range.is_some(), "--range"),
+            (self.ratio.is_some(), "--ratio"),
+            (self.quadrature.is_some(), "--quadrature"),
+            (self.tolerance.is_some(), "--tolerance"),
+            (self.max_dense.is_some(), "--max-dense"),
+            (!self.set.is_empty(), "--set"),
+        ]
+        .into_iter()
+        .find_map(|(given, name)| given.then_some(name))
+    }
+}
+
+/// The outer step of the map's model, which every method but the asynchronous one needs.
+fn step(model: &ModelArgs) -> Result<f64> {
+    match &model.h {
+        Some(text) => number(text, "--h"),
+        None => Err(Error::input(format!(
+            "--h is required with --method {}",
+            model.method
+        ))),
+    }
+}
+
+/// The `async-stability-map` arguments of `stability-map --method async-pseudo-energy`.
+fn asynchronous_map(args: &StabilityMapArgs) -> Result<super::async_map::AsyncMapArgs> {
+    let a = &args.asynchronous;
+    let model = &args.model;
+    let stray = [
+        (model.h.is_some(), "--h"),
+        (args.png.is_some() || args.svg.is_some(), "--png/--svg"),
+        (args.shard.is_some(), "--shard"),
+        (model.scene.is_some(), "--scene (give the scene as SCENE)"),
+    ];
+    if let Some((_, name)) = stray.iter().find(|(given, _)| *given) {
+        return Err(Error::input(format!(
+            "{name} does not apply to --method async-pseudo-energy, whose map varies the step \
+             over --range (see longstep async-stability-map --help)"
+        )));
+    }
+    let missing = |name: &str| Error::input(format!("--method async-pseudo-energy needs {name}"));
+    use super::async_map as defaults;
+    Ok(super::async_map::AsyncMapArgs {
+        scene: a.linear_scene.clone().ok_or_else(|| missing("a SCENE"))?,
+        param: a.param.clone().unwrap_or(defaults::DEFAULT_PARAM.into()),
+        range: a.range.clone().ok_or_else(|| missing("--range"))?,
+        n: args.n.unwrap_or(defaults::DEFAULT_N),
+        ratio: a.ratio.clone().ok_or_else(|| missing("--ratio"))?,
+        quadrature: a
+            .quadrature
+            .clone()
+            .unwrap_or(defaults::DEFAULT_QUADRATURE.into()),
+        out: args.out.clone().unwrap_or(defaults::DEFAULT_OUT.into()),
+        tolerance: a.tolerance.unwrap_or(defaults::DEFAULT_TOLERANCE),
+        max_dense: a.max_dense.unwrap_or(defaults::DEFAULT_MAX_DENSE),
+        set: a.set.clone(),
+    })
 }
 
 #[derive(Args, Debug)]
@@ -115,7 +213,7 @@ pub struct SpectralRadiusArgs {
 
 /// The evaluator the flags ask for, its notices, and a description for titles.
 fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
-    let h = number(&model.h, "--h")?;
+    let h = step(model)?;
     if h <= 0.0 {
         return Err(Error::input(format!("--h must be positive, got {h}")));
     }
@@ -238,22 +336,41 @@ const MAX_PICTURE_POINTS: usize = 25_000_000;
 const MAX_POINTS_PER_AXIS: usize = 100_000;
 
 /// `--n` names itself when it is wrong, before the axes are parsed.
-fn check_points(args: &StabilityMapArgs) -> Result<()> {
-    if args.n == 0 {
+fn check_points(args: &StabilityMapArgs) -> Result<usize> {
+    let n = args.n.unwrap_or(DEFAULT_POINTS);
+    if n == 0 {
         return Err(Error::input("--n: a map needs at least one point per axis"));
     }
-    if args.n > MAX_POINTS_PER_AXIS {
+    if n > MAX_POINTS_PER_AXIS {
         return Err(Error::input(format!(
-            "--n {}: more than {MAX_POINTS_PER_AXIS} points per axis ({:.1e} points) is more \
+            "--n {n}: more than {MAX_POINTS_PER_AXIS} points per axis ({:.1e} points) is more \
              than a map can compute or store",
-            args.n,
-            (args.n as f64).powi(2)
+            (n as f64).powi(2)
         )));
     }
-    Ok(())
+    Ok(n)
 }
 
-pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
+/// Points along each axis of a map without --n.
+const DEFAULT_POINTS: usize = 400;
+
+/// The CSV a map writes (required but with the asynchronous method).
+fn map_csv(args: &StabilityMapArgs) -> Result<&std::path::Path> {
+    args.out
+        .as_deref()
+        .ok_or_else(|| Error::input("--out FILE.csv is required: the map's CSV"))
+}
+
+pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {
+    if args.model.method == "async-pseudo-energy" {
+        return super::async_map::async_map_command(&asynchronous_map(args)?);
+    }
+    if let Some(name) = args.asynchronous.given() {
+        return Err(Error::input(format!(
+            "{name} applies to --method async-pseudo-energy only"
+        )));
+    }
+    map_csv(args)?;
     let (evaluator, notices, description) = evaluator(&args.model)?;
     let (grid, shard) = map_grid(args)?;
     if !args.quiet {
@@ -293,15 +410,15 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<()> {
     if !args.quiet {
         report_map(args, range.len(), &shard_note, &tally);
     }
-    Ok(())
+    Ok(0)
 }
 
 /// The grid and shard the flags ask for, checked, and the picture formats checked.
 fn map_grid(args: &StabilityMapArgs) -> Result<(Grid, Shard)> {
-    check_points(args)?;
+    let n = check_points(args)?;
     let grid = Grid {
-        gamma1: Axis::parse(&args.gamma1, args.n, "--gamma1")?,
-        gamma2: Axis::parse(&args.gamma2, args.n, "--gamma2")?,
+        gamma1: Axis::parse(&args.gamma1, n, "--gamma1")?,
+        gamma2: Axis::parse(&args.gamma2, n, "--gamma2")?,
     };
     if grid.gamma1.start < 0.0 || grid.gamma2.start < 0.0 {
         return Err(Error::input("Γ ranges must start at 0 or above"));
@@ -341,7 +458,7 @@ fn compute_map(
         None => None,
     };
     let mut csv = CsvWriter::create_after(
-        &args.out,
+        map_csv(args)?,
         first_line.as_deref(),
         &["gamma1", "gamma2", "spectral_radius", "type"],
     )?;
@@ -405,7 +522,11 @@ fn report_map(args: &StabilityMapArgs, points: usize, shard_note: &str, tally: &
         },
         tally.largest
     );
-    let mut written = vec![args.out.display().to_string()];
+    let mut written = vec![
+        args.out
+            .as_deref()
+            .map_or(String::new(), |p| p.display().to_string()),
+    ];
     written.extend(
         [&args.png, &args.svg]
             .into_iter()
@@ -430,10 +551,10 @@ fn shard_line(args: &StabilityMapArgs, grid: &Grid, shard: Shard) -> Result<Stri
     let settings = vec![
         ("method", model.method.clone()),
         ("mode", format!("{:?}", model.mode).to_lowercase()),
-        ("h", number(&model.h, "--h")?.to_string()),
+        ("h", step(model)?.to_string()),
         ("gamma1", axis(&grid.gamma1)),
         ("gamma2", axis(&grid.gamma2)),
-        ("n", args.n.to_string()),
+        ("n", args.n.unwrap_or(DEFAULT_POINTS).to_string()),
         ("alpha1", optional(&model.alpha1, "--alpha1")?),
         ("alpha2", optional(&model.alpha2, "--alpha2")?),
         ("beta", optional(&model.beta, "--beta")?),
