@@ -27,7 +27,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::io::scene::{Scene, SceneFlags, load_scene_with};
+use crate::io::scene::{Scene, SceneFlags};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
 use crate::run::prepare::{RunRequest, prepare};
@@ -190,12 +190,23 @@ pub struct ScanSetup {
     pub level_dts: Vec<f64>,
     /// A topology's coordinates, `--coulomb`, the PME flags, … ([`SceneFlags`]).
     pub flags: SceneFlags,
+    /// Start every point from the positions of this structure file (`--start`).
+    pub start: Option<PathBuf>,
 }
 
 impl ScanSetup {
-    /// The scene with `--set` values and the electrostatics overrides.
+    /// The request of a point with `spec` as its command-line settings.
+    pub fn request<'a>(&'a self, spec: &'a RunSpec) -> RunRequest<'a> {
+        RunRequest {
+            flags: self.flags.clone(),
+            start: self.start.as_deref(),
+            ..RunRequest::new(&self.scene, &self.set, spec)
+        }
+    }
+
+    /// The scene with `--set` values, the electrostatics overrides and `--start`.
     pub fn load_scene(&self) -> Result<Scene> {
-        load_scene_with(&self.scene, &self.flags, &self.set)
+        crate::run::prepare::load(&self.request(&RunSpec::default()))
     }
 }
 
@@ -265,11 +276,7 @@ pub fn run_once(
     outputs: &PointOutputs,
 ) -> Result<RunSummary> {
     let spec = point_spec(setup, method, h)?;
-    let request = RunRequest {
-        flags: setup.flags.clone(),
-        ..RunRequest::new(&setup.scene, &setup.set, &spec)
-    };
-    let mut prepared = prepare(&request)?;
+    let mut prepared = prepare(&setup.request(&spec))?;
     let trajectory = outputs.dir.map(|dir| TrajectoryOptions {
         path: dir.join("trajectory.xyz"),
         every: outputs.frame_every.max(1),

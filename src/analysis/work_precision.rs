@@ -18,10 +18,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::integrators::{self, Integrator};
+use crate::integrators::Integrator;
 use crate::io::csv::CsvWriter;
-use crate::io::scene::{Scene, load_scene};
+use crate::io::scene::{Scene, SceneFlags};
 use crate::run::monitor::EnergyMonitor;
+use crate::run::prepare::{RunRequest, prepare};
 use crate::settings::{RunSpec, Value};
 use crate::system::System;
 
@@ -30,6 +31,10 @@ use crate::system::System;
 pub struct StudySetup {
     pub scene: std::path::PathBuf,
     pub set: Vec<String>,
+    /// A topology's coordinates, `--coulomb`, the PME flags, … ([`SceneFlags`]).
+    pub flags: SceneFlags,
+    /// Start every run from the positions of this structure file (`--start`).
+    pub start: Option<std::path::PathBuf>,
     /// Settings shared by every run (inner steps, Jacobian, …).
     pub base: RunSpec,
     pub t_end: f64,
@@ -180,22 +185,21 @@ fn integrate_sampled(
 }
 
 /// The scene of the study and `method` at outer step `h` on it (the study's run settings
-/// overridden).
+/// overridden), prepared as `longstep run` prepares a run.
 fn scene_and_integrator(
     setup: &StudySetup,
     method: &str,
     h: f64,
 ) -> Result<(Scene, Box<dyn Integrator>)> {
-    let scene = load_scene(&setup.scene, &setup.set)?;
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
-    let settings = scene
-        .run
-        .overridden_by(&spec)
-        .resolve_with_units(&scene.parameters, scene.units)?;
-    let integrator = integrators::build(&settings, &mut Vec::new())?;
-    Ok((scene, integrator))
+    let prepared = prepare(&RunRequest {
+        flags: setup.flags.clone(),
+        start: setup.start.as_deref(),
+        ..RunRequest::new(&setup.scene, &setup.set, &spec)
+    })?;
+    Ok((prepared.scene, prepared.integrator))
 }
 
 /// The step point `(t, q, M⁻¹p)` of `s` into `into` (no allocation).

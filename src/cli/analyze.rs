@@ -18,7 +18,7 @@ use serde_json::{Value as Json, json};
 use crate::analysis::block_average::Estimate;
 use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles, parse_pair};
 use crate::error::{Error, Result};
-use crate::io::scene::{Scene, load_scene};
+use crate::io::scene::Scene;
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
 use crate::settings::Value;
 
@@ -97,6 +97,8 @@ pub struct AnalyzeArgs {
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
+    #[command(flatten)]
+    pub source: super::common::SceneArgs,
 }
 
 fn time_value(text: &str, flag: &str, scene: &Scene) -> Result<f64> {
@@ -199,7 +201,7 @@ fn labels(args: &AnalyzeArgs) -> Result<Vec<String>> {
 }
 
 pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
-    let scene = load_scene(&args.scene, &args.set)?;
+    let scene = args.source.load(&args.scene, &args.set)?;
     let analyzer = Analyzer::new(&scene, options(args, &scene)?)?;
     let labels = labels(args)?;
     let trajectory = args

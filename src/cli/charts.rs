@@ -17,8 +17,9 @@ use crate::analysis::work_precision::{
 };
 use crate::error::{Error, Result};
 use crate::io::number::Num;
-use crate::io::scene::load_scene;
+use crate::io::scene::SceneFlags;
 use crate::io::study_csv::StudyTable;
+use crate::run::prepare::{self, RunRequest};
 use crate::settings::{RunSpec, Value, whole_ratio};
 
 #[derive(Subcommand, Debug)]
@@ -82,19 +83,23 @@ pub struct WorkPrecisionArgs {
     pub shard: Option<String>,
     #[arg(long)]
     pub quiet: bool,
+    /// Start every run, and the reference, from the positions of this structure file.
+    #[arg(long, value_name = "FILE")]
+    pub start: Option<PathBuf>,
+    #[command(flatten)]
+    pub source: super::common::SceneArgs,
 }
 
 pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
-    let scene_units = load_scene(&args.scene, &args.set)?.units;
-    let times = study_times(args, scene_units)?;
-    let setup = study_setup(args, &times);
-    let mut scene = check_methods(
-        &setup.scene,
-        &setup.set,
-        &setup.base,
-        &args.methods,
-        &times.steps,
-    )?;
+    let flags = args.source.flags()?;
+    let mut scene = prepare::load(&RunRequest {
+        flags: flags.clone(),
+        start: args.start.as_deref(),
+        ..RunRequest::new(&args.scene, &args.set, &RunSpec::default())
+    })?;
+    let times = study_times(args, scene.units)?;
+    let setup = study_setup(args, &times, flags);
+    check_methods(&scene, &setup.base, &args.methods, &times.steps)?;
     let weights = cost_weights(args, &mut scene.system)?;
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let reference = reference_samples(args, &setup, &times)?;
@@ -160,10 +165,12 @@ fn study_times(args: &WorkPrecisionArgs, scene_units: crate::units::Units) -> Re
     })
 }
 
-fn study_setup(args: &WorkPrecisionArgs, times: &StudyTimes) -> StudySetup {
+fn study_setup(args: &WorkPrecisionArgs, times: &StudyTimes, flags: SceneFlags) -> StudySetup {
     StudySetup {
         scene: args.scene.clone(),
         set: args.set.clone(),
+        flags,
+        start: args.start.clone(),
         base: RunSpec {
             quadrature: args.quadrature.clone(),
             block: args.block,

@@ -13,7 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::error::{Error, Result};
 use crate::expr;
 use crate::io::forcefield::{ElectrostaticsOverrides, InverseLength};
-use crate::io::scene::{Scene, SceneFlags, load_scene, load_scene_with};
+use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
 
@@ -155,24 +155,22 @@ pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
     Ok((k - 1, n))
 }
 
-/// Load the scene and build every (method, h) once, so a bad combination fails before any
-/// time is spent on runs.
+/// Build every (method, h) once on `scene`, so a bad combination fails before any time is
+/// spent on runs.
 pub fn check_methods(
-    scene: &std::path::Path,
-    set: &[String],
+    scene: &Scene,
     base: &RunSpec,
     methods: &[String],
     steps: &[f64],
-) -> Result<Scene> {
-    let scene = load_scene(scene, set)?;
+) -> Result<()> {
     for method in methods {
         for &h in steps {
-            let settings = point_settings(&scene, base, method, h)?;
+            let settings = point_settings(scene, base, method, h)?;
             crate::run::prepare::check_settings(&settings)
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
         }
     }
-    Ok(scene)
+    Ok(())
 }
 
 /// The settings of one point of a study: the scene's `[run]` table overridden by `base`,
@@ -243,6 +241,10 @@ pub struct SceneArgs {
     /// beside it, same name.
     #[arg(long, value_name = "FILE")]
     pub coordinates: Option<std::path::PathBuf>,
+    /// Start velocities of a topology from this file (.rst7 with velocities, .gro with
+    /// velocity columns); default: the coordinates' own, if they have them.
+    #[arg(long, value_name = "FILE")]
+    pub velocities: Option<std::path::PathBuf>,
     /// Non-bonded cutoff of a topology (length; default 9 Å).
     #[arg(long, value_name = "LENGTH")]
     pub cutoff: Option<f64>,
@@ -283,6 +285,7 @@ impl SceneArgs {
     pub fn flags(&self) -> Result<SceneFlags> {
         Ok(SceneFlags {
             coordinates: self.coordinates.clone(),
+            velocities: self.velocities.clone(),
             cutoff: self.cutoff,
             epsilon_rf: self.epsilon_rf,
             electrostatics: self.electrostatics()?,

@@ -15,12 +15,12 @@ use crate::analysis::growth::{
 use crate::analysis::stability::integrator::{INTEGRATOR_TOLERANCE, IntegratorProbe, ProbeScene};
 use crate::analysis::stability::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
-use crate::integrators;
 use crate::io::csv::write_table;
 use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
 use crate::plot::{AxisSpec, Corner, LineChart, Series};
-use crate::settings::MethodSettings;
+use crate::run::prepare::{self, RunRequest};
+use crate::settings::{MethodSettings, Value};
 
 // The shared method and step flags (common::MethodSteps); --t-end as this study uses it.
 #[derive(Args, Debug)]
@@ -172,7 +172,7 @@ fn growth_points(
                 )));
             }
             let settings = point_settings(scene, &base, method, h)?;
-            integrators::build(&settings, &mut Vec::new())
+            prepare::check_settings(&settings)
                 .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
             points.push((points.len(), settings, n));
         }
@@ -248,9 +248,11 @@ fn growth_run(
     n: usize,
     fit_bounds: Option<(f64, f64)>,
 ) -> Result<GrowthRun> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
-    let mut integrator = integrators::build(settings, &mut Vec::new())?;
-    let (errors, end) = energy_errors(&mut scene.system, integrator.as_mut(), n)?;
+    let mut spec = args.study.inner.spec();
+    spec.method = Some(settings.method.clone());
+    spec.h = Some(Value::Number(settings.h));
+    let mut run = prepare::prepare(&RunRequest::new(&args.scene, &args.set, &spec))?;
+    let (errors, end) = energy_errors(&mut run.scene.system, run.integrator.as_mut(), n)?;
     // The linearisation about the scene's equilibrium with the same method and steps; a
     // scene that does not start next to an equilibrium has none.
     let linear = IntegratorProbe::new(probe_scene.clone(), settings.clone())

@@ -19,9 +19,9 @@ use crate::error::{Error, Result};
 use crate::io::number::Num;
 use std::collections::BTreeMap;
 
-use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
 use crate::io::summary::format_time;
+use crate::run::prepare::{self, RunRequest};
 use crate::settings::{RunSpec, Value};
 use crate::units::Units;
 
@@ -44,6 +44,12 @@ pub struct ModesArgs {
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Start from the positions of this structure file (e.g. from `minimize --save`): same
+    /// atoms in the same order; the scene's force field, velocities and box are kept.
+    #[arg(long, value_name = "FILE")]
+    pub start: Option<PathBuf>,
+    #[command(flatten)]
+    pub source: super::common::SceneArgs,
 }
 
 #[derive(Subcommand, Debug)]
@@ -117,6 +123,10 @@ pub struct ScanStepsArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Start from the positions of this structure file (e.g. from `minimize --save`): same
+    /// atoms in the same order; the scene's force field, velocities and box are kept.
+    #[arg(long, value_name = "FILE")]
+    pub start: Option<PathBuf>,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
 }
@@ -169,6 +179,8 @@ pub struct MinimizeArgs {
     /// min.xyz); `longstep run SCENE --start min.xyz` starts a run from it.
     #[arg(long, value_name = "FILE")]
     pub save: Option<PathBuf>,
+    #[command(flatten)]
+    pub source: super::common::SceneArgs,
 }
 
 /// `LO:HI` → (lo, hi), in the scene's time units when it has them.
@@ -205,7 +217,11 @@ fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<
 }
 
 pub fn modes_command(args: &ModesArgs) -> Result<()> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
+    let mut scene = prepare::load(&RunRequest {
+        flags: args.source.flags()?,
+        start: args.start.as_deref(),
+        ..RunRequest::new(&args.scene, &args.set, &RunSpec::default())
+    })?;
     let minimized = if args.minimize {
         Some(minimize(&mut scene.system, &MinimizeOptions::default()))
     } else {
@@ -388,6 +404,7 @@ fn scan_setup(
         fit_from: args.drift.fit_from(&scene.parameters, units, t_end)?,
         level_dts,
         flags: args.source.flags()?,
+        start: args.start.clone(),
     };
     Ok((setup, steps))
 }
@@ -979,7 +996,10 @@ fn islands(stable: &[f64], scanned: &[f64]) -> String {
 }
 
 pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
-    let mut scene = load_scene(&args.scene, &args.set)?;
+    let mut scene = prepare::load(&RunRequest {
+        flags: args.source.flags()?,
+        ..RunRequest::new(&args.scene, &args.set, &RunSpec::default())
+    })?;
     let report = minimize(
         &mut scene.system,
         &MinimizeOptions {

@@ -105,6 +105,7 @@ pub fn load_scene_with_coordinates(
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SceneFlags {
     pub coordinates: Option<PathBuf>,
+    pub velocities: Option<PathBuf>,
     pub cutoff: Option<f64>,
     pub epsilon_rf: Option<f64>,
     pub electrostatics: ElectrostaticsOverrides,
@@ -118,10 +119,15 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
         let text = topology_scene_text(path, flags)?;
         return build_scene(&text, path, overrides);
     }
-    if flags.coordinates.is_some() || flags.cutoff.is_some() || flags.epsilon_rf.is_some() {
+    if flags.coordinates.is_some()
+        || flags.velocities.is_some()
+        || flags.cutoff.is_some()
+        || flags.epsilon_rf.is_some()
+    {
         return Err(Error::input(format!(
-            "--coordinates, --cutoff and --epsilon-rf are for a topology file (.prmtop, .top); {} \
-             is a scene, whose [topology] or [forcefield] says them",
+            "--coordinates, --velocities, --cutoff and --epsilon-rf are for a topology file \
+             (.prmtop, .top); {} is a scene, whose [topology], [structure] or [forcefield] \
+             says them",
             path.display()
         )));
     }
@@ -179,6 +185,9 @@ pub fn topology_scene_text(path: &Path, flags: &SceneFlags) -> Result<String> {
     let mut topology = toml::Table::new();
     topology.insert("file".into(), absolute(path)?.into());
     topology.insert("coordinates".into(), absolute(&coordinates)?.into());
+    if let Some(velocities) = &flags.velocities {
+        topology.insert("velocities".into(), absolute(velocities)?.into());
+    }
     if let Some(cutoff) = flags.cutoff {
         topology.insert("cutoff".into(), cutoff.into());
     }

@@ -67,12 +67,19 @@ pub struct PreparedRun {
     pub notices: Vec<String>,
 }
 
-/// Prepare the run `request` asks for.
-pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
+/// The scene `request` names, with its flags and `--set` values, at the `--start`
+/// positions when given: what `minimize`, `modes`, `analyze` and the studies work on.
+pub fn load(request: &RunRequest) -> Result<Scene> {
     let mut scene = load_scene_with(request.scene, &request.flags, request.set)?;
     if let Some(path) = request.start {
         start_positions(&mut scene, path)?;
     }
+    Ok(scene)
+}
+
+/// Prepare the run `request` asks for.
+pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
+    let mut scene = load(request)?;
     let settings = scene
         .run
         .overridden_by(request.overrides)

@@ -124,6 +124,9 @@ pub struct TopologySpec {
     /// Its coordinates (`.inpcrd`, `.rst7`, `.crd`, `.gro`); default: the topology's name
     /// with one of these extensions (`.gro` first for a `.top`).
     pub coordinates: Option<String>,
+    /// Start velocities from this file (`.rst7`/`.inpcrd` with velocities, or a `.gro` with
+    /// velocity columns) instead of the coordinates' own; same atoms in the same order.
+    pub velocities: Option<String>,
     /// Non-bonded cutoff (Å); default none in vacuum with plain Coulomb, else 9.
     pub cutoff: Option<f64>,
     /// `none` (plain Coulomb without cutoff, vacuum), `reaction-field` or `dsf`; default

@@ -118,7 +118,10 @@ impl Builder<'_> {
                 )
             })?,
         };
-        let coordinates = read_coordinates(&coordinates_path, &topology)?;
+        let mut coordinates = read_coordinates(&coordinates_path, &topology)?;
+        if let Some(file) = &spec.velocities {
+            coordinates.velocities = Some(read_velocities(&self.beside_scene(file), &topology)?);
+        }
         box_from_coordinates(&mut topology, &coordinates, &coordinates_path)?;
         let coulomb = match &spec.coulomb {
             Some(name) => Some(
@@ -258,6 +261,19 @@ fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
         });
     }
     Ok(coordinates)
+}
+
+/// The velocities of the coordinate file `path` (`[topology] velocities`, `--velocities`),
+/// which must have them, for the atoms of `topology`.
+fn read_velocities(path: &Path, topology: &Topology) -> Result<Vec<f64>> {
+    read_coordinates(path, topology)?
+        .velocities
+        .ok_or_else(|| Error::Topology {
+            location: path.display().to_string(),
+            message: "has no velocities (a restart .rst7/.inpcrd with a velocity block, or a \
+                      .gro with velocity columns, gives them)"
+                .into(),
+        })
 }
 
 /// A periodic topology takes the coordinates' box when they give one (a restart's current
