@@ -186,3 +186,33 @@ fn analyze_reads_the_topology_its_run_was_made_from() {
     let value: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!(value.as_array().is_some_and(|a| a.len() == 1), "{json}");
 }
+
+/// `minimize --save` writes every coordinate in full precision: the forces at the saved
+/// positions are the minimiser's last, within its tolerance (with 6 significant digits
+/// the largest was 4.5e-3 kcal/mol/Å, issue 30 item 2).
+#[test]
+fn a_saved_minimum_is_the_minimum_the_summary_reported() {
+    let dir = common::scratch_dir("topology-commands-saved-minimum");
+    let prmtop = ala2("ala2.prmtop");
+    let saved = dir.join("min.xyz").display().to_string();
+    let forces = dir.join("forces.csv").display().to_string();
+    let tolerance = 1e-6;
+    let report = ok(&["minimize", &prmtop, "--tolerance", "1e-6", "--save", &saved]);
+    assert!(!report.contains("not converged"), "{report}");
+    ok(&["forces", &prmtop, "--positions", &saved, "--out", &forces]);
+    let table = std::fs::read_to_string(&forces).unwrap();
+    let largest = table
+        .lines()
+        .skip(1)
+        .flat_map(|l| {
+            l.split(',')
+                .skip(2)
+                .map(|x| x.parse::<f64>().unwrap().abs())
+        })
+        .fold(0.0, f64::max);
+    // The same doubles give the same forces: the minimiser stopped below its tolerance.
+    assert!(
+        largest < tolerance,
+        "largest force {largest} at the saved minimum"
+    );
+}

@@ -1,5 +1,7 @@
-//! Trajectory output through chemfiles: XYZ by default, any format chemfiles writes by the
-//! file's extension (`.pdb`, `.gro`, `.xyz` as extended XYZ with the cell, …).
+//! Trajectory output: XYZ by default, written here as extended XYZ (the cell as `Lattice`,
+//! the time as `time`) with every coordinate in full precision (the shortest decimal that
+//! reads back to the same double); any other format chemfiles writes by the file's extension
+//! (`.pdb`, `.gro`, …), at that format's own precision.
 //!
 //! Every frame is written by opening the file for appending, writing and closing it, so what
 //! is on disk is always whole frames: a run that blows up or is killed leaves a valid file
@@ -16,6 +18,43 @@ pub struct TrajectoryWriter {
     frame: chemfiles::Frame,
     dim: usize,
     frames: usize,
+    /// Extended XYZ written here in full precision (else chemfiles writes the frame).
+    xyz: Option<XyzFrame>,
+}
+
+/// What an extended-XYZ frame repeats: the atom names and the cell, and a reused buffer.
+struct XyzFrame {
+    names: Vec<String>,
+    lattice: Option<[f64; 3]>,
+    text: String,
+}
+
+impl XyzFrame {
+    /// The frame of positions `q` at `time` into `self.text`.
+    fn format(&mut self, q: &[f64], dim: usize, time: f64) {
+        use std::fmt::Write;
+        self.text.clear();
+        let _ = writeln!(self.text, "{}", self.names.len());
+        self.text.push_str("Properties=species:S:1:pos:R:3");
+        if let Some([a, b, c]) = self.lattice {
+            let _ = write!(self.text, " Lattice=\"{a} 0 0 0 {b} 0 0 0 {c}\"");
+        }
+        let _ = writeln!(self.text, " time={time}");
+        for (i, name) in self.names.iter().enumerate() {
+            self.text.push_str(name);
+            for a in 0..3 {
+                let x = if a < dim { q[i * dim + a] } else { 0.0 };
+                let _ = write!(self.text, " {x}");
+            }
+            self.text.push('\n');
+        }
+    }
+}
+
+fn is_xyz(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("xyz"))
 }
 
 fn trajectory_error(path: &Path, message: String) -> Error {
@@ -47,11 +86,24 @@ impl TrajectoryWriter {
         chemfiles::Trajectory::open(path, 'w').map_err(|e| {
             trajectory_error(path, format!("cannot write a trajectory: {}", e.message))
         })?;
+        let xyz = is_xyz(path).then(|| XyzFrame {
+            names: names.to_vec(),
+            lattice: frame
+                .cell()
+                .shape()
+                .ne(&chemfiles::CellShape::Infinite)
+                .then(|| {
+                    let lengths = frame.cell().lengths();
+                    [lengths[0], lengths[1], lengths[2]]
+                }),
+            text: String::new(),
+        });
         Ok(TrajectoryWriter {
             path: path.to_path_buf(),
             frame,
             dim,
             frames: 0,
+            xyz,
         })
     }
 
@@ -65,6 +117,12 @@ impl TrajectoryWriter {
 
     /// Append one frame of positions `q` (`n × dim`; missing coordinates are 0).
     pub fn write(&mut self, q: &[f64], step: u64, time: f64) -> Result<()> {
+        if let Some(xyz) = &mut self.xyz {
+            xyz.format(q, self.dim, time);
+            append(&self.path, xyz.text.as_bytes())?;
+            self.frames += 1;
+            return Ok(());
+        }
         let dim = self.dim;
         for (i, position) in self.frame.positions_mut().iter_mut().enumerate() {
             for (a, x) in position.iter_mut().enumerate() {
@@ -88,6 +146,17 @@ impl TrajectoryWriter {
         self.frames += 1;
         Ok(())
     }
+}
+
+/// Append `bytes` (one whole frame) to the file at `path` and close it.
+fn append(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .append(true)
+        .open(path)
+        .map_err(|e| trajectory_error(path, format!("cannot open for writing: {e}")))?;
+    file.write_all(bytes)
+        .map_err(|e| trajectory_error(path, format!("cannot write frame: {e}")))
 }
 
 /// What one frame read back carries besides its positions.
