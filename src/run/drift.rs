@@ -119,13 +119,15 @@ impl DriftFit {
     }
 }
 
+/// A conversion of a slope into the unit a drift is judged in.
+type Convert<'a> = Box<dyn Fn(f64) -> f64 + 'a>;
+
 /// Judge `drift` against `bound` (the default for the scene's units when `None`);
 /// `reference` is the energy scale of relative drifts.
 pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) -> DriftReport {
     let (energy, slope, fluctuation) = drift.judged();
     let span = drift.to - drift.from;
-    let (convert, unit, default, exponent): (Box<dyn Fn(f64) -> f64>, &str, f64, f64) = match units
-    {
+    let (convert, unit, default, exponent): (Convert, &str, f64, f64) = match units {
         Units::Real => {
             let per_ns = units
                 .time_units()
