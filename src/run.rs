@@ -3,6 +3,7 @@
 pub mod drift;
 pub mod monitor;
 pub mod prepare;
+pub mod verdict;
 
 pub use prepare::{
     PreparedRun, RunRequest, StartReport, check_seed_used, is_stochastic, prepare, start_velocities,

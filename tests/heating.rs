@@ -75,7 +75,8 @@ fn a_heating_run_warns_and_a_safe_one_does_not() {
     assert_eq!(drift["unit"], "kT/ns/dof");
     assert_eq!(drift["bound"], 0.05);
     assert!(drift["value"].as_f64().unwrap() > 0.05, "{drift}");
-    assert_eq!(drift["resolved"], true, "{drift}");
+    // Its whole 2σ interval lies beyond the bound: a fail, not an undecided.
+    assert_eq!(drift["verdict"], "fail", "{drift}");
     let warnings = heating["warnings"].as_array().unwrap();
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
@@ -106,11 +107,29 @@ fn a_heating_run_warns_and_a_safe_one_does_not() {
 fn a_drift_within_the_energys_fluctuation_is_not_called_heating() {
     // Impulse at 4 fs heats the water box by ≈ 6 kT/ns/dof, but over 2 ps its true energy
     // swings by ±30 kcal/mol about the fitted line, more than the fitted change: the
-    // drift is reported beyond the bound, unresolved, and no warning is raised.
+    // drift is reported beyond the bound, undecided (with the run length that would
+    // decide), and no warning is raised.
     let short = water("heating-water-4-short", "4fs", "2ps", &[]);
     let drift = &short["drift"];
     assert_eq!(drift["exceeded"], true, "{drift}");
-    assert_eq!(drift["resolved"], false, "{drift}");
+    assert_eq!(drift["verdict"], "undecided", "{drift}");
+    // The error bar σ_E/T shrinks as 1/T: the interval clears the bound at
+    // T' = T · 2σ / (|value| − bound) (src/run/verdict.rs), a longer run than this one.
+    let number = |key: &str| drift[key].as_f64().unwrap();
+    let span = number("to") - number("from");
+    let expected = number("from") + span * 2.0 * number("error") / (number("value").abs() - 0.05);
+    let decide_at = number("decide_at");
+    assert!(
+        decide_at > number("to") && (decide_at - expected).abs() <= 1e-9 * expected,
+        "{drift}"
+    );
+    assert!(
+        drift["verdict_text"]
+            .as_str()
+            .unwrap()
+            .starts_with("undecided: a run of ~"),
+        "{drift}"
+    );
     let (change, fluctuation) = (
         drift["change"].as_f64().unwrap(),
         drift["fluctuation"].as_f64().unwrap(),

@@ -218,7 +218,7 @@ fn water_molecule_modes_and_the_impulse_limit() {
     )
     .unwrap();
     for r in &results[..4] {
-        assert_eq!(r.verdict, Verdict::Stable, "h = {}: {r:?}", r.h);
+        assert_eq!(r.verdict, Verdict::Pass, "h = {}: {r:?}", r.h);
     }
     let unstable: Vec<f64> = results[4..]
         .iter()

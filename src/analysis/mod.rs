@@ -5,6 +5,7 @@
 pub mod async_stability;
 pub mod block_average;
 pub mod configurational;
+pub mod dihedrals;
 pub mod geometry;
 pub mod growth;
 pub mod minimize;

@@ -14,6 +14,8 @@
 //!   thermalised; an NVE run with zero total momentum has `3N − 3`).
 //! * **Configurational temperature** and **g(r)** and mean **bond lengths and angles** per
 //!   type from the trajectory frames ([`super::configurational`], [`super::rdf`]).
+//! * **Backbone (φ, ψ) basins** per residue, when the analyzer is given a topology's backbone
+//!   ([`Analyzer::set_backbone`], [`super::dihedrals`]).
 
 use std::path::PathBuf;
 
@@ -22,9 +24,11 @@ use super::block_average::{
     from_block_means, ratio_of_means,
 };
 use super::configurational::ConfigurationalProbe;
+use super::dihedrals::{BackboneResidue, BasinCounter, ResidueBasins};
 use super::geometry::{Topology, mean_angle, mean_bond_length};
 use super::rdf::{PairSelection, Peak, RdfGrid, first_peak};
 use crate::error::{Error, Result};
+use crate::forces::PeriodicBox;
 use crate::io::energy_table::EnergyTable;
 use crate::io::scene::Scene;
 use crate::io::trajectory::{FrameInfo, TrajectoryReader};
@@ -127,6 +131,8 @@ pub struct RunAnalysis {
     pub configurational: Option<ConfigurationalResult>,
     pub rdf: Vec<RdfResult>,
     pub geometry: Vec<GeometryResult>,
+    /// Backbone basin populations per residue (empty without a backbone).
+    pub basins: Vec<ResidueBasins>,
 }
 
 /// The scene-side setup shared by every run analysed against one scene.
@@ -137,6 +143,7 @@ pub struct Analyzer<'a> {
     selections: Vec<PairSelection>,
     grid: Option<RdfGrid>,
     box_lengths: Option<[f64; 3]>,
+    backbone: Vec<BackboneResidue>,
 }
 
 fn bad_option(message: String) -> Error {
@@ -180,7 +187,14 @@ impl<'a> Analyzer<'a> {
             selections,
             grid,
             box_lengths,
+            backbone: Vec::new(),
         })
+    }
+
+    /// Count the backbone (φ, ψ) basins of these residues in every frame
+    /// ([`super::dihedrals::backbone_residues`] of the scene's topology).
+    pub fn set_backbone(&mut self, residues: Vec<BackboneResidue>) {
+        self.backbone = residues;
     }
 
     pub fn topology(&self) -> &Topology {
@@ -390,6 +404,7 @@ struct FramePass {
     laplacian: BlockAccumulator,
     hutchinson: BlockAccumulator,
     probe: Option<ConfigurationalProbe>,
+    basins: BasinCounter,
 }
 
 impl FramePass {
@@ -438,6 +453,7 @@ impl FramePass {
             laplacian: BlockAccumulator::new(blocks.count, 1),
             hutchinson: BlockAccumulator::new(blocks.count, 1),
             probe,
+            basins: BasinCounter::new(analyzer.backbone.clone(), blocks.count),
         }
     }
 
@@ -505,6 +521,8 @@ impl FramePass {
                 accumulator.add_vector(block, &self.g_frame);
             }
         }
+        let periodic_box = lengths.map(|lengths| PeriodicBox { lengths });
+        self.basins.add(q, periodic_box.as_ref(), block);
         let topology = &analyzer.topology;
         for (kind, name, _, accumulator) in &mut self.geometry {
             let value = if *kind == "bond" {
@@ -629,6 +647,7 @@ impl FramePass {
             configurational,
             rdf,
             geometry,
+            basins: self.basins.finish(),
         })
     }
 

@@ -4,10 +4,17 @@
 //! Each point's run and a reference run (BAOAB at a small step, e.g. 0.5 fs with γ = 1/ps,
 //! at the same temperature) are analysed with the estimators of `longstep analyze`
 //! ([`super::run_analysis`]): the mean potential energy per molecule and the first-peak
-//! height of one pair's g(r), each with its block-average standard error. A point **passes**
-//! when both differences to the reference are within their bounds (by default 0.1 kcal/mol
-//! per molecule and 0.05 in g); the combined error `√(σ_run² + σ_ref²)` is reported beside
-//! each difference so a reader can see whether the bound was resolved.
+//! height of one pair's g(r), each with its block-average standard error. Each difference to
+//! the reference, with its combined error `√(σ_run² + σ_ref²)`, gets the three-way verdict
+//! of [`crate::run::verdict`] against its bound (by default 0.1 kcal/mol per molecule and
+//! 0.05 in g): **pass** when its whole 2σ interval lies within the bound, **fail** when
+//! wholly outside, **undecided** otherwise. The point passes when both pass and fails when
+//! either fails; otherwise it is undecided, and the run length that would decide it follows
+//! from the run's error shrinking as `1/√T` over the analysed span while the reference's
+//! stays (a longer run of the point does not improve the reference: when the reference's
+//! error alone is too wide, no run length of the point decides, and the message says so).
+//! The errors are treated as independent; paired runs (same start, same noise) are
+//! correlated, so the combined error overstates theirs — a conservative verdict.
 //!
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
@@ -19,9 +26,12 @@ use serde::Serialize;
 
 use super::block_average::Estimate;
 use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
-use super::scan::{PointOutputs, ScanSetup, StepResult, Verdict, run_once, step_result};
+use super::scan::{
+    PointOutputs, ScanSetup, StepResult, Verdict, run_once, step_result, until_decided,
+};
 use crate::error::{Error, Result};
 use crate::io::summary::Status;
+use crate::run::verdict::{self, MEAN_EXPONENT, Measurement};
 
 /// What the sampling criterion compares, and its bounds.
 #[derive(Clone, Debug)]
@@ -127,7 +137,11 @@ pub struct Comparison {
     /// The run's mean kinetic temperature and its standard error.
     pub kinetic_temperature: f64,
     pub kinetic_temperature_error: f64,
-    pub passes: bool,
+    /// The verdicts on the two differences, and on the point (pass when both pass, fail
+    /// when either fails).
+    pub potential_verdict: verdict::Verdict,
+    pub peak_verdict: verdict::Verdict,
+    pub verdict: verdict::Verdict,
 }
 
 /// The first-peak height of the analysed pair, `None` when no peak was found.
@@ -135,40 +149,66 @@ pub fn peak_height(analysis: &RunAnalysis) -> Option<Estimate> {
     analysis.rdf.first().and_then(|r| r.peak_height)
 }
 
-/// Compare a run's analysis with the reference's: passes when both differences are within
-/// their bounds (a run whose g(r) shows no first peak fails).
-pub fn compare(
-    reference: &RunAnalysis,
-    run: &RunAnalysis,
-    potential_bound: f64,
-    peak_bound: f64,
-) -> Comparison {
-    let combined = |a: &Estimate, b: &Estimate| a.error.hypot(b.error);
-    let (pe, pe_ref) = (
+/// The bounds of the comparison and the analysed span of the run, `[start, start + span]`
+/// (scene time unit): the span the run's error bars shrink with.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub potential: f64,
+    pub peak: f64,
+    pub start: f64,
+    pub span: f64,
+}
+
+/// A difference of two estimates as a measurement over the run's analysed span: the run's
+/// error shrinks with a longer run, the reference's does not.
+fn difference(run: &Estimate, reference: &Estimate, bounds: &Bounds) -> Measurement {
+    Measurement {
+        value: run.mean - reference.mean,
+        error: run.error,
+        fixed_error: reference.error,
+        start: bounds.start,
+        span: bounds.span,
+        exponent: MEAN_EXPONENT,
+    }
+}
+
+/// Compare a run's analysis with the reference's (module documentation); a run or reference
+/// whose g(r) shows no first peak fails.
+pub fn compare(reference: &RunAnalysis, run: &RunAnalysis, bounds: &Bounds) -> Comparison {
+    let potential = difference(
         &run.potential_per_molecule,
         &reference.potential_per_molecule,
+        bounds,
     );
-    let potential_difference = pe.mean - pe_ref.mean;
-    let (peak, peak_error, peak_difference, peak_combined_error) =
-        match (peak_height(run), peak_height(reference)) {
-            (Some(p), Some(r)) => (p.mean, p.error, p.mean - r.mean, combined(&p, &r)),
-            _ => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
-        };
-    // NaN compares false: a missing peak fails.
-    let passes =
-        potential_difference.abs() <= potential_bound && peak_difference.abs() <= peak_bound;
+    let potential_verdict = verdict::judge(&potential, bounds.potential);
+    let (peak, peak_verdict) = match (peak_height(run), peak_height(reference)) {
+        (Some(p), Some(r)) => {
+            let m = difference(&p, &r, bounds);
+            ((p.mean, p.error, m), verdict::judge(&m, bounds.peak))
+        }
+        _ => {
+            let missing = Measurement {
+                value: f64::NAN,
+                error: f64::NAN,
+                ..potential
+            };
+            ((f64::NAN, f64::NAN, missing), verdict::Verdict::Fail)
+        }
+    };
     Comparison {
-        potential: pe.mean,
-        potential_error: pe.error,
-        potential_difference,
-        potential_combined_error: combined(pe, pe_ref),
-        peak,
-        peak_error,
-        peak_difference,
-        peak_combined_error,
+        potential: run.potential_per_molecule.mean,
+        potential_error: run.potential_per_molecule.error,
+        potential_difference: potential.value,
+        potential_combined_error: potential.standard_error(),
+        peak: peak.0,
+        peak_error: peak.1,
+        peak_difference: peak.2.value,
+        peak_combined_error: peak.2.standard_error(),
         kinetic_temperature: run.kinetic_temperature.mean,
         kinetic_temperature_error: run.kinetic_temperature.error,
-        passes,
+        potential_verdict,
+        peak_verdict,
+        verdict: verdict::all(&[potential_verdict, peak_verdict]),
     }
 }
 
@@ -221,6 +261,18 @@ pub fn run_sampling_point(
     };
     let summary = run_once(setup, method, h, &outputs)
         .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+    judge_sampling_point(setup, criterion, reference, (index, method, h), &summary)
+}
+
+/// Judge a finished point's run (in its directory) against the reference analysis.
+fn judge_sampling_point(
+    setup: &ScanSetup,
+    criterion: &SamplingCriterion,
+    reference: &RunAnalysis,
+    (index, method, h): (usize, &str, f64),
+    summary: &crate::io::summary::RunSummary,
+) -> Result<StepResult> {
+    let dir = point_dir(criterion, index, method, h);
     if summary.status != Status::Ok {
         return Ok(step_result(
             index,
@@ -228,7 +280,7 @@ pub fn run_sampling_point(
             h,
             Verdict::Unstable,
             None,
-            &summary,
+            summary,
         ));
     }
     let scene = setup.load_scene()?;
@@ -237,18 +289,24 @@ pub fn run_sampling_point(
         energy: dir.join("energy.csv"),
         trajectory: dir.join("trajectory.xyz"),
     })?;
-    let comparison = compare(
-        reference,
-        &analysis,
-        criterion.potential_bound,
-        criterion.peak_bound,
-    );
-    let verdict = if comparison.passes {
-        Verdict::Passes
-    } else {
-        Verdict::Fails
+    let bounds = Bounds {
+        potential: criterion.potential_bound,
+        peak: criterion.peak_bound,
+        start: criterion.discard,
+        span: setup.t_end - criterion.discard,
     };
-    let mut result = step_result(index, method, h, verdict, None, &summary);
+    let comparison = compare(reference, &analysis, &bounds);
+    let mut result = step_result(
+        index,
+        method,
+        h,
+        Verdict::of(&comparison.verdict),
+        None,
+        summary,
+    );
+    if let verdict::Verdict::Undecided { decide_at } = comparison.verdict {
+        result.decide_at = decide_at;
+    }
     result.sampling = Some(comparison);
     Ok(result)
 }
@@ -265,7 +323,9 @@ pub fn run_sampling_points(
     let mut results = points
         .par_iter()
         .map(|(index, method, h)| {
-            let result = run_sampling_point(setup, criterion, reference, (*index, method, *h));
+            let result = until_decided(setup, &|setup: &ScanSetup| {
+                run_sampling_point(setup, criterion, reference, (*index, method, *h))
+            });
             progress();
             result
         })

@@ -2,20 +2,24 @@
 //!
 //! * **unstable** — the run blew up (non-finite energy, or |E − E₀| beyond the blow-up
 //!   factor) or its method failed; the time is reported;
-//! * **drifting** — it finished, but the energy drifts: the fitted slope of the energy the
-//!   method conserves (its `mollified_total` or `pseudo_energy` when it reports one, else
-//!   `K + V`; [`crate::run::drift`]) exceeds the bound;
-//! * **stable** — otherwise.
+//! * otherwise the verdict of [`crate::run::verdict`] on its energy drift — the fitted slope
+//!   of the energy the method conserves (its `mollified_total` or `pseudo_energy` when it
+//!   reports one, else `K + V`; [`crate::run::drift`]) with its error bar against the
+//!   bound: **pass**, **fail** or **undecided** (with the run length that would decide).
 //!
 //! In a scene with real units the drift is judged exactly as `longstep run` judges it
-//! ([`judge`]): kT/ns/dof, default bound 0.05. In a dimensionless scene it is the rate in kT
-//! per unit time per degree of freedom (default bound 1e-3): kT is estimated from the mean
-//! kinetic energy by equipartition, `kT = 2⟨K⟩/n_dof`, so the rate is `slope / (2⟨K⟩)` and
-//! needs no thermostat or temperature in the scene.
+//! ([`judge`]): kT/ns/dof, default bound 0.05, the same verdict and wording. In a
+//! dimensionless scene it is the rate in kT per unit time per degree of freedom (default
+//! bound 1e-3): kT is estimated from the mean kinetic energy by equipartition,
+//! `kT = 2⟨K⟩/n_dof`, so the rate is `slope / (2⟨K⟩)` and needs no thermostat or temperature
+//! in the scene; its error bar is the energy's fluctuation over the span, converted alike.
+//!
+//! With `until_decided` > 1 ([`ScanSetup::until_decided`]) an undecided point is run again
+//! at twice the length, and again, up to that factor of its length.
 //!
 //! A thermostatted method exchanges energy with its bath by design: it is never judged by
-//! drift, only by the sampling criterion ([`super::sampling`]), whose verdicts are
-//! **passes** and **fails**.
+//! drift, only by the sampling criterion ([`super::sampling`]), whose verdicts are the same
+//! three.
 //!
 //! The timings behind ns/day ([`time_point`]) are medians of repeated runs at one thread
 //! count, taken apart from the scan: the scan's own table holds only what is the same bit
@@ -28,9 +32,10 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::io::scene::{Scene, SceneFlags};
-use crate::io::summary::{RunSummary, Status};
-use crate::run::drift::judge;
+use crate::io::summary::{RunSummary, Status, format_time};
+use crate::run::drift::{judge, verdict_of};
 use crate::run::prepare::{RunRequest, prepare};
+use crate::run::verdict::{self, Measurement};
 use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value, whole_ratio};
 use crate::units::Units;
@@ -39,44 +44,60 @@ use crate::units::Units;
 /// degree of freedom (in a scene with real units it is `run`'s, 0.05 kT/ns/dof).
 pub const DEFAULT_DIMENSIONLESS_BOUND: f64 = 1e-3;
 
+/// A scan point's verdict: unstable, or the verdict of its criterion
+/// ([`crate::run::verdict::Verdict`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Verdict {
-    Stable,
-    Drifting,
     Unstable,
-    /// Within the sampling criterion's bounds.
-    Passes,
-    /// Outside them: the run samples another distribution.
-    Fails,
+    /// The criterion's whole confidence interval lies within its bound.
+    Pass,
+    /// It lies wholly outside: the run drifts, or samples another distribution.
+    Fail,
+    /// The error bar is too wide to tell.
+    Undecided,
 }
 
 impl Verdict {
     pub fn name(self) -> &'static str {
         match self {
-            Verdict::Stable => "stable",
-            Verdict::Drifting => "drifting",
             Verdict::Unstable => "unstable",
-            Verdict::Passes => "passes",
-            Verdict::Fails => "fails",
+            Verdict::Pass => "pass",
+            Verdict::Fail => "fail",
+            Verdict::Undecided => "undecided",
         }
     }
 
+    /// A verdict by its name; the names of tables written before the three-way verdict
+    /// (`stable`, `passes`; `drifting`, `fails`) read as pass and fail.
     pub fn parse(text: &str) -> Option<Self> {
+        match text {
+            "stable" | "passes" => return Some(Verdict::Pass),
+            "drifting" | "fails" => return Some(Verdict::Fail),
+            _ => {}
+        }
         [
-            Verdict::Stable,
-            Verdict::Drifting,
             Verdict::Unstable,
-            Verdict::Passes,
-            Verdict::Fails,
+            Verdict::Pass,
+            Verdict::Fail,
+            Verdict::Undecided,
         ]
         .into_iter()
         .find(|v| v.name() == text)
     }
 
-    /// Whether the point is safe by its criterion.
+    /// The scan's verdict of a criterion's verdict.
+    pub fn of(verdict: &verdict::Verdict) -> Self {
+        match verdict {
+            verdict::Verdict::Pass => Verdict::Pass,
+            verdict::Verdict::Fail => Verdict::Fail,
+            verdict::Verdict::Undecided { .. } => Verdict::Undecided,
+        }
+    }
+
+    /// Whether the point is safe by its criterion (an undecided point is not).
     pub fn is_safe(self) -> bool {
-        matches!(self, Verdict::Stable | Verdict::Passes)
+        self == Verdict::Pass
     }
 }
 
@@ -101,48 +122,64 @@ pub fn drift_rate(series: &[[f64; 3]]) -> f64 {
     (covariance / variance) / (2.0 * mean_k)
 }
 
-/// A finished run's drift as a scan reports it: the judged energy's rate, the true
-/// energy's, and which energy was judged.
+/// A finished run's drift as a scan reports it: the judged energy's rate and its standard
+/// error, the true energy's, which energy was judged, and the verdict.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ScanDrift {
     pub value: f64,
+    pub error: f64,
     pub true_energy: f64,
     pub energy: String,
+    #[serde(skip)]
+    pub verdict: verdict::Verdict,
 }
 
 /// The drift of a finished run in the scan's unit (kT/ns/dof with real units, kT per unit
-/// time per dof otherwise), judged by the energy the method conserves; `None` without a
-/// fit (too few rows).
-pub fn scan_drift(summary: &RunSummary) -> Option<ScanDrift> {
+/// time per dof otherwise), judged by the energy the method conserves against `bound`;
+/// `None` without a fit (too few rows).
+pub fn scan_drift(summary: &RunSummary, bound: f64) -> Option<ScanDrift> {
     let fit = summary.fit.as_ref()?;
     Some(match summary.scene_units {
         Units::Real => {
-            let report = judge(fit, Units::Real, summary.energy_reference, None);
+            let report = judge(fit, Units::Real, summary.energy_reference, Some(bound));
             ScanDrift {
                 value: report.value,
+                error: report.error,
                 true_energy: report.true_energy,
+                verdict: verdict_of(&report),
                 energy: report.energy,
             }
         }
         Units::None => {
-            let (energy, slope, _) = fit.judged();
-            ScanDrift {
+            let (energy, slope, fluctuation) = fit.judged();
+            let span = fit.to - fit.from;
+            let measurement = Measurement {
                 value: fit.rate(slope),
+                error: fit.rate(fluctuation / span).abs(),
+                fixed_error: 0.0,
+                start: fit.from,
+                span,
+                exponent: 1.0,
+            };
+            ScanDrift {
+                value: measurement.value,
+                error: measurement.error,
                 true_energy: fit.true_rate(),
                 energy: energy.to_string(),
+                verdict: verdict::judge(&measurement, bound),
             }
         }
     })
 }
 
-/// The verdict on a finished run by the drift criterion, and its drift.
+/// The verdict on a finished run by the drift criterion, and its drift. A finished run
+/// too short to fit a drift is undecided.
 pub fn classify(summary: &RunSummary, drift_bound: f64) -> (Verdict, Option<ScanDrift>) {
-    let drift = scan_drift(summary);
-    let value = drift.as_ref().map_or(0.0, |d| d.value);
-    let verdict = match summary.status {
-        Status::Unstable | Status::Failed => Verdict::Unstable,
-        Status::Ok if value.abs() > drift_bound => Verdict::Drifting,
-        Status::Ok => Verdict::Stable,
+    let drift = scan_drift(summary, drift_bound);
+    let verdict = match (&summary.status, &drift) {
+        (Status::Unstable | Status::Failed, _) => Verdict::Unstable,
+        (Status::Ok, Some(d)) => Verdict::of(&d.verdict),
+        (Status::Ok, None) => Verdict::Undecided,
     };
     (verdict, drift)
 }
@@ -161,6 +198,12 @@ pub struct StepResult {
     pub drift_detail: Option<ScanDrift>,
     /// When an unstable run stopped.
     pub blowup_time: Option<f64>,
+    /// The run length (scene time unit) that would decide an undecided point, when one
+    /// would ([`crate::run::verdict`]).
+    pub decide_at: Option<f64>,
+    /// The run length of the point's verdict (longer than the scan's `t_end` when
+    /// `until_decided` extended it).
+    pub t_end: f64,
     pub max_relative_error: f64,
     pub steps: u64,
     pub slow_evaluations: u64,
@@ -192,6 +235,9 @@ pub struct ScanSetup {
     pub flags: SceneFlags,
     /// Start every point from the positions of this structure file (`--start`).
     pub start: Option<PathBuf>,
+    /// Run an undecided point again at twice the length, and again, up to this factor of
+    /// `t_end` (≤ 1: never; [`until_decided`]).
+    pub until_decided: f64,
 }
 
 impl ScanSetup {
@@ -299,12 +345,74 @@ pub fn run_once(
     prepared.run(&options)
 }
 
-/// Run one point and judge it by drift.
+/// Most extension factor of `until_decided` (a bound on a user-given size: the run of an
+/// undecided point grows to this many times its length).
+pub const MAX_UNTIL_DECIDED: f64 = 64.0;
+
+/// The `--until-decided` factor: `None` (never extend) is 0; a factor must lie in
+/// `[1, MAX_UNTIL_DECIDED]`.
+pub fn check_until_decided(factor: Option<f64>) -> Result<f64> {
+    match factor {
+        None => Ok(0.0),
+        Some(f) if (1.0..=MAX_UNTIL_DECIDED).contains(&f) => Ok(f),
+        Some(f) => Err(Error::input(format!(
+            "--until-decided must be a factor of the run length between 1 and \
+             {MAX_UNTIL_DECIDED}, got {f}"
+        ))),
+    }
+}
+
+/// Run a point by `run_point` and, while it is undecided, run it again at twice the length,
+/// up to `setup.until_decided` times `setup.t_end` (each run from the start: the same start
+/// and seed, so a longer run begins with the shorter one's rows). The result says the length
+/// it was judged at (`t_end`).
+pub fn until_decided(
+    setup: &ScanSetup,
+    run_point: &dyn Fn(&ScanSetup) -> Result<StepResult>,
+) -> Result<StepResult> {
+    let limit = setup.t_end * setup.until_decided.min(MAX_UNTIL_DECIDED);
+    let mut current = setup.clone();
+    loop {
+        let result = run_point(&current)?;
+        let longer = 2.0 * current.t_end;
+        // A run length within round-off of the limit still counts (4 = 2·2 exactly, but a
+        // limit from a decimal factor need not be).
+        if result.verdict != Verdict::Undecided || longer > limit * (1.0 + 1e-12) {
+            return Ok(result);
+        }
+        current.t_end = longer;
+    }
+}
+
+/// Run one point and judge it by drift (extended while undecided, [`until_decided`]).
 pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Result<StepResult> {
-    let summary = run_once(setup, method, h, &PointOutputs::default())
-        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-    let (verdict, drift) = classify(&summary, setup.drift_bound);
-    Ok(step_result(index, method, h, verdict, drift, &summary))
+    until_decided(setup, &|setup: &ScanSetup| {
+        let summary = run_once(setup, method, h, &PointOutputs::default())
+            .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+        let (verdict, drift) = classify(&summary, setup.drift_bound);
+        Ok(step_result(index, method, h, verdict, drift, &summary))
+    })
+}
+
+/// One line per undecided point: `impulse at h = 2 fs: undecided: a run of ~40 ps would
+/// decide` (the wording of [`crate::run::verdict::Verdict::text`]).
+pub fn undecided_notes(results: &[StepResult], units: Units) -> Vec<String> {
+    results
+        .iter()
+        .filter(|r| r.verdict == Verdict::Undecided)
+        .map(|r| {
+            let verdict = verdict::Verdict::Undecided {
+                decide_at: r.decide_at,
+            };
+            format!(
+                "{} at h = {} (a run of {}): {}",
+                r.method,
+                format_time(r.h, units),
+                format_time(r.t_end, units),
+                verdict.text(units)
+            )
+        })
+        .collect()
 }
 
 /// The table row of a finished point.
@@ -317,6 +425,10 @@ pub fn step_result(
     summary: &RunSummary,
 ) -> StepResult {
     let counts = &summary.force_evaluations;
+    let decide_at = match drift.as_ref().map(|d| d.verdict) {
+        Some(verdict::Verdict::Undecided { decide_at }) => decide_at,
+        _ => None,
+    };
     StepResult {
         index,
         method: method.to_string(),
@@ -325,6 +437,8 @@ pub fn step_result(
         drift: drift.as_ref().map_or(0.0, |d| d.value),
         drift_detail: drift,
         blowup_time: (verdict == Verdict::Unstable).then_some(summary.t_end),
+        decide_at,
+        t_end: summary.t_end,
         max_relative_error: summary.energy.max_relative_error,
         steps: summary.steps,
         slow_evaluations: counts.slow,
@@ -522,6 +636,8 @@ mod tests {
             drift: 0.0,
             drift_detail: None,
             blowup_time: None,
+            decide_at: None,
+            t_end: 1.0,
             max_relative_error: 0.0,
             steps: 0,
             slow_evaluations: 0,
@@ -537,16 +653,16 @@ mod tests {
         use Verdict::*;
         let results = vec![
             result("impulse", 3.0, Unstable),
-            result("impulse", 1.0, Stable),
-            result("impulse", 2.0, Drifting),
-            result("impulse", 4.0, Stable),
+            result("impulse", 1.0, Pass),
+            result("impulse", 2.0, Undecided),
+            result("impulse", 4.0, Pass),
             result("long-average", 1.0, Unstable),
-            result("verlet", 1.0, Stable),
+            result("verlet", 1.0, Pass),
         ];
         let safe = safe_steps(&results);
         assert_eq!(safe[0].method, "impulse");
         assert_eq!(safe[0].safe_up_to, Some(1.0));
-        assert_eq!(safe[0].first_failure, Some((2.0, Drifting)));
+        assert_eq!(safe[0].first_failure, Some((2.0, Undecided)));
         assert_eq!(safe[0].stable_beyond, vec![4.0]);
         assert_eq!(safe[1].safe_up_to, None);
         assert_eq!(safe[2].safe_up_to, Some(1.0));

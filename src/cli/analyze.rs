@@ -16,6 +16,7 @@ use clap::Args;
 use serde_json::{Value as Json, json};
 
 use crate::analysis::block_average::Estimate;
+use crate::analysis::dihedrals::{BASINS, backbone_residues, scene_topology};
 use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles, parse_pair};
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
@@ -202,7 +203,10 @@ fn labels(args: &AnalyzeArgs) -> Result<Vec<String>> {
 
 pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
     let scene = args.source.load(&args.scene, &args.set)?;
-    let analyzer = Analyzer::new(&scene, options(args, &scene)?)?;
+    let mut analyzer = Analyzer::new(&scene, options(args, &scene)?)?;
+    if let Some(topology) = scene_topology(&args.scene)? {
+        analyzer.set_backbone(backbone_residues(&topology));
+    }
     let labels = labels(args)?;
     let trajectory = args
         .trajectory
@@ -321,7 +325,23 @@ fn summary_json(
         "rdf": rdf,
         "rdf_intramolecular_pairs": options.intramolecular,
         "geometry": geometry,
+        "basins": basins_json(r),
     })
+}
+
+/// Per backbone residue: each basin's population and error.
+fn basins_json(r: &RunAnalysis) -> Json {
+    r.basins
+        .iter()
+        .map(|b| {
+            let populations: serde_json::Map<String, Json> = BASINS
+                .iter()
+                .zip(&b.populations)
+                .map(|(name, p)| (name.to_string(), estimate_json(p)))
+                .collect();
+            json!({ "residue": b.label, "frames": b.frames, "populations": populations })
+        })
+        .collect()
 }
 
 fn pm(e: &Estimate, digits: usize) -> String {
@@ -376,6 +396,14 @@ fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
             ),
             _ => println!("  g {:<6} 1st peak  not found", rdf.name),
         }
+    }
+    for b in &r.basins {
+        let populations: Vec<String> = BASINS
+            .iter()
+            .zip(&b.populations)
+            .map(|(name, p)| format!("{name} {}", pm(p, 3)))
+            .collect();
+        println!("  basins {:<8} {}", b.label, populations.join(", "));
     }
     for g in &r.geometry {
         let unit = if g.kind == "bond" { length } else { "degree" };

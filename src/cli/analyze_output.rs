@@ -1,11 +1,13 @@
 //! The tables `longstep analyze` writes for each run (through the csv crate): `rdf.csv`,
-//! `blocks.csv`, `blocking.csv`, `geometry.csv`, and `summary.json`. Headers carry units
+//! `blocks.csv`, `blocking.csv`, `geometry.csv`, with a backbone `basins.csv` and
+//! `ramachandran.csv`, and `summary.json`. Headers carry units
 //! in brackets (`r [angstrom]`).
 
 use std::path::Path;
 
 use serde_json::Value as Json;
 
+use crate::analysis::dihedrals::{BASINS, HISTOGRAM_BINS};
 use crate::analysis::run_analysis::RunAnalysis;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
@@ -85,10 +87,53 @@ pub fn write_tables(dir: &Path, result: &RunAnalysis, summary: &Json) -> Result<
         .collect();
     let header = ["kind", "type", "count", "mean", "error", "unit"].map(String::from);
     write_csv(&dir.join("geometry.csv"), &header, &geometry)?;
+    if !result.basins.is_empty() {
+        write_basins(dir, result)?;
+    }
     let path = dir.join("summary.json");
     let text = serde_json::to_string_pretty(summary)
         .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
     std::fs::write(&path, text + "\n").map_err(|e| Error::io(&path, e))
+}
+
+/// `basins.csv`: each backbone residue's basin populations with their errors;
+/// `ramachandran.csv`: its (φ, ψ) histogram, one row per non-empty 10° × 10° bin.
+fn write_basins(dir: &Path, result: &RunAnalysis) -> Result<()> {
+    let mut populations = Vec::new();
+    let mut bins = Vec::new();
+    let width = 360.0 / HISTOGRAM_BINS as f64;
+    for residue in &result.basins {
+        for (name, p) in BASINS.iter().zip(&residue.populations) {
+            populations.push(vec![
+                residue.label.clone(),
+                name.to_string(),
+                p.mean.to_string(),
+                p.error.to_string(),
+                residue.frames.to_string(),
+            ]);
+        }
+        for (k, &fraction) in residue.histogram.iter().enumerate() {
+            if fraction > 0.0 {
+                let (i, j) = (k / HISTOGRAM_BINS, k % HISTOGRAM_BINS);
+                bins.push(vec![
+                    residue.label.clone(),
+                    (-180.0 + i as f64 * width).to_string(),
+                    (-180.0 + j as f64 * width).to_string(),
+                    fraction.to_string(),
+                ]);
+            }
+        }
+    }
+    let header = ["residue", "basin", "population", "error", "frames"].map(String::from);
+    write_csv(&dir.join("basins.csv"), &header, &populations)?;
+    let header = [
+        "residue",
+        "phi_from [degree]",
+        "psi_from [degree]",
+        "fraction",
+    ]
+    .map(String::from);
+    write_csv(&dir.join("ramachandran.csv"), &header, &bins)
 }
 
 fn write_rdf(path: &Path, result: &RunAnalysis, length: &str) -> Result<()> {

@@ -319,7 +319,8 @@ fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
     bar
 }
 
-/// Judge a finished run's energy drift against its bound; a drift beyond it is a warning.
+/// Judge a finished run's energy drift against its bound (pass, fail or undecided,
+/// [`crate::run::verdict`]); a failing drift is a warning.
 /// A thermostatted (stochastic) method exchanges energy with its bath by design, and a run
 /// that stopped early has already said why: neither is judged.
 fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {

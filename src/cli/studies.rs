@@ -111,6 +111,10 @@ pub struct ScanStepsArgs {
     /// Record the energy every N steps for the drift fit.
     #[arg(long, default_value_t = 1)]
     pub energy_every: usize,
+    /// Run an undecided point again at twice its length, and again, up to FACTOR times
+    /// --t-end (e.g. 4; at most 64; default: never).
+    #[arg(long, value_name = "FACTOR")]
+    pub until_decided: Option<f64>,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -405,6 +409,7 @@ fn scan_setup(
         level_dts,
         flags: args.source.flags()?,
         start: args.start.clone(),
+        until_decided: crate::analysis::scan::check_until_decided(args.until_decided)?,
     };
     Ok((setup, steps))
 }
@@ -527,10 +532,10 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         Some((c, reference)) => run_sampling_points(&setup, c, reference, &points, &|| bar.inc(1))?,
     };
     bar.finish_and_clear();
-    if let Some((c, _)) = &sampling
-        && !args.quiet
-    {
-        unresolved_notice(c, &results);
+    if !args.quiet {
+        for note in crate::analysis::scan::undecided_notes(&results, scene.units) {
+            eprintln!("notice: {note}");
+        }
     }
 
     let path = args.out.join(SCAN_STEPS);
@@ -552,26 +557,6 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         path.display()
     );
     Ok(())
-}
-
-/// Say so when a bound lies within the statistical error of its difference: such a verdict
-/// says more about the run length than about the step.
-fn unresolved_notice(c: &SamplingCriterion, results: &[StepResult]) {
-    let unresolved = results
-        .iter()
-        .filter_map(|r| r.sampling.as_ref())
-        .filter(|s| {
-            !(s.potential_combined_error < c.potential_bound
-                && s.peak_combined_error < c.peak_bound)
-        })
-        .count();
-    if unresolved > 0 {
-        eprintln!(
-            "notice: at {unresolved} points a combined standard error is as large as its bound \
-             (potential {}, peak {}): longer runs (--t-end) or more blocks resolve them",
-            c.potential_bound, c.peak_bound
-        );
-    }
 }
 
 /// Warn before an asynchronous run enters an instability band (small linear scenes).
@@ -879,6 +864,8 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             "slow_evaluations",
             "fast_evaluations",
             "hessian_vector",
+            "drift_error",
+            "decide_at",
         ],
     );
     for r in results {
@@ -897,6 +884,8 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             r.slow_evaluations.to_string(),
             r.fast_evaluations.to_string(),
             r.hessian_vector.to_string(),
+            detail.map_or(String::new(), |d| Num(d.error).to_string()),
+            r.decide_at.map_or(String::new(), |t| Num(t).to_string()),
         ]);
     }
     table
@@ -927,6 +916,7 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
             "steps",
             "slow_evaluations",
             "fast_evaluations",
+            "decide_at",
         ],
     );
     for r in results {
@@ -959,6 +949,7 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
             r.steps.to_string(),
             r.slow_evaluations.to_string(),
             r.fast_evaluations.to_string(),
+            r.decide_at.map_or(String::new(), |t| Num(t).to_string()),
         ]);
         table.rows.push(row);
     }

@@ -26,7 +26,9 @@ mod topology;
 mod values;
 
 pub use schema::*;
-pub use topology::{COORDINATE_EXTENSIONS, default_coordinates, is_topology_path};
+pub use topology::{
+    COORDINATE_EXTENSIONS, default_coordinates, is_topology_path, read_topology_file,
+};
 
 use crate::error::{Error, Result};
 use crate::forces::ForceTerm;

@@ -131,17 +131,6 @@ impl Drift {
             None => ("total", self.true_slope, self.true_fluctuation),
         }
     }
-
-    /// Whether the judged energy's fitted change over the span, `slope × span`, exceeds
-    /// twice its fluctuation about the line: only then is the drift resolved. (With white
-    /// noise of deviation σ over n rows the fitted change has a standard error σ√(12/n),
-    /// so this is conservative; with oscillating energies, whose rows are correlated over
-    /// a period, it asks for a change beyond the oscillation itself. A short run of a
-    /// method whose energy oscillates cannot show a small drift, and is not said to.)
-    pub fn resolved(&self) -> bool {
-        let (_, slope, fluctuation) = self.judged();
-        (slope * (self.to - self.from)).abs() > 2.0 * fluctuation
-    }
 }
 
 /// A drift judged against its bound, for the summary and the JSON (`drift`).
@@ -163,9 +152,18 @@ pub struct DriftReport {
     pub bound: f64,
     /// `|value| > bound`.
     pub exceeded: bool,
-    /// Whether the fitted change over the span exceeds twice the energy's fluctuation
-    /// ([`Drift::resolved`]); an unresolved drift beyond the bound is no warning.
-    pub resolved: bool,
+    /// The standard error of `value`: the judged energy's fluctuation about its line over
+    /// the fitted span, converted like the slope (`crate::run::drift::judge`).
+    pub error: f64,
+    /// `pass`, `fail` or `undecided` (`crate::run::verdict`), and the run length (scene
+    /// time unit) that would decide an undecided drift, when one would.
+    pub verdict: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decide_at: Option<f64>,
+    /// The verdict in words, as every command prints it.
+    pub verdict_text: String,
+    /// The half-width of the verdict's confidence interval in standard errors.
+    pub z: f64,
     /// The fitted change of the judged energy over the span, and its standard deviation
     /// about the fitted line, in the scene's energy unit.
     pub change: f64,
@@ -192,33 +190,22 @@ impl DriftReport {
             Units::None => "relative to |E0| over the fit".to_string(),
             _ => self.unit.clone(),
         };
-        let energy = match units {
-            Units::None => String::new(),
-            _ => format!(" {}", units.energy_name()),
-        };
-        let resolution = if self.resolved || !self.exceeded {
-            String::new()
-        } else {
-            format!(
-                "; not resolved: the fitted change {}{energy} is within twice the energy's \
-                 fluctuation ({:.3e}{energy} rms), a longer run would resolve it",
-                signed(self.change),
-                self.fluctuation
-            )
-        };
         format!(
-            "{} {unit} {by}; fitted over t = {}–{} ({} rows); bound {}{resolution}",
+            "{} ± {} {unit} {by}; fitted over t = {}–{} ({} rows); bound {} at {}σ: {}",
             signed(self.value),
+            significant(self.error, 2),
             time(self.from),
             time(self.to),
             self.rows,
-            self.bound
+            self.bound,
+            self.z,
+            self.verdict_text
         )
     }
 
     /// The warning of a drift beyond its bound.
     pub fn warning(&self) -> Option<String> {
-        if !(self.exceeded && self.resolved) {
+        if self.verdict != "fail" {
             return None;
         }
         Some(format!(

@@ -11,8 +11,19 @@
 //! another one and records it in `energy.csv` ([`CONSERVED_COLUMNS`]: the mollified
 //! methods' `mollified_total`, the pseudo-energy schemes' `pseudo_energy`), that one too.
 //! A method is judged by the energy it conserves: its true energy only fluctuates about it.
+//!
+//! The verdict ([`judge`]) is the three-way one of [`crate::run::verdict`]. The drift's
+//! standard error is the judged energy's fluctuation about its fitted line over the fitted
+//! span, `σ_E / T` in slope: conservative for white noise (whose slope error is
+//! `σ_E √(12/n) / T`), and honest for energies that oscillate, whose rows are correlated over
+//! a period: a short run of a method whose energy oscillates cannot show a small drift, and
+//! is not said to. The fluctuation does not shrink with the run, so the error goes as `1/T`
+//! and the run that would decide an undecided drift follows from that. In a dimensionless
+//! scene the drift is the relative change over the span, which grows with the span: no run
+//! length is predicted there.
 
 use crate::io::summary::{Conserved, Drift, DriftReport, REAL_DRIFT_UNIT};
+use crate::run::verdict::{self, Measurement, Verdict, Z};
 use crate::units::Units;
 
 /// The default bound of a run in a scene with real units, in kT/ns/dof: the criterion of
@@ -108,11 +119,15 @@ impl DriftFit {
     }
 }
 
+/// A conversion of a slope into the unit a drift is judged in.
+type Convert<'a> = Box<dyn Fn(f64) -> f64 + 'a>;
+
 /// Judge `drift` against `bound` (the default for the scene's units when `None`);
 /// `reference` is the energy scale of relative drifts.
 pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) -> DriftReport {
     let (energy, slope, fluctuation) = drift.judged();
-    let (convert, unit, default): (Box<dyn Fn(f64) -> f64>, &str, f64) = match units {
+    let span = drift.to - drift.from;
+    let (convert, unit, default, exponent): (Convert, &str, f64, f64) = match units {
         Units::Real => {
             let per_ns = units
                 .time_units()
@@ -123,34 +138,61 @@ pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) ->
                 Box::new(move |s| drift.rate(s) * per_ns),
                 REAL_DRIFT_UNIT,
                 DEFAULT_REAL_BOUND,
+                1.0,
             )
         }
         Units::None => {
-            let span = drift.to - drift.from;
             let scale = if reference > 0.0 { reference } else { 1.0 };
             (
                 Box::new(move |s| s * span / scale),
                 "relative",
                 DEFAULT_RELATIVE_BOUND,
+                0.0,
             )
         }
     };
     let bound = bound.unwrap_or(default);
-    let value = convert(slope);
+    let measurement = Measurement {
+        value: convert(slope),
+        error: convert(fluctuation / span).abs(),
+        fixed_error: 0.0,
+        start: drift.from,
+        span,
+        exponent,
+    };
+    let verdict = verdict::judge(&measurement, bound);
     DriftReport {
         energy: energy.to_string(),
-        value,
+        value: measurement.value,
         true_energy: convert(drift.true_slope),
         conserved_energy: drift.conserved.as_ref().map(|c| convert(c.slope)),
         unit: unit.to_string(),
         bound,
-        exceeded: value.abs() > bound,
-        resolved: drift.resolved(),
-        change: slope * (drift.to - drift.from),
+        exceeded: measurement.value.abs() > bound,
+        error: measurement.error,
+        verdict: verdict.name().to_string(),
+        decide_at: match verdict {
+            Verdict::Undecided { decide_at } => decide_at,
+            _ => None,
+        },
+        verdict_text: verdict.text(units),
+        z: Z,
+        change: slope * span,
         fluctuation,
         from: drift.from,
         to: drift.to,
         rows: drift.rows,
+    }
+}
+
+/// The verdict of a judged drift.
+pub fn verdict_of(report: &DriftReport) -> Verdict {
+    match report.verdict.as_str() {
+        "pass" => Verdict::Pass,
+        "fail" => Verdict::Fail,
+        _ => Verdict::Undecided {
+            decide_at: report.decide_at,
+        },
     }
 }
 
@@ -205,6 +247,8 @@ mod tests {
         fit.add(2.0, 0.0, 3.0, None);
         let drift = fit.result(None, 2.0).unwrap();
         assert_eq!(drift.judged(), ("total", 1.0, 0.0));
-        assert!(drift.resolved());
+        // A straight line: no fluctuation, so the relative drift 2/|E0| = 2 fails its bound.
+        let report = judge(&drift, Units::None, 1.0, None);
+        assert_eq!((report.error, report.verdict.as_str()), (0.0, "fail"));
     }
 }

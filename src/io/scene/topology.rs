@@ -214,7 +214,7 @@ impl Builder<'_> {
 const GROMACS_FORMAT: &str = "GROMACS top";
 
 /// A topology file by its extension (`defines`: a GROMACS topology's `-D` names).
-fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
+pub fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
     if !path.is_file() {
         return Err(Error::Topology {
             location: path.display().to_string(),

@@ -1,0 +1,272 @@
+//! Backbone dihedrals and their basins (`longstep analyze` with a topology).
+//!
+//! * **Which angles.** From a topology's atom names and residues: in residue `i` with atoms
+//!   named `N`, `CA` and `C`, bonded to the `C` of residue `i − 1` and to the `N` of
+//!   residue `i + 1`, φ is the dihedral C(i−1)–N–CA–C and ψ is N–CA–C–N(i+1) (IUPAC
+//!   convention, IUPAC-IUB 1970: the angle of the far bond about the middle one, clockwise
+//!   positive, in (−180°, 180°]). The alanine dipeptide (ACE–ALA–NME) has one such pair, in
+//!   ALA; the caps and water have none.
+//! * **The angle** of each frame from [`crate::forces::torsion::dihedral_angle`], with
+//!   the three bond vectors taken by minimum image in a periodic box (a molecule wrapped
+//!   across the box keeps its angles).
+//! * **Histogram**: the fraction of frames per 10° × 10° bin of (φ, ψ), φ-major, φ and ψ from
+//!   −180°.
+//! * **Basins**, the usual coarse partition of the alanine-dipeptide Ramachandran plane
+//!   into three boxes that tile it, placed along the barriers between the minima of
+//!   Tobias & Brooks (J. Phys. Chem. 96:3864, 1992: C7eq near (−78°, 90°), C5 near
+//!   (−135°, 146°), C7ax near (61°, −72°)) and the αR (−65°, −40°) and αL (+60°, +45°)
+//!   helical regions:
+//!   - **C7eq/β** (extended: C7eq, C5, β, PII): φ < 0 and (ψ ≥ 50° or ψ < −120°);
+//!   - **αR**: φ < 0 and −120° ≤ ψ < 50°;
+//!   - **αL**: φ ≥ 0 (αL and C7ax together: the whole left-handed half-plane).
+//!
+//! Populations are fractions of frames per basin; their error bars are the standard errors
+//! of the block means of each basin's indicator ([`super::block_average`]), the blocks of the
+//! rest of the analysis. Cost: one dihedral pair per backbone residue per frame.
+
+use std::path::Path;
+
+use super::block_average::{BlockAccumulator, Estimate, from_block_means};
+use crate::error::{Error, Result};
+use crate::forces::PeriodicBox;
+use crate::forces::torsion::dihedral_angle;
+use crate::io::scene::{is_topology_path, parse_scene, read_topology_file};
+use crate::io::topology::Topology;
+
+/// The basins, in the order of [`basin`]'s index.
+pub const BASINS: [&str; 3] = ["C7eq/beta", "alphaR", "alphaL"];
+
+/// Bins of the (φ, ψ) histogram per angle (10° each).
+pub const HISTOGRAM_BINS: usize = 36;
+
+/// The ψ edges of the αR box (degrees): αR is `[ALPHA_R_PSI.0, ALPHA_R_PSI.1)` at φ < 0.
+pub const ALPHA_R_PSI: (f64, f64) = (-120.0, 50.0);
+
+/// The topology a scene was built from: the scene path itself when it is a topology file,
+/// else its `[topology]` file (with its GROMACS defines); `None` for a scene without one.
+pub fn scene_topology(path: &Path) -> Result<Option<Topology>> {
+    if is_topology_path(path) {
+        return read_topology_file(path, &[]).map(Some);
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let file = parse_scene(&text, path)?;
+    let Some(spec) = &file.topology else {
+        return Ok(None);
+    };
+    let spec = spec.get_ref();
+    let topology = path.parent().unwrap_or(Path::new(".")).join(&spec.file);
+    let defines = spec.defines.clone().unwrap_or_default();
+    read_topology_file(&topology, &defines).map(Some)
+}
+
+/// One backbone residue's φ and ψ atoms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BackboneResidue {
+    /// Residue name and number (1-based), e.g. `ALA2`.
+    pub label: String,
+    pub phi: [usize; 4],
+    pub psi: [usize; 4],
+}
+
+/// The backbone residues of `topology` (module documentation), in residue order.
+pub fn backbone_residues(topology: &Topology) -> Vec<BackboneResidue> {
+    let named = |residue: usize, name: &str| -> Option<usize> {
+        let first = topology.residues.get(residue)?.first_atom;
+        let end = topology
+            .residues
+            .get(residue + 1)
+            .map_or(topology.atoms.len(), |r| r.first_atom);
+        (first..end).find(|&k| topology.atoms[k].name == name)
+    };
+    let bonded = |a: usize, b: usize| {
+        topology
+            .bonds
+            .iter()
+            .any(|bond| bond.atoms == [a, b] || bond.atoms == [b, a])
+    };
+    let mut residues = Vec::new();
+    for r in 1..topology.residues.len().saturating_sub(1) {
+        let atoms = (
+            named(r - 1, "C"),
+            named(r, "N"),
+            named(r, "CA"),
+            named(r, "C"),
+            named(r + 1, "N"),
+        );
+        if let (Some(c0), Some(n), Some(ca), Some(c), Some(n1)) = atoms
+            && bonded(c0, n)
+            && bonded(c, n1)
+        {
+            residues.push(BackboneResidue {
+                label: format!("{}{}", topology.residues[r].name, r + 1),
+                phi: [c0, n, ca, c],
+                psi: [n, ca, c, n1],
+            });
+        }
+    }
+    residues
+}
+
+/// The dihedral angle of atoms `a` in positions `q` (`n × 3`), degrees in (−180°, 180°];
+/// in a periodic box each bond vector is the minimum image.
+pub fn dihedral_degrees(q: &[f64], a: [usize; 4], periodic_box: Option<&PeriodicBox>) -> f64 {
+    let point = |k: usize| -> [f64; 3] { std::array::from_fn(|x| q[3 * a[k] + x]) };
+    // Unwrap the chain from its first atom, bond by bond.
+    let mut points = [point(0); 4];
+    for k in 1..4 {
+        let (raw_from, to, from) = (point(k - 1), point(k), points[k - 1]);
+        points[k] = std::array::from_fn(|x| {
+            let d = to[x] - raw_from[x];
+            from[x] + periodic_box.map_or(d, |b| b.wrap(x, d))
+        });
+    }
+    let angle = dihedral_angle(points[0], points[1], points[2], points[3]).to_degrees();
+    if angle <= -180.0 {
+        angle + 360.0
+    } else {
+        angle
+    }
+}
+
+/// The basin index ([`BASINS`]) of a (φ, ψ) pair in degrees.
+pub fn basin(phi: f64, psi: f64) -> usize {
+    if phi >= 0.0 {
+        2
+    } else if (ALPHA_R_PSI.0..ALPHA_R_PSI.1).contains(&psi) {
+        1
+    } else {
+        0
+    }
+}
+
+/// The histogram bin of an angle in degrees (−180° is bin 0; 180° falls in the last).
+fn bin(angle: f64) -> usize {
+    let k = ((angle + 180.0) / (360.0 / HISTOGRAM_BINS as f64)).floor();
+    (k.max(0.0) as usize).min(HISTOGRAM_BINS - 1)
+}
+
+/// One residue's basin populations and (φ, ψ) histogram.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResidueBasins {
+    pub label: String,
+    /// Fractions of frames in each of [`BASINS`], with block-average errors.
+    pub populations: [Estimate; 3],
+    /// Fraction of frames per bin, `HISTOGRAM_BINS²`, φ-major.
+    pub histogram: Vec<f64>,
+    pub frames: usize,
+}
+
+/// Per-block sums of every residue's basin indicators, and the histogram counts.
+#[derive(Clone, Debug)]
+pub struct BasinCounter {
+    residues: Vec<BackboneResidue>,
+    indicators: Vec<BlockAccumulator>,
+    histograms: Vec<Vec<u64>>,
+    frames: usize,
+}
+
+impl BasinCounter {
+    pub fn new(residues: Vec<BackboneResidue>, blocks: usize) -> Self {
+        let n = residues.len();
+        BasinCounter {
+            residues,
+            indicators: (0..n).map(|_| BlockAccumulator::new(blocks, 3)).collect(),
+            histograms: vec![vec![0; HISTOGRAM_BINS * HISTOGRAM_BINS]; n],
+            frames: 0,
+        }
+    }
+
+    /// Count one frame into `block`.
+    pub fn add(&mut self, q: &[f64], periodic_box: Option<&PeriodicBox>, block: usize) {
+        self.frames += 1;
+        for ((residue, indicator), histogram) in self
+            .residues
+            .iter()
+            .zip(&mut self.indicators)
+            .zip(&mut self.histograms)
+        {
+            let phi = dihedral_degrees(q, residue.phi, periodic_box);
+            let psi = dihedral_degrees(q, residue.psi, periodic_box);
+            let mut hit = [0.0; 3];
+            hit[basin(phi, psi)] = 1.0;
+            indicator.add_vector(block, &hit);
+            histogram[bin(phi) * HISTOGRAM_BINS + bin(psi)] += 1;
+        }
+    }
+
+    pub fn finish(&self) -> Vec<ResidueBasins> {
+        let total = self.frames.max(1) as f64;
+        self.residues
+            .iter()
+            .zip(&self.indicators)
+            .zip(&self.histograms)
+            .map(|((residue, indicator), histogram)| {
+                let overall = indicator.overall_mean();
+                let blocks = indicator.counts().len();
+                let populations = std::array::from_fn(|k| {
+                    let means: Vec<f64> = (0..blocks).map(|b| indicator.block_mean(b)[k]).collect();
+                    Estimate {
+                        mean: overall[k],
+                        ..from_block_means(&means)
+                    }
+                });
+                ResidueBasins {
+                    label: residue.label.clone(),
+                    populations,
+                    histogram: histogram.iter().map(|&c| c as f64 / total).collect(),
+                    frames: self.frames,
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_boxes_tile_the_plane() {
+        assert_eq!(basin(-78.0, 90.0), 0); // C7eq
+        assert_eq!(basin(-135.0, 146.0), 0); // C5
+        assert_eq!(basin(-80.0, -170.0), 0); // β across ψ = ±180°
+        assert_eq!(basin(-65.0, -40.0), 1); // αR
+        assert_eq!(basin(61.0, -72.0), 2); // C7ax
+        assert_eq!(basin(60.0, 45.0), 2); // αL
+        assert_eq!(
+            (bin(-180.0), bin(-175.0), bin(0.0), bin(180.0)),
+            (0, 0, 18, 35)
+        );
+    }
+
+    #[test]
+    fn an_angle_across_the_box_is_the_unwrapped_one() {
+        // A trans chain (180°) and a gauche one (60°), then the same with the last atom
+        // moved by a box edge: minimum images keep the angle.
+        let trans = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.5, 0.0, 0.0, 1.5, -1.0, 0.0];
+        let b = PeriodicBox { lengths: [10.0; 3] };
+        assert!((dihedral_degrees(&trans, [0, 1, 2, 3], None).abs() - 180.0).abs() < 1e-9);
+        let mut moved = trans;
+        moved[9] += 10.0;
+        moved[4] -= 10.0;
+        let wrapped = dihedral_degrees(&moved, [0, 1, 2, 3], Some(&b));
+        assert!((wrapped.abs() - 180.0).abs() < 1e-9, "{wrapped}");
+        let s = 60f64.to_radians();
+        let gauche = [
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.5,
+            0.0,
+            0.0,
+            1.5,
+            s.cos(),
+            s.sin(),
+        ];
+        let angle = dihedral_degrees(&gauche, [0, 1, 2, 3], Some(&b));
+        assert!((angle.abs() - 60.0).abs() < 1e-9, "{angle}");
+    }
+}
