@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Write the shipped AMBER alanine-dipeptide systems also as GROMACS top/gro, with ParmEd.
+"""Write the shipped AMBER systems (alanine dipeptide, Trp-cage) also as GROMACS top/gro.
 
-Reads systems/alanine-dipeptide-amber/{ala2,ala2-solvated}.prmtop/.inpcrd (made by
-scripts/make_topologies.py) and writes ala2.top/.gro and ala2-solvated.top/.gro beside
-them: ParmEd's `save(..., format="gromacs")` with every parameter inline (no #include, no
+Reads systems/alanine-dipeptide-amber/{ala2,ala2-solvated}.prmtop/.inpcrd and
+systems/protein-amber/trpcage.prmtop/.inpcrd (made by scripts/make_topologies.py) and
+writes ala2.top/.gro, ala2-solvated.top/.gro and trpcage.top/.gro beside them: ParmEd's `save(..., format="gromacs")` with every parameter inline (no #include, no
 GROMACS installation needed). ParmEd writes a water molecule as `[settles]` with its
 flexible `[bonds]`/`[angles]` under `#ifdef FLEXIBLE`: the solvated system is flexible like
 its prmtop when read with FLEXIBLE defined (longstep: `[topology] defines = ["FLEXIBLE"]`;
@@ -20,14 +20,15 @@ import parmed
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
 OUT = os.path.join(ROOT, "systems", "alanine-dipeptide-amber")
+PROTEIN_OUT = os.path.join(ROOT, "systems", "protein-amber")
 
 
 def main():
-    for stem in ("ala2", "ala2-solvated"):
-        structure = parmed.load_file(os.path.join(OUT, stem + ".prmtop"),
-                                     os.path.join(OUT, stem + ".inpcrd"))
-        top = os.path.join(OUT, stem + ".top")
-        gro = os.path.join(OUT, stem + ".gro")
+    for out, stem in ((OUT, "ala2"), (OUT, "ala2-solvated"), (PROTEIN_OUT, "trpcage")):
+        structure = parmed.load_file(os.path.join(out, stem + ".prmtop"),
+                                     os.path.join(out, stem + ".inpcrd"))
+        top = os.path.join(out, stem + ".top")
+        gro = os.path.join(out, stem + ".gro")
         structure.save(top, format="gromacs", overwrite=True)
         structure.save(gro, format="gro", overwrite=True)
         if structure.box is None:
