@@ -10,6 +10,13 @@ its prmtop when read with FLEXIBLE defined (longstep: `[topology] defines = ["FL
 OpenMM: GromacsTopFile(defines={"FLEXIBLE": True})). The vacuum system has no box: ParmEd
 writes its bounding box on the .gro's last line, which this script sets to 0 0 0 (no box).
 
+ParmEd gives [ defaults ] one fudgeLJ, 1/SCNB when every 1-4 pair has the same SCNB and
+1.0 otherwise — and then writes [ pairs ] without parameters, so mixed SCNB would double
+the 1-4 Lennard-Jones. The Trp-cage prmtop (ParmEd's reading of OpenMM's System) has SCNB
+2.0 for its 801 1-4 pairs with Lennard-Jones and 1e10 for 11 pairs with a hydroxyl H (ε = 0:
+no 1-4 LJ whatever the scale); uniform_scnb sets those 11 to 2.0, which changes no energy
+and lets ParmEd write fudgeLJ 0.5.
+
     pip install parmed
     python3 scripts/make_gromacs_topologies.py
 """
@@ -23,10 +30,19 @@ OUT = os.path.join(ROOT, "systems", "alanine-dipeptide-amber")
 PROTEIN_OUT = os.path.join(ROOT, "systems", "protein-amber")
 
 
+def uniform_scnb(structure):
+    """SCNB 2.0 for the 1-4 pairs whose Lennard-Jones is zero (an end with ε = 0)."""
+    for dihedral in structure.dihedrals:
+        zero = dihedral.atom1.epsilon == 0.0 or dihedral.atom4.epsilon == 0.0
+        if not dihedral.ignore_end and dihedral.type.scnb != 2.0 and zero:
+            dihedral.type.scnb = 2.0
+
+
 def main():
     for out, stem in ((OUT, "ala2"), (OUT, "ala2-solvated"), (PROTEIN_OUT, "trpcage")):
         structure = parmed.load_file(os.path.join(out, stem + ".prmtop"),
                                      os.path.join(out, stem + ".inpcrd"))
+        uniform_scnb(structure)
         top = os.path.join(out, stem + ".top")
         gro = os.path.join(out, stem + ".gro")
         structure.save(top, format="gromacs", overwrite=True)
