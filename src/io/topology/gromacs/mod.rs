@@ -468,7 +468,7 @@ impl Context<'_> {
     fn dihedral(&self, item: &Interaction, layout: &mut Layout) -> Result<()> {
         let functions: &[u32] = match item.function {
             1 | 9 => &[1, 9],
-            2 | 3 | 4 => &[item.function],
+            2..=4 => &[item.function],
             _ => return Err(self.unsupported(item, "dihedrals")),
         };
         let a = [item.atoms[0], item.atoms[1], item.atoms[2], item.atoms[3]];
