@@ -475,6 +475,14 @@ fn dihedral_functions_2_and_3_match_openmm() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
     let topology = read_gromacs_top(&data.join("gromacs-dihedral-types.top"), &[]).expect("reads");
     assert_eq!(topology.harmonic_dihedrals.len(), 2);
+    assert!(
+        topology
+            .notes
+            .iter()
+            .any(|n| n.starts_with("Ryckaert-Bellemans dihedrals (function 3): 2,")),
+        "{:?}",
+        topology.notes
+    );
     let gro = read_gro_for(&data.join("gromacs-dihedral-types.gro"), &topology).expect("gro");
     let q = gro.positions;
     let built = build(&topology, &q);

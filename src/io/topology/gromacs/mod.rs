@@ -56,6 +56,7 @@ pub fn read_gromacs_top(path: &Path, defines: &[String]) -> Result<Topology> {
         ..Topology::default()
     };
     let types = lj_types(&parsed, &mut topology)?;
+    let mut ryckaert_bellemans = 0;
     for (name, count, at) in &parsed.counts {
         let molecule = parsed
             .molecules
@@ -71,6 +72,13 @@ pub fn read_gromacs_top(path: &Path, defines: &[String]) -> Result<Topology> {
         for _ in 0..*count {
             layout.append(&mut topology);
         }
+        ryckaert_bellemans += layout.ryckaert_bellemans * count;
+    }
+    if ryckaert_bellemans > 0 {
+        topology.notes.push(format!(
+            "Ryckaert-Bellemans dihedrals (function 3): {ryckaert_bellemans}, each written \
+             exactly as its cosine series in φ among the proper dihedrals (term \"torsions\")"
+        ));
     }
     finish(&mut topology, &defaults);
     Ok(topology)
@@ -146,6 +154,8 @@ struct Layout {
     pairs: Vec<Pair14>,
     exclusions: Vec<(usize, usize)>,
     settles: Vec<Settle>,
+    /// How many of the dihedrals are Ryckaert–Bellemans (function 3), for the report.
+    ryckaert_bellemans: usize,
 }
 
 impl Layout {
@@ -177,6 +187,7 @@ impl Layout {
             pairs: Vec::new(),
             exclusions: Vec::new(),
             settles: Vec::new(),
+            ryckaert_bellemans: 0,
         };
         let type_names: Vec<&str> = molecule
             .atoms
@@ -486,6 +497,7 @@ impl Context<'_> {
                     self.need(item, &p, 6, "dihedrals")?;
                     let c: [f64; 6] = std::array::from_fn(|n| p[n] / KJ_PER_KCAL);
                     layout.dihedrals.extend(ryckaert_bellemans(a, &c));
+                    layout.ryckaert_bellemans += 1;
                 }
                 _ => {
                     self.need(item, &p, 3, "dihedrals")?;
