@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Build the shipped AMBER topologies of alanine dipeptide (ACE-ALA-NME) with OpenMM + ParmEd.
+"""Build the shipped AMBER topologies (alanine dipeptide, Trp-cage) with OpenMM + ParmEd.
 
 Writes, under systems/alanine-dipeptide-amber/:
 
@@ -15,7 +15,16 @@ scripts/make_molecules.py), given PDB names, mirrored if needed so that the alph
 L, and relaxed by OpenMM's local energy minimiser in ff14SB (vacuum), then solvated and
 relaxed again (solvated). Nothing is downloaded.
 
-    pip install openmm parmed
+And under systems/protein-amber/:
+
+* trpcage.prmtop, trpcage.inpcrd: the Trp-cage miniprotein (NLYIQWLKDGGPSSGRPPPS, 20
+  residues, charged termini, net charge +1) in a cubic 42 Å box of flexible TIP3P water with
+  one Cl- ion, Amber ff14SB. The structure is built, not experimental: PeptideBuilder lays
+  the backbone from the (phi, psi) of PROTEIN_PHI_PSI (a helix 2-9, a 3_10 turn 12-14,
+  polyproline 16-19, roughly the fold of Trp-cage), Modeller adds the hydrogens (pH 7),
+  the solvent and the ion, and OpenMM's local minimiser relaxes it in vacuum, then solvated.
+
+    pip install openmm parmed PeptideBuilder
     python3 scripts/make_topologies.py
 """
 import os
@@ -30,6 +39,14 @@ ROOT = os.path.abspath(os.path.join(HERE, ".."))
 OUT = os.path.join(ROOT, "systems", "alanine-dipeptide-amber")
 XYZ = os.path.join(ROOT, "systems", "molecules", "alanine-dipeptide.xyz")
 BOX_NM = 2.4  # cubic box edge: a cutoff of 9 Å needs more than 18 Å
+PROTEIN_OUT = os.path.join(ROOT, "systems", "protein-amber")
+PROTEIN_SEQUENCE = "NLYIQWLKDGGPSSGRPPPS"  # Trp-cage TC5b
+# (phi, psi) in degrees per residue: an alpha helix for residues 2-9, a turn at 10-11, a 3_10
+# helix 12-14, a left-handed turn at G15, polyproline II for 16-19 (the termini's dihedrals
+# are free). Not the NMR structure's angles: a compact start that minimises.
+PROTEIN_PHI_PSI = ([(-60, 140)] + [(-60, -45)] * 8 + [(-90, 0), (90, 10), (-70, 140)]
+                   + [(-60, -30)] * 3 + [(80, 10)] + [(-70, 150)] * 4)
+PROTEIN_BOX_NM = 4.2  # about 1 nm of water around the 22 Å peptide
 
 # Row of alanine-dipeptide.xyz -> (residue, PDB atom name), in the order RDKit wrote them
 # (SMILES CC(=O)NC(C)C(=O)NC, then the hydrogens in the order of their heavy atoms).
@@ -88,15 +105,58 @@ def minimise(topology, system, positions):
     return context.getState(getPositions=True).getPositions(asNumpy=True)
 
 
-def save(topology, system, positions, stem, box=None):
+def save(topology, system, positions, stem, box=None, out=OUT):
     structure = parmed.openmm.load_topology(topology, system, xyz=positions)
     if box is not None:
         structure.box = box
-    prmtop = os.path.join(OUT, stem + ".prmtop")
-    inpcrd = os.path.join(OUT, stem + ".inpcrd")
+    prmtop = os.path.join(out, stem + ".prmtop")
+    inpcrd = os.path.join(out, stem + ".inpcrd")
     structure.save(prmtop, format="amber", overwrite=True)
     structure.save(inpcrd, format="rst7", overwrite=True)
     print("wrote", prmtop, inpcrd, len(structure.atoms), "atoms")
+
+
+def built_peptide():
+    """The Trp-cage backbone and side chains from PROTEIN_PHI_PSI (PeptideBuilder's ideal
+    geometry), with the C-terminal OXT, as an OpenMM PDBFile without hydrogens."""
+    import io
+
+    import PeptideBuilder
+    from Bio.PDB import PDBIO
+    from PeptideBuilder import Geometry
+
+    assert len(PROTEIN_PHI_PSI) == len(PROTEIN_SEQUENCE)
+    geometries = []
+    for i, letter in enumerate(PROTEIN_SEQUENCE):
+        geometry = Geometry.geometry(letter)
+        geometry.phi = PROTEIN_PHI_PSI[i][0]
+        geometry.psi_im1 = PROTEIN_PHI_PSI[i - 1][1] if i > 0 else 0.0
+        geometries.append(geometry)
+    structure = PeptideBuilder.make_structure_from_geos(geometries)
+    PeptideBuilder.add_terminal_OXT(structure)
+    text = io.StringIO()
+    writer = PDBIO()
+    writer.set_structure(structure)
+    writer.save(text)
+    return app.PDBFile(io.StringIO(text.getvalue()))
+
+
+def make_protein(ff, options):
+    pdb = built_peptide()
+    modeller = app.Modeller(pdb.topology, pdb.positions)
+    modeller.addHydrogens(ff, pH=7.0)
+    system = ff.createSystem(modeller.topology, nonbondedMethod=app.NoCutoff, **options)
+    positions = minimise(modeller.topology, system, modeller.positions)
+    modeller = app.Modeller(modeller.topology, positions)
+    box = openmm.Vec3(PROTEIN_BOX_NM, PROTEIN_BOX_NM, PROTEIN_BOX_NM) * unit.nanometer
+    modeller.addSolvent(ff, model="tip3p", boxSize=box, neutralize=True)
+    system = ff.createSystem(modeller.topology, nonbondedMethod=app.CutoffPeriodic,
+                             nonbondedCutoff=0.9 * unit.nanometer, **options)
+    positions = minimise(modeller.topology, system, modeller.positions)
+    edge = PROTEIN_BOX_NM * 10.0
+    os.makedirs(PROTEIN_OUT, exist_ok=True)
+    save(modeller.topology, system, positions, "trpcage", box=[edge, edge, edge, 90, 90, 90],
+         out=PROTEIN_OUT)
 
 
 def main():
@@ -124,6 +184,7 @@ def main():
     positions = minimise(modeller.topology, system, modeller.positions)
     edge = BOX_NM * 10.0
     save(modeller.topology, system, positions, "ala2-solvated", box=[edge, edge, edge, 90, 90, 90])
+    make_protein(ff, options)
 
 
 if __name__ == "__main__":

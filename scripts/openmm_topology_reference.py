@@ -37,6 +37,18 @@ GROMACS reader (app.GromacsTopFile with FLEXIBLE defined, so the water is flexib
 app.GromacsGroFile: positions as the .gro prints them, 1e-3 nm) into
 tests/data/openmm-<name>-gromacs.json, in the same groups.
 
+The solvated Trp-cage of systems/protein-amber/ (6920 atoms) is written the same way, from
+the prmtop and from the top, with reaction field and with PME, into
+tests/data/openmm-trpcage*.json — but its per-atom forces only for a fixed subset of atoms
+(every protein atom, the ions, and every PROTEIN_WATER_STRIDE-th water atom: all forces
+would make 1 MB files), with the RMS over all atoms of each part of the forces
+("forces_rms") beside them.
+
+GROMACS dihedral functions 2 (harmonic improper) and 3 (Ryckaert-Bellemans): the hand-made
+tests/data/gromacs-dihedral-types.top/.gro through GromacsTopFile (which builds them as a
+CustomTorsionForce and an RBTorsionForce) into tests/data/openmm-gromacs-dihedral-types.json:
+the energy and per-atom forces of each of the two forces and of the whole system.
+
     pip install openmm parmed
     python3 scripts/openmm_topology_reference.py
     pip install --no-deps openmmtools && python3 scripts/openmm_topology_reference.py --other
@@ -60,6 +72,12 @@ CUTOFF_NM = 0.9
 # PME of the solvated system: alpha, grid and order given explicitly (OpenMM's order is 5).
 PME_ALPHA_PER_NM = 3.5
 PME_GRID = 24
+PROTEIN = os.path.join(ROOT, "systems", "protein-amber")
+# PME of the solvated protein: the box is 42 Å; alpha as the scene's erfc(alpha r_c) = 1e-5
+# would give (3.47 / nm), rounded; a 36³ grid (1.17 Å spacing).
+PROTEIN_PME_ALPHA_PER_NM = 3.5
+PROTEIN_PME_GRID = 36
+PROTEIN_WATER_STRIDE = 16
 
 # name -> (prmtop, inpcrd, nonbonded method: "vacuum", "reaction-field" or "pme")
 SHIPPED = {
@@ -93,7 +111,7 @@ SHIPPED_GROMACS = {
 }
 
 
-def build(prmtop, method):
+def build(prmtop, method, pme=(PME_ALPHA_PER_NM, PME_GRID)):
     if method == "pme":
         system = prmtop.createSystem(nonbondedMethod=app.PME,
                                      nonbondedCutoff=CUTOFF_NM * unit.nanometer,
@@ -123,7 +141,7 @@ def build(prmtop, method):
     if method == "reaction-field":
         nb.setReactionFieldDielectric(EPSILON_RF)
     if method == "pme":
-        nb.setPMEParameters(PME_ALPHA_PER_NM, PME_GRID, PME_GRID, PME_GRID)
+        nb.setPMEParameters(pme[0], pme[1], pme[1], pme[1])
     for name, group in [("HarmonicBondForce", 0), ("HarmonicAngleForce", 1),
                         ("PeriodicTorsionForce", 2)]:
         for force in kinds.get(name, []):
@@ -141,7 +159,7 @@ def build(prmtop, method):
     return system
 
 
-def evaluate(prmtop_path, inpcrd_path, method):
+def evaluate(prmtop_path, inpcrd_path, method, pme=(PME_ALPHA_PER_NM, PME_GRID)):
     periodic = method != "vacuum"
     if prmtop_path.endswith(".top"):
         gro = app.GromacsGroFile(inpcrd_path)
@@ -153,7 +171,7 @@ def evaluate(prmtop_path, inpcrd_path, method):
         prmtop = app.AmberPrmtopFile(prmtop_path)
         inpcrd = app.AmberInpcrdFile(inpcrd_path)
         positions, box_vectors = inpcrd.positions, inpcrd.boxVectors
-    system = build(prmtop, method)
+    system = build(prmtop, method, pme)
     platform = openmm.Platform.getPlatformByName("Reference")
     context = openmm.Context(system, openmm.VerletIntegrator(0.001), platform)
     if periodic:
@@ -189,24 +207,35 @@ NONBONDED = {
 }
 
 
-def write(name, prmtop, inpcrd, method, source):
-    energies, forces = evaluate(os.path.join(SYSTEMS, prmtop), os.path.join(SYSTEMS, inpcrd),
-                                method)
+def write(name, prmtop, inpcrd, method, source, folder=SYSTEMS, pme=None, subset=None):
+    """`subset`: the atoms whose forces are written (all when None); `pme`: (alpha per nm,
+    grid) when not the dipeptide's."""
+    pme = pme or (PME_ALPHA_PER_NM, PME_GRID)
+    energies, forces = evaluate(os.path.join(folder, prmtop), os.path.join(folder, inpcrd),
+                                method, pme)
+    nonbonded = dict(NONBONDED[method])
+    if method == "pme":
+        nonbonded.update(alpha=pme[0] / 10.0, grid=[pme[1]] * 3)
+    where = os.path.relpath(folder, ROOT)
     record = {
         "system": name,
-        ("top" if prmtop.endswith(".top") else "prmtop"):
-            f"systems/alanine-dipeptide-amber/{prmtop}",
-        ("gro" if inpcrd.endswith(".gro") else "inpcrd"):
-            f"systems/alanine-dipeptide-amber/{inpcrd}",
+        ("top" if prmtop.endswith(".top") else "prmtop"): f"{where}/{prmtop}",
+        ("gro" if inpcrd.endswith(".gro") else "inpcrd"): f"{where}/{inpcrd}",
         "source": source,
         "openmm": openmm.__version__,
         "platform": "Reference",
-        "nonbonded": NONBONDED[method],
+        "nonbonded": nonbonded,
         "dispersion_correction": False,
         "units": {"energy": "kcal/mol", "forces": "kcal/mol/angstrom"},
         "energy": energies,
-        "forces": {k: v.tolist() for k, v in forces.items()},
     }
+    if subset is None:
+        record["forces"] = {k: v.tolist() for k, v in forces.items()}
+    else:
+        record["n_atoms"] = len(forces["total"])
+        record["force_atoms"] = subset
+        record["forces"] = {k: v[subset].tolist() for k, v in forces.items()}
+        record["forces_rms"] = {k: float(np.sqrt(np.mean(v * v))) for k, v in forces.items()}
     path = os.path.join(DATA, f"openmm-{name}.json")
     with open(path, "w") as f:
         json.dump(record, f)
@@ -231,17 +260,83 @@ def other_tool():
           "evaluated in vacuum (its GBSA radii are not used)")
 
 
+def protein_subset():
+    """Every protein atom, the ions, and every PROTEIN_WATER_STRIDE-th water atom."""
+    topology = app.AmberPrmtopFile(os.path.join(PROTEIN, "trpcage.prmtop")).topology
+    subset, water = [], 0
+    for atom in topology.atoms():
+        if atom.residue.name != "HOH":
+            subset.append(atom.index)
+        else:
+            if water % PROTEIN_WATER_STRIDE == 0:
+                subset.append(atom.index)
+            water += 1
+    return subset
+
+
+def protein():
+    subset = protein_subset()
+    pme = (PROTEIN_PME_ALPHA_PER_NM, PROTEIN_PME_GRID)
+    amber = ("scripts/make_topologies.py (PeptideBuilder backbone, OpenMM Modeller, "
+             "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
+    gromacs = ("scripts/make_gromacs_topologies.py (ParmEd's GROMACS writing of the "
+               "shipped prmtop), read by OpenMM's GromacsTopFile with FLEXIBLE")
+    for suffix, method in (("", "reaction-field"), ("-pme", "pme")):
+        write("trpcage" + suffix, "trpcage.prmtop", "trpcage.inpcrd", method, amber,
+              folder=PROTEIN, pme=pme, subset=subset)
+        write("trpcage-gromacs" + suffix, "trpcage.top", "trpcage.gro", method, gromacs,
+              folder=PROTEIN, pme=pme, subset=subset)
+
+
+def dihedral_types():
+    """OpenMM's energies and forces of the hand-made top's RB and harmonic dihedrals."""
+    top = os.path.join(DATA, "gromacs-dihedral-types.top")
+    gro = app.GromacsGroFile(os.path.join(DATA, "gromacs-dihedral-types.gro"))
+    system = app.GromacsTopFile(top).createSystem(nonbondedMethod=app.NoCutoff)
+    groups = {"RBTorsionForce": 1, "CustomTorsionForce": 2}
+    names = {1: "ryckaert_bellemans", 2: "harmonic_dihedrals"}
+    for force in system.getForces():
+        force.setForceGroup(groups.get(type(force).__name__, 0))
+    found = {type(f).__name__ for f in system.getForces()}
+    assert set(groups) <= found, found
+    context = openmm.Context(system, openmm.VerletIntegrator(0.001),
+                             openmm.Platform.getPlatformByName("Reference"))
+    context.setPositions(gro.positions)
+    record = {"top": "tests/data/gromacs-dihedral-types.top",
+              "gro": "tests/data/gromacs-dihedral-types.gro",
+              "openmm": openmm.__version__, "platform": "Reference",
+              "units": {"energy": "kcal/mol", "forces": "kcal/mol/angstrom"},
+              "energy": {}, "forces": {}}
+    for label, group_set in [(names[1], {1}), (names[2], {2}), ("total", {0, 1, 2})]:
+        state = context.getState(getEnergy=True, getForces=True, groups=group_set)
+        record["energy"][label] = state.getPotentialEnergy().value_in_unit(
+            unit.kilojoule_per_mole) / KCAL
+        record["forces"][label] = (np.asarray(state.getForces(asNumpy=True).value_in_unit(
+            unit.kilojoule_per_mole / unit.angstrom)) / KCAL).tolist()
+    path = os.path.join(DATA, "openmm-gromacs-dihedral-types.json")
+    with open(path, "w") as f:
+        json.dump(record, f, indent=1)
+        f.write("\n")
+    print(path, record["energy"])
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--other", action="store_true",
                         help="also the prmtop of another tool (openmmtools, if installed)")
+    parser.add_argument("--only-dihedral-types", action="store_true",
+                        help="only the hand-made top of GROMACS dihedral functions 2 and 3")
     args = parser.parse_args()
+    dihedral_types()
+    if args.only_dihedral_types:
+        return
     for name, (prmtop, inpcrd, method) in SHIPPED.items():
         write(name, prmtop, inpcrd, method, "scripts/make_topologies.py (OpenMM ForceField "
               "amber14-all.xml + amber14/tip3p.xml, written by ParmEd)")
     for name, (top, gro, method) in SHIPPED_GROMACS.items():
         write(name, top, gro, method, "scripts/make_gromacs_topologies.py (ParmEd's GROMACS "
               "writing of the shipped prmtop), read by OpenMM's GromacsTopFile with FLEXIBLE")
+    protein()
     if args.other:
         other_tool()
 

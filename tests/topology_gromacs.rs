@@ -303,17 +303,17 @@ fn an_unknown_directive_names_file_and_line() {
 fn unmodelled_function_types_are_refused_by_line() {
     for (text, what) in [
         (
-            "[ dihedrals ]\n1 2 3 4 3 1 2 3 4 5 6\n",
-            "[ dihedrals ] function 3",
+            "[ dihedrals ]\n1 2 3 4 5 1 2 3 4\n",
+            "[ dihedrals ] function 5",
         ),
         (
-            "[ dihedrals ]\n1 2 3 4 2 0.0 100.0\n",
-            "[ dihedrals ] function 2",
+            "[ dihedrals ]\n1 2 3 4 8 1 1.0\n",
+            "[ dihedrals ] function 8",
         ),
         ("[ bonds ]\n1 2 2 0.1 1000.0\n", "[ bonds ] function 2"),
         (
-            "[ settles ]\n1 1 0.1 0.16\n",
-            "rigid water needs constraints",
+            "[ dihedrals ]\n1 2 3 4 3 1 2 3 4 5\n",
+            "function 3: needs 6 parameters",
         ),
     ] {
         let main = format!("{HEAD}{TYPES}{ETHANE}{text}{TAIL}");
@@ -363,21 +363,162 @@ fn a_gro_of_another_atom_count_or_names_is_refused() {
 }
 
 #[test]
-fn check_reads_a_top_and_refuses_settles_without_flexible() {
+fn check_reads_a_top_and_its_settles_as_rigid_water() {
     let top = system_path("ala2.top");
     let (code, stdout, stderr) = common::run_cli(&["check", top.to_str().expect("path")]);
     assert_eq!(code, 0, "{stderr}");
     assert!(
         stdout.contains("(GROMACS top), 22 atoms") || stderr.contains("(GROMACS top), 22 atoms")
     );
+    // Without FLEXIBLE the water is [ settles ]: rigid water by default, as GROMACS.
     let solvated = system_path("ala2-solvated.top");
-    let (code, _, stderr) = common::run_cli(&["check", solvated.to_str().expect("path")]);
+    let (code, stdout, stderr) = common::run_cli(&["check", solvated.to_str().expect("path")]);
+    assert_eq!(code, 0, "{stderr}");
+    let said = format!("{stdout}{stderr}");
+    assert!(
+        said.contains("rigid waters: 423 ([ settles ])")
+            && said.contains("+ rigid water (the topology's [ settles ])")
+            && said.contains("423 rigid waters by SETTLE: 1269 scalar constraints"),
+        "{said}"
+    );
+    // Asked to run it flexible, it says how.
+    let (code, _, stderr) = common::run_cli(&[
+        "check",
+        solvated.to_str().expect("path"),
+        "--rigid-water",
+        "false",
+    ]);
     assert_eq!(code, 1, "{stderr}");
     assert!(
-        stderr.contains("ala2-solvated.top:262") && stderr.contains("FLEXIBLE"),
+        stderr.contains("[ settles ]") && stderr.contains("FLEXIBLE"),
         "{stderr}"
     );
     let scene = system_path("ala2-solvated-gromacs.toml");
     let (code, _, stderr) = common::run_cli(&["check", scene.to_str().expect("path")]);
     assert_eq!(code, 0, "{stderr}");
+}
+
+/// The solvated top without FLEXIBLE: the peptide's terms, no water bonds or angle, one
+/// SETTLE per water at the top's d_OH, d_HH, and the same exclusions as the flexible read
+/// (the water's three pairs).
+#[test]
+fn settles_read_as_rigid_waters_with_their_exclusions() {
+    let path = system_path("ala2-solvated.top");
+    let rigid = read_gromacs_top(&path, &[]).expect("reads");
+    let flexible = read_gromacs_top(&path, &flexible()).expect("reads");
+    assert_eq!(rigid.settles.len(), 423);
+    assert!(flexible.settles.is_empty());
+    assert_eq!((rigid.bonds.len(), rigid.angles.len()), (21, 36));
+    assert_eq!(rigid.exclusions, flexible.exclusions);
+    let first = rigid.settles[0];
+    assert_eq!(first.atoms, [22, 23, 24]);
+    assert!((first.oh - 0.9572).abs() < 1e-12 && (first.hh - 1.5139007).abs() < 1e-12);
+}
+
+/// A top with one water molecule type whose `[ settles ]` line is `settles`.
+fn water_top(settles: &str) -> String {
+    format!(
+        "{HEAD}[ atomtypes ]\nOW 8 15.999 0.0 A 0.315 0.636\nHW 1 1.008 0.0 A 0.0 0.0\n\
+         [ moleculetype ]\nSOL 2\n[ atoms ]\n1 OW 1 SOL OW 1 -0.834\n2 HW 1 SOL HW1 1 0.417\n\
+         3 HW 1 SOL HW2 1 0.417\n[ settles ]\n{settles}\n[ system ]\nw\n[ molecules ]\nSOL 2\n"
+    )
+}
+
+#[test]
+fn bad_settles_are_refused_by_file_and_line() {
+    let good = read_gromacs_top(
+        &write_files(
+            "gromacs_settles_good",
+            &water_top("1 1 0.09572 0.15139"),
+            &[],
+        ),
+        &[],
+    )
+    .expect("reads");
+    assert_eq!(good.settles.len(), 2);
+    assert_eq!(good.settles[1].atoms, [3, 4, 5]);
+    for (settles, what) in [
+        ("2 1 0.09572 0.15139", "SETTLE needs atoms 2, 3, 4"),
+        ("1 1 0.09572", "two distances"),
+        ("1 1 0.09572 0.2", "not the sides of a water triangle"),
+        ("1 2 0.09572 0.15139", "[ settles ] function 2"),
+        (
+            "1 1 0.09572 0.15139\n1 1 0.09572 0.15139",
+            "a second line in molecule SOL",
+        ),
+    ] {
+        let main = water_top(settles);
+        let (e, path) = read_error("gromacs_settles_bad", &main);
+        let lines: Vec<&str> = main.lines().collect();
+        let last = lines
+            .iter()
+            .rposition(|l| l.starts_with(settles.lines().last().expect("line")))
+            .expect("there")
+            + 1;
+        assert!(e.contains(&format!("{}:{last}", path.display())), "{e}");
+        assert!(e.contains(what), "{settles}: {e}");
+    }
+    // Atoms that are not O, H, H (ethane's carbons and a hydrogen).
+    let main = format!("{HEAD}{TYPES}{ETHANE}[ settles ]\n1 1 0.1 0.16\n{TAIL}");
+    let (e, _) = read_error("gromacs_settles_carbon", &main);
+    assert!(e.contains("atoms 1-3 are C, C, H"), "{e}");
+}
+
+/// Dihedral functions 2 (harmonic improper, one of them more than 180° from its ξ₀, so
+/// the difference wraps) and 3 (Ryckaert–Bellemans, one from [ dihedraltypes ], one
+/// inline) of a hand-made top against OpenMM's GromacsTopFile (its CustomTorsionForce and
+/// RBTorsionForce). Tolerance 1e-6 relative as above: both read the same printed numbers
+/// at the same .gro positions in double precision; the cosine-series form of the RB terms
+/// differs from the power form by round-off (~1e-15).
+#[test]
+fn dihedral_functions_2_and_3_match_openmm() {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let topology = read_gromacs_top(&data.join("gromacs-dihedral-types.top"), &[]).expect("reads");
+    assert_eq!(topology.harmonic_dihedrals.len(), 2);
+    assert!(
+        topology
+            .notes
+            .iter()
+            .any(|n| n.starts_with("Ryckaert-Bellemans dihedrals (function 3): 2,")),
+        "{:?}",
+        topology.notes
+    );
+    let gro = read_gro_for(&data.join("gromacs-dihedral-types.gro"), &topology).expect("gro");
+    let q = gro.positions;
+    let built = build(&topology, &q);
+    let reference = json("gromacs-dihedral-types");
+    let term = |name: &str| {
+        built
+            .terms
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .map(|(_, t, _)| t.as_ref())
+            .expect("term")
+    };
+    for (group, name) in [
+        ("ryckaert_bellemans", "torsions"),
+        ("harmonic_dihedrals", "harmonic-impropers"),
+    ] {
+        let expected = reference["energy"][group].as_f64().expect("energy");
+        let got = term(name).energy(&q);
+        let error = (got - expected).abs() / expected.abs();
+        eprintln!("{group}: {got:.12} kcal/mol, OpenMM {expected:.12}, relative {error:.1e}");
+        assert!(error <= TOLERANCE, "{group}: {got} vs OpenMM {expected}");
+        let mut gradient = vec![0.0; q.len()];
+        term(name).add_gradient(&q, &mut gradient);
+        let expected = flat(&reference["forces"][group]);
+        let difference = rms(gradient.iter().zip(&expected).map(|(g, f)| -g - f));
+        let scale = rms(expected.iter().copied());
+        eprintln!(
+            "{group} forces: RMS difference / scale {:.1e}",
+            difference / scale
+        );
+        assert!(difference <= TOLERANCE * scale, "{group}: {difference:e}");
+    }
+    let total: f64 = built.terms.iter().map(|(_, t, _)| t.energy(&q)).sum();
+    let expected = reference["energy"]["total"].as_f64().expect("total");
+    assert!(
+        (total - expected).abs() <= TOLERANCE * expected.abs(),
+        "{total} vs {expected}"
+    );
 }

@@ -21,6 +21,7 @@ pub mod ewald;
 pub mod external_field;
 pub mod field;
 pub mod gravity;
+pub mod harmonic_dihedral;
 pub mod inverse_power;
 pub mod lennard_jones;
 pub mod magnetic;

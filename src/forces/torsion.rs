@@ -52,7 +52,11 @@ fn dot<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> T {
 
 /// The dihedral angle and `∂φ/∂r` for the four atoms, from the bond vectors.
 #[inline(always)]
-fn dihedral_gradient<T: Scalar>(r_ij: &[T; 3], r_kj: &[T; 3], r_kl: &[T; 3]) -> (T, [[T; 3]; 4]) {
+pub(crate) fn dihedral_gradient<T: Scalar>(
+    r_ij: &[T; 3],
+    r_kj: &[T; 3],
+    r_kl: &[T; 3],
+) -> (T, [[T; 3]; 4]) {
     let m = cross(r_ij, r_kj);
     let n = cross(r_kj, r_kl);
     let kj2 = dot(r_kj, r_kj);
@@ -82,17 +86,9 @@ impl Torsions {
         &self.dihedrals
     }
 
-    /// `r_a − r_b` (minimum image), shifted by `ε (v_a − v_b)`.
     #[inline(always)]
     fn difference<T: Scalar>(&self, q: &[f64], v: Option<&[f64]>, a: usize, b: usize) -> [T; 3] {
-        std::array::from_fn(|axis| {
-            let mut d = q[3 * a + axis] - q[3 * b + axis];
-            if let Some(periodic_box) = &self.periodic_box {
-                d = periodic_box.wrap(axis, d);
-            }
-            let tangent = v.map_or(0.0, |v| v[3 * a + axis] - v[3 * b + axis]);
-            T::seeded(d, tangent)
-        })
+        difference(self.periodic_box.as_ref(), q, v, a, b)
     }
 
     fn angle_of(&self, dihedral: &Dihedral, q: &[f64]) -> f64 {
@@ -131,6 +127,25 @@ impl Torsions {
             }
         }
     }
+}
+
+/// `r_a − r_b` (minimum image), shifted by `ε (v_a − v_b)`.
+#[inline(always)]
+pub(crate) fn difference<T: Scalar>(
+    periodic_box: Option<&PeriodicBox>,
+    q: &[f64],
+    v: Option<&[f64]>,
+    a: usize,
+    b: usize,
+) -> [T; 3] {
+    std::array::from_fn(|axis| {
+        let mut d = q[3 * a + axis] - q[3 * b + axis];
+        if let Some(periodic_box) = periodic_box {
+            d = periodic_box.wrap(axis, d);
+        }
+        let tangent = v.map_or(0.0, |v| v[3 * a + axis] - v[3 * b + axis]);
+        T::seeded(d, tangent)
+    })
 }
 
 /// φ alone (for the energy).

@@ -381,7 +381,7 @@ impl Builder<'_> {
             path: self.path.to_path_buf(),
             parameters,
             system,
-            run: file.run.clone(),
+            run: run_with_rigid_water(file, molecule.bonded.as_ref()),
             output: file.output.clone(),
             exact,
             units,
@@ -499,6 +499,19 @@ impl Builder<'_> {
 }
 
 /// Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.
+/// The scene's `[run]`, with rigid water on by default when the topology's water is a
+/// GROMACS `[settles]` (as GROMACS runs it); an explicit `rigid_water` stays.
+fn run_with_rigid_water(
+    file: &SceneFile,
+    bonded: Option<&crate::system::topology::BondedTopology>,
+) -> RunSpec {
+    let mut run = file.run.clone();
+    if bonded.is_some_and(|b| b.rigid_water_required) && run.rigid_water.is_none() {
+        run.rigid_water = Some(true);
+    }
+    run
+}
+
 fn to_internal_masses(units: Units, start: &mut Start) {
     for m in &mut start.masses {
         *m = units.mass(*m);

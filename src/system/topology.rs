@@ -30,6 +30,9 @@ pub struct BondedTopology {
     pub elements: Vec<String>,
     pub bonds: Vec<Bond>,
     pub angles: Vec<Angle>,
+    /// The force field has no bonded terms for some of its waters (a GROMACS topology's
+    /// `[settles]`): a run must hold them rigid.
+    pub rigid_water_required: bool,
 }
 
 impl BondedTopology {
@@ -62,6 +65,7 @@ impl BondedTopology {
             elements,
             bonds,
             angles,
+            rigid_water_required: false,
         })
     }
 

@@ -54,6 +54,16 @@ impl Scene {
         settings: &MethodSettings,
         notices: &mut Vec<String>,
     ) -> Result<()> {
+        let required = self.bonded.as_ref().is_some_and(|b| b.rigid_water_required);
+        if required && !settings.rigid_water {
+            return Err(Error::Scene {
+                location: self.path.display().to_string(),
+                message: "the topology's water is [ settles ] (rigid, no bonded terms): it \
+                          runs with rigid water; leave rigid_water on, or give the FLEXIBLE \
+                          define for a flexible water"
+                    .into(),
+            });
+        }
         if settings.hydrogen_mass.is_none() && !settings.constrained() {
             return Ok(());
         }
@@ -105,10 +115,10 @@ impl Scene {
              constraints), relative tolerance {:e}; the start was put on them; constrained bonds \
              keep their force-field terms, at their rest length (no force along them)",
             settings.constraints.name(),
-            if settings.rigid_water {
-                " + rigid water"
-            } else {
-                ""
+            match (settings.rigid_water, required) {
+                (true, true) => " + rigid water (the topology's [ settles ])",
+                (true, false) => " + rigid water",
+                _ => "",
             },
             constraints.pairs().len(),
             constraints.waters().len(),

@@ -190,8 +190,7 @@ impl Builder<'_> {
         );
         report.push(if loaded.topology.format == GROMACS_FORMAT {
             "refused: nothing (the reader refuses unknown directives, restraints, constraints, \
-             virtual sites, harmonic and Ryckaert-Bellemans dihedrals and triclinic boxes by \
-             file and line)"
+             virtual sites and triclinic boxes by file and line)"
                 .into()
         } else {
             "refused: nothing (the reader refuses CMAP, 10-12 terms, polarisabilities, extra \
@@ -302,16 +301,19 @@ fn box_from_coordinates(
 }
 
 /// The topology's bonds and angles with their rest values, for constraints and hydrogen
-/// mass repartitioning ([`Scene::bonded_topology`](super::Scene::bonded_topology)).
+/// mass repartitioning ([`Scene::bonded_topology`](super::Scene::bonded_topology)); a
+/// `[settles]` water as its two O-H bonds and its H-H bond at the SETTLE distances, and
+/// rigid water then required.
 fn bonded_topology(topology: &Topology, elements: &[String]) -> Result<BondedTopology> {
+    let bond = |i: usize, j: usize, length: f64| BondedBond { i, j, length };
     let bonds = topology
         .bonds
         .iter()
-        .map(|b| BondedBond {
-            i: b.atoms[0],
-            j: b.atoms[1],
-            length: b.r0,
-        })
+        .map(|b| bond(b.atoms[0], b.atoms[1], b.r0))
+        .chain(topology.settles.iter().flat_map(|w| {
+            let [o, h1, h2] = w.atoms;
+            [bond(o, h1, w.oh), bond(o, h2, w.oh), bond(h1, h2, w.hh)]
+        }))
         .collect();
     let angles = topology
         .angles
@@ -323,5 +325,7 @@ fn bonded_topology(topology: &Topology, elements: &[String]) -> Result<BondedTop
             theta0: a.theta0,
         })
         .collect();
-    BondedTopology::new(elements.to_vec(), bonds, angles)
+    let mut bonded = BondedTopology::new(elements.to_vec(), bonds, angles)?;
+    bonded.rigid_water_required = !topology.settles.is_empty();
+    Ok(bonded)
 }

@@ -1,6 +1,7 @@
 //! A [`Topology`] as longstep's force terms: `bonds` (harmonic pairs, [`PairTerm`] of
 //! [`HarmonicBond`]), `angles` ([`HarmonicAngles`]), `torsions` and `impropers`
-//! ([`Torsions`], a cosine series per quartet), `nonbonded` (the cluster-pair
+//! ([`Torsions`], a cosine series per quartet), `harmonic-impropers`
+//! ([`HarmonicDihedrals`], GROMACS improper function 2), `nonbonded` (the cluster-pair
 //! [`Nonbonded`] term with the topology's per-type-pair Lennard-Jones table and its
 //! exclusions), `lj-14` and `coulomb-14` (the scaled 1-4 pairs, no cutoff, plain Coulomb,
 //! as OpenMM computes `NonbondedForce` exceptions). Bonded terms are fast by default,
@@ -19,6 +20,7 @@ use super::Topology;
 use crate::forces::angle::{AngleBend, HarmonicAngles};
 use crate::forces::coulomb::Coulomb as CoulombPair;
 use crate::forces::ewald::{EwaldParameters, EwaldRequest, PmeReciprocal, resolve};
+use crate::forces::harmonic_dihedral::{HarmonicDihedral, HarmonicDihedrals};
 use crate::forces::lennard_jones::LennardJones;
 use crate::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use crate::forces::pair::{Pair, PairTerm};
@@ -117,6 +119,14 @@ pub fn build_terms(
     bonds(topology, periodic_box, &mut terms, &mut report);
     angles(topology, periodic_box, &mut terms, &mut report);
     torsions(topology, periodic_box, &mut terms, &mut report);
+    harmonic_dihedrals(topology, periodic_box, &mut terms, &mut report);
+    if !topology.settles.is_empty() {
+        report.push(format!(
+            "rigid waters: {} ([ settles ]), no bonded terms: a run holds them by SETTLE \
+             (rigid water, on by default)",
+            topology.settles.len()
+        ));
+    }
     let electrostatics = nonbonded(topology, q, options, &mut terms, &mut report)?;
     pairs_14(
         topology,
@@ -250,6 +260,37 @@ fn torsions(
         let term = Torsions::new(list, periodic_box);
         terms.push((name.into(), Box::new(term), Assignment::Default));
     }
+}
+
+/// Harmonic dihedrals (GROMACS improper function 2), in one term.
+fn harmonic_dihedrals(
+    topology: &Topology,
+    periodic_box: Option<PeriodicBox>,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) {
+    if topology.harmonic_dihedrals.is_empty() {
+        return;
+    }
+    let list: Vec<HarmonicDihedral> = topology
+        .harmonic_dihedrals
+        .iter()
+        .map(|d| HarmonicDihedral {
+            atoms: d.atoms,
+            k: d.k,
+            xi0: d.xi0,
+        })
+        .collect();
+    report.push(format!(
+        "harmonic dihedrals: {}, (k/2)(ξ − ξ0)², term \"harmonic-impropers\"",
+        list.len()
+    ));
+    let term = HarmonicDihedrals::new(list, periodic_box);
+    terms.push((
+        "harmonic-impropers".into(),
+        Box::new(term),
+        Assignment::Default,
+    ));
 }
 
 /// The electrostatics and cutoff the options ask for.

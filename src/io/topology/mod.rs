@@ -102,6 +102,29 @@ pub struct Pair14 {
     pub lj_scale: f64,
 }
 
+/// A rigid three-site water (GROMACS `[settles]`): no bonded terms, its O-H and H-H
+/// distances held by SETTLE in a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settle {
+    /// Oxygen, hydrogen, hydrogen.
+    pub atoms: [usize; 3],
+    /// O-H distance (Å).
+    pub oh: f64,
+    /// H-H distance (Å).
+    pub hh: f64,
+}
+
+/// A harmonic dihedral `(k/2)(ξ − ξ₀)²` of the dihedral angle ξ (GROMACS improper
+/// function 2), the difference taken in (−π, π].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HarmonicDihedral {
+    pub atoms: [usize; 4],
+    /// kcal/mol/rad².
+    pub k: f64,
+    /// ξ₀, radians.
+    pub xi0: f64,
+}
+
 /// A complete force field over a fixed list of atoms.
 #[derive(Clone, Debug, Default)]
 pub struct Topology {
@@ -117,9 +140,14 @@ pub struct Topology {
     pub bonds_with_hydrogen: usize,
     pub angles: Vec<Angle>,
     pub dihedrals: Vec<DihedralTerm>,
+    /// Harmonic dihedrals (GROMACS improper function 2).
+    pub harmonic_dihedrals: Vec<HarmonicDihedral>,
     pub pairs_14: Vec<Pair14>,
     /// Pairs `(i, j)`, `i < j`, sorted, each once, left out of the non-bonded term.
     pub exclusions: Vec<(usize, usize)>,
+    /// Rigid waters (GROMACS `[settles]` without the FLEXIBLE define): a run holds them
+    /// by SETTLE, so it needs rigid water.
+    pub settles: Vec<Settle>,
     /// Orthorhombic box edges (Å).
     pub periodic_box: Option<[f64; 3]>,
     /// How the reader read what a file may leave out (defaults it used), one line each.

@@ -69,6 +69,8 @@ pub struct MoleculeType {
     pub dihedrals: Vec<Interaction>,
     pub pairs: Vec<Interaction>,
     pub exclusions: Vec<Interaction>,
+    /// `[settles]`: the oxygen (atoms, 0-based: O, O+1, O+2), function, d_OH, d_HH.
+    pub settles: Vec<Interaction>,
 }
 
 #[derive(Debug, Default)]
@@ -195,12 +197,7 @@ fn data_line(
             Ok(())
         }
         "atoms" => molecule_atom(parsed, f, index, at),
-        "settles" => Err(error(
-            at,
-            "[ settles ]: rigid water needs constraints, which longstep does not have; \
-             give the FLEXIBLE define (a scene's [topology] defines = [\"FLEXIBLE\"]) so the \
-             topology lists the water's bonds and angle",
-        )),
+        "settles" => settle(parsed, f, index, at),
         "system" => {
             parsed.system = f.join(" ");
             Ok(())
@@ -363,6 +360,49 @@ fn molecule_atom(parsed: &mut Parsed, f: &[String], index: usize, at: &str) -> R
         name: f[4].clone(),
         charge: optional(6, "charge")?,
         mass: optional(7, "mass")?,
+        at: index,
+    });
+    Ok(())
+}
+
+/// `[settles]`: `O funct d_OH d_HH`, the oxygen and the two atoms after it in the
+/// molecule; one line per molecule type (GROMACS allows one).
+fn settle(parsed: &mut Parsed, f: &[String], index: usize, at: &str) -> Result<()> {
+    let molecule = parsed.molecules.last_mut().expect("checked as it opened");
+    if !molecule.settles.is_empty() {
+        return Err(error(
+            at,
+            format!(
+                "[ settles ]: a second line in molecule {}; GROMACS takes one (a molecule \
+                 type is one water)",
+                molecule.name
+            ),
+        ));
+    }
+    if f.len() < 2 {
+        return Err(error(
+            at,
+            "[ settles ] line: expected the oxygen, a function and d_OH, d_HH",
+        ));
+    }
+    let o: usize = number(&f[0], "atom number", at)?;
+    let n = molecule.atoms.len();
+    if o == 0 || o + 2 > n {
+        return Err(error(
+            at,
+            format!(
+                "[ settles ] oxygen {o}: SETTLE needs atoms {o}, {}, {} and molecule {} has \
+                 atoms 1 to {n}",
+                o + 1,
+                o + 2,
+                molecule.name
+            ),
+        ));
+    }
+    molecule.settles.push(Interaction {
+        atoms: vec![o - 1],
+        function: number(&f[1], "function", at)?,
+        params: numbers(&f[2..], at)?,
         at: index,
     });
     Ok(())

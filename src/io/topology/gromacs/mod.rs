@@ -6,12 +6,15 @@
 //!
 //! Terms read: bonds 1 `½k(r − r₀)²`; angles 1 `½k(θ − θ₀)²` and 5 (Urey–Bradley: the
 //! angle plus a harmonic 1-3 bond); dihedrals 1, 9 (several cosines per quartet) and 4
-//! (improper) `k(1 + cos(nφ − φₛ))`; pairs 1 with `fudgeQQ`, `fudgeLJ` (the 1-4 LJ of the
-//! atom types, or a `[pairtypes]`/inline one equal to it); exclusions from the bond graph
-//! up to `nrexcl` bonds plus `[exclusions]`. Harmonic (2) and Ryckaert–Bellemans (3)
-//! dihedrals, restraints, constraints, virtual sites and `[nonbond_params]` are refused
-//! with their file and line. Cost: linear in the listed interactions (the type lookups
-//! scan their table).
+//! (improper) `k(1 + cos(nφ − φₛ))`; dihedrals 2 (harmonic improper `½k(ξ − ξ₀)²`, the
+//! difference in (−π, π]); dihedrals 3 (Ryckaert–Bellemans `Σₙ Cₙ cosⁿψ`, ψ = φ − 180°,
+//! n ≤ 5), rewritten exactly as a cosine series in φ (see [`ryckaert_bellemans`]); pairs 1
+//! with `fudgeQQ`, `fudgeLJ` (the 1-4 LJ of the atom types, or a `[pairtypes]`/inline one
+//! equal to it); exclusions from the bond graph up to `nrexcl` bonds plus `[exclusions]`;
+//! `[settles]` (rigid water: no bonded terms, the O-H and H-H distances held by SETTLE in
+//! a run, its three pairs excluded). Restraints, constraints, virtual sites and
+//! `[nonbond_params]` are refused with their file and line. Cost: linear in the listed
+//! interactions (the type lookups scan their table).
 
 pub mod directives;
 pub mod preprocess;
@@ -20,8 +23,8 @@ use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 use super::{
-    Angle, Bond, DihedralTerm, LjTable, Pair14, Residue, Topology, TopologyAtom, element_of_mass,
-    element_of_number,
+    Angle, Bond, DihedralTerm, HarmonicDihedral, LjTable, Pair14, Residue, Settle, Topology,
+    TopologyAtom, element_of_mass, element_of_number,
 };
 use crate::error::Result;
 use directives::{AtomType, Defaults, Interaction, MoleculeType, Parsed, TypeEntry, error};
@@ -53,6 +56,7 @@ pub fn read_gromacs_top(path: &Path, defines: &[String]) -> Result<Topology> {
         ..Topology::default()
     };
     let types = lj_types(&parsed, &mut topology)?;
+    let mut ryckaert_bellemans = 0;
     for (name, count, at) in &parsed.counts {
         let molecule = parsed
             .molecules
@@ -68,6 +72,13 @@ pub fn read_gromacs_top(path: &Path, defines: &[String]) -> Result<Topology> {
         for _ in 0..*count {
             layout.append(&mut topology);
         }
+        ryckaert_bellemans += layout.ryckaert_bellemans * count;
+    }
+    if ryckaert_bellemans > 0 {
+        topology.notes.push(format!(
+            "Ryckaert-Bellemans dihedrals (function 3): {ryckaert_bellemans}, each written \
+             exactly as its cosine series in φ among the proper dihedrals (term \"torsions\")"
+        ));
     }
     finish(&mut topology, &defaults);
     Ok(topology)
@@ -139,8 +150,12 @@ struct Layout {
     bonds: Vec<Bond>,
     angles: Vec<Angle>,
     dihedrals: Vec<DihedralTerm>,
+    harmonic_dihedrals: Vec<HarmonicDihedral>,
     pairs: Vec<Pair14>,
     exclusions: Vec<(usize, usize)>,
+    settles: Vec<Settle>,
+    /// How many of the dihedrals are Ryckaert–Bellemans (function 3), for the report.
+    ryckaert_bellemans: usize,
 }
 
 impl Layout {
@@ -168,8 +183,11 @@ impl Layout {
             bonds: Vec::new(),
             angles: Vec::new(),
             dihedrals: Vec::new(),
+            harmonic_dihedrals: Vec::new(),
             pairs: Vec::new(),
             exclusions: Vec::new(),
+            settles: Vec::new(),
+            ryckaert_bellemans: 0,
         };
         let type_names: Vec<&str> = molecule
             .atoms
@@ -188,10 +206,13 @@ impl Layout {
             ctx.angle(item, &mut layout)?;
         }
         for item in &molecule.dihedrals {
-            ctx.dihedral(item, &mut layout.dihedrals)?;
+            ctx.dihedral(item, &mut layout)?;
         }
         for item in &molecule.pairs {
             layout.pairs.push(ctx.pair(item, defaults)?);
+        }
+        for item in &molecule.settles {
+            layout.settles.push(ctx.settle(item, &layout.atoms)?);
         }
         layout.exclusions = exclusions(molecule);
         Ok(layout)
@@ -233,6 +254,20 @@ impl Layout {
             topology.dihedrals.push(DihedralTerm {
                 atoms: [a[0], a[1], a[2], a[3]],
                 ..*d
+            });
+        }
+        for d in &self.harmonic_dihedrals {
+            let a = shift(&d.atoms);
+            topology.harmonic_dihedrals.push(HarmonicDihedral {
+                atoms: [a[0], a[1], a[2], a[3]],
+                ..*d
+            });
+        }
+        for w in &self.settles {
+            let a = shift(&w.atoms);
+            topology.settles.push(Settle {
+                atoms: [a[0], a[1], a[2]],
+                ..*w
             });
         }
         for p in &self.pairs {
@@ -313,6 +348,10 @@ fn exclusions(molecule: &MoleculeType) -> Vec<(usize, usize)> {
             frontier = next;
         }
         set.extend(seen.into_iter().filter(|&b| b > start).map(|b| (start, b)));
+    }
+    for w in &molecule.settles {
+        let (o, h1, h2) = (w.atoms[0], w.atoms[0] + 1, w.atoms[0] + 2);
+        set.extend([(o, h1), (o, h2), (h1, h2)]);
     }
     for e in &molecule.exclusions {
         for &other in &e.atoms[1..] {
@@ -437,24 +476,97 @@ impl Context<'_> {
         Ok(())
     }
 
-    fn dihedral(&self, item: &Interaction, out: &mut Vec<DihedralTerm>) -> Result<()> {
+    fn dihedral(&self, item: &Interaction, layout: &mut Layout) -> Result<()> {
         let functions: &[u32] = match item.function {
             1 | 9 => &[1, 9],
-            4 => &[4],
+            2..=4 => &[item.function],
             _ => return Err(self.unsupported(item, "dihedrals")),
         };
-        let a = &item.atoms;
+        let a = [item.atoms[0], item.atoms[1], item.atoms[2], item.atoms[3]];
         for p in self.params(item, &self.parsed.dihedraltypes, functions, "dihedral")? {
-            self.need(item, &p, 3, "dihedrals")?;
-            out.push(DihedralTerm {
-                atoms: [a[0], a[1], a[2], a[3]],
-                k: p[1] / KJ_PER_KCAL,
-                periodicity: p[2],
-                phase: p[0].to_radians(),
-                improper: item.function == 4,
-            });
+            match item.function {
+                2 => {
+                    self.need(item, &p, 2, "dihedrals")?;
+                    layout.harmonic_dihedrals.push(HarmonicDihedral {
+                        atoms: a,
+                        k: p[1] / KJ_PER_KCAL,
+                        xi0: p[0].to_radians(),
+                    });
+                }
+                3 => {
+                    self.need(item, &p, 6, "dihedrals")?;
+                    let c: [f64; 6] = std::array::from_fn(|n| p[n] / KJ_PER_KCAL);
+                    layout.dihedrals.extend(ryckaert_bellemans(a, &c));
+                    layout.ryckaert_bellemans += 1;
+                }
+                _ => {
+                    self.need(item, &p, 3, "dihedrals")?;
+                    layout.dihedrals.push(DihedralTerm {
+                        atoms: a,
+                        k: p[1] / KJ_PER_KCAL,
+                        periodicity: p[2],
+                        phase: p[0].to_radians(),
+                        improper: item.function == 4,
+                    });
+                }
+            }
         }
         Ok(())
+    }
+
+    /// A rigid water: `[settles]` `O funct d_OH d_HH` (nm) of atoms O, O+1, O+2, which
+    /// must be an oxygen and two hydrogens, the distances a triangle.
+    fn settle(&self, item: &Interaction, atoms: &[TopologyAtom]) -> Result<Settle> {
+        if item.function != 1 {
+            return Err(self.unsupported(item, "settles"));
+        }
+        if item.params.len() != 2 {
+            return Err(error(
+                self.at(item),
+                format!(
+                    "[ settles ] needs the oxygen, the function and two distances (d_OH, d_HH, \
+                     nm), got {} numbers after the function",
+                    item.params.len()
+                ),
+            ));
+        }
+        let (oh, hh) = (
+            item.params[0] * ANGSTROM_PER_NM,
+            item.params[1] * ANGSTROM_PER_NM,
+        );
+        if !(oh > 0.0 && hh > 0.0 && hh < 2.0 * oh) {
+            return Err(error(
+                self.at(item),
+                format!(
+                    "[ settles ] d_OH {} nm, d_HH {} nm: not the sides of a water triangle \
+                     (both > 0, d_HH < 2 d_OH)",
+                    item.params[0], item.params[1]
+                ),
+            ));
+        }
+        let o = item.atoms[0];
+        let elements: Vec<&str> = (o..o + 3).map(|k| atoms[k].element.as_str()).collect();
+        if elements != ["O", "H", "H"] {
+            return Err(error(
+                self.at(item),
+                format!(
+                    "[ settles ] atoms {}-{} are {}: SETTLE holds an oxygen and the two \
+                     hydrogens after it",
+                    o + 1,
+                    o + 3,
+                    elements
+                        .iter()
+                        .map(|e| if e.is_empty() { "?" } else { e })
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        Ok(Settle {
+            atoms: [o, o + 1, o + 2],
+            oh,
+            hh,
+        })
     }
 
     /// A 1-4 pair: fudgeQQ, and fudgeLJ × the atom types' LJ; an explicit LJ (inline or
@@ -529,6 +641,46 @@ fn explicit_lj(comb: u32, v: f64, w: f64) -> (f64, f64) {
     let s6 = (v * ANGSTROM_PER_NM).powi(6);
     let epsilon = w / KJ_PER_KCAL;
     (4.0 * epsilon * s6 * s6, 4.0 * epsilon * s6)
+}
+
+/// A Ryckaert–Bellemans dihedral `V = Σₙ Cₙ cosⁿψ` (n = 0…5, ψ = φ − π, kcal/mol) as
+/// cosines of φ: with `aₙ = (−1)ⁿ Cₙ` (cos ψ = −cos φ) and the power-reduction formulas
+/// (cos²φ = (1 + cos 2φ)/2, cos³φ = (3 cos φ + cos 3φ)/4, cos⁴φ = (3 + 4 cos 2φ + cos 4φ)/8,
+/// cos⁵φ = (10 cos φ + 5 cos 3φ + cos 5φ)/16), `V = b₀ + Σₘ bₘ cos mφ`. Each `bₘ cos mφ`
+/// is `|bₘ| (1 + cos(mφ − δ)) − |bₘ|` (δ = 0, or π for bₘ < 0), and the constant
+/// `b₀ − Σ|bₘ|` a cosine of periodicity 0 and phase π/2 (`k (1 + cos(−π/2))` = k to 6e-17
+/// relative): the same energy and forces as GROMACS's and OpenMM's `RBTorsionForce` to
+/// round-off. Proper dihedrals; zero coefficients are left out.
+fn ryckaert_bellemans(atoms: [usize; 4], c: &[f64; 6]) -> Vec<DihedralTerm> {
+    let a: [f64; 6] = std::array::from_fn(|n| if n % 2 == 0 { c[n] } else { -c[n] });
+    let b = [
+        a[0] + a[2] / 2.0 + 3.0 * a[4] / 8.0,
+        a[1] + 3.0 * a[3] / 4.0 + 5.0 * a[5] / 8.0,
+        a[2] / 2.0 + a[4] / 2.0,
+        a[3] / 4.0 + 5.0 * a[5] / 16.0,
+        a[4] / 8.0,
+        a[5] / 16.0,
+    ];
+    let term = |k: f64, periodicity: f64, phase: f64| DihedralTerm {
+        atoms,
+        k,
+        periodicity,
+        phase,
+        improper: false,
+    };
+    let mut terms = Vec::new();
+    let mut constant = b[0];
+    for (m, &bm) in b.iter().enumerate().skip(1) {
+        if bm != 0.0 {
+            let phase = if bm < 0.0 { std::f64::consts::PI } else { 0.0 };
+            terms.push(term(bm.abs(), m as f64, phase));
+            constant -= bm.abs();
+        }
+    }
+    if constant != 0.0 {
+        terms.push(term(constant, 0.0, std::f64::consts::FRAC_PI_2));
+    }
+    terms
 }
 
 /// `½k(r − r₀)²` from GROMACS's b₀ (nm), k (kJ/mol/nm²).
