@@ -308,3 +308,44 @@ fn check_validates_the_run_table_with_file_and_line() {
         "{stderr}"
     );
 }
+
+/// A negative number reaches the flag it was given to, which refuses it by name (issue 30
+/// item 8: `--inner -3` was "unexpected argument '-3'").
+#[test]
+fn negative_values_are_refused_by_their_flag() {
+    let cases: [&[&str]; 3] = [
+        &[
+            "run",
+            "systems/three-spring.toml",
+            "--h",
+            "0.1",
+            "--inner",
+            "-3",
+        ],
+        &[
+            "run",
+            "systems/three-spring.toml",
+            "--h",
+            "0.1",
+            "--energy-every",
+            "-1",
+        ],
+        &[
+            "analyze",
+            "systems/water-box/scene.toml",
+            "out/none",
+            "--skip",
+            "-1ps",
+        ],
+    ];
+    for args in cases {
+        let (code, _, stderr) = common::run_cli(args);
+        assert_ne!(code, 0, "{args:?}");
+        let flag = args[args.len() - 2];
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(
+            !stderr.contains("unexpected argument"),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -106,7 +106,13 @@ fn time_value(text: &str, flag: &str, scene: &Scene) -> Result<f64> {
     let value: Value = text
         .parse()
         .map_err(|_| Error::input(format!("{flag}: \"{text}\" is not a time")))?;
-    value.evaluate_time(&scene.parameters, flag, scene.units.time_units())
+    let t = value.evaluate_time(&scene.parameters, flag, scene.units.time_units())?;
+    if !(t >= 0.0 && t.is_finite()) {
+        return Err(Error::input(format!(
+            "{flag} must be a time of zero or more, got \"{text}\""
+        )));
+    }
+    Ok(t)
 }
 
 fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {

@@ -18,7 +18,7 @@ pub mod stability;
 mod stiffness;
 mod studies;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 pub use common::{EXIT_ERROR, EXIT_UNSTABLE};
 
@@ -78,9 +78,34 @@ enum Command {
     Analyze(Box<analyze::AnalyzeArgs>),
 }
 
+/// Every option of `command` and its subcommands that takes a value takes one that starts
+/// with `-` as that value, so `--inner -3` or `--skip -1ps` is refused for its value
+/// (naming the flag) instead of being read as an unknown flag `-3`.
+fn negative_values(mut command: clap::Command) -> clap::Command {
+    let ids: Vec<clap::Id> = command
+        .get_arguments()
+        .filter(|a| a.get_action().takes_values() && !a.is_positional())
+        .map(|a| a.get_id().clone())
+        .collect();
+    for id in ids {
+        command = command.mut_arg(id, |a| a.allow_hyphen_values(true));
+    }
+    let names: Vec<String> = command
+        .get_subcommands()
+        .map(|s| s.get_name().to_string())
+        .collect();
+    for name in names {
+        command = command.mut_subcommand(name, negative_values);
+    }
+    command
+}
+
 /// Run the command line; returns the process exit code.
 pub fn main() -> i32 {
-    let cli = match Cli::try_parse_from(std::env::args()) {
+    let parsed = negative_values(Cli::command())
+        .try_get_matches_from(std::env::args())
+        .and_then(|matches| Cli::from_arg_matches(&matches));
+    let cli = match parsed {
         Ok(cli) => cli,
         Err(e) => {
             let code = e.exit_code();
