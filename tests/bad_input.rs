@@ -349,3 +349,92 @@ fn negative_values_are_refused_by_their_flag() {
         );
     }
 }
+
+/// A copy of the butane scene in a scratch folder, its structure and scene edited by
+/// `edit_xyz` and `edit_toml`; the scene's path.
+fn edited_butane(
+    name: &str,
+    edit_xyz: fn(String) -> String,
+    edit_toml: fn(String) -> String,
+) -> String {
+    let dir = scratch_dir(name);
+    let from = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/molecules");
+    let xyz = std::fs::read_to_string(from.join("butane.xyz")).unwrap();
+    let toml = std::fs::read_to_string(from.join("butane.toml")).unwrap();
+    std::fs::write(dir.join("butane.xyz"), edit_xyz(xyz)).unwrap();
+    std::fs::write(dir.join("butane.toml"), edit_toml(toml)).unwrap();
+    dir.join("butane.toml").display().to_string()
+}
+
+/// Issue 30 item 10: what was silently accepted.
+#[test]
+fn a_coordinate_far_out_is_refused_with_its_atom() {
+    let far = edited_butane(
+        "bad-input-far-coordinate",
+        |xyz| xyz.replacen("-1.5806700261", "1e300", 1),
+        |toml| toml,
+    );
+    let (code, _, stderr) = run(&["check", &far]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("atom 0") && stderr.contains("butane.xyz"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn charges_with_coulomb_none_get_a_notice() {
+    let none = edited_butane(
+        "bad-input-coulomb-none",
+        |xyz| xyz,
+        |toml| toml.replace("coulomb = \"plain\"", "coulomb = \"none\""),
+    );
+    let (code, stdout, stderr) = run(&["check", &none]);
+    assert_eq!(code, 0, "{stderr}");
+    let printed = stdout + &stderr;
+    assert!(printed.contains("charges are ignored"), "{printed}");
+}
+
+#[test]
+fn forces_at_another_molecules_positions_are_refused() {
+    let (code, _, stderr) = run(&[
+        "forces",
+        "systems/alanine-dipeptide-amber/ala2.prmtop",
+        "--positions",
+        "systems/molecules/butane.xyz",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--positions: has 14 atoms"), "{stderr}");
+}
+
+#[test]
+fn zero_weights_and_empty_labels_are_refused() {
+    let (code, _, stderr) = run(&[
+        "chart",
+        "work-precision",
+        "systems/three-spring.toml",
+        "--methods",
+        "impulse",
+        "--h-list",
+        "0.1",
+        "--t-end",
+        "1",
+        "--inner",
+        "4",
+        "--weights",
+        "0,0,0",
+        "--out",
+        &scratch_dir("bad-input-weights").display().to_string(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--weights 0,0,0"), "{stderr}");
+    let (code, _, stderr) = run(&[
+        "analyze",
+        "systems/water-box/scene.toml",
+        "out/none",
+        "--labels",
+        "",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--labels"), "{stderr}");
+}

@@ -204,6 +204,12 @@ fn labels(args: &AnalyzeArgs) -> Result<Vec<String>> {
             args.runs.len()
         )));
     }
+    if let Some(k) = args.labels.iter().position(|l| l.trim().is_empty()) {
+        return Err(Error::input(format!(
+            "--labels: label {} is empty; each run needs a name",
+            k + 1
+        )));
+    }
     Ok(args.labels.clone())
 }
 

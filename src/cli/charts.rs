@@ -195,6 +195,11 @@ fn cost_weights(
                     "--weights expects three non-negative numbers F,S,H",
                 ));
             }
+            if w.iter().all(|&x| x == 0.0) {
+                return Err(Error::input(
+                    "--weights 0,0,0 makes every run free: give at least one positive cost",
+                ));
+            }
             CostWeights {
                 fast: w[0],
                 slow: w[1],

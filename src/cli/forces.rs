@@ -16,7 +16,6 @@ use super::common::SceneArgs;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::scene::Scene;
-use crate::io::structure::read_structure;
 use crate::system::System;
 
 #[derive(Args, Debug)]
@@ -78,7 +77,10 @@ pub fn forces_command(args: &ForcesArgs) -> Result<()> {
     if let Some(path) = &args.parameters {
         write_parameters(&scene, path)?;
     }
-    let q = positions(&scene.system, args)?;
+    if let Some(path) = &args.positions {
+        crate::run::prepare::start_positions(&mut scene, path, "--positions")?;
+    }
+    let q = scene.system.state.q.clone();
     let evaluation = Evaluation::at(&mut scene.system, &q);
     if let Some(path) = &args.out {
         write_forces_csv(path, &scene, &evaluation, args.by_level)?;
@@ -109,29 +111,6 @@ fn write_parameters(scene: &Scene, path: &Path) -> Result<()> {
     let text = serde_json::to_string(parameters)
         .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
     std::fs::write(path, text).map_err(|e| Error::io(path, e))
-}
-
-/// The positions to evaluate at: the scene's, or those of `--positions FILE`.
-fn positions(system: &System, args: &ForcesArgs) -> Result<Vec<f64>> {
-    let mut q = system.state.q.clone();
-    if let Some(path) = &args.positions {
-        let structure = read_structure(path)?;
-        let dim = system.dim;
-        if structure.atoms.len() != system.n_particles() {
-            return Err(Error::Structure {
-                path: path.clone(),
-                message: format!(
-                    "has {} atoms, the scene {}",
-                    structure.atoms.len(),
-                    system.n_particles()
-                ),
-            });
-        }
-        for (i, atom) in structure.atoms.iter().enumerate() {
-            q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
-        }
-    }
-    Ok(q)
 }
 
 /// Energies per group, term and level, and the gradient of each level, at one point.

@@ -422,6 +422,13 @@ pub fn build_forcefield(input: &ForcefieldInput) -> Result<BuiltForcefield, Stri
     let settings = nonbonded::settings(input, &atoms.charges)?;
     let lj = nonbonded::lennard_jones(input.spec, &atoms, &settings, &mut report);
     report.push(nonbonded::report_line(&settings));
+    if settings.electrostatics == Electrostatics::None && atoms.charges.iter().any(|&c| c != 0.0) {
+        report.push(
+            "notice: the atoms carry charges, but [forcefield] coulomb = \"none\": the charges \
+             are ignored (no electrostatics at all)"
+                .into(),
+        );
+    }
     let parameters = parameters(&ctx, &settings, &lj, &exclusions, dumps);
     let cutoff_spec = nonbonded::cutoff_spec(input, &atoms, &settings, &lj, &exclusions.excluded);
     match (&input.spec.split, input.spec.nonbonded_level) {

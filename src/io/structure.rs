@@ -160,6 +160,32 @@ pub fn read_structure(path: &Path) -> Result<Structure> {
 /// Read the first frame; with `guess_bonds`, bonds are perceived by chemfiles (its VMD
 /// criterion: `0.03 Å < d < 0.6 (R_a + R_b)` with van der Waals radii, minimum image in a
 /// cell) when the file lists none.
+/// Largest |coordinate| a structure may hold (Å): a molecule or box further out than a
+/// metre's ten-thousandth is a typo, and bond guessing and cell lists fail silently there.
+pub const MAX_COORDINATE: f64 = 1e6;
+
+/// Every coordinate finite and within ±[`MAX_COORDINATE`].
+fn check_coordinates(path: &Path, frame: &chemfiles::Frame) -> Result<()> {
+    for (i, position) in frame.positions().iter().enumerate() {
+        if position.iter().any(|x| !x.is_finite()) {
+            return Err(structure_error(
+                path,
+                format!("atom {i} has a non-finite coordinate {position:?}"),
+            ));
+        }
+        if position.iter().any(|x| x.abs() > MAX_COORDINATE) {
+            return Err(structure_error(
+                path,
+                format!(
+                    "atom {i} has a coordinate beyond ±{MAX_COORDINATE:e} Å: {position:?} \
+                     (a typo in the file?)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> {
     if !path.exists() {
         return Err(Error::Structure {
@@ -175,6 +201,7 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
     trajectory.read(&mut frame).map_err(|e| {
         structure_error(path, format!("cannot read the first frame: {}", e.message))
     })?;
+    check_coordinates(path, &frame)?;
     if guess_bonds
         && frame.topology().bonds_count() == 0
         && let Err(e) = frame.guess_bonds()
@@ -188,12 +215,6 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
     let positions = frame.positions();
     let mut atoms = Vec::with_capacity(frame.size());
     for (i, position) in positions.iter().enumerate() {
-        if position.iter().any(|x| !x.is_finite()) {
-            return Err(structure_error(
-                path,
-                format!("atom {i} has a non-finite coordinate {position:?}"),
-            ));
-        }
         let atom = frame.atom(i);
         atoms.push(Atom {
             name: atom.name(),

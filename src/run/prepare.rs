@@ -72,7 +72,7 @@ pub struct PreparedRun {
 pub fn load(request: &RunRequest) -> Result<Scene> {
     let mut scene = load_scene_with(request.scene, &request.flags, request.set)?;
     if let Some(path) = request.start {
-        start_positions(&mut scene, path)?;
+        start_positions(&mut scene, path, "--start")?;
     }
     Ok(scene)
 }
@@ -211,8 +211,9 @@ fn set_precision(scene: &Scene, name: Option<&str>, notices: &mut Vec<String>) -
 }
 
 /// Replace the scene's positions by those of a structure file with the same atoms in the
-/// same order (the force field, built from the scene's own structure, is kept).
-fn start_positions(scene: &mut Scene, path: &Path) -> Result<()> {
+/// same order (the force field, built from the scene's own structure, is kept); `flag`
+/// names the option the file came from in a message.
+pub fn start_positions(scene: &mut Scene, path: &Path, flag: &str) -> Result<()> {
     let structure = crate::io::structure::read_structure_with(path, false)?;
     let system = &mut scene.system;
     let n = system.n_particles();
@@ -222,7 +223,7 @@ fn start_positions(scene: &mut Scene, path: &Path) -> Result<()> {
     };
     if structure.atoms.len() != n {
         return Err(mismatch(format!(
-            "--start: has {} atoms, the scene {n}",
+            "{flag}: has {} atoms, the scene {n}",
             structure.atoms.len()
         )));
     }
@@ -231,7 +232,7 @@ fn start_positions(scene: &mut Scene, path: &Path) -> Result<()> {
             && !name.eq_ignore_ascii_case(&atom.name)
         {
             return Err(mismatch(format!(
-                "--start: atom {i} is {}, the scene's is {name}: the atoms must be the \
+                "{flag}: atom {i} is {}, the scene's is {name}: the atoms must be the \
                  scene's, in its order",
                 atom.name
             )));
