@@ -83,17 +83,20 @@ pub fn run(
     system.forces.reset_counts();
     integrator.setup(system)?;
     let h = integrator.outer_step();
-    let mut recorder = Recorder::new(system, integrator, options)?;
-    recorder.record(system, integrator)?;
+    // The trajectory first: a format chemfiles cannot write fails before energy.csv exists.
     let mut trajectory = match &options.trajectory {
         Some(t) => {
-            let mut writer =
+            let writer =
                 TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
-            writer.write(&system.state.q, 0, system.state.t)?;
             Some((writer, t.every.max(1) as u64, 0))
         }
         None => None,
     };
+    let mut recorder = Recorder::new(system, integrator, options)?;
+    recorder.record(system, integrator)?;
+    if let Some((writer, _, _)) = &mut trajectory {
+        writer.write(&system.state.q, 0, system.state.t)?;
+    }
 
     let t_start = system.state.t;
     let started = Instant::now();

@@ -438,3 +438,56 @@ fn zero_weights_and_empty_labels_are_refused() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--labels"), "{stderr}");
 }
+
+/// Issue 30 item 11: a reversed range says so; a trajectory format chemfiles cannot write
+/// fails before the run writes anything.
+#[test]
+fn a_reversed_range_and_a_bad_trajectory_format_are_said_before_any_run() {
+    let out = scratch_dir("bad-input-reversed");
+    let (code, _, stderr) = run(&[
+        "scan",
+        "steps",
+        "systems/three-spring.toml",
+        "--methods",
+        "impulse",
+        "--h",
+        "0.7:0.1:0.01",
+        "--inner",
+        "4",
+        "--t-end",
+        "1",
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("reversed") && stderr.contains("0.1:0.7:0.01"),
+        "{stderr}"
+    );
+
+    let dir = scratch_dir("bad-input-trajectory-format");
+    let scene = std::fs::read_to_string("systems/three-spring.toml").unwrap()
+        + "\n[output]\ntrajectory = \"t.abc\"\n";
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    let out = dir.join("out");
+    let (code, _, stderr) = run(&[
+        "run",
+        &dir.join("scene.toml").display().to_string(),
+        "--method",
+        "verlet",
+        "--h",
+        "0.1",
+        "--t-end",
+        "1",
+        "--trajectory-every",
+        "1",
+        "--out",
+        &out.display().to_string(),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("t.abc"), "{stderr}");
+    assert!(
+        !out.join("energy.csv").exists(),
+        "energy.csv written before the failure"
+    );
+}

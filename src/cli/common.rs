@@ -121,7 +121,11 @@ pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
         };
         let (lo, hi, step) = (value(lo)?, value(hi)?, value(step)?);
         if hi < lo {
-            return Err(Error::input(format!("--h: {hi} is below {lo}")));
+            return Err(Error::input(format!(
+                "--h {text}: the range is reversed (LO:HI:STEP runs from LO up to HI); did \
+                 you mean {}:{}:{}?",
+                parts[1], parts[0], parts[2]
+            )));
         }
         let count = ((hi - lo) / step + 1e-9).floor() as usize + 1;
         if count > 100_000 {
