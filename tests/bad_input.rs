@@ -491,3 +491,20 @@ fn a_reversed_range_and_a_bad_trajectory_format_are_said_before_any_run() {
         "energy.csv written before the failure"
     );
 }
+
+/// A flag with an optional value (`--rigid-water`) does not take the next flag as its
+/// value now that option values may start with `-`.
+#[test]
+fn a_flag_with_an_optional_value_leaves_the_next_flag_alone() {
+    let (code, stdout, stderr) = run(&[
+        "check",
+        "systems/water-box/scene.toml",
+        "--rigid-water",
+        "--method",
+        "verlet",
+        "--h",
+        "2fs",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!((stdout + &stderr).contains("SETTLE"), "{stderr}");
+}

@@ -84,7 +84,12 @@ enum Command {
 fn negative_values(mut command: clap::Command) -> clap::Command {
     let ids: Vec<clap::Id> = command
         .get_arguments()
-        .filter(|a| a.get_action().takes_values() && !a.is_positional())
+        .filter(|a| {
+            // Not a flag whose value is optional (`--rigid-water [BOOL]`): it would take
+            // the next flag as its value.
+            let optional = a.get_num_args().is_some_and(|n| n.min_values() == 0);
+            a.get_action().takes_values() && !a.is_positional() && !optional
+        })
         .map(|a| a.get_id().clone())
         .collect();
     for id in ids {
