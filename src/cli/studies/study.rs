@@ -7,8 +7,8 @@ use std::path::Path;
 
 use super::super::common::{SCAN_STEPS, parse_shard, parse_steps, progress_bar};
 use super::{
-    Criterion, ScanStepsArgs, base_setup, choose_criterion, print_safe_steps, reference_analysis,
-    sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
+    Criterion, ScanStepsArgs, async_band_warnings, base_setup, choose_criterion, print_safe_steps,
+    reference_analysis, sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
 };
 use crate::analysis::sampling::run_sampling_point;
 use crate::analysis::scan::{
@@ -236,6 +236,11 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     let (base, configs) = study_configs(args, &scene, &study)?;
     let methods: Vec<String> = configs.iter().map(|c| c.method.clone()).collect();
     let criterion = choose_criterion(args, &methods)?;
+    if !args.quiet {
+        for c in &configs {
+            async_band_warnings(&c.setup, std::slice::from_ref(&c.method), &c.steps)?;
+        }
+    }
     let mut points = config_points(&configs);
     let total = points.len();
     if let Some(shard) = &args.shard {
