@@ -242,3 +242,106 @@ fn a_study_refuses_the_single_scan_flags() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--methods"), "{stderr}");
 }
+
+#[test]
+fn a_configurations_pme_levels_reach_a_topology_scene() {
+    // The dipeptide's PME scene reads a [topology]: `nonbonded_level = 0, pme_level = 1`
+    // must give the rows of the single scan with --nonbonded-level 0 --pme-level 1, and
+    // differ from the default levels (real space slow): the real-space term moves to the
+    // fast level, so each outer step evaluates it at every inner step.
+    let dir = scratch_dir("study-pme-levels");
+    let study = write_study(
+        &dir,
+        r#"
+[[config]]
+label = "default-levels"
+method = "impulse"
+h = ["1fs"]
+dt = "0.5fs"
+
+[[config]]
+label = "reciprocal-slow"
+method = "impulse"
+h = ["1fs"]
+dt = "0.5fs"
+nonbonded_level = 0
+pme_level = 1
+"#,
+    );
+    let scene = "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml";
+    let scan = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "scan",
+            "steps",
+            scene,
+            "--t-end",
+            "2fs",
+            "--repeats",
+            "0",
+            "--quiet",
+            "--out",
+        ];
+        args.push(path(out));
+        args.extend_from_slice(extra);
+        ok(&args);
+    };
+    let (whole, single) = (dir.join("study"), dir.join("single"));
+    scan(&whole, &["--study", path(&study)]);
+    scan(
+        &single,
+        &[
+            "--method",
+            "impulse",
+            "--h",
+            "1fs",
+            "--dt",
+            "0.5fs",
+            "--nonbonded-level",
+            "0",
+            "--pme-level",
+            "1",
+        ],
+    );
+    let (header, rows) = table(&whole.join("scan.csv"));
+    let (_, single_rows) = table(&single.join("scan.csv"));
+    assert_eq!(rows[1][2..], single_rows[0][1..]);
+    let drift = header.iter().position(|h| h == "drift").unwrap();
+    assert_ne!(rows[0][drift], rows[1][drift]);
+}
+
+#[test]
+fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
+    // Both shipped study files parse with the configurations docs/studies.md lists.
+    let labels = |file: &str| -> Vec<String> {
+        longstep::io::study_file::read_study(Path::new(file))
+            .unwrap_or_else(|e| panic!("{file}: {e}"))
+            .configs
+            .into_iter()
+            .map(|c| c.label)
+            .collect()
+    };
+    assert_eq!(labels("studies/ala2-production-nve.toml").len(), 7);
+    assert_eq!(labels("studies/ala2-production-sampling.toml").len(), 3);
+    // The NVE study builds and runs every point end to end (20 fs runs: a smoke test of
+    // the pipeline, not a verdict): 2 + 3 + 3 + 4 + 4 + 3 + 3 points.
+    let out = scratch_dir("study-ala2-nve");
+    ok(&[
+        "scan",
+        "steps",
+        "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml",
+        "--study",
+        "studies/ala2-production-nve.toml",
+        "--t-end",
+        "20fs",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--out",
+        path(&out),
+    ]);
+    let (_, rows) = table(&out.join("scan.csv"));
+    assert_eq!(rows.len(), 22);
+    let mut seen: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();
+    seen.dedup();
+    assert_eq!(seen, labels("studies/ala2-production-nve.toml"));
+}
