@@ -345,3 +345,28 @@ fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
     seen.dedup();
     assert_eq!(seen, labels("studies/ala2-production-nve.toml"));
 }
+
+#[test]
+fn the_sampling_criterion_counts_a_constrained_models_degrees_of_freedom() {
+    // 216 rigid waters (SETTLE: 3 constraints each) leave 3·648 − 648 = 1296 degrees of
+    // freedom for the kinetic temperature; the flexible model keeps the analyzer's 3N.
+    use longstep::analysis::sampling::constrained_dof;
+    use longstep::analysis::scan::ScanSetup;
+    use longstep::settings::RunSpec;
+    let setup = |rigid: Option<bool>| ScanSetup {
+        scene: PathBuf::from("systems/water-box/scene.toml"),
+        base: RunSpec {
+            rigid_water: rigid,
+            inner_steps: Some(4),
+            temperature: Some("300K".parse().unwrap()),
+            ..Default::default()
+        },
+        t_end: 4.0,
+        energy_every: 1,
+        ..Default::default()
+    };
+    let rigid = constrained_dof(&setup(Some(true)), "langevin-respa", 2.0).unwrap();
+    assert_eq!(rigid, Some(1296.0));
+    let flexible = constrained_dof(&setup(None), "langevin-respa", 2.0).unwrap();
+    assert_eq!(flexible, None);
+}

@@ -241,6 +241,9 @@ pub struct ScanSetup {
     /// Run an undecided point again at twice the length, and again, up to this factor of
     /// `t_end` (≤ 1: never; [`until_decided`]).
     pub until_decided: f64,
+    /// The degrees of freedom of the sampling criterion's kinetic temperature when the
+    /// model has constraints (`None`: `3N`; [`super::sampling::constrained_dof`]).
+    pub kinetic_dof: Option<f64>,
 }
 
 impl ScanSetup {
@@ -288,7 +291,8 @@ pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodS
         .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
 }
 
-fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> Result<RunSpec> {
+/// The run settings of one point: the setup's, with its method, step, length and levels.
+pub fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> Result<RunSpec> {
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));

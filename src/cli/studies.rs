@@ -423,6 +423,7 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         flags: args.source.flags()?,
         start: args.start.clone(),
         until_decided: crate::analysis::scan::check_until_decided(args.until_decided)?,
+        kinetic_dof: None,
     };
     Ok(setup)
 }
@@ -485,6 +486,7 @@ fn reference_analysis(
     scene: &crate::io::scene::Scene,
     criterion: &SamplingCriterion,
     temperature: Option<f64>,
+    dof: Option<f64>,
 ) -> Result<RunAnalysis> {
     let temperature = temperature.ok_or_else(|| {
         Error::input(
@@ -498,7 +500,7 @@ fn reference_analysis(
         .clone()
         .unwrap_or_else(|| "trajectory.xyz".into());
     let files = super::analyze::run_files(&criterion.reference, &trajectory)?;
-    let analyzer = Analyzer::new(scene, criterion.analysis_options())?;
+    let analyzer = Analyzer::new(scene, criterion.analysis_options_for(dof))?;
     let analysis = analyzer.analyze(&files)?;
     let unit = match scene.units {
         Units::Real => " K",
@@ -514,7 +516,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     }
     let scene = args.source.load(&args.scene, &args.set)?;
     let methods = scan_methods(args)?;
-    let (setup, steps) = scan_setup(args, &scene)?;
+    let (mut setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
     if args.repeats > MAX_REPEATS {
         return Err(Error::input(format!(
@@ -537,8 +539,10 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         Criterion::Drift => None,
         Criterion::Sampling => {
             let c = sampling_criterion(args, &scene, setup.t_end)?;
+            setup.kinetic_dof =
+                crate::analysis::sampling::constrained_dof(&setup, &methods[0], steps[0])?;
             let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
-            let reference = reference_analysis(&scene, &c, temperature)?;
+            let reference = reference_analysis(&scene, &c, temperature, setup.kinetic_dof)?;
             Some((c, reference))
         }
     };

@@ -10,7 +10,7 @@ use super::{
     Criterion, ScanStepsArgs, async_band_warnings, base_setup, choose_criterion, print_safe_steps,
     reference_analysis, sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
 };
-use crate::analysis::sampling::run_sampling_point;
+use crate::analysis::sampling::{constrained_dof, run_sampling_point};
 use crate::analysis::scan::{
     MAX_REPEATS, ScanConfig, ScanSetup, StepResult, Timing, config_points, point_settings,
     run_config_points, run_point, safe_steps, take_timings, until_decided,
@@ -129,7 +129,7 @@ fn study_reference(
     args: &ScanStepsArgs,
     scene: &Scene,
     base: &ScanSetup,
-    configs: &[ScanConfig],
+    configs: &mut [ScanConfig],
     study: &Path,
 ) -> Result<(
     crate::analysis::sampling::SamplingCriterion,
@@ -139,10 +139,25 @@ fn study_reference(
     let temperature_of = |config: &ScanConfig| -> Result<Option<f64>> {
         Ok(point_settings(&config.setup, &config.method, config.steps[0])?.temperature)
     };
+    let dof_of =
+        |config: &ScanConfig| constrained_dof(&config.setup, &config.method, config.steps[0]);
     let temperature = temperature_of(&configs[0])?;
-    for config in configs {
+    let dof = dof_of(&configs[0])?;
+    for config in configs.iter_mut() {
         c.check(config.setup.t_end)
             .map_err(|e| in_config(study, &config.label, e))?;
+        config.setup.kinetic_dof = dof_of(config)?;
+        if config.setup.kinetic_dof != dof {
+            return Err(in_config(
+                study,
+                &config.label,
+                Error::input(
+                    "its constraints differ from the first configuration's: the sampling \
+                     criterion compares every configuration with one reference of one model \
+                     (flexible and constrained configurations take two study files)",
+                ),
+            ));
+        }
         if temperature_of(config)? != temperature {
             return Err(in_config(
                 study,
@@ -154,7 +169,7 @@ fn study_reference(
             ));
         }
     }
-    let reference = reference_analysis(scene, &c, temperature)?;
+    let reference = reference_analysis(scene, &c, temperature, dof)?;
     Ok((c, reference))
 }
 
@@ -233,7 +248,7 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     }
     let study = read_study(path)?;
     let scene = args.source.load(&args.scene, &args.set)?;
-    let (base, configs) = study_configs(args, &scene, &study)?;
+    let (base, mut configs) = study_configs(args, &scene, &study)?;
     let methods: Vec<String> = configs.iter().map(|c| c.method.clone()).collect();
     let criterion = choose_criterion(args, &methods)?;
     if !args.quiet {
@@ -250,7 +265,7 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let sampling = match criterion {
         Criterion::Drift => None,
-        Criterion::Sampling => Some(study_reference(args, &scene, &base, &configs, path)?),
+        Criterion::Sampling => Some(study_reference(args, &scene, &base, &mut configs, path)?),
     };
     let results = run_study_points(args, &configs, &points, sampling.as_ref())?;
     if !args.quiet {
