@@ -27,7 +27,7 @@ use serde::Serialize;
 use super::block_average::Estimate;
 use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use super::scan::{
-    PointOutputs, ScanSetup, StepResult, Verdict, run_once, step_result, until_decided,
+    PointOutputs, ScanSetup, StepResult, Verdict, point_spec, run_once, step_result, until_decided,
 };
 use crate::error::{Error, Result};
 use crate::io::summary::Status;
@@ -61,6 +61,12 @@ impl SamplingCriterion {
     /// The analysis both runs go through: the pair's g(r), the default bins and peak fit of
     /// `longstep analyze`, no configurational temperature (not compared).
     pub fn analysis_options(&self) -> AnalysisOptions {
+        self.analysis_options_for(None)
+    }
+
+    /// [`Self::analysis_options`] with the kinetic temperature over `dof` degrees of
+    /// freedom (`None`: the analyzer's `3N`), for a constrained model ([`constrained_dof`]).
+    pub fn analysis_options_for(&self, dof: Option<f64>) -> AnalysisOptions {
         AnalysisOptions {
             pairs: vec![self.pair.clone()],
             intramolecular: false,
@@ -74,7 +80,7 @@ impl SamplingCriterion {
             probes: 1,
             seed: 1,
             configurational: false,
-            dof: None,
+            dof,
             kinetic_column: "kinetic".into(),
             stride: 1,
         }
@@ -118,6 +124,17 @@ impl SamplingCriterion {
         let steps = (t_end / h).round().max(1.0);
         ((steps / self.frames as f64).floor() as usize).max(1)
     }
+}
+
+/// The degrees of freedom a point's kinetic temperature is measured over when its model has
+/// constraints: `dim·N − N_c` (every remaining degree of freedom thermalised, the centre of
+/// mass included, as the analyzer's `3N`); `None` without constraints.
+pub fn constrained_dof(setup: &ScanSetup, method: &str, h: f64) -> Result<Option<f64>> {
+    let spec = point_spec(setup, method, h)?;
+    let prepared = crate::run::prepare::prepare(&setup.request(&spec))?;
+    let system = &prepared.scene.system;
+    let constraints = system.constraints.as_ref().map_or(0, |c| c.count());
+    Ok((constraints > 0).then(|| system.n_dofs().saturating_sub(constraints) as f64))
 }
 
 /// One point's run against the reference.
@@ -284,7 +301,7 @@ fn judge_sampling_point(
         ));
     }
     let scene = setup.load_scene()?;
-    let analyzer = Analyzer::new(&scene, criterion.analysis_options())?;
+    let analyzer = Analyzer::new(&scene, criterion.analysis_options_for(setup.kinetic_dof))?;
     let analysis = analyzer.analyze(&RunFiles {
         energy: dir.join("energy.csv"),
         trajectory: dir.join("trajectory.xyz"),

@@ -188,6 +188,9 @@ pub fn classify(summary: &RunSummary, drift_bound: f64) -> (Verdict, Option<Scan
 #[derive(Clone, Debug, Serialize)]
 pub struct StepResult {
     pub index: usize,
+    /// The label of the point's configuration in a study (`scan steps --study`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub config: Option<String>,
     pub method: String,
     pub h: f64,
     pub verdict: Verdict,
@@ -238,6 +241,9 @@ pub struct ScanSetup {
     /// Run an undecided point again at twice the length, and again, up to this factor of
     /// `t_end` (≤ 1: never; [`until_decided`]).
     pub until_decided: f64,
+    /// The degrees of freedom of the sampling criterion's kinetic temperature when the
+    /// model has constraints (`None`: `3N`; [`super::sampling::constrained_dof`]).
+    pub kinetic_dof: Option<f64>,
 }
 
 impl ScanSetup {
@@ -285,7 +291,8 @@ pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodS
         .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
 }
 
-fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> Result<RunSpec> {
+/// The run settings of one point: the setup's, with its method, step, length and levels.
+pub fn point_spec(setup: &ScanSetup, method: &str, h: f64) -> Result<RunSpec> {
     let mut spec = setup.base.clone();
     spec.method = Some(method.to_string());
     spec.h = Some(Value::Number(h));
@@ -406,7 +413,9 @@ pub fn undecided_notes(results: &[StepResult], units: Units) -> Vec<String> {
             };
             format!(
                 "{} at h = {} (a run of {}): {}",
-                r.method,
+                r.config
+                    .as_ref()
+                    .map_or(r.method.clone(), |c| format!("{c} ({})", r.method)),
                 format_time(r.h, units),
                 format_time(r.t_end, units),
                 verdict.text(units)
@@ -431,6 +440,7 @@ pub fn step_result(
     };
     StepResult {
         index,
+        config: None,
         method: method.to_string(),
         h,
         verdict,
@@ -462,6 +472,58 @@ pub fn run_points(
         .par_iter()
         .map(|(index, method, h)| {
             let result = run_point(setup, *index, method, *h);
+            progress();
+            result
+        })
+        .collect::<Result<Vec<_>>>()?;
+    results.sort_by_key(|r| r.index);
+    Ok(results)
+}
+
+/// One configuration of a study (`scan steps --study`): a method with its own settings
+/// and outer steps.
+#[derive(Clone, Debug)]
+pub struct ScanConfig {
+    pub label: String,
+    pub method: String,
+    pub setup: ScanSetup,
+    pub steps: Vec<f64>,
+}
+
+/// A study's points, configuration-major: `(index, configuration, h)`, the index counting
+/// through every configuration's steps in order.
+pub fn config_points(configs: &[ScanConfig]) -> Vec<(usize, usize, f64)> {
+    let mut points = Vec::new();
+    for (c, config) in configs.iter().enumerate() {
+        for &h in &config.steps {
+            points.push((points.len(), c, h));
+        }
+    }
+    points
+}
+
+/// How one point of a study is run and judged: its configuration's setup, index, method
+/// and step.
+pub type PointRunner<'a> = dyn Fn(&ScanSetup, usize, &str, f64) -> Result<StepResult> + Sync + 'a;
+
+/// Run a study's points in parallel by `run`, each with its configuration's setup, and
+/// label each result with its configuration; `progress` is called once per finished point.
+pub fn run_config_points(
+    configs: &[ScanConfig],
+    points: &[(usize, usize, f64)],
+    run: &PointRunner,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<StepResult>> {
+    let mut results = points
+        .par_iter()
+        .map(|&(index, c, h)| {
+            let config = &configs[c];
+            let result = run(&config.setup, index, &config.method, h)
+                .map_err(|e| Error::input(format!("configuration \"{}\": {e}", config.label)))
+                .map(|mut r| {
+                    r.config = Some(config.label.clone());
+                    r
+                });
             progress();
             result
         })
@@ -513,6 +575,8 @@ pub fn time_point(
 
 /// The timing of one method at its largest safe step at one thread count.
 pub struct Timing {
+    /// The configuration's label in a study.
+    pub config: Option<String>,
     pub method: String,
     pub h: f64,
     pub threads: usize,
@@ -532,6 +596,7 @@ pub fn take_timings(setup: &ScanSetup, safe: &[SafeStep], repeats: usize) -> Res
         for &threads in &counts {
             let median_seconds = time_point(setup, &s.method, h, Some(threads), repeats)?;
             timings.push(Timing {
+                config: s.config.clone(),
                 method: s.method.clone(),
                 h,
                 threads,
@@ -562,24 +627,30 @@ pub fn median(values: &mut [f64]) -> f64 {
 /// the stable steps beyond the first failure (islands between resonances).
 #[derive(Clone, Debug, Serialize)]
 pub struct SafeStep {
+    /// The configuration's label in a study.
+    pub config: Option<String>,
     pub method: String,
     pub safe_up_to: Option<f64>,
     pub first_failure: Option<(f64, Verdict)>,
     pub stable_beyond: Vec<f64>,
 }
 
+/// The safe steps of each method (each configuration of a study), in order of appearance.
 pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
-    let mut methods: Vec<&str> = Vec::new();
+    let key = |r: &StepResult| (r.config.clone(), r.method.clone());
+    let mut groups: Vec<(Option<String>, String)> = Vec::new();
     for r in results {
-        if !methods.contains(&r.method.as_str()) {
-            methods.push(&r.method);
+        if !groups.contains(&key(r)) {
+            groups.push(key(r));
         }
     }
-    methods
+    groups
         .into_iter()
-        .map(|method| {
-            let mut rows: Vec<&StepResult> =
-                results.iter().filter(|r| r.method == method).collect();
+        .map(|(config, method)| {
+            let mut rows: Vec<&StepResult> = results
+                .iter()
+                .filter(|r| r.method == method && r.config == config)
+                .collect();
             rows.sort_by(|a, b| a.h.total_cmp(&b.h));
             let failure = rows.iter().position(|r| !r.verdict.is_safe());
             let safe_up_to = match failure {
@@ -588,6 +659,7 @@ pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
                 None => rows.last().map(|r| r.h),
             };
             SafeStep {
+                config,
                 method: method.to_string(),
                 safe_up_to,
                 first_failure: failure.map(|i| (rows[i].h, rows[i].verdict)),
@@ -630,6 +702,7 @@ mod tests {
     fn result(method: &str, h: f64, verdict: Verdict) -> StepResult {
         StepResult {
             index: 0,
+            config: None,
             method: method.into(),
             h,
             verdict,

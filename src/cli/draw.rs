@@ -211,6 +211,11 @@ fn work_precision_chart(
 }
 
 /// The pictures of a scan's table: by its criterion.
+/// The column that names a scan's series: a study's `config` label, else the `method`.
+fn series_column(table: &StudyTable) -> Result<usize> {
+    table.column("config").or_else(|_| table.column("method"))
+}
+
 pub fn draw_scan(table: &StudyTable, out: &Path) -> Result<()> {
     if table.meta.get("criterion").map(String::as_str) == Some("sampling") {
         draw_scan_sampling(table, out)
@@ -223,7 +228,7 @@ pub fn draw_scan(table: &StudyTable, out: &Path) -> Result<()> {
 /// compared quantity (`scan-potential`, `scan-peak`), unstable runs as crosses.
 fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
     let (method, h, status) = (
-        table.column("method")?,
+        series_column(table)?,
         table.column("h")?,
         table.column("status")?,
     );
@@ -300,7 +305,7 @@ fn add_method(
 /// from the timing table.
 pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
     let (method, h, threads) = (
-        timing.column("method")?,
+        series_column(timing)?,
         timing.column("h")?,
         timing.column("threads")?,
     );
@@ -346,7 +351,7 @@ pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
 /// Drift against outer step for each method, unstable runs as crosses, and the resonances
 /// predicted from the fast normal modes as guide lines.
 fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
-    let method = table.column("method")?;
+    let method = series_column(table)?;
     let h = table.column("h")?;
     let status = table.column("status")?;
     let drift = table.column("drift")?;

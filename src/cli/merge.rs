@@ -123,6 +123,7 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     for (study, tables) in by_study {
         let count = tables.len();
         let merged = merge(tables)?;
+        check_study_rows(&merged)?;
         let name = match study.as_str() {
             "work-precision" => WORK_PRECISION,
             "work-precision-wall-time" => WALL_TIME,
@@ -184,6 +185,35 @@ fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
         }
     }
     Ok((by_study, maps))
+}
+
+/// A merged `scan steps --study` table: its `config` column and its `configs` setting come
+/// together, and every row's configuration is one the study names.
+fn check_study_rows(table: &StudyTable) -> Result<()> {
+    let (column, configs) = match (table.column("config"), table.meta.get("configs")) {
+        (Err(_), None) => return Ok(()),
+        (Ok(column), Some(configs)) => (column, configs),
+        _ => {
+            return Err(Error::input(format!(
+                "the merged {} table has a `config` column without its study's `configs` \
+                 setting, or the reverse: shards of a study are written by `scan steps --study`",
+                table.study
+            )));
+        }
+    };
+    let labels: Vec<&str> = configs.split(';').collect();
+    match table
+        .rows
+        .iter()
+        .find(|row| !labels.contains(&row[column].as_str()))
+    {
+        Some(row) => Err(Error::input(format!(
+            "point {} of the merged {} table is of configuration \"{}\", which its study \
+             ({configs}) does not name",
+            row[0], table.study, row[column]
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// The pictures of the merged tables, as the studies draw them.

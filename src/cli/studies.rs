@@ -4,6 +4,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Subcommand};
 
+mod study;
+
 use super::common::{SCAN_STEPS, or_default, parse_shard, parse_steps, progress_bar};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
@@ -118,6 +120,11 @@ pub struct ScanStepsArgs {
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
+    /// A study file (TOML) of configurations, each a method with its own outer steps and
+    /// run settings, in place of --methods and --h (docs/studies.md); the command line's
+    /// run flags are the settings every configuration starts from.
+    #[arg(long, value_name = "FILE")]
+    pub study: Option<PathBuf>,
     /// Output directory (scan.csv, timing.csv, charts; runs/ under --criterion sampling).
     #[arg(long, default_value = "out/scan-steps")]
     pub out: PathBuf,
@@ -352,6 +359,12 @@ fn scan_setup(
         Error::input("scan steps needs the outer steps to scan: give --h LO:HI:STEP or a list")
     })?;
     let steps = parse_steps(&h.to_string(), units)?;
+    Ok((base_setup(args, scene)?, steps))
+}
+
+/// The scan's setup from the arguments and the scene: everything but the outer steps.
+fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<ScanSetup> {
+    let units = scene.units;
     let t_end = args
         .run
         .t_end
@@ -410,8 +423,9 @@ fn scan_setup(
         flags: args.source.flags()?,
         start: args.start.clone(),
         until_decided: crate::analysis::scan::check_until_decided(args.until_decided)?,
+        kinetic_dof: None,
     };
-    Ok((setup, steps))
+    Ok(setup)
 }
 
 /// The criterion: drift for NVE methods unless sampling is asked for; a thermostatted
@@ -472,6 +486,7 @@ fn reference_analysis(
     scene: &crate::io::scene::Scene,
     criterion: &SamplingCriterion,
     temperature: Option<f64>,
+    dof: Option<f64>,
 ) -> Result<RunAnalysis> {
     let temperature = temperature.ok_or_else(|| {
         Error::input(
@@ -485,7 +500,7 @@ fn reference_analysis(
         .clone()
         .unwrap_or_else(|| "trajectory.xyz".into());
     let files = super::analyze::run_files(&criterion.reference, &trajectory)?;
-    let analyzer = Analyzer::new(scene, criterion.analysis_options())?;
+    let analyzer = Analyzer::new(scene, criterion.analysis_options_for(dof))?;
     let analysis = analyzer.analyze(&files)?;
     let unit = match scene.units {
         Units::Real => " K",
@@ -496,9 +511,12 @@ fn reference_analysis(
 }
 
 pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
+    if let Some(path) = &args.study {
+        return study::scan_study_command(args, path);
+    }
     let scene = args.source.load(&args.scene, &args.set)?;
     let methods = scan_methods(args)?;
-    let (setup, steps) = scan_setup(args, &scene)?;
+    let (mut setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
     if args.repeats > MAX_REPEATS {
         return Err(Error::input(format!(
@@ -521,8 +539,10 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
         Criterion::Drift => None,
         Criterion::Sampling => {
             let c = sampling_criterion(args, &scene, setup.t_end)?;
+            setup.kinetic_dof =
+                crate::analysis::sampling::constrained_dof(&setup, &methods[0], steps[0])?;
             let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
-            let reference = reference_analysis(&scene, &c, temperature)?;
+            let reference = reference_analysis(&scene, &c, temperature, setup.kinetic_dof)?;
             Some((c, reference))
         }
     };
@@ -548,7 +568,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     super::draw::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
     let timings = write_timings(args, &setup, &safe, meta, scene.units)?;
-    print_safe_steps(&safe, &steps, &timings, scene.units, criterion);
+    print_safe_steps(&safe, &|_| steps.clone(), &timings, scene.units, criterion);
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
     eprintln!(
         "{} runs, {:.1} s of run time; results in {}",
@@ -657,12 +677,14 @@ fn timing_table(meta: BTreeMap<String, String>, timings: &[Timing], units: Units
             Num(per_day(t.t_end, t.median_seconds, units)).to_string(),
         ]);
     }
-    table
+    with_config_column(table, timings.iter().map(|t| t.config.as_deref()))
 }
 
+/// The summary table: one line per method (per configuration of a study), with the
+/// scanned steps of each (`steps`) for its islands.
 fn print_safe_steps(
     safe: &[SafeStep],
-    steps: &[f64],
+    steps: &dyn Fn(&SafeStep) -> Vec<f64>,
     timings: &[Timing],
     units: Units,
     criterion: Criterion,
@@ -683,18 +705,24 @@ fn print_safe_steps(
         Criterion::Drift => "safe up to",
         Criterion::Sampling => "passes up to",
     };
-    let mut head = format!(
-        "{:<18} {:>12}  {:<24}",
-        "method", safe_head, "first failure"
-    );
+    let label = |s: &SafeStep| s.config.clone().unwrap_or_else(|| s.method.clone());
+    let width = safe
+        .iter()
+        .map(|s| label(s).chars().count())
+        .fold(18, usize::max);
+    let first = match safe.iter().any(|s| s.config.is_some()) {
+        true => "configuration",
+        false => "method",
+    };
+    let mut head = format!("{first:<width$} {:>12}  {:<24}", safe_head, "first failure");
     for h in &heads {
         head += &format!(" {h:>20}");
     }
     println!("{head}  {again}");
     for s in safe {
         let mut line = format!(
-            "{:<18} {:>12}  {:<24}",
-            s.method,
+            "{:<width$} {:>12}  {:<24}",
+            label(s),
             s.safe_up_to
                 .map_or("none".to_string(), |h| format_time(h, units)),
             s.first_failure.map_or("-".to_string(), |(h, v)| format!(
@@ -706,13 +734,13 @@ fn print_safe_steps(
         for &n in &threads {
             let cell = timings
                 .iter()
-                .find(|t| t.method == s.method && t.threads == n)
+                .find(|t| t.method == s.method && t.config == s.config && t.threads == n)
                 .map_or("-".to_string(), |t| {
                     crate::io::summary::significant(per_day(t.t_end, t.median_seconds, units), 4)
                 });
             line += &format!(" {cell:>20}");
         }
-        println!("{line}  {}", islands(&s.stable_beyond, steps));
+        println!("{line}  {}", islands(&s.stable_beyond, &steps(s)));
     }
 }
 
@@ -888,6 +916,23 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             r.decide_at.map_or(String::new(), |t| Num(t).to_string()),
         ]);
     }
+    with_config_column(table, results.iter().map(|r| r.config.as_deref()))
+}
+
+/// A study's table gains a `config` column after `index`, the label of each row's
+/// configuration; a single scan's table is left as it was.
+fn with_config_column<'a>(
+    mut table: StudyTable,
+    labels: impl Iterator<Item = Option<&'a str>>,
+) -> StudyTable {
+    let labels: Vec<Option<&str>> = labels.collect();
+    if labels.iter().all(Option::is_none) {
+        return table;
+    }
+    table.header.insert(1, "config".into());
+    for (row, label) in table.rows.iter_mut().zip(labels) {
+        row.insert(1, label.unwrap_or_default().to_string());
+    }
     table
 }
 
@@ -953,7 +998,7 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
         ]);
         table.rows.push(row);
     }
-    table
+    with_config_column(table, results.iter().map(|r| r.config.as_deref()))
 }
 
 /// Stable steps beyond the first failure as intervals of consecutive scanned steps,

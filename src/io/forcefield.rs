@@ -156,6 +156,35 @@ impl ElectrostaticsOverrides {
         put("nonbonded_level", self.nonbonded_level.map(whole));
     }
 
+    /// Replace the keys of a scene's `[topology]` that are given here (the flags over a
+    /// scene that reads a topology), as [`Self::apply`] does over a `[forcefield]`.
+    pub fn apply_to_topology(&self, spec: &mut crate::io::scene::TopologySpec) {
+        let mut forcefield = ForcefieldSpec {
+            coulomb: spec.coulomb.clone(),
+            dsf_alpha: spec.dsf_alpha,
+            rf_dielectric: spec.epsilon_rf,
+            ewald_tolerance: spec.ewald_tolerance,
+            fourier_spacing: spec.fourier_spacing,
+            ewald_alpha: spec.ewald_alpha.clone(),
+            pme_grid: spec.pme_grid,
+            pme_order: spec.pme_order,
+            pme_level: spec.pme_level,
+            nonbonded_level: spec.nonbonded_level,
+            ..ForcefieldSpec::default()
+        };
+        self.apply(&mut forcefield);
+        spec.coulomb = forcefield.coulomb;
+        spec.dsf_alpha = forcefield.dsf_alpha;
+        spec.epsilon_rf = forcefield.rf_dielectric;
+        spec.ewald_tolerance = forcefield.ewald_tolerance;
+        spec.fourier_spacing = forcefield.fourier_spacing;
+        spec.ewald_alpha = forcefield.ewald_alpha;
+        spec.pme_grid = forcefield.pme_grid;
+        spec.pme_order = forcefield.pme_order;
+        spec.pme_level = forcefield.pme_level;
+        spec.nonbonded_level = forcefield.nonbonded_level;
+    }
+
     /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and
     /// reaction-field keys, and switching away drops the PME keys, so the scene's other
     /// model does not trip the check of stray keys.

@@ -7,6 +7,7 @@ pub mod number;
 pub mod scene;
 pub mod structure;
 pub mod study_csv;
+pub mod study_file;
 pub mod summary;
 pub mod topology;
 pub mod trajectory;

@@ -140,6 +140,11 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
     let mut file = parse_scene(&text, path)?;
     match file.forcefield.as_mut() {
         Some(spec) => flags.electrostatics.apply(spec.get_mut()),
+        None if file.topology.is_some() => {
+            if let Some(topology) = file.topology.as_mut() {
+                flags.electrostatics.apply_to_topology(topology.get_mut());
+            }
+        }
         None => {
             return Err(Error::Scene {
                 location: path.display().to_string(),
