@@ -44,7 +44,8 @@ pub struct RunArgs {
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
-    /// Also draw the energies against time (energy.png and energy.svg in the output directory).
+    /// Also draw the energies against time (energy.png, energy.svg) and the relative error
+    /// of the total energy (energy-error.png, energy-error.svg) in the output directory.
     #[arg(long)]
     pub plot: bool,
     /// Start from the positions of this structure file (e.g. from `minimize --save`): same
