@@ -95,6 +95,14 @@ impl Units {
         }
     }
 
+    /// The length unit's name (`Å`; empty in a dimensionless scene).
+    pub fn length_name(self) -> &'static str {
+        match self {
+            Units::None => "",
+            Units::Real => "Å",
+        }
+    }
+
     /// The energy unit's name (`kcal/mol`; empty in a dimensionless scene).
     pub fn energy_name(self) -> &'static str {
         match self {

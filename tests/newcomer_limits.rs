@@ -474,3 +474,33 @@ fn the_readme_lists_every_command_and_no_doc_embeds_a_missing_picture() {
         }
     }
 }
+
+/// Issue 30 item 12: `check` gives E0 and the box with their units and ten significant
+/// digits (it printed E0 = -1554.6365394244694 and the box as a 17-digit list).
+#[test]
+fn check_prints_energies_and_box_with_units_and_ten_digits() {
+    let (code, stdout, stderr) = common::run_cli(&["check", "systems/water-box/scene.toml"]);
+    assert_eq!(code, 0, "{stderr}");
+    let line = |start: &str| -> String {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(start))
+            .unwrap_or_else(|| panic!("no {start} line in {stdout}"))
+            .to_string()
+    };
+    let energy = line("energy");
+    assert!(
+        energy.contains("E0 = ") && energy.contains(" kcal/mol"),
+        "{energy}"
+    );
+    let particles = line("particles");
+    assert!(particles.contains(" Å"), "{particles}");
+    for text in [energy, particles] {
+        let digits = text
+            .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .map(|n| n.chars().filter(char::is_ascii_digit).count())
+            .max()
+            .unwrap_or(0);
+        assert!(digits <= 11, "{text}");
+    }
+}

@@ -355,7 +355,10 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
         system.n_particles(),
         system.dim,
         match &system.periodic_box {
-            Some(b) => format!(", periodic box {:?}", &b.lengths[..system.dim]),
+            Some(b) => format!(
+                ", periodic box {}",
+                box_text(&scene, &b.lengths[..system.dim])
+            ),
             None => String::new(),
         }
     );
@@ -391,12 +394,7 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
     if let Some(exact) = &scene.exact {
         println!("exact      {}", exact.describe());
     }
-    println!(
-        "energy     E0 = {} (kinetic {}, potential per level {:?})",
-        system.total_energy(),
-        system.kinetic_energy(),
-        system.potential_energies()
-    );
+    println!("{}", energy_line(&scene));
     Ok(())
 }
 
@@ -470,4 +468,39 @@ fn plot_energies(
         error.save(&out.join(format!("energy-error.{extension}")))?;
     }
     Ok(())
+}
+
+/// `check`'s energy line: E0, kinetic and per-level potential energies to 10 significant
+/// digits, in the scene's energy unit.
+fn energy_line(scene: &Scene) -> String {
+    use crate::io::summary::significant;
+    let system = &scene.system;
+    let unit = match scene.units {
+        crate::units::Units::None => String::new(),
+        units => format!(" {}", units.energy_name()),
+    };
+    let levels: Vec<String> = system
+        .potential_energies()
+        .iter()
+        .map(|&e| significant(e, 10))
+        .collect();
+    format!(
+        "energy     E0 = {}{unit} (kinetic {}, potential per level [{}])",
+        significant(system.total_energy(), 10),
+        significant(system.kinetic_energy(), 10),
+        levels.join(", ")
+    )
+}
+
+/// The periodic box as `a × b × c` to 10 significant digits, with the length unit.
+fn box_text(scene: &Scene, lengths: &[f64]) -> String {
+    let unit = match scene.units {
+        crate::units::Units::None => String::new(),
+        units => format!(" {}", units.length_name()),
+    };
+    let sides: Vec<String> = lengths
+        .iter()
+        .map(|&l| crate::io::summary::significant(l, 10))
+        .collect();
+    format!("{}{unit}", sides.join(" × "))
 }
