@@ -15,9 +15,9 @@ every failing or undecided one.
     RAYON_NUM_THREADS=1 python3 scripts/safe_steps_constraints.py --rows 7 8 --append
 
 It writes docs/data/constraints/safe-steps.csv (one line per run, with its command) and
-prints each verdict. The committed file was made in four sittings, one run at a time: rows
-0–6 and 11–13, then `--rows 7 8 9 10 --append`, `--rows 16 17 --append` and `--rows 14 15
---append` (a plain run redoes them all in one). Needs a release build (`cargo build --release`).
+prints each verdict. The committed file was made in five sittings, one run at a time (rows
+as numbered now): 0–6 and 11–13, then `--rows 7 8 9 10`, `--rows 18 19`, `--rows 16 17` and
+`--rows 14 15`, each with `--append` (a plain run redoes them all in one). Needs a release build (`cargo build --release`).
 Standard library only.
 """
 import argparse
@@ -71,6 +71,8 @@ ROWS = [
     ("water", "impulse --inner 2 (non-bonded at h), rigid water", WATER,
      ["--method", "impulse", "--inner", "2", "--rigid-water"], [4.0, 6.0], 40),
     # The undecided points again over 100 ps (σ shrinks as 1/T).
+    ("peptide", "verlet, flexible", PEPTIDE, ["--method", "verlet"], [1.0], 100),
+    ("water", "verlet, flexible", WATER, ["--method", "verlet"], [1.0], 100),
     ("peptide", "verlet, PME (real space to 1e-6), + HMR 3 amu", PEPTIDE_TOP,
      ["--method", "verlet"] + HMR + PME, [5.0], 100),
     ("peptide", "impulse --inner 2 (PME reciprocal at h), + HMR 3 amu", PEPTIDE_TOP,
