@@ -665,6 +665,92 @@ fn methods_and_scenes_that_cannot_take_constraints_refuse_them() {
 }
 
 #[test]
+fn every_method_but_the_constrained_three_refuses_constraints_with_exit_1() {
+    // Issue 28 Done-when 4: each method outside verlet, impulse and langevin-respa, asked
+    // for rigid water or for constrained bonds, stops before it runs (exit 1) with a
+    // message naming the method and what was asked; none of them runs unconstrained.
+    use longstep::integrators::METHODS;
+    use longstep::integrators::constrained::CONSTRAINED_METHODS;
+    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("constraints-refused");
+    let refusing: Vec<&str> = METHODS
+        .iter()
+        .map(|m| m.name)
+        .filter(|name| !CONSTRAINED_METHODS.contains(name))
+        .collect();
+    assert!(refusing.len() >= 10, "{refusing:?}");
+    for method in refusing {
+        for (flags, asked) in [
+            (&["--rigid-water"][..], "rigid_water"),
+            (&["--constraints", "h-bonds"][..], "constraints = h-bonds"),
+        ] {
+            let mut args = vec![
+                "run",
+                "systems/water-box/scene.toml",
+                "--method",
+                method,
+                "--temperature",
+                "300K",
+                "--t-end",
+                "4fs",
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            args.extend_from_slice(flags);
+            let (code, _, stderr) = longstep_run(&args, None);
+            assert_eq!(code, 1, "{args:?}: {stderr}");
+            let message = format!("{method} does not run with constraints ({asked})");
+            assert!(stderr.contains(&message), "{args:?}: {stderr}");
+        }
+    }
+}
+
+#[test]
+fn constraints_and_hmr_on_a_scene_without_hydrogen() {
+    // The bead-spring melt has bonds but no hydrogen and no water: `--constraints h-bonds`
+    // runs with a notice that nothing is constrained (exit 0, all 3N − 3 degrees of freedom
+    // kept); `--hydrogen-mass` and a tolerance ≤ 0 are errors (exit 1) saying why.
+    let melt = "systems/polymer-melt/scene.toml";
+    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("constraints-melt");
+    let out = out.to_str().unwrap();
+    let base = [
+        "run", melt, "--method", "verlet", "--h", "10fs", "--t-end", "20fs",
+    ];
+    let with = |extra: &[&'static str]| {
+        let mut args = base.to_vec();
+        args.extend_from_slice(&["--json", "--out", out]);
+        args.extend_from_slice(extra);
+        longstep_run(&args, Some(1))
+    };
+    let (code, stdout, stderr) = with(&["--constraints", "h-bonds"]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("notice: constraints h-bonds: the scene has no such bond and no water, so nothing is constrained"),
+        "{stderr}"
+    );
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(summary["temperature"]["degrees_of_freedom"], 3 * 5000 - 3);
+    let refused: [(&[&str], &str); 3] = [
+        (
+            &["--hydrogen-mass", "3amu"],
+            "hydrogen_mass: the scene has no hydrogen bonded to a heavy atom",
+        ),
+        (
+            &["--constraints", "all-bonds", "--constraint-tolerance", "0"],
+            "constraint_tolerance must lie between 0 and 1",
+        ),
+        (
+            &["--constraints", "all-bonds", "--constraint-tolerance=-1e-8"],
+            "constraint_tolerance must lie between 0 and 1",
+        ),
+    ];
+    for (extra, message) in refused {
+        let (code, _, stderr) = with(extra);
+        assert_eq!(code, 1, "{extra:?}: {stderr}");
+        assert!(stderr.contains(message), "{extra:?}: {stderr}");
+    }
+}
+
+#[test]
 fn constrained_verlet_agrees_with_openmm_on_the_rigid_water_box() {
     // tests/data/openmm-constrained-water.json: OpenMM 8.6.1, Reference platform (double),
     // VerletIntegrator with SETTLE at 2 fs and constraint tolerance 1e-12, 50 steps from
