@@ -140,6 +140,7 @@ impl Fft3 {
     }
 
     /// Pass (1): per x-plane, real FFTs of the rows, then the y-lines, into `planes`.
+    #[inline(never)]
     fn forward_planes(&self, grid: &mut [f64], work: &mut FftScratch, parallel: bool) {
         let [_, ny, nz] = self.dims;
         let h = self.half;
@@ -173,6 +174,7 @@ impl Fft3 {
 
     /// Pass (2): per y, the x-lines gathered from `planes` into the spectrum, transformed,
     /// then weighted by `θ`: summed into the energy or multiplied and transformed back.
+    #[inline(never)]
     fn x_lines(
         &self,
         influence: &[f64],
@@ -243,6 +245,7 @@ impl Fft3 {
 
     /// Pass (3): per x-plane, the spectrum back into `planes`, the inverse y-lines and the
     /// inverse real FFT of each row into `grid`.
+    #[inline(never)]
     fn inverse_planes(&self, grid: &mut [f64], work: &mut FftScratch, parallel: bool) {
         let [nx, ny, nz] = self.dims;
         let h = self.half;

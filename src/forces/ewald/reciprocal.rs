@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use super::fft::{Fft3, FftScratch, Output};
 use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
-use crate::forces::scratch::parallel;
+use crate::forces::scratch::{Scratch, parallel};
 use crate::forces::{ForceTerm, TermClass};
 
 /// Parallel spreading tasks per thread (slabs of x-planes).
@@ -64,6 +64,8 @@ pub struct PmeReciprocal {
     coulomb_constant: f64,
     charges: Vec<f64>,
     excluded: Vec<(u32, u32)>,
+    /// Per excluded pair, its change in a parallel gradient.
+    exclusion_scratch: Scratch<[f64; 3]>,
     /// `θ(m)` over the half spectrum; zero at `m = 0`.
     influence: Vec<f64>,
     self_energy: f64,
@@ -112,6 +114,7 @@ impl PmeReciprocal {
             lengths,
             coulomb_constant,
             charges,
+            exclusion_scratch: Scratch::with_len(pairs.len()),
             excluded: pairs,
             fft,
             workspace: Mutex::new(workspace),
@@ -217,6 +220,14 @@ impl PmeReciprocal {
                 Some(v) => std::array::from_fn(|a| scale[a] * v[3 * i + a]),
                 None => [0.0; 3],
             };
+            if v.is_none() {
+                match order {
+                    4 => spread_charge::<4>(q, st, grid, &planes, ny, nz),
+                    5 => spread_charge::<5>(q, st, grid, &planes, ny, nz),
+                    _ => spread_charge::<6>(q, st, grid, &planes, ny, nz),
+                }
+                continue;
+            }
             let iz = &st.index[2][..order];
             for kx in 0..order {
                 let x = st.index[0][kx] as usize;
@@ -227,22 +238,12 @@ impl PmeReciprocal {
                 for ky in 0..order {
                     let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
                     let (vx, vy) = (wx.value[kx], wy.value[ky]);
-                    match v {
-                        None => {
-                            let qxy = q * vx * vy;
-                            for (&z, &wz) in iz.iter().zip(&wz.value) {
-                                row[z as usize] += qxy * wz;
-                            }
-                        }
-                        Some(_) => {
-                            // q (d_x M′_x M_y + d_y M_x M′_y) M_z + q d_z M_x M_y M′_z.
-                            let (fx, fy) = (wx.first[kx], wy.first[ky]);
-                            let a = q * (d[0] * fx * vy + d[1] * vx * fy);
-                            let b = q * d[2] * vx * vy;
-                            for k in 0..order {
-                                row[iz[k] as usize] += a * wz.value[k] + b * wz.first[k];
-                            }
-                        }
+                    // q (d_x M′_x M_y + d_y M_x M′_y) M_z + q d_z M_x M_y M′_z.
+                    let (fx, fy) = (wx.first[kx], wy.first[ky]);
+                    let a = q * (d[0] * fx * vy + d[1] * vx * fy);
+                    let b = q * d[2] * vx * vy;
+                    for k in 0..order {
+                        row[iz[k] as usize] += a * wz.value[k] + b * wz.first[k];
                     }
                 }
             }
@@ -303,8 +304,13 @@ impl PmeReciprocal {
             if q == 0.0 {
                 return;
             }
+            let [_, ny, nz] = self.params.grid;
             let (first, second) = match hv {
-                None => (self.gather_first(&stencils[i], g), [[0.0; 3]; 3]),
+                None => match self.params.order {
+                    4 => (gather_first::<4>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                    5 => (gather_first::<5>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                    _ => (gather_first::<6>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                },
                 Some((h, _)) => self.gather_one(&stencils[i], g, h),
             };
             for a in 0..3 {
@@ -326,33 +332,6 @@ impl PmeReciprocal {
                 one(i, out);
             }
         }
-    }
-
-    /// `Σ_k g(k) ∂_a W(k)` (in `u`): per x-y pair of the stencil the two sums along z, then
-    /// the x and y weights.
-    fn gather_first(&self, st: &Stencil, g: &[f64]) -> [f64; 3] {
-        let [_, ny, nz] = self.params.grid;
-        let order = self.params.order;
-        let [wx, wy, wz] = &st.weights;
-        let iz = &st.index[2][..order];
-        let mut first = [0.0; 3];
-        for kx in 0..order {
-            let gx = st.index[0][kx] as usize * ny;
-            for ky in 0..order {
-                let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
-                let (mut value, mut slope) = (0.0, 0.0);
-                for k in 0..order {
-                    let p = row[iz[k] as usize];
-                    value += p * wz.value[k];
-                    slope += p * wz.first[k];
-                }
-                let (x, y) = (wx.value[kx], wy.value[ky]);
-                first[0] += wx.first[kx] * y * value;
-                first[1] += x * wy.first[ky] * value;
-                first[2] += x * y * slope;
-            }
-        }
-        first
     }
 
     /// `Σ_k g(k) ∂_a W(k)` (in `u`) and `Σ_k h(k) ∂_a∂_b W(k)`.
@@ -429,25 +408,52 @@ impl PmeReciprocal {
         energy
     }
 
-    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`.
+    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`: per
+    /// pair its change to atom `j` (minus it to `i`), for many pairs in the two phases of
+    /// [`Scratch`] (the same additions in the same order as the serial loop).
+    #[inline(never)]
     fn exclusion_derivative(&self, q: &[f64], v: Option<&[f64]>, out: &mut [f64]) {
-        for (i, j, qq, d, r) in self.charged_exclusions(q) {
-            let (_, f1, f2) = erf_over_r(self.params.alpha, r);
-            // V(r) = −Q f(r).
-            let (v1, v2) = (-qq * f1, -qq * f2);
-            let change: [f64; 3] = match v {
-                None => std::array::from_fn(|a| v1 / r * d[a]),
-                Some(v) => {
-                    // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
-                    let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
-                    let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
-                    let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
-                    std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
-                }
-            };
+        let mut apply = |k: usize, change: &[f64; 3]| {
+            let (i, j) = self.excluded[k];
+            let (i, j) = (i as usize, j as usize);
             for a in 0..3 {
                 out[3 * j + a] += change[a];
                 out[3 * i + a] -= change[a];
+            }
+        };
+        let n = self.excluded.len();
+        if parallel(n) {
+            let compute = |k: usize| self.exclusion_change(q, v, k);
+            self.exclusion_scratch.two_phase(n, compute, apply);
+        } else {
+            for k in 0..n {
+                apply(k, &self.exclusion_change(q, v, k));
+            }
+        }
+    }
+
+    /// Excluded pair `k`'s gradient or Hessian-vector change to its atom `j` (zero for an
+    /// uncharged pair).
+    fn exclusion_change(&self, q: &[f64], v: Option<&[f64]>, k: usize) -> [f64; 3] {
+        let (i, j) = self.excluded[k];
+        let (i, j) = (i as usize, j as usize);
+        let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
+        if qq == 0.0 {
+            return [0.0; 3];
+        }
+        let d = self.difference(q, i, j);
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let (_, f1, f2) = erf_over_r(self.params.alpha, r);
+        // V(r) = −Q f(r).
+        let (v1, v2) = (-qq * f1, -qq * f2);
+        match v {
+            None => std::array::from_fn(|a| v1 / r * d[a]),
+            Some(v) => {
+                // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
+                let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
+                let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
+                let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
+                std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
             }
         }
     }
@@ -569,4 +575,58 @@ impl ForceTerm for PmeReciprocal {
 fn floor(x: f64) -> f64 {
     let t = x as i64 as f64;
     if t > x { t - 1.0 } else { t }
+}
+
+/// The charge of one atom onto the planes `planes` of `grid` (from plane `planes.start`),
+/// for B-splines of order `N`: `Q(k) += q M_x M_y M_z`.
+#[inline(always)]
+fn spread_charge<const N: usize>(
+    q: f64,
+    st: &Stencil,
+    grid: &mut [f64],
+    planes: &std::ops::Range<usize>,
+    ny: usize,
+    nz: usize,
+) {
+    let [wx, wy, wz] = &st.weights;
+    for kx in 0..N {
+        let x = st.index[0][kx] as usize;
+        if !planes.contains(&x) {
+            continue;
+        }
+        let gx = (x - planes.start) * ny;
+        let qx = q * wx.value[kx];
+        for ky in 0..N {
+            let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
+            let qxy = qx * wy.value[ky];
+            for kz in 0..N {
+                row[st.index[2][kz] as usize] += qxy * wz.value[kz];
+            }
+        }
+    }
+}
+
+/// `Σ_k g(k) ∂_a W(k)` (in `u`) for B-splines of order `N`: per x-y pair of the stencil the
+/// two sums along z, then the x and y weights.
+#[inline(always)]
+fn gather_first<const N: usize>(st: &Stencil, g: &[f64], ny: usize, nz: usize) -> [f64; 3] {
+    let [wx, wy, wz] = &st.weights;
+    let mut first = [0.0; 3];
+    for kx in 0..N {
+        let gx = st.index[0][kx] as usize * ny;
+        for ky in 0..N {
+            let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
+            let (mut value, mut slope) = (0.0, 0.0);
+            for kz in 0..N {
+                let p = row[st.index[2][kz] as usize];
+                value += p * wz.value[kz];
+                slope += p * wz.first[kz];
+            }
+            let (x, y) = (wx.value[kx], wy.value[ky]);
+            first[0] += wx.first[kx] * y * value;
+            first[1] += x * wy.first[ky] * value;
+            first[2] += x * y * slope;
+        }
+    }
+    first
 }

@@ -22,6 +22,7 @@ pub struct Weights {
 
 /// `M_p(w + k)` for `k < p` from `M_{p−1}(w + k)` (zero from `p − 1` on): eq. (4.1) with
 /// the two ends, where one of the two terms vanishes, apart.
+#[inline(always)]
 fn raise(previous: &[f64; MAX_ORDER], p: usize, w: f64) -> [f64; MAX_ORDER] {
     let mut next = [0.0; MAX_ORDER];
     let scale = 1.0 / (p - 1) as f64;
@@ -36,6 +37,7 @@ fn raise(previous: &[f64; MAX_ORDER], p: usize, w: f64) -> [f64; MAX_ORDER] {
 }
 
 /// `a(k) − a(k − 1)` for `k < order` (`a(−1) = 0`; `a` is zero past its order).
+#[inline(always)]
 fn difference(a: &[f64; MAX_ORDER], order: usize) -> [f64; MAX_ORDER] {
     let mut out = [0.0; MAX_ORDER];
     out[0] = a[0];
@@ -48,6 +50,18 @@ fn difference(a: &[f64; MAX_ORDER], order: usize) -> [f64; MAX_ORDER] {
 /// The weights of order `order` (3 ≤ order ≤ [`MAX_ORDER`]) at offset `w ∈ [0, 1)`; the
 /// second derivatives only with `second` (else zero): only Hessian-vector products use them.
 pub fn weights(order: usize, w: f64, second: bool) -> Weights {
+    match order {
+        3 => weights_of::<3>(w, second),
+        4 => weights_of::<4>(w, second),
+        5 => weights_of::<5>(w, second),
+        _ => weights_of::<6>(w, second),
+    }
+}
+
+/// [`weights`] for a fixed order (its loops unrolled).
+#[inline(always)]
+fn weights_of<const ORDER: usize>(w: f64, second: bool) -> Weights {
+    let order = ORDER;
     // M_1 is the box on [0, 1): M_1(w) = 1; M_2(w) = w, M_2(w + 1) = 1 − w.
     let mut lower2 = [0.0; MAX_ORDER];
     lower2[0] = 1.0;
