@@ -219,12 +219,14 @@ PME_CUTOFF = 9.0     # A
 PME_RTOL = 1e-5      # GROMACS ewald-rtol: erfc(alpha r_c) = rtol
 PME_SPACING = 1.2    # A
 PME_ORDER = 4
-# Inner steps (0.5 fs) per run, for about 1-3 s of stepping at 1 thread on this machine kind.
+# Inner steps (0.5 fs) per run, for about 1-2 s of stepping at 1 thread on this machine kind
+# (GROMACS times the second half of its steps: -resethway). A whole PME sitting (3 sizes,
+# 1 and 2 threads, 3 schemes, 3 repeats, 324 runs) takes about 20 minutes.
 PME_STEPS = {
-    "longstep": {648: 4000, 5184: 400, 41472: 40},
-    "gromacs": {648: 4000, 5184: 800, 41472: 80},
-    "lammps": {648: 400, 5184: 40, 41472: 8},
-    "openmm": {648: 400, 5184: 40, 41472: 8},
+    "longstep": {648: 800, 5184: 120, 41472: 40},
+    "gromacs": {648: 1600, 5184: 240, 41472: 40},
+    "lammps": {648: 320, 5184: 48, 41472: 8},
+    "openmm": {648: 400, 5184: 48, 41472: 8},
 }
 # (code, atoms) -> the PME parameters the code reported, printed once.
 PME_SEEN = {}
@@ -516,12 +518,14 @@ def run_openmm_pme(atoms, h, k, steps, threads, precision):
     ctx.setPositions(x * mdsys.A2NM)
     ctx.setVelocities(v * mdsys.V_A_FS_TO_NM_PS)
     if ("openmm", atoms) not in PME_SEEN:
+        source = "in the context"
         try:
             alpha, nx, ny, nz = nb.getPMEParametersInContext(ctx)
-        except Exception:  # some OpenMM builds fail here with the MTS force groups
+        except Exception:  # OpenMM 8.6's CPU platform fails here now and then (bad_cast)
             alpha, nx, ny, nz = nb.getPMEParameters()
-        pme_note("openmm", atoms, "alpha = %.6f 1/A, grid %dx%dx%d, order 5" % (
-            alpha * mdsys.A2NM, nx, ny, nz))
+            alpha, source = getattr(alpha, "_value", alpha), "as set"
+        pme_note("openmm", atoms, "alpha = %.6f 1/A, grid %dx%dx%d, order 5 (%s)" % (
+            alpha * mdsys.A2NM, nx, ny, nz, source))
     integ.step(2)  # first steps build the neighbour list and compile kernels
     start = time.perf_counter()
     integ.step(steps)
@@ -602,7 +606,7 @@ def sitting(args):
                     steps = max(2 * k, int(STEPS[code][atoms] * args.steps_factor))
                 try:
                     speed = runners[code](atoms, h, k, steps, threads, precision)
-                except (RuntimeError, OSError) as e:
+                except Exception as e:  # a failed run is reported; the sitting goes on
                     print("  %s %s failed: %s" % (code, precision, e), flush=True)
                     continue
                 speeds[(code, precision)].append(speed)
@@ -641,6 +645,32 @@ def report(rows, atoms, threads, h):
             "; / fastest (%s %s): %.2f" % (fastest["code"], fastest["precision"],
                                           ours["median"] / fastest["median"]) if fastest else ""))
     print(flush=True)
+
+
+def markdown(rows):
+    """The medians as a docs table: one row per size, threads and scheme, every run in
+    brackets in repeat order."""
+    columns = [("longstep", "double"), ("longstep", "mixed"), ("gromacs", "mixed"),
+               ("gromacs", "double"), ("lammps", "double"), ("openmm", "mixed")]
+    fmt = lambda v: "%.0f" % v if v >= 100 else "%.3g" % v
+    print("| atoms | threads | scheme | " + " | ".join("%s %s" % c for c in columns) + " |")
+    print("|" + "---|" * (3 + len(columns)))
+    keys = []
+    for r in rows:
+        key = (r["atoms"], r["threads"], r["h_fs"])
+        if key not in keys:
+            keys.append(key)
+    for atoms, threads, h in keys:
+        k = round(h / INNER)
+        scheme = "Verlet %g" % h if k == 1 else "%g / %g" % (h, INNER)
+        cells = []
+        for code, precision in columns:
+            found = [r for r in rows if (r["atoms"], r["threads"], r["h_fs"], r["code"],
+                                         r["precision"]) == (atoms, threads, h, code, precision)]
+            cells.append("%s (%s)" % (fmt(found[0]["median"]), ", ".join(
+                fmt(v) for v in found[0]["runs"])) if found else "–")
+        print("| {:,} | {} | {} | ".format(atoms, threads, scheme).replace(",", " ")
+              + " | ".join(cells) + " |")
 
 
 def scaling_summary(rows):
@@ -734,6 +764,8 @@ def main():
         if PME is not None:
             PME.close()
     scaling_summary(rows)
+    print()
+    markdown(rows)
     print("sitting took %.0f s" % (time.time() - start))
     if args.json:
         with open(args.json, "w") as f:
