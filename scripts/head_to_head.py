@@ -495,14 +495,20 @@ def replicate_params(p, n):
     return q
 
 
+# (atoms, MTS?) -> (System, its NonbondedForce, the kit's parameters): built once a sitting.
+OPENMM_SYSTEMS = {}
+
+
 def run_openmm_pme(atoms, h, k, steps, threads, precision):
     sys.path.insert(0, PEERS)
     import mdsys
     import numpy as np
     import openmm as mm
     name, directory, n = PME_SYSTEMS[atoms]
-    p = mdsys.load_params(name)
-    system, nb = openmm_pme_system(p, n, k)
+    if (atoms, k > 1) not in OPENMM_SYSTEMS:
+        p = mdsys.load_params(name)
+        OPENMM_SYSTEMS[(atoms, k > 1)] = openmm_pme_system(p, n, k) + (p,)
+    system, nb, p = OPENMM_SYSTEMS[(atoms, k > 1)]
     if k > 1:
         integ = mm.MTSIntegrator(h * 1e-3, [(2, 1), (1, k), (0, k)])
     else:
@@ -618,6 +624,9 @@ def sitting(args):
                              "code": code, "precision": precision, "runs": values,
                              "median": statistics.median(values), "coulomb": args.coulomb})
         report(rows, atoms, threads, h)
+        if args.json:  # after every configuration, so that a cut-short sitting keeps its runs
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=1)
     return rows
 
 
