@@ -29,6 +29,29 @@ median, ns/day, and the ratios of longstep (double and mixed) to each peer and t
     python3 scripts/head_to_head.py --quick               # smoke test: a few steps per run
     python3 scripts/head_to_head.py --sizes 648 --threads 1 --h 4 --codes longstep,gromacs
 
+--coulomb pme: the same water model with smooth particle-mesh Ewald at GROMACS's defaults
+(r_c 9 A, ewald-rtol 1e-5 so alpha = 0.347/A, fourier-spacing 1.2 A, order 4) on the 648-,
+5 184- and 41 472-atom boxes (the last the 1728-water box replicated 2x2x2, written at the
+start into a temporary directory for every code). --h 0.5 is plain velocity Verlet at
+0.5 fs; --h 1 and 2 are MTS with bonds, angles and real space at 0.5 fs and the reciprocal
+sum every 2 and 4 inner steps (defaults: 0.5,1,2). Each code's own PME parameters are
+printed once per size (alpha, grid, order) so that the runs can be checked to be the same
+accuracy:
+
+  longstep : --coulomb pme --pme-order 4; plain `--method verlet --h 0.5fs`, MTS `--method
+             impulse --inner K --nonbonded-level 0 --pme-level 1`
+  GROMACS  : coulombtype = PME, ewald-rtol 1e-5, fourier-spacing 0.12, pme-order 4, nstlist 20;
+             MTS mts-level2-forces = longrange-nonbonded, mts-level2-factor = K; -notunepme
+  LAMMPS   : lj/cut/coul/long 9 with pppm, kspace_modify gewald/mesh/order 4/diff ad (the
+             analytic-derivative SPME of the others) with longstep's alpha and grid; excluded
+             pairs by special_bonds (their erf correction); MTS run_style respa 2 K bond 1
+             angle 1 pair 1 kspace 2
+  OpenMM   : NonbondedForce PME with longstep's alpha and grid (OpenMM's order is always 5;
+             LJ forces identical, its energy unshifted); MTS MTSIntegrator with the
+             reciprocal space in its own force group, [(2, 1), (1, K), (0, K)]
+
+    python3 scripts/head_to_head.py --coulomb pme --json out/pme.json | tee out/pme.txt
+
 The peers are installed when missing (--install): OpenMM with pip, LAMMPS, GROMACS and
 Open MPI with apt-get. Needs a release build of longstep (`cargo build --release`).
 """
@@ -42,6 +65,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+import math
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
@@ -183,6 +208,339 @@ def run_openmm(atoms, h, k, steps, threads, precision):
 
 RUNNERS = {"longstep": run_longstep, "gromacs": run_gromacs, "lammps": run_lammps,
            "openmm": run_openmm}
+
+# ---------------------------------------------------------------- PME mode ------------------
+PME_SYSTEMS = {
+    648: ("water216", "systems/water-box", 1),
+    5184: ("water1728", "systems/water-box-1728", 1),
+    41472: ("water1728", "systems/water-box-1728", 2),
+}
+PME_CUTOFF = 9.0     # A
+PME_RTOL = 1e-5      # GROMACS ewald-rtol: erfc(alpha r_c) = rtol
+PME_SPACING = 1.2    # A
+PME_ORDER = 4
+# Inner steps (0.5 fs) per run, for about 1-2 s of stepping at 1 thread on this machine kind
+# (GROMACS times the second half of its steps: -resethway). A whole PME sitting (3 sizes,
+# 1 and 2 threads, 3 schemes, 3 repeats, 324 runs) takes about 20 minutes.
+PME_STEPS = {
+    "longstep": {648: 800, 5184: 120, 41472: 40},
+    "gromacs": {648: 1600, 5184: 240, 41472: 40},
+    "lammps": {648: 320, 5184: 48, 41472: 8},
+    "openmm": {648: 400, 5184: 48, 41472: 8},
+}
+# (code, atoms) -> the PME parameters the code reported, printed once.
+PME_SEEN = {}
+
+
+def pme_alpha():
+    """alpha with erfc(alpha r_c) = ewald-rtol, by bisection (1/A)."""
+    low, high = 0.0, 10.0
+    for _ in range(200):
+        mid = 0.5 * (low + high)
+        if math.erfc(mid) > PME_RTOL:
+            low = mid
+        else:
+            high = mid
+    return 0.5 * (low + high) / PME_CUTOFF
+
+
+def pme_note(code, atoms, text):
+    if (code, atoms) not in PME_SEEN:
+        PME_SEEN[(code, atoms)] = text
+        print("  %5d atoms  %-8s PME: %s" % (atoms, code, text), flush=True)
+
+
+class PmeInputs:
+    """The 41 472-atom inputs of every code, written once into a temporary directory."""
+
+    def __init__(self, sizes, codes):
+        self.codes = codes
+        self.work = tempfile.mkdtemp(prefix="h2h-pme-")
+        self.scenes = {a: os.path.join(PME_SYSTEMS[a][1], "scene.toml") for a in sizes}
+        self.gro, self.top = {}, {}
+        for atoms in sizes:
+            name = PME_SYSTEMS[atoms][0]
+            self.gro[atoms] = os.path.join(PEERS, "gromacs", name + ".gro")
+            self.top[atoms] = os.path.join(PEERS, "gromacs", name + ".top")
+        if 41472 in sizes:
+            self.replicate()
+
+    def replicate(self):
+        box = os.path.join(self.work, "water-box-41472")
+        res = sh([sys.executable, os.path.join(HERE, "replicate_box.py"),
+                  os.path.join(ROOT, "systems", "water-box-1728"), "2", box])
+        if res.returncode != 0:
+            sys.exit("replicate_box.py failed: %s" % res.stderr)
+        self.scenes[41472] = os.path.join(box, "scene.toml")
+        if "gromacs" not in self.codes:
+            return
+        gro = os.path.join(self.work, "water13824.gro")
+        res = sh(["gmx", "genconf", "-f", os.path.join(PEERS, "gromacs", "water1728.gro"),
+                  "-nbox", "2", "2", "2", "-o", gro], cwd=self.work)
+        if res.returncode != 0:
+            sys.exit("gmx genconf failed: %s" % res.stderr[-2000:])
+        top = open(os.path.join(PEERS, "gromacs", "water1728.top")).read()
+        top = re.sub(r"^SOL\s+1728\s*$", "SOL 13824", top, flags=re.M)
+        top = top.replace("water1728\n[ molecules", "water13824\n[ molecules")
+        self.gro[41472], self.top[41472] = gro, os.path.join(self.work, "water13824.top")
+        with open(self.top[41472], "w") as f:
+            f.write(top)
+
+    def close(self):
+        shutil.rmtree(self.work, ignore_errors=True)
+
+
+PME = None  # PmeInputs of the sitting
+
+
+def pme_scheme(h):
+    """(inner steps K per outer step, plain?) for an outer step h in fs."""
+    k = round(h / INNER)
+    return k, k == 1
+
+
+def run_longstep_pme(atoms, h, k, steps, threads, precision):
+    scene = PME.scenes[atoms]
+    with tempfile.TemporaryDirectory() as out:
+        env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+        method = (["--method", "verlet"] if k == 1 else
+                  ["--method", "impulse", "--inner", str(k), "--nonbonded-level", "0",
+                   "--pme-level", "1"])
+        cmd = [BIN, "run", scene, "--coulomb", "pme", "--pme-order", str(PME_ORDER),
+               "--h", "%gfs" % h, "--t-end", "%gfs" % (h * steps), "--energy-every", str(steps),
+               "--json", "--out", out, "--precision", precision] + method
+        res = sh(cmd, cwd=ROOT, env=env)
+        if res.returncode != 0:
+            raise RuntimeError("longstep failed: %s" % res.stderr[-2000:])
+        m = re.search(r"pme-reciprocal: (PME, alpha = \S+ 1/length, grid \S+, order \d+)",
+                      res.stderr)
+        pme_note("longstep", atoms, m.group(1) if m else "(not reported)")
+        s = json.loads(res.stdout)
+        return s["steps"] / s["wall_seconds"]
+
+
+def longstep_grid(atoms):
+    """The grid longstep derives from the spacing (the peers without a spacing rule use it)."""
+    n = max(2 * PME_ORDER, math.ceil(18.644491075500707 * {648: 1, 5184: 2, 41472: 4}[atoms]
+                                     / PME_SPACING))
+    while True:
+        m = n
+        for f in (2, 3, 5, 7):
+            while m % f == 0:
+                m //= f
+        if m == 1:
+            return n
+        n += 1
+
+
+PME_MDP = """integrator = md
+dt = 0.0005
+nsteps = {nsteps}
+tcoupl = no
+pcoupl = no
+cutoff-scheme = Verlet
+coulombtype = PME
+rcoulomb = 0.9
+ewald-rtol = 1e-5
+fourier-spacing = 0.12
+pme-order = 4
+vdwtype = Cut-off
+vdw-modifier = Potential-shift
+rvdw = 0.9
+DispCorr = no
+constraints = none
+continuation = yes
+gen-vel = no
+nstcalcenergy = {nstcalc}
+nstenergy = 0
+nstlog = 0
+nstxout = 0
+nstvout = 0
+nstfout = 0
+comm-mode = Linear
+nstcomm = {nstcalc}
+nstlist = 20
+"""
+PME_MDP_MTS = """mts = yes
+mts-levels = 2
+mts-level2-forces = longrange-nonbonded
+mts-level2-factor = {k}
+"""
+
+
+def run_gromacs_pme(atoms, h, k, steps, threads, precision):
+    gmx = "gmx_d" if precision == "double" else "gmx"
+    inner_steps = steps * k
+    with tempfile.TemporaryDirectory() as work:
+        mdp = os.path.join(work, "run.mdp")
+        with open(mdp, "w") as f:
+            f.write(PME_MDP.format(nsteps=inner_steps, nstcalc=inner_steps))
+            if k > 1:
+                f.write(PME_MDP_MTS.format(k=k))
+        tpr = os.path.join(work, "run.tpr")
+        res = sh([gmx, "grompp", "-f", mdp, "-c", PME.gro[atoms], "-p", PME.top[atoms],
+                  "-o", tpr, "-po", os.path.join(work, "out.mdp"), "-maxwarn", "1"], cwd=work)
+        if res.returncode != 0:
+            raise RuntimeError("grompp failed: %s" % res.stderr[-2000:])
+        log = os.path.join(work, "md.log")
+        res = sh([gmx, "mdrun", "-s", tpr, "-nsteps", str(inner_steps), "-ntmpi", "1",
+                  "-ntomp", str(threads), "-pin", "on", "-noconfout", "-resethway",
+                  "-notunepme", "-g", log, "-e", os.path.join(work, "ener.edr")], cwd=work,
+                 env=dict(os.environ, GMX_MAXBACKUP="-1"))
+        if res.returncode != 0:
+            raise RuntimeError("mdrun failed: %s" % res.stderr[-2000:])
+        text = open(log).read()
+        grid = [re.search(r"fourier-n%s\s*=\s*(\d+)" % a, text) for a in "xyz"]
+        width = re.search(r"Gaussian width \(1/beta\) of ([0-9.eE+-]+) nm", text)
+        order = re.search(r"pme-order\s*=\s*(\d+)", text)
+        nstlist = re.findall(r"nstlist\s*=\s*(\d+)", text)
+        pme_note("gromacs " + precision, atoms, "alpha = %s 1/A, grid %s, order %s, nstlist %s" % (
+            "%.6f" % (0.1 / float(width.group(1))) if width else "?",
+            "x".join(g.group(1) if g else "?" for g in grid), order.group(1) if order else "?",
+            nstlist[-1] if nstlist else "?"))
+        ns_per_day = float(re.search(r"^Performance:\s+([0-9.eE+-]+)", text, re.M).group(1))
+        return ns_per_day / (h * 1e-6 * 86400.0)
+
+
+def run_lammps_pme(atoms, h, k, steps, threads, precision):
+    name, _, n = PME_SYSTEMS[atoms]
+    grid = longstep_grid(atoms)
+    with tempfile.TemporaryDirectory() as work:
+        ff = open(os.path.join(PEERS, "systems", name + ".ff.lmp")).read().splitlines()
+        ff = [line for line in ff if not line.startswith(("pair_style", "neigh_modify"))]
+        deck = ["units real", "atom_style full", "boundary p p p",
+                "read_data %s" % os.path.join(PEERS, "systems", name + ".data")]
+        if n > 1:
+            deck.append("replicate %d %d %d" % (n, n, n))
+        deck += ["pair_style lj/cut/coul/long %g %g" % (PME_CUTOFF, PME_CUTOFF)] + ff + [
+            "kspace_style pppm 1e-5",
+            "kspace_modify gewald %.12g mesh %d %d %d order %d diff ad" % (
+                pme_alpha(), grid, grid, grid, PME_ORDER),
+            "neighbor 2.0 bin", "neigh_modify every 1 delay 0 check yes",
+            "timestep %g" % h, "fix nve all nve", "thermo %d" % steps,
+            "run_style respa 2 %d bond 1 angle 1 pair 1 kspace 2" % k if k > 1 else
+            "run_style verlet",
+            "run %d" % steps]
+        deck_file = os.path.join(work, "in.pme")
+        with open(deck_file, "w") as f:
+            f.write("\n".join(deck) + "\n")
+        log = os.path.join(work, "log")
+        lmp = ["lmp", "-nocite", "-screen", "none", "-in", deck_file, "-log", log]
+        if threads > 1:
+            lmp = ["mpirun", "-np", str(threads), "--bind-to", "core"] + lmp
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+                   OMP_NUM_THREADS="1")
+        res = sh(lmp, cwd=work, env=env, stdin=subprocess.DEVNULL)
+        text = open(log).read() if os.path.exists(log) else ""
+        if res.returncode != 0:
+            raise RuntimeError("lmp failed: %s" % (res.stderr or res.stdout or text)[-2000:])
+        g = re.search(r"G vector \(1/distance\) = ([0-9.eE+-]+)", text)
+        mesh = re.search(r"grid = (\d+ \d+ \d+)", text)
+        order = re.search(r"stencil order = (\d+)", text)
+        acc = re.search(r"estimated relative force accuracy = ([0-9.eE+-]+)", text)
+        pme_note("lammps", atoms, "alpha = %s 1/A, grid %s, order %s, relative force accuracy %s" % (
+            g.group(1) if g else "?", mesh.group(1).replace(" ", "x") if mesh else "?",
+            order.group(1) if order else "?", acc.group(1) if acc else "?"))
+        loop = float(re.search(r"Loop time of ([0-9.eE+-]+) on", text).group(1))
+        return steps / loop
+
+
+def openmm_pme_system(p, n, k):
+    """The kit's bonded terms and a PME NonbondedForce, for an n x n x n replica."""
+    sys.path.insert(0, PEERS)
+    import mdsys
+    import openmm as mm
+    if n > 1:
+        p = replicate_params(p, n)
+    system = mdsys.build_openmm_system(p, "identical")
+    for index in reversed(range(system.getNumForces())):
+        if system.getForce(index).getForceGroup() != 0:
+            system.removeForce(index)
+    _, charge = mdsys.per_atom_arrays(p)
+    nb = mm.NonbondedForce()
+    nb.setNonbondedMethod(mm.NonbondedForce.PME)
+    nb.setCutoffDistance(PME_CUTOFF * mdsys.A2NM)
+    grid = longstep_grid(p["n_atoms"])
+    nb.setPMEParameters(pme_alpha() / mdsys.A2NM, grid, grid, grid)
+    nb.setUseDispersionCorrection(False)
+    nb.setUseSwitchingFunction(False)
+    lj = p["nonbonded"]["lj"]["pair_coeffs"]
+    for a in range(p["n_atoms"]):
+        t = p["atom_type_of"][a]
+        c = lj.get("%s-%s" % (t, t), {"epsilon": 0.0, "sigma": 1.0})
+        nb.addParticle(float(charge[a]), c["sigma"] * mdsys.A2NM, c["epsilon"] * mdsys.KCAL)
+    for i, j in p["exclusion_pairs"]:
+        nb.addException(i, j, 0.0, 1.0, 0.0)
+    nb.setForceGroup(1)
+    if k > 1:
+        nb.setReciprocalSpaceForceGroup(2)
+    system.addForce(nb)
+    return system, nb
+
+
+def replicate_params(p, n):
+    """The kit's system description for an n x n x n replica (atoms cell by cell, as
+    replicate_box.py orders them)."""
+    count = p["n_atoms"]
+    q = dict(p)
+    cells = n ** 3
+    q["n_atoms"] = count * cells
+    q["box"] = [b * n for b in p["box"]]
+    q["atom_type_of"] = p["atom_type_of"] * cells
+    shift = lambda rows, width: [[x + c * count for x in r[:width]] + list(r[width:])
+                                 for c in range(cells) for r in rows]
+    q["bonds"] = shift(p["bonds"], 2)
+    q["angles"] = shift(p["angles"], 3)
+    q["exclusion_pairs"] = shift(p["exclusion_pairs"], 2)
+    return q
+
+
+# (atoms, MTS?) -> (System, its NonbondedForce, the kit's parameters): built once a sitting.
+OPENMM_SYSTEMS = {}
+
+
+def run_openmm_pme(atoms, h, k, steps, threads, precision):
+    sys.path.insert(0, PEERS)
+    import mdsys
+    import numpy as np
+    import openmm as mm
+    name, directory, n = PME_SYSTEMS[atoms]
+    if (atoms, k > 1) not in OPENMM_SYSTEMS:
+        p = mdsys.load_params(name)
+        OPENMM_SYSTEMS[(atoms, k > 1)] = openmm_pme_system(p, n, k) + (p,)
+    system, nb, p = OPENMM_SYSTEMS[(atoms, k > 1)]
+    if k > 1:
+        integ = mm.MTSIntegrator(h * 1e-3, [(2, 1), (1, k), (0, k)])
+    else:
+        integ = mm.VerletIntegrator(h * 1e-3)
+    ctx = mm.Context(system, integ, mm.Platform.getPlatformByName("CPU"), {"Threads": str(threads)})
+    x = mdsys.read_xyz(os.path.join(ROOT, directory, name + ".xyz"))[1]
+    v = mdsys.read_xyz(os.path.join(ROOT, directory, name + ".vel.xyz"))[1]
+    if n > 1:
+        box = np.array(p["box"])
+        x = np.concatenate([x + box * [i, j, kk] for i in range(n) for j in range(n)
+                            for kk in range(n)])
+        v = np.concatenate([v] * n ** 3)
+    ctx.setPositions(x * mdsys.A2NM)
+    ctx.setVelocities(v * mdsys.V_A_FS_TO_NM_PS)
+    if ("openmm", atoms) not in PME_SEEN:
+        source = "in the context"
+        try:
+            alpha, nx, ny, nz = nb.getPMEParametersInContext(ctx)
+        except Exception:  # OpenMM 8.6's CPU platform fails here now and then (bad_cast)
+            alpha, nx, ny, nz = nb.getPMEParameters()
+            alpha, source = getattr(alpha, "_value", alpha), "as set"
+        pme_note("openmm", atoms, "alpha = %.6f 1/A, grid %dx%dx%d, order 5 (%s)" % (
+            alpha * mdsys.A2NM, nx, ny, nz, source))
+    integ.step(2)  # first steps build the neighbour list and compile kernels
+    start = time.perf_counter()
+    integ.step(steps)
+    ctx.getState(getEnergy=True)  # waits for the steps to finish
+    return steps / (time.perf_counter() - start)
+
+
+PME_RUNNERS = {"longstep": run_longstep_pme, "gromacs": run_gromacs_pme,
+               "lammps": run_lammps_pme, "openmm": run_openmm_pme}
 # Each code with the precisions it runs: GROMACS both (gmx, gmx_d), LAMMPS double only,
 # OpenMM's CPU platform its own mixed precision only.
 PRECISIONS = {"longstep": ["double", "mixed"], "gromacs": ["mixed", "double"],
@@ -239,16 +597,22 @@ def configurations(args):
 def sitting(args):
     """Every configuration, codes interleaved within each repeat; returns the rows."""
     rows = []
+    pme = args.coulomb == "pme"
+    runners = PME_RUNNERS if pme else RUNNERS
     for atoms, threads, h in configurations(args):
         k = round(h / INNER)
         runs = [(c, p) for c in args.codes for p in PRECISIONS[c] if p in args.precisions]
         speeds = {r: [] for r in runs}
         for repeat in range(args.repeats):
             for code, precision in runs:
-                steps = max(2 * k, int(STEPS[code][atoms] * args.steps_factor))
+                if pme:
+                    # The same simulated time for every scheme: PME_STEPS are inner steps.
+                    steps = max(2, int(PME_STEPS[code][atoms] * args.steps_factor) // k)
+                else:
+                    steps = max(2 * k, int(STEPS[code][atoms] * args.steps_factor))
                 try:
-                    speed = RUNNERS[code](atoms, h, k, steps, threads, precision)
-                except (RuntimeError, OSError) as e:
+                    speed = runners[code](atoms, h, k, steps, threads, precision)
+                except Exception as e:  # a failed run is reported; the sitting goes on
                     print("  %s %s failed: %s" % (code, precision, e), flush=True)
                     continue
                 speeds[(code, precision)].append(speed)
@@ -258,15 +622,24 @@ def sitting(args):
             if values:
                 rows.append({"atoms": atoms, "threads": threads, "h_fs": h, "inner_fs": INNER,
                              "code": code, "precision": precision, "runs": values,
-                             "median": statistics.median(values)})
+                             "median": statistics.median(values), "coulomb": args.coulomb})
         report(rows, atoms, threads, h)
+        if args.json:  # after every configuration, so that a cut-short sitting keeps its runs
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=1)
     return rows
 
 
 def report(rows, atoms, threads, h):
     here = [r for r in rows if (r["atoms"], r["threads"], r["h_fs"]) == (atoms, threads, h)]
-    print("\n%d atoms, %d thread(s), impulse %g fs / %g fs: outer steps/s, median of %s" % (
-        atoms, threads, h, INNER, "/".join(str(len(r["runs"])) for r in here)))
+    k = round(h / INNER)
+    if here and here[0].get("coulomb") == "pme":
+        scheme = ("PME, plain Verlet %g fs" % h if k == 1 else
+                  "PME, MTS %g fs / %g fs (reciprocal sum every %d inner steps)" % (h, INNER, k))
+    else:
+        scheme = "impulse %g fs / %g fs" % (h, INNER)
+    print("\n%d atoms, %d thread(s), %s: outer steps/s, median of %s" % (
+        atoms, threads, scheme, "/".join(str(len(r["runs"])) for r in here)))
     for r in here:
         print("  %-8s %-6s %9.2f  (runs %s)  %7.1f ns/day  %6.3f us per atom and step" % (
             r["code"], r["precision"], r["median"], ", ".join("%.2f" % v for v in r["runs"]),
@@ -283,6 +656,32 @@ def report(rows, atoms, threads, h):
     print(flush=True)
 
 
+def markdown(rows):
+    """The medians as a docs table: one row per size, threads and scheme, every run in
+    brackets in repeat order."""
+    columns = [("longstep", "double"), ("longstep", "mixed"), ("gromacs", "mixed"),
+               ("gromacs", "double"), ("lammps", "double"), ("openmm", "mixed")]
+    fmt = lambda v: "%.0f" % v if v >= 100 else "%.3g" % v
+    print("| atoms | threads | scheme | " + " | ".join("%s %s" % c for c in columns) + " |")
+    print("|" + "---|" * (3 + len(columns)))
+    keys = []
+    for r in rows:
+        key = (r["atoms"], r["threads"], r["h_fs"])
+        if key not in keys:
+            keys.append(key)
+    for atoms, threads, h in keys:
+        k = round(h / INNER)
+        scheme = "Verlet %g" % h if k == 1 else "%g / %g" % (h, INNER)
+        cells = []
+        for code, precision in columns:
+            found = [r for r in rows if (r["atoms"], r["threads"], r["h_fs"], r["code"],
+                                         r["precision"]) == (atoms, threads, h, code, precision)]
+            cells.append("%s (%s)" % (fmt(found[0]["median"]), ", ".join(
+                fmt(v) for v in found[0]["runs"])) if found else "–")
+        print("| {:,} | {} | {} | ".format(atoms, threads, scheme).replace(",", " ")
+              + " | ".join(cells) + " |")
+
+
 def scaling_summary(rows):
     """Cost per atom and outer step of longstep, 5184 against 648 atoms, and 2 threads against 1."""
     def median(atoms, threads, h, precision):
@@ -292,13 +691,15 @@ def scaling_summary(rows):
                 return r["median"]
         return None
     print("longstep summary")
+    sizes = sorted({r["atoms"] for r in rows})
     for h in sorted({r["h_fs"] for r in rows}):
         for precision in ("double", "mixed"):
-            small, large = median(648, 1, h, precision), median(5184, 1, h, precision)
-            if small and large:
-                print("  %g fs %-6s: cost per atom and step, 5184 / 648 atoms: %.2f" % (
-                    h, precision, (small * 648) / (large * 5184)))
-            for atoms in (648, 5184):
+            for smaller, larger in zip(sizes, sizes[1:]):
+                small, large = median(smaller, 1, h, precision), median(larger, 1, h, precision)
+                if small and large:
+                    print("  %g fs %-6s: cost per atom and step, %d / %d atoms: %.2f" % (
+                        h, precision, larger, smaller, (small * smaller) / (large * larger)))
+            for atoms in sizes:
                 one, two = median(atoms, 1, h, precision), median(atoms, 2, h, precision)
                 if one and two:
                     print("  %g fs %-6s: %5d atoms, 2 threads / 1 thread: %.2f" % (
@@ -312,9 +713,13 @@ def parse_args():
     ints = lambda s: [int(x) for x in s.split(",")]
     floats = lambda s: [float(x) for x in s.split(",")]
     words = lambda s: s.split(",")
-    ap.add_argument("--sizes", type=ints, default=[648, 5184], help="atoms: 648 and/or 5184")
+    ap.add_argument("--coulomb", choices=["dsf", "pme"], default="dsf",
+                    help="the kit's shifted-force model (default) or PME (see below)")
+    ap.add_argument("--sizes", type=ints, default=None,
+                    help="atoms: 648 and/or 5184 (PME also 41472); default all")
     ap.add_argument("--threads", type=ints, default=[1, 2])
-    ap.add_argument("--h", type=floats, default=[4.0, 2.0], help="outer steps in fs (inner 0.5)")
+    ap.add_argument("--h", type=floats, default=None,
+                    help="outer steps in fs (inner 0.5); default 4,2 (PME: 0.5,1,2)")
     ap.add_argument("--codes", type=words, default=["longstep", "gromacs", "lammps", "openmm"])
     ap.add_argument("--precisions", type=words, default=["double", "mixed"])
     ap.add_argument("--repeats", type=int, default=3)
@@ -327,9 +732,15 @@ def parse_args():
     args = ap.parse_args()
     if args.quick:
         args.repeats, args.steps_factor = 1, args.steps_factor / 20.0
+    pme = args.coulomb == "pme"
+    known = PME_SYSTEMS if pme else SYSTEMS
+    if args.sizes is None:
+        args.sizes = sorted(known)
+    if args.h is None:
+        args.h = [0.5, 1.0, 2.0] if pme else [4.0, 2.0]
     for atoms in args.sizes:
-        if atoms not in SYSTEMS:
-            ap.error("--sizes: %d atoms is not one of %s" % (atoms, sorted(SYSTEMS)))
+        if atoms not in known:
+            ap.error("--sizes: %d atoms is not one of %s" % (atoms, sorted(known)))
     for code in args.codes:
         if code not in RUNNERS:
             ap.error("--codes: unknown code %s (%s)" % (code, ", ".join(RUNNERS)))
@@ -350,8 +761,20 @@ def main():
         cpu, os.cpu_count(), " ".join("%.2f" % x for x in os.getloadavg()), versions(args.codes),
         time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())), flush=True)
     start = time.time()
-    rows = sitting(args)
+    global PME
+    if args.coulomb == "pme":
+        PME = PmeInputs(args.sizes, args.codes)
+        print("PME at GROMACS's defaults: r_c %g A, ewald-rtol %g (alpha %.6f 1/A), "
+              "fourier-spacing %g A, order %d" % (PME_CUTOFF, PME_RTOL, pme_alpha(), PME_SPACING,
+                                                  PME_ORDER), flush=True)
+    try:
+        rows = sitting(args)
+    finally:
+        if PME is not None:
+            PME.close()
     scaling_summary(rows)
+    print()
+    markdown(rows)
     print("sitting took %.0f s" % (time.time() - start))
     if args.json:
         with open(args.json, "w") as f:

@@ -22,25 +22,26 @@
 //!
 //! **Cost.** Per gradient: `N n³` spreading and gathering, two 3-D FFTs of `K_x K_y K_z`
 //! points (`O(K³ log K)`), `O(K³)` for the influence function; per Hessian-vector product
-//! twice that. The exclusions are `O(N_excl)`. The per-atom splines and the gathering run
-//! in parallel for large systems (each atom's result is its own, so the bits do not depend
-//! on the thread count), and so does spreading, by slabs of grid planes that each take
-//! their part of every atom in atom order (the same additions in the same order as the
-//! serial pass); the FFT is serial. The workspace is sized at
+//! twice that. The exclusions are `O(N_excl)`. For large systems every part of the mesh
+//! runs over rayon with the same bits at any thread count: the per-atom splines and the
+//! gathering per atom (each atom's result is its own); spreading by slabs of grid planes
+//! that each take their part of every atom in atom order (the same additions in the same
+//! order as the serial pass); the FFT as independent line transforms with the energy summed
+//! per line block in a fixed order ([`super::fft`]). The workspace is sized at
 //! construction: an evaluation allocates nothing.
 
 use std::sync::Mutex;
 
 use rayon::prelude::*;
 
-use super::fft::{C64, Fft3, FftScratch};
+use super::fft::{Fft3, FftScratch, Output};
 use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
-use crate::forces::scratch::parallel;
+use crate::forces::scratch::{Scratch, parallel};
 use crate::forces::{ForceTerm, TermClass};
 
-/// x-planes per parallel spreading task.
-const SLAB: usize = 4;
+/// Parallel spreading tasks per thread (slabs of x-planes).
+const SLABS_PER_THREAD: usize = 2;
 
 /// One atom's splines on the three axes: grid indices and weights.
 #[derive(Clone, Copy, Debug, Default)]
@@ -54,15 +55,7 @@ struct Workspace {
     grid: Vec<f64>,
     /// `φ`, the derivative of the energy on the grid.
     potential: Vec<f64>,
-    spectrum: Vec<C64>,
     fft: FftScratch,
-}
-
-/// What one evaluation computes.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Want {
-    Energy,
-    Potential,
 }
 
 pub struct PmeReciprocal {
@@ -71,6 +64,8 @@ pub struct PmeReciprocal {
     coulomb_constant: f64,
     charges: Vec<f64>,
     excluded: Vec<(u32, u32)>,
+    /// Per excluded pair, its change in a parallel gradient.
+    exclusion_scratch: Scratch<[f64; 3]>,
     /// `θ(m)` over the half spectrum; zero at `m = 0`.
     influence: Vec<f64>,
     self_energy: f64,
@@ -109,17 +104,17 @@ impl PmeReciprocal {
             stencils: vec![Stencil::default(); n],
             grid: vec![0.0; fft.real_len()],
             potential: vec![0.0; fft.real_len()],
-            spectrum: vec![C64::default(); fft.spectrum_len()],
             fft: fft.scratch(),
         };
         Ok(PmeReciprocal {
-            influence: influence(&params, lengths, coulomb_constant, fft.half),
+            influence: influence(&params, lengths, coulomb_constant, &fft),
             self_energy: self_energy(params.alpha, coulomb_constant, &charges),
             background: background_energy(params.alpha, coulomb_constant, &charges, volume),
             params,
             lengths,
             coulomb_constant,
             charges,
+            exclusion_scratch: Scratch::with_len(pairs.len()),
             excluded: pairs,
             fft,
             workspace: Mutex::new(workspace),
@@ -145,23 +140,29 @@ impl PmeReciprocal {
         std::array::from_fn(|a| self.params.grid[a] as f64 / self.lengths[a])
     }
 
-    /// Every atom's stencil at `q`.
-    fn place(&self, q: &[f64], stencils: &mut [Stencil]) {
+    /// Whether this evaluation runs over rayon.
+    fn parallel(&self) -> bool {
+        parallel(self.charges.len())
+    }
+
+    /// Every atom's stencil at `q` (with the splines' second derivatives for `second`).
+    #[inline(never)]
+    fn place(&self, q: &[f64], stencils: &mut [Stencil], second: bool) {
         let order = self.params.order;
         let place_one = |i: usize, stencil: &mut Stencil| {
             for a in 0..3 {
                 let size = self.params.grid[a];
                 let s = q[3 * i + a] / self.lengths[a];
-                let u = (s - s.floor()) * size as f64;
-                // u may round up to `size` for s just below 1.
-                let base = (u.floor() as usize).min(size - 1);
-                stencil.weights[a] = spline::weights(order, u - base as f64);
+                let u = (s - floor(s)) * size as f64;
+                // u may round up to `size` for s just below 1 (u ≥ 0: truncation floors).
+                let base = (u as usize).min(size - 1);
+                stencil.weights[a] = spline::weights(order, u - base as f64, second);
                 for k in 0..order {
                     stencil.index[a][k] = ((base + size - k) % size) as u32;
                 }
             }
         };
-        if parallel(stencils.len()) {
+        if self.parallel() {
             stencils
                 .par_iter_mut()
                 .enumerate()
@@ -175,18 +176,21 @@ impl PmeReciprocal {
 
     /// `grid = Σ_i c_i(k) ...`: the charges (`v = None`) or, with `v`, the
     /// displacement-weighted derivatives `Σ_i q_i v_i·∇W_i` spread on the grid. For large
-    /// systems in parallel over slabs of [`SLAB`] x-planes, each slab taking its part of
-    /// every atom's stencil in atom order: each grid point gains the same terms in the same
-    /// order as in the serial pass (an atom touches a point once, as `K ≥ 2n`), so the same
-    /// bits at any thread count.
+    /// systems in parallel over slabs of x-planes ([`SLABS_PER_THREAD`] per thread), each
+    /// slab taking its part of every atom's stencil in atom order: each grid point gains the
+    /// same terms in the same order as in the serial pass (an atom touches a point once, as
+    /// `K ≥ 2n`), so the same bits at any thread count and any slab size.
+    #[inline(never)]
     fn spread(&self, stencils: &[Stencil], v: Option<&[f64]>, grid: &mut [f64]) {
         let [nx, ny, nz] = self.params.grid;
-        if parallel(stencils.len()) && nx > SLAB {
-            grid.par_chunks_mut(SLAB * ny * nz)
+        let slabs = SLABS_PER_THREAD * rayon::current_num_threads();
+        let slab = nx.div_ceil(slabs);
+        if self.parallel() && slab < nx {
+            grid.par_chunks_mut(slab * ny * nz)
                 .enumerate()
-                .for_each(|(slab, planes)| {
-                    let first = slab * SLAB;
-                    self.spread_planes(stencils, v, planes, first..(first + SLAB).min(nx));
+                .for_each(|(index, planes)| {
+                    let first = index * slab;
+                    self.spread_planes(stencils, v, planes, first..(first + slab).min(nx));
                 });
         } else {
             self.spread_planes(stencils, v, grid, 0..nx);
@@ -216,6 +220,15 @@ impl PmeReciprocal {
                 Some(v) => std::array::from_fn(|a| scale[a] * v[3 * i + a]),
                 None => [0.0; 3],
             };
+            if v.is_none() {
+                match order {
+                    4 => spread_charge::<4>(q, st, grid, &planes, ny, nz),
+                    5 => spread_charge::<5>(q, st, grid, &planes, ny, nz),
+                    _ => spread_charge::<6>(q, st, grid, &planes, ny, nz),
+                }
+                continue;
+            }
+            let iz = &st.index[2][..order];
             for kx in 0..order {
                 let x = st.index[0][kx] as usize;
                 if !planes.contains(&x) {
@@ -223,78 +236,61 @@ impl PmeReciprocal {
                 }
                 let gx = (x - planes.start) * ny;
                 for ky in 0..order {
-                    let row = (gx + st.index[1][ky] as usize) * nz;
+                    let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
                     let (vx, vy) = (wx.value[kx], wy.value[ky]);
+                    // q (d_x M′_x M_y + d_y M_x M′_y) M_z + q d_z M_x M_y M′_z.
                     let (fx, fy) = (wx.first[kx], wy.first[ky]);
-                    for kz in 0..order {
-                        let value = match v {
-                            None => vx * vy * wz.value[kz],
-                            Some(_) => {
-                                d[0] * fx * vy * wz.value[kz]
-                                    + d[1] * vx * fy * wz.value[kz]
-                                    + d[2] * vx * vy * wz.first[kz]
-                            }
-                        };
-                        grid[row + st.index[2][kz] as usize] += q * value;
+                    let a = q * (d[0] * fx * vy + d[1] * vx * fy);
+                    let b = q * d[2] * vx * vy;
+                    for k in 0..order {
+                        row[iz[k] as usize] += a * wz.value[k] + b * wz.first[k];
                     }
                 }
             }
         }
     }
 
-    /// The mesh energy of the grid in `ws.grid` and, for [`Want::Potential`], `θ * grid`
-    /// into `out` (the grid is consumed).
-    fn convolve(&self, ws: &mut Workspace, want: Want, out_is_potential: bool) -> f64 {
+    /// The mesh energy of the grid in `ws.grid` and, for [`Output::Potential`], `θ * grid`
+    /// into the potential (`out_is_potential`) or back into the grid (the grid is consumed).
+    fn convolve(&self, ws: &mut Workspace, output: Output, out_is_potential: bool) -> f64 {
         let Workspace {
             grid,
             potential,
-            spectrum,
             fft,
             ..
         } = ws;
-        self.fft.forward(grid, spectrum, fft);
-        let h = self.fft.half;
-        let nz = self.params.grid[2];
-        let mut energy = 0.0;
-        for (index, (value, theta)) in spectrum.iter_mut().zip(&self.influence).enumerate() {
-            if want == Want::Energy {
-                let kz = index % h;
-                // Bins other than 0 and the Nyquist bin stand for two (m and −m).
-                let weight = if kz == 0 || (nz.is_multiple_of(2) && kz == h - 1) {
-                    0.5
-                } else {
-                    1.0
-                };
-                energy += weight * theta * value.norm_sqr();
-            } else {
-                *value *= *theta;
-            }
-        }
-        if want == Want::Potential {
-            let target = if out_is_potential { potential } else { grid };
-            self.fft.inverse(spectrum, target, fft);
-        }
-        energy
+        let out = if out_is_potential {
+            Some(&mut potential[..])
+        } else {
+            None
+        };
+        // The full-spectrum sum is Σ_m θ|F|², the energy half of it.
+        let sum = self
+            .fft
+            .convolve(grid, &self.influence, output, out, fft, self.parallel());
+        0.5 * sum
     }
 
     /// The mesh energy at `q`.
     fn mesh_energy(&self, q: &[f64]) -> f64 {
         let mut guard = self.lock();
         let ws = &mut *guard;
-        self.place(q, &mut ws.stencils);
+        self.place(q, &mut ws.stencils, false);
         self.spread(&ws.stencils, None, &mut ws.grid);
-        self.convolve(ws, Want::Energy, false)
+        self.convolve(ws, Output::Energy, false)
     }
 
-    /// `φ` at `q` into `ws.potential` (stencils placed).
-    fn potential(&self, q: &[f64], ws: &mut Workspace) {
-        self.place(q, &mut ws.stencils);
+    /// `φ` at `q` into `ws.potential` (stencils placed, with second derivatives for
+    /// `second`).
+    fn potential(&self, q: &[f64], ws: &mut Workspace, second: bool) {
+        self.place(q, &mut ws.stencils, second);
         self.spread(&ws.stencils, None, &mut ws.grid);
-        self.convolve(ws, Want::Potential, true);
+        self.convolve(ws, Output::Potential, true);
     }
 
     /// Per atom `i`: `out_i += q_i Σ_k g(k) ∇_i W_i(k)` and, with `v`, `+ q_i Σ_k h(k)
     /// ∇_i∇_iᵀ W_i(k) v_i` (`h` is the second grid).
+    #[inline(never)]
     fn gather(
         &self,
         stencils: &[Stencil],
@@ -308,7 +304,15 @@ impl PmeReciprocal {
             if q == 0.0 {
                 return;
             }
-            let (first, second) = self.gather_one(&stencils[i], g, hv.map(|(h, _)| h));
+            let [_, ny, nz] = self.params.grid;
+            let (first, second) = match hv {
+                None => match self.params.order {
+                    4 => (gather_first::<4>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                    5 => (gather_first::<5>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                    _ => (gather_first::<6>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                },
+                Some((h, _)) => self.gather_one(&stencils[i], g, h),
+            };
             for a in 0..3 {
                 let mut value = scale[a] * first[a];
                 if let Some((_, v)) = hv {
@@ -319,7 +323,7 @@ impl PmeReciprocal {
                 out[a] += q * value;
             }
         };
-        if parallel(stencils.len()) {
+        if self.parallel() {
             out.par_chunks_mut(3)
                 .enumerate()
                 .for_each(|(i, out)| one(i, out));
@@ -330,8 +334,8 @@ impl PmeReciprocal {
         }
     }
 
-    /// `Σ_k g(k) ∂_a W(k)` (in `u`) and, with `h`, `Σ_k h(k) ∂_a∂_b W(k)`.
-    fn gather_one(&self, st: &Stencil, g: &[f64], h: Option<&[f64]>) -> ([f64; 3], [[f64; 3]; 3]) {
+    /// `Σ_k g(k) ∂_a W(k)` (in `u`) and `Σ_k h(k) ∂_a∂_b W(k)`.
+    fn gather_one(&self, st: &Stencil, g: &[f64], h: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
         let [wx, wy, wz] = &st.weights;
@@ -349,7 +353,7 @@ impl PmeReciprocal {
                     first[0] += p * dx * y * z;
                     first[1] += p * x * dy * z;
                     first[2] += p * x * y * dz;
-                    if let Some(h) = h {
+                    {
                         let p = h[at];
                         let (sx, sy, sz) = (wx.second[kx], wy.second[ky], wz.second[kz]);
                         second[0][0] += p * sx * y * z;
@@ -404,35 +408,63 @@ impl PmeReciprocal {
         energy
     }
 
-    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`.
+    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`: per
+    /// pair its change to atom `j` (minus it to `i`), for many pairs in the two phases of
+    /// [`Scratch`] (the same additions in the same order as the serial loop).
+    #[inline(never)]
     fn exclusion_derivative(&self, q: &[f64], v: Option<&[f64]>, out: &mut [f64]) {
-        for (i, j, qq, d, r) in self.charged_exclusions(q) {
-            let (_, f1, f2) = erf_over_r(self.params.alpha, r);
-            // V(r) = −Q f(r).
-            let (v1, v2) = (-qq * f1, -qq * f2);
-            let change: [f64; 3] = match v {
-                None => std::array::from_fn(|a| v1 / r * d[a]),
-                Some(v) => {
-                    // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
-                    let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
-                    let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
-                    let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
-                    std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
-                }
-            };
+        let mut apply = |k: usize, change: &[f64; 3]| {
+            let (i, j) = self.excluded[k];
+            let (i, j) = (i as usize, j as usize);
             for a in 0..3 {
                 out[3 * j + a] += change[a];
                 out[3 * i + a] -= change[a];
+            }
+        };
+        let n = self.excluded.len();
+        if parallel(n) {
+            let compute = |k: usize| self.exclusion_change(q, v, k);
+            self.exclusion_scratch.two_phase(n, compute, apply);
+        } else {
+            for k in 0..n {
+                apply(k, &self.exclusion_change(q, v, k));
+            }
+        }
+    }
+
+    /// Excluded pair `k`'s gradient or Hessian-vector change to its atom `j` (zero for an
+    /// uncharged pair).
+    fn exclusion_change(&self, q: &[f64], v: Option<&[f64]>, k: usize) -> [f64; 3] {
+        let (i, j) = self.excluded[k];
+        let (i, j) = (i as usize, j as usize);
+        let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
+        if qq == 0.0 {
+            return [0.0; 3];
+        }
+        let d = self.difference(q, i, j);
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let (_, f1, f2) = erf_over_r(self.params.alpha, r);
+        // V(r) = −Q f(r).
+        let (v1, v2) = (-qq * f1, -qq * f2);
+        match v {
+            None => std::array::from_fn(|a| v1 / r * d[a]),
+            Some(v) => {
+                // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
+                let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
+                let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
+                let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
+                std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
             }
         }
     }
 }
 
-/// `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))` over the half spectrum `[nx][ny][half]`, with
+/// `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))` over the half spectrum (in the FFT's layout), with
 /// `m_a = k_a` for `k_a < (K_a + 1)/2`, else `k_a − K_a`, and `m² = Σ (m_a/L_a)²`; zero at
 /// `m = 0` (the background term stands for it).
-fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, half: usize) -> Vec<f64> {
+fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, fft: &Fft3) -> Vec<f64> {
     let [nx, ny, nz] = params.grid;
+    let half = fft.half;
     let moduli: [Vec<f64>; 3] =
         std::array::from_fn(|a| spline::moduli(params.order, params.grid[a]));
     let volume: f64 = lengths.iter().product();
@@ -457,7 +489,7 @@ fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, half: usize) 
                 let mz = signed(kz, nz) / lengths[2];
                 let m2 = mx * mx + my * my + mz * mz;
                 let denominator = pi * volume * m2 * moduli[0][kx] * moduli[1][ky] * moduli[2][kz];
-                out[(kx * ny + ky) * half + kz] = ke * (-factor * m2).exp() / denominator;
+                out[fft.spectrum_index(kx, ky, kz)] = ke * (-factor * m2).exp() / denominator;
             }
         }
     }
@@ -481,7 +513,7 @@ impl ForceTerm for PmeReciprocal {
         {
             let mut guard = self.lock();
             let ws = &mut *guard;
-            self.potential(q, ws);
+            self.potential(q, ws, false);
             self.gather(&ws.stencils, &ws.potential, None, gradient);
         }
         self.exclusion_derivative(q, None, gradient);
@@ -491,10 +523,10 @@ impl ForceTerm for PmeReciprocal {
         {
             let mut guard = self.lock();
             let ws = &mut *guard;
-            self.potential(q, ws);
+            self.potential(q, ws, true);
             self.spread(&ws.stencils, Some(v), &mut ws.grid);
             // ψ = Θ (J v) into the grid itself.
-            self.convolve(ws, Want::Potential, false);
+            self.convolve(ws, Output::Potential, false);
             let Workspace {
                 stencils,
                 grid,
@@ -536,4 +568,65 @@ impl ForceTerm for PmeReciprocal {
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         Some(self)
     }
+}
+
+/// `⌊x⌋` by truncation (a call to libm's floor otherwise, without SSE4.1's `roundsd`):
+/// exact for `|x| < 2⁶³`, far beyond any coordinate over a box length.
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// The charge of one atom onto the planes `planes` of `grid` (from plane `planes.start`),
+/// for B-splines of order `N`: `Q(k) += q M_x M_y M_z`.
+#[inline(always)]
+fn spread_charge<const N: usize>(
+    q: f64,
+    st: &Stencil,
+    grid: &mut [f64],
+    planes: &std::ops::Range<usize>,
+    ny: usize,
+    nz: usize,
+) {
+    let [wx, wy, wz] = &st.weights;
+    for kx in 0..N {
+        let x = st.index[0][kx] as usize;
+        if !planes.contains(&x) {
+            continue;
+        }
+        let gx = (x - planes.start) * ny;
+        let qx = q * wx.value[kx];
+        for ky in 0..N {
+            let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
+            let qxy = qx * wy.value[ky];
+            for kz in 0..N {
+                row[st.index[2][kz] as usize] += qxy * wz.value[kz];
+            }
+        }
+    }
+}
+
+/// `Σ_k g(k) ∂_a W(k)` (in `u`) for B-splines of order `N`: per x-y pair of the stencil the
+/// two sums along z, then the x and y weights.
+#[inline(always)]
+fn gather_first<const N: usize>(st: &Stencil, g: &[f64], ny: usize, nz: usize) -> [f64; 3] {
+    let [wx, wy, wz] = &st.weights;
+    let mut first = [0.0; 3];
+    for kx in 0..N {
+        let gx = st.index[0][kx] as usize * ny;
+        for ky in 0..N {
+            let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
+            let (mut value, mut slope) = (0.0, 0.0);
+            for kz in 0..N {
+                let p = row[st.index[2][kz] as usize];
+                value += p * wz.value[kz];
+                slope += p * wz.first[kz];
+            }
+            let (x, y) = (wx.value[kx], wy.value[ky]);
+            first[0] += wx.first[kx] * y * value;
+            first[1] += x * wy.first[ky] * value;
+            first[2] += x * y * slope;
+        }
+    }
+    first
 }

@@ -20,54 +20,72 @@ pub struct Weights {
     pub second: [f64; MAX_ORDER],
 }
 
-/// `M_p(w + k)` for `k < p` from `M_{p−1}(w + k)` (zero outside `0 … p−2`).
+/// `M_p(w + k)` for `k < p` from `M_{p−1}(w + k)` (zero from `p − 1` on): eq. (4.1) with
+/// the two ends, where one of the two terms vanishes, apart.
+#[inline(always)]
 fn raise(previous: &[f64; MAX_ORDER], p: usize, w: f64) -> [f64; MAX_ORDER] {
     let mut next = [0.0; MAX_ORDER];
     let scale = 1.0 / (p - 1) as f64;
-    for (k, slot) in next.iter_mut().enumerate().take(p) {
+    let top = p as f64;
+    next[0] = scale * w * previous[0];
+    for k in 1..p - 1 {
         let x = w + k as f64;
-        let here = if k + 1 < p { previous[k] } else { 0.0 };
-        let below = if k > 0 { previous[k - 1] } else { 0.0 };
-        *slot = scale * (x * here + (p as f64 - x) * below);
+        next[k] = scale * (x * previous[k] + (top - x) * previous[k - 1]);
     }
+    next[p - 1] = scale * (top - (w + (p - 1) as f64)) * previous[p - 2];
     next
 }
 
-/// The weights of order `order` (3 ≤ order ≤ [`MAX_ORDER`]) at offset `w ∈ [0, 1)`.
-pub fn weights(order: usize, w: f64) -> Weights {
-    let mut m = [0.0; MAX_ORDER];
-    m[0] = w;
-    m[1] = 1.0 - w;
-    let mut lower2 = m;
-    let mut lower1 = m;
-    for p in 3..=order {
+/// `a(k) − a(k − 1)` for `k < order` (`a(−1) = 0`; `a` is zero past its order).
+#[inline(always)]
+fn difference(a: &[f64; MAX_ORDER], order: usize) -> [f64; MAX_ORDER] {
+    let mut out = [0.0; MAX_ORDER];
+    out[0] = a[0];
+    for k in 1..order {
+        out[k] = a[k] - a[k - 1];
+    }
+    out
+}
+
+/// The weights of order `order` (3 ≤ order ≤ [`MAX_ORDER`]) at offset `w ∈ [0, 1)`; the
+/// second derivatives only with `second` (else zero): only Hessian-vector products use them.
+pub fn weights(order: usize, w: f64, second: bool) -> Weights {
+    match order {
+        3 => weights_of::<3>(w, second),
+        4 => weights_of::<4>(w, second),
+        5 => weights_of::<5>(w, second),
+        _ => weights_of::<6>(w, second),
+    }
+}
+
+/// [`weights`] for a fixed order (its loops unrolled).
+#[inline(always)]
+fn weights_of<const ORDER: usize>(w: f64, second: bool) -> Weights {
+    let order = ORDER;
+    // M_1 is the box on [0, 1): M_1(w) = 1; M_2(w) = w, M_2(w + 1) = 1 − w.
+    let mut lower2 = [0.0; MAX_ORDER];
+    lower2[0] = 1.0;
+    let mut lower1 = [0.0; MAX_ORDER];
+    lower1[0] = w;
+    lower1[1] = 1.0 - w;
+    let mut m = raise(&lower1, 3, w);
+    for p in 4..=order {
         lower2 = lower1;
         lower1 = m;
         m = raise(&m, p, w);
     }
-    // lower1 = M_{n−1}, lower2 = M_{n−2} (for order 3, M_1 is the box on [0, 1)).
-    if order == 3 {
-        lower2 = [0.0; MAX_ORDER];
-        lower2[0] = 1.0;
-    }
-    let at = |a: &[f64; MAX_ORDER], k: isize, len: usize| -> f64 {
-        if k >= 0 && (k as usize) < len {
-            a[k as usize]
-        } else {
-            0.0
-        }
-    };
-    let mut out = Weights {
+    // Now m = M_n, lower1 = M_{n−1}, lower2 = M_{n−2}: eq. (4.2) and its derivative.
+    let first = difference(&lower1, order);
+    Weights {
         value: m,
-        ..Weights::default()
-    };
-    for k in 0..order {
-        let k = k as isize;
-        out.first[k as usize] = at(&lower1, k, order - 1) - at(&lower1, k - 1, order - 1);
-        out.second[k as usize] = at(&lower2, k, order - 2) - 2.0 * at(&lower2, k - 1, order - 2)
-            + at(&lower2, k - 2, order - 2);
+        first,
+        second: if second {
+            let d = difference(&lower2, order - 1);
+            difference(&d, order)
+        } else {
+            [0.0; MAX_ORDER]
+        },
     }
-    out
 }
 
 /// The denominators `|Σ_{k=0}^{n−2} M_n(k+1) exp(2πi mk/K)|²` of `|b(m)|²` (EPBDLP95 eq.
@@ -75,7 +93,7 @@ pub fn weights(order: usize, w: f64) -> Weights {
 /// is replaced by the mean of its neighbours, as OpenMM's and GROMACS's PME do (the
 /// influence function stays finite, and the results match theirs).
 pub fn moduli(order: usize, size: usize) -> Vec<f64> {
-    let at_integers = weights(order, 0.0).value;
+    let at_integers = weights(order, 0.0, false).value;
     // M_n(k + 1) for k = 0 … n−2 is value[k + 1].
     let mut out: Vec<f64> = (0..size)
         .map(|m| {
@@ -126,7 +144,7 @@ mod tests {
             // Off the knots (w = 0), where a central second difference of the cubic
             // spline's M″ (a kink) is only O(h).
             for w in [0.13, 0.5, 0.77, 0.999] {
-                let got = weights(order, w);
+                let got = weights(order, w, true);
                 let total: f64 = got.value[..order].iter().sum();
                 // Partition of unity, to round-off.
                 assert!((total - 1.0).abs() < 1e-14);

@@ -1,0 +1,75 @@
+//! A PME step above the parallel threshold allocates nothing on any thread: the 5 184-atom
+//! water box with the reciprocal sum on its own level (GROMACS's `mts-level2-forces =
+//! longrange-nonbonded`), on two threads, so that the splines, spreading slabs, the FFT's
+//! line passes, the gathering and the excluded pairs' two phases all run over rayon. A
+//! global counter (this file holds one test, so nothing else runs meanwhile) counts
+//! allocations on every thread, rayon's workers included.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use longstep::io::forcefield::ElectrostaticsOverrides;
+use longstep::io::scene::SceneFlags;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn parallel_pme_steps_allocate_nothing() {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let probe = std::hint::black_box(vec![1.0f64; 16]);
+    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let flags = SceneFlags {
+        electrostatics: ElectrostaticsOverrides {
+            coulomb: Some("pme".into()),
+            pme_order: Some(4),
+            nonbonded_level: Some(0),
+            pme_level: Some(1),
+            ..ElectrostaticsOverrides::default()
+        },
+        ..SceneFlags::default()
+    };
+    let path = Path::new("systems/water-box-1728/scene.toml");
+    pool.install(|| {
+        let mut scene = longstep::io::scene::load_scene_with(path, &flags, &[]).unwrap();
+        let settings = longstep::settings::MethodSettings::new("impulse", 1.0).with_inner_steps(2);
+        let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
+        integrator.setup(&mut scene.system).unwrap();
+        // Warm up past the first list rebuilds (their buffers keep 25 % room).
+        for _ in 0..10 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        for _ in 0..10 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        assert_eq!(
+            during, 0,
+            "{during} allocations in 10 PME steps on two threads"
+        );
+    });
+}
