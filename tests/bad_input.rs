@@ -508,3 +508,23 @@ fn a_flag_with_an_optional_value_leaves_the_next_flag_alone() {
     assert_eq!(code, 0, "{stderr}");
     assert!((stdout + &stderr).contains("SETTLE"), "{stderr}");
 }
+
+/// Issue 30 item 9: the size guard counts innermost steps (`--inner 1000000000` ran
+/// silently).
+#[test]
+fn the_size_guard_counts_innermost_steps() {
+    let (code, _, stderr) = run(&[
+        "run",
+        "systems/three-spring.toml",
+        "--method",
+        "impulse",
+        "--h",
+        "0.5",
+        "--inner",
+        "1000000000",
+        "--t-end",
+        "100",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("innermost steps"), "{stderr}");
+}

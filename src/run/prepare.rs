@@ -150,18 +150,30 @@ impl PreparedRun {
             .trajectory_every
             .map_or(0.0, |e| steps / e as f64 * frame_bytes);
         let bytes = energy_bytes + trajectory_bytes;
-        if plan.allow_large || (steps <= MAX_STEPS && bytes <= MAX_OUTPUT_BYTES) {
+        let innermost = steps * self.innermost_per_outer();
+        if plan.allow_large || (innermost <= MAX_STEPS && bytes <= MAX_OUTPUT_BYTES) {
             return Ok(steps);
         }
         Err(Error::input(format!(
-            "this run would take {steps:.3e} outer steps (h = {}, t_end = {}) and write about \
-             {:.2e} bytes (limits {MAX_STEPS:.0e} steps, {MAX_OUTPUT_BYTES:.0e} bytes): check \
-             --h and --t-end, record less often (--energy-every, --trajectory-every), or give \
-             --allow-large",
+            "this run would take {steps:.3e} outer steps ({innermost:.3e} innermost steps; h = \
+             {}, t_end = {}) and write about {:.2e} bytes (limits {MAX_STEPS:.0e} steps, \
+             {MAX_OUTPUT_BYTES:.0e} bytes): check --h, --inner/--dt/--level-steps and --t-end, \
+             record less often (--energy-every, --trajectory-every), or give --allow-large",
             Num(self.settings.h),
             Num(t_end),
             bytes,
         )))
+    }
+
+    /// Innermost steps per outer step: the product of `--level-steps`, else `--inner K`
+    /// between every pair of levels, else one.
+    fn innermost_per_outer(&self) -> f64 {
+        let levels = self.scene.system.forces.n_levels().max(1);
+        match (&self.settings.level_steps, self.settings.inner_steps) {
+            (Some(steps), _) => steps.iter().map(|&k| k as f64).product(),
+            (None, Some(k)) => (k as f64).powi(levels as i32 - 1),
+            (None, None) => 1.0,
+        }
     }
 
     /// Run to `options.t_end`; the summary carries the scene's units.
