@@ -3,39 +3,22 @@
 //! innermost step sizes its copy of the positions in `setup`. A global counter (this file
 //! holds one test, so nothing else runs meanwhile) counts allocations on every thread.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use longstep::run::prepare::{RunRequest, prepare};
 use longstep::settings::{RunSpec, Value};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn constrained_steps_allocate_nothing() {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    assert!(counting::allocations() > before && probe.len() == 16);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -73,11 +56,11 @@ fn constrained_steps_allocate_nothing() {
             for _ in 0..40 {
                 run.integrator.step(system).unwrap();
             }
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            let before = counting::allocations();
             for _ in 0..40 {
                 run.integrator.step(system).unwrap();
             }
-            let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+            let during = counting::allocations() - before;
             assert_eq!(
                 during, 0,
                 "{scene} {method}: {during} allocations in 40 steps"

@@ -5,36 +5,19 @@
 //! every thread, rayon's workers included. Steps run inside `ThreadPool::install`, as
 //! `longstep run` does.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn molecule_steps_allocate_nothing() {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    assert!(counting::allocations() > before && probe.len() == 16);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -143,11 +126,11 @@ fn molecule_steps_allocate_nothing() {
                     .map_or(0, |t| t.term.interaction_count())
             };
             let pairs_before = listed(&scene);
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            let before = counting::allocations();
             for _ in 0..40 {
                 integrator.step(&mut scene.system).unwrap();
             }
-            let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+            let during = counting::allocations() - before;
             assert_eq!(
                 during, 0,
                 "{scene_path} {method} {precision:?}: {during} allocations in 40 steps"

@@ -5,39 +5,22 @@
 //! global counter (this file holds one test, so nothing else runs meanwhile) counts
 //! allocations on every thread, rayon's workers included.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use longstep::io::forcefield::ElectrostaticsOverrides;
 use longstep::io::scene::SceneFlags;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "common/counting.rs"]
+mod counting;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn parallel_pme_steps_allocate_nothing() {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = counting::allocations();
     let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(ALLOCATIONS.load(Ordering::Relaxed) > before && probe.len() == 16);
+    assert!(counting::allocations() > before && probe.len() == 16);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
@@ -62,11 +45,11 @@ fn parallel_pme_steps_allocate_nothing() {
         for _ in 0..10 {
             integrator.step(&mut scene.system).unwrap();
         }
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let before = counting::allocations();
         for _ in 0..10 {
             integrator.step(&mut scene.system).unwrap();
         }
-        let during = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        let during = counting::allocations() - before;
         assert_eq!(
             during, 0,
             "{during} allocations in 10 PME steps on two threads"
