@@ -375,3 +375,56 @@ fn stiffness_scan_merge_checks_the_method() {
     assert_eq!(code, Some(1), "{stderr}");
     assert!(stderr.contains("method"), "{stderr}");
 }
+
+/// Issue 30 item 11: a shard prints no safe-step table of its own slice; a merge that fails
+/// leaves no `--out`; map shards mixed with a scan's are refused by what they are.
+#[test]
+fn shards_do_not_answer_alone_and_failed_merges_leave_nothing() {
+    let dir = common::scratch_dir("shards-answers");
+    let shard = dir.join("s1").display().to_string();
+    let (code, stdout, stderr) = common::run_cli(&[
+        "scan",
+        "steps",
+        "systems/three-spring.toml",
+        "--methods",
+        "impulse",
+        "--h",
+        "0.1:0.3:0.1",
+        "--inner",
+        "10",
+        "--t-end",
+        "10",
+        "--repeats",
+        "0",
+        "--quiet",
+        "--shard",
+        "1/2",
+        "--out",
+        &shard,
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(!stdout.contains("safe up to"), "{stdout}");
+    assert!(stdout.contains("longstep merge"), "{stdout}");
+    let map = dir.join("map.csv").display().to_string();
+    let (code, _, stderr) = common::run_cli(&[
+        "stability-map",
+        "--method",
+        "impulse",
+        "--h",
+        "0.5",
+        "--n",
+        "4",
+        "--shard",
+        "1/2",
+        "--out",
+        &map,
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let out = dir.join("merged");
+    let (code, _, stderr) =
+        common::run_cli(&["merge", &shard, &map, "--out", &out.display().to_string()]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("mix stability-map shards"), "{stderr}");
+    assert!(!out.exists(), "a failed merge left {}", out.display());
+}

@@ -115,15 +115,28 @@ type Shards = (
 /// `longstep merge DIR…`: combine shard outputs into what a single run writes.
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
     let (by_study, maps) = read_shards(&args.inputs)?;
+    if !maps.is_empty() && !by_study.is_empty() {
+        return Err(Error::input(format!(
+            "the inputs mix stability-map shards ({}) with study tables ({}): merge each \
+             study's shards on their own",
+            maps[0].0.display(),
+            by_study.keys().cloned().collect::<Vec<_>>().join(", ")
+        )));
+    }
     if !maps.is_empty() {
-        merge_maps(&maps, &args.out)?;
+        return merge_maps(&maps, &args.out);
+    }
+    // Merge every study before writing anything, so a failed merge leaves no `--out`.
+    let mut merged = Vec::new();
+    for (study, tables) in by_study {
+        let count = tables.len();
+        let table = merge(tables)?;
+        check_study_rows(&table)?;
+        merged.push((study, count, table));
     }
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let mut merged_tables = BTreeMap::new();
-    for (study, tables) in by_study {
-        let count = tables.len();
-        let merged = merge(tables)?;
-        check_study_rows(&merged)?;
+    for (study, count, merged) in merged {
         let name = match study.as_str() {
             "work-precision" => WORK_PRECISION,
             "work-precision-wall-time" => WALL_TIME,

@@ -568,7 +568,13 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     super::draw::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
     let timings = write_timings(args, &setup, &safe, meta, scene.units)?;
-    print_safe_steps(&safe, &|_| steps.clone(), &timings, scene.units, criterion);
+    print_safe_steps(
+        &safe,
+        &|_| steps.clone(),
+        &timings,
+        scene.units,
+        (criterion, args.shard.as_deref()),
+    );
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
     eprintln!(
         "{} runs, {:.1} s of run time; results in {}",
@@ -687,8 +693,16 @@ fn print_safe_steps(
     steps: &dyn Fn(&SafeStep) -> Vec<f64>,
     timings: &[Timing],
     units: Units,
-    criterion: Criterion,
+    (criterion, shard): (Criterion, Option<&str>),
 ) {
+    // A shard's slice is not the answer: the largest safe step needs every point.
+    if let Some(shard) = shard {
+        println!(
+            "shard {shard}: its points are in scan.csv; `longstep merge` the shards' outputs \
+             for the safe-step table"
+        );
+        return;
+    }
     let mut threads: Vec<usize> = timings.iter().map(|t| t.threads).collect();
     threads.sort_unstable();
     threads.dedup();

@@ -290,7 +290,13 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
             .find(|c| s.config.as_deref() == Some(c.label.as_str()))
             .map_or_else(Vec::new, |c| c.steps.clone())
     };
-    print_safe_steps(&safe, &steps_of, &timings, scene.units, criterion);
+    print_safe_steps(
+        &safe,
+        &steps_of,
+        &timings,
+        scene.units,
+        (criterion, args.shard.as_deref()),
+    );
     let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
     eprintln!(
         "{} runs of {} configurations, {:.1} s of run time; results in {}",
