@@ -504,3 +504,31 @@ fn check_prints_energies_and_box_with_units_and_ten_digits() {
         assert!(digits <= 11, "{text}");
     }
 }
+
+/// Issue 30 item 12: `modes` on a real scene gives ω in rad/fs, periods in fs, wavenumbers
+/// in cm⁻¹ and the resonant steps in fs (it printed bare numbers).
+#[test]
+fn modes_of_a_real_scene_carry_their_units() {
+    let (code, stdout, stderr) = common::run_cli(&[
+        "modes",
+        "systems/water-box/scene.toml",
+        "--h-range",
+        "4fs:10fs",
+        "--top",
+        "1",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stdout.contains("omega (rad/fs)") && stdout.contains("period (fs)"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("cm^-1"), "{stdout}");
+    assert!(stdout.contains("in [4, 10] fs:"), "{stdout}");
+    // The fastest mode is an O–H stretch: its wavenumber between 3000 and 4000 cm⁻¹.
+    let first = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("1 "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let wavenumber: f64 = first.split_whitespace().nth(3).unwrap().parse().unwrap();
+    assert!((3000.0..4000.0).contains(&wavenumber), "{first}");
+}

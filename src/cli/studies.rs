@@ -264,8 +264,8 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         println!("minimised  {report}");
     }
     print_curvature_warning(&modes, minimized.is_some());
-    print_modes(&modes);
-    print_resonances(&resonances, lo, hi);
+    print_modes(&modes, scene.units);
+    print_resonances(&resonances, lo, hi, scene.units);
     Ok(())
 }
 
@@ -287,12 +287,23 @@ fn print_curvature_warning(modes: &[Mode], minimized: bool) {
     }
 }
 
-/// The table of the twelve fastest oscillating modes.
-fn print_modes(modes: &[Mode]) {
+/// Speed of light in cm/fs, for wavenumbers ω / (2π c).
+const LIGHT_CM_PER_FS: f64 = 2.997_924_58e-5;
+
+/// The table of the twelve fastest oscillating modes; in a real scene ω in rad/fs, the
+/// period in fs and the wavenumber in cm⁻¹.
+fn print_modes(modes: &[Mode], units: Units) {
+    let real = units == Units::Real;
     println!("fastest modes of the fast subsystem (level 0):");
+    let (omega, period) = if real {
+        ("omega (rad/fs)", "period (fs)")
+    } else {
+        ("omega", "period")
+    };
+    let wavenumber = if real { "      cm^-1" } else { "" };
     println!(
-        "  {:>4}  {:>14}  {:>14}  {:>9}",
-        "#", "omega", "period", "component"
+        "  {:>4}  {omega:>14}  {period:>14}{wavenumber}  {:>9}",
+        "#", "component"
     );
     for (i, mode) in modes
         .iter()
@@ -300,8 +311,14 @@ fn print_modes(modes: &[Mode]) {
         .take(12)
         .enumerate()
     {
+        let cm = if real {
+            let wavenumber = mode.frequency / (std::f64::consts::TAU * LIGHT_CM_PER_FS);
+            format!("  {wavenumber:>9.1}")
+        } else {
+            String::new()
+        };
         println!(
-            "  {:>4}  {:>14.6}  {:>14.6}  {:>9}{}",
+            "  {:>4}  {:>14.6}  {:>14.6}{cm}  {:>9}{}",
             i + 1,
             mode.frequency,
             mode.period,
@@ -315,17 +332,22 @@ fn print_modes(modes: &[Mode]) {
     }
 }
 
-/// The predicted resonant outer steps in `[lo, hi]`, each with the methods it affects.
-fn print_resonances(resonances: &[Resonance], lo: f64, hi: f64) {
-    println!("predicted resonant outer steps in [{lo}, {hi}]:");
+/// The predicted resonant outer steps in `[lo, hi]` (in fs in a real scene), each with the
+/// methods it affects.
+fn print_resonances(resonances: &[Resonance], lo: f64, hi: f64, units: Units) {
+    let unit = match units {
+        Units::Real => " fs",
+        Units::None => "",
+    };
+    println!("predicted resonant outer steps in [{lo}, {hi}]{unit}:");
     for r in resonances {
         let methods: Vec<&str> = ["impulse", "short-average", "linear-average", "long-average"]
             .into_iter()
             .filter(|m| r.kind.affects(m))
             .collect();
+        let h = format!("{:.6}{unit}", r.h);
         println!(
-            "  h = {:<14.6} {:?} k = {}  frequencies {:?}  ({})",
-            r.h,
+            "  h = {h:<14} {:?} k = {}  frequencies {:?}  ({})",
             r.kind,
             r.k,
             r.frequencies,
