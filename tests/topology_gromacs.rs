@@ -11,11 +11,10 @@
 //! longstep's) and unit conversions exact to round-off.
 
 mod common;
-use common::{flat, group_energy, rms};
+use common::{assert_forces_match, flat, group_energy, rms};
 
 use std::path::{Path, PathBuf};
 
-use longstep::forces::TermClass;
 use longstep::io::topology::gro::{parse_gro, read_gro_for};
 use longstep::io::topology::gromacs::read_gromacs_top;
 use longstep::io::topology::inpcrd::read_inpcrd;
@@ -80,39 +79,8 @@ fn compare_with_openmm(stem: &str) {
             "{stem} {group}: {got} vs OpenMM {expected}"
         );
     }
-    let mut by_class = [vec![0.0; q.len()], vec![0.0; q.len()]];
-    for (_, term, _) in &built.terms {
-        let class = usize::from(term.class() == TermClass::Nonbonded);
-        term.add_gradient(&q, &mut by_class[class]);
-    }
-    let total: Vec<f64> = by_class[0]
-        .iter()
-        .zip(&by_class[1])
-        .map(|(a, b)| a + b)
-        .collect();
-    let nonbonded_scale = rms(flat(&reference["forces"]["nonbonded"]).into_iter());
-    for (part, gradient) in [
-        ("bonded", &by_class[0]),
-        ("nonbonded", &by_class[1]),
-        ("total", &total),
-    ] {
-        let expected = flat(&reference["forces"][part]);
-        assert_eq!(gradient.len(), expected.len());
-        let difference = rms(gradient.iter().zip(&expected).map(|(g, f)| -g - f));
-        let scale = if part == "total" {
-            nonbonded_scale
-        } else {
-            rms(expected.iter().copied())
-        };
-        eprintln!(
-            "{stem} {part} forces: RMS difference / scale {:.1e}",
-            difference / scale
-        );
-        assert!(
-            difference <= TOLERANCE * scale,
-            "{stem} {part}: {difference:e} vs {scale:e}"
-        );
-    }
+    let expected = |part: &str| flat(&reference["forces"][part]);
+    assert_forces_match(stem, &built, &q, &expected, TOLERANCE);
 }
 
 #[test]

@@ -20,11 +20,10 @@
 //! ≥ 1e-3.
 
 mod common;
-use common::{flat, group_energy, rms};
+use common::{assert_forces_match, flat, group_energy};
 
 use std::path::{Path, PathBuf};
 
-use longstep::forces::TermClass;
 use longstep::forces::ewald::EwaldRequest;
 use longstep::io::forcefield::ElectrostaticsOverrides;
 use longstep::io::scene::{
@@ -107,39 +106,8 @@ fn compare_with_openmm_as(name: &str, file: &str, options: &NonbondedOptions) {
 /// non-bonded part, the larger one: a relative error of the parts of 1e-6 moves the total
 /// by at most about that much.
 fn compare_forces(name: &str, built: &BuiltTopology, q: &[f64], reference: &Reference) {
-    let mut by_class = [vec![0.0; q.len()], vec![0.0; q.len()]];
-    for (_, term, _) in &built.terms {
-        let class = usize::from(term.class() == TermClass::Nonbonded);
-        term.add_gradient(q, &mut by_class[class]);
-    }
-    let total: Vec<f64> = by_class[0]
-        .iter()
-        .zip(&by_class[1])
-        .map(|(a, b)| a + b)
-        .collect();
-    let nonbonded_scale = rms(flat(&reference.forces["nonbonded"]).into_iter());
-    for (part, gradient) in [
-        ("bonded", &by_class[0]),
-        ("nonbonded", &by_class[1]),
-        ("total", &total),
-    ] {
-        let expected = flat(&reference.forces[part]);
-        assert_eq!(gradient.len(), expected.len());
-        let difference = rms(gradient.iter().zip(&expected).map(|(g, f)| -g - f));
-        let scale = if part == "total" {
-            nonbonded_scale
-        } else {
-            rms(expected.iter().copied())
-        };
-        eprintln!(
-            "{name} {part} forces: RMS difference / scale {:.1e}",
-            difference / scale
-        );
-        assert!(
-            difference <= TOLERANCE * scale,
-            "{name} {part} forces: RMS difference {difference:e} against {scale:e} kcal/mol/Å"
-        );
-    }
+    let expected = |part: &str| flat(&reference.forces[part]);
+    assert_forces_match(name, built, q, &expected, TOLERANCE);
 }
 
 #[test]

@@ -235,3 +235,51 @@ pub fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (sum, count) = v.fold((0.0, 0), |(s, c), x| (s + x * x, c + 1));
     (sum / count as f64).sqrt()
 }
+
+/// The bonded, non-bonded and total forces (−gradients) of `built` at `q` against a
+/// reference's (`expected(part)`, flat `n × 3`, for "bonded", "nonbonded" and "total"):
+/// each RMS difference within `tolerance` of that part's RMS force, the total's within
+/// `tolerance` of the non-bonded RMS (the bonded and non-bonded forces nearly cancel at a
+/// minimum, so the total's own RMS is no scale).
+pub fn assert_forces_match(
+    label: &str,
+    built: &longstep::io::topology::BuiltTopology,
+    q: &[f64],
+    expected: &dyn Fn(&str) -> Vec<f64>,
+    tolerance: f64,
+) {
+    use longstep::forces::TermClass;
+    let mut by_class = [vec![0.0; q.len()], vec![0.0; q.len()]];
+    for (_, term, _) in &built.terms {
+        let class = usize::from(term.class() == TermClass::Nonbonded);
+        term.add_gradient(q, &mut by_class[class]);
+    }
+    let total: Vec<f64> = by_class[0]
+        .iter()
+        .zip(&by_class[1])
+        .map(|(a, b)| a + b)
+        .collect();
+    let nonbonded_scale = rms(expected("nonbonded").into_iter());
+    for (part, gradient) in [
+        ("bonded", &by_class[0]),
+        ("nonbonded", &by_class[1]),
+        ("total", &total),
+    ] {
+        let reference = expected(part);
+        assert_eq!(gradient.len(), reference.len());
+        let difference = rms(gradient.iter().zip(&reference).map(|(g, f)| -g - f));
+        let scale = if part == "total" {
+            nonbonded_scale
+        } else {
+            rms(reference.iter().copied())
+        };
+        eprintln!(
+            "{label} {part} forces: RMS difference / scale {:.1e}",
+            difference / scale
+        );
+        assert!(
+            difference <= tolerance * scale,
+            "{label} {part} forces: RMS difference {difference:e} against {scale:e} kcal/mol/Å"
+        );
+    }
+}
