@@ -32,14 +32,17 @@ same, or changes only the PME accuracy):
 The rows (--rows picks some; default all). GROMACS rows: `integrator = md` (leap-frog),
 v-rescale at 300 K (tau-t 0.1 ps, one group), Maxwell-Boltzmann start (gen-vel, seed = the
 repeat), energies every 100 steps (nstcalcenergy's default), no output, `mdrun -ntmpi 1
--ntomp N -pin on -notunepme`. OpenMM rows: Langevin at 300 K, friction 1/ps, rigid water,
-velocities at 300 K (seed = the repeat), no reporters.
+-ntomp N -pin on -notunepme` (mdrun raises nstlist from 10 to 40 by itself; printed). OpenMM
+rows: Langevin at 300 K, friction 1/ps, rigid water (SETTLE; the script adds the H-H
+constraint the prmtop lacks, see rigid_water), velocities at 300 K (seed = the repeat), no
+reporters, CPU platform property Threads = N (checked after every run).
   gmx-hbonds-2fs     dt 2 fs, constraints = h-bonds (LINCS), water SETTLE
   gmx-hmr-4fs        as gmx-hbonds-2fs, dt 4 fs, hydrogens 3 amu: GROMACS 2022 has no
                      mass-repartition-factor (2023 and later), so the script writes a .top
                      with every hydrogen bonded to a heavy atom at 3 amu, the difference taken
                      from that atom, water untouched (OpenMM's and longstep's rule); a GROMACS
-                     that has the option gets `mass-repartition-factor = 3` instead (3.024 amu)
+                     that has the option gets `mass-repartition-factor = 3` instead (3.024 amu;
+                     the check line shows the masses the tpr holds)
   gmx-mts-2fs        as gmx-hbonds-2fs with mts = yes, mts-levels = 2, mts-level2-forces =
                      longrange-nonbonded, mts-level2-factor = 2: PME mesh every 4 fs
   gmx-mts-hmr-4fs    as gmx-hmr-4fs with the same mts: dt 4 fs, PME mesh every 8 fs
@@ -63,10 +66,12 @@ the scene is read, the force field built, the integrator set up and the first en
 written; it includes the energy rows every --energy-every steps, default every step, each a
 full energy evaluation, so give --energy-every in ARGS: GROMACS computes energies every 100
 steps, OpenMM never). wall_s is the wall time of the whole process (mdrun alone for GROMACS,
-grompp is outside), and setup_fraction = 1 - (timed loop) / wall_s, printed per run; the
-summary marks a row whose median is over 5 %. --ps sets the simulated time of every run
-(default: ala2 40 ps, trpcage 12 ps, so that the fastest GROMACS row's set-up is about 5 %
-or less at 2 threads; a row over 5 % is marked `!` in the summary).
+grompp is outside), and setup_fraction = 1 - (timed loop) / wall_s, printed per run. --ps
+sets the simulated time of every run (default: ala2 40 ps, trpcage 12 ps, so that the fastest
+GROMACS row's set-up is about 5 % or less at 2 threads; a row whose median set-up fraction is
+over 5 % is marked `!` in the summary). Run it on a quiet machine: with -pin on GROMACS's
+OpenMP threads spin, and its 2-thread runs collapse when another process shares a core (ala2,
+0.2 ps, load 3 on 2 cores: 28 ns/day at 2 threads against 155 at 1).
 
 Interleaving: for each repeat, for each thread count, every row once in the same order.
 Output (--out PREFIX, default docs/data/sittings/production-SYSTEM-DATE): PREFIX.csv, every
@@ -260,9 +265,8 @@ def gromacs_dump_check(tpr):
         settles += nsettle
         for m in re.findall(r"m=\s*([0-9.e+-]+), q=[^}]*atomnumber=\s*1\}", body):
             masses["water" if nsettle else "other"].add(round(float(m), 4))
-    fmt = lambda s: "/".join("%g" % m for m in sorted(s)) or "-"
-    return "%d LINCS constraints, %d SETTLE waters, H masses %s amu (water H %s)" % (
-        constraints, settles, fmt(masses["other"]), fmt(masses["water"]))
+    return "%d LINCS constraints, %d SETTLE waters, H masses %s" % (
+        constraints, settles, masses_text(masses))
 
 
 def gromacs_log_check(log):
@@ -386,40 +390,57 @@ def rigid_water(system, topology):
             force.setAngleParameters(k, i, j, m, theta, 0.0)
 
 
-def openmm_check(prmtop, system, nb, context, integrator):
+def masses_text(masses):
+    """'3 amu (water H 1.0079)' from {"water": {...}, "other": {...}} hydrogen masses."""
+    fmt = lambda s: "/".join("%g" % m for m in sorted(s)) or "-"
+    return "%s amu (water H %s)" % (fmt(masses["other"]), fmt(masses["water"]))
+
+
+def openmm_constraints_text(topology, system):
+    """Constraints, how many waters hold three (rigid), and the hydrogens' masses."""
     from openmm import app, unit
-    water = WATER
-    hydrogen = {"water": set(), "other": set()}
-    for atom in prmtop.topology.atoms():
+    masses = {"water": set(), "other": set()}
+    residue = {}
+    for atom in topology.atoms():
+        water = atom.residue.name in WATER
+        if water:
+            residue[atom.index] = atom.residue.index
         if atom.element == app.element.hydrogen:
             m = system.getParticleMass(atom.index).value_in_unit(unit.amu)
-            hydrogen["water" if atom.residue.name in water else "other"].add(round(m, 4))
-    residue = {a.index: a.residue.index for a in prmtop.topology.atoms()
-               if a.residue.name in water}
+            masses["water" if water else "other"].add(round(m, 4))
     per_water = {}
     for k in range(system.getNumConstraints()):
         i, j, _ = system.getConstraintParameters(k)
         if i in residue and j in residue:
             per_water[residue[i]] = per_water.get(residue[i], 0) + 1
     rigid = sum(1 for n in per_water.values() if n == 3)
+    return "%d constraints (%d waters with 3), H masses %s" % (
+        system.getNumConstraints(), rigid, masses_text(masses))
+
+
+def openmm_pme_text(system, nb, context):
+    """Force groups, the reciprocal sum's group and the PME parameters the context uses."""
+    from openmm import unit
     try:
         alpha, nx, ny, nz = nb.getPMEParametersInContext(context)
         source = "in the context"
     except Exception:  # OpenMM 8.6's CPU platform fails here now and then (bad_cast)
         alpha, nx, ny, nz = nb.getPMEParameters()
         alpha, source = getattr(alpha, "_value", alpha), "as set"
-    fmt = lambda s: "/".join("%g" % m for m in sorted(s)) or "-"
     groups = sorted({system.getForce(i).getForceGroup() for i in range(system.getNumForces())})
-    return ("%s dt %g fs, %d constraints (%d waters with 3), H masses %s amu (water H %s), force groups %s, "
-            "reciprocal in group %d, PME grid %dx%dx%d order 5 alpha %.4f/A (%s), "
-            "dispersion correction %s, cutoff %.2f nm" % (
-                type(integrator).__name__,
-                integrator.getStepSize().value_in_unit(unit.femtosecond),
-                system.getNumConstraints(), rigid, fmt(hydrogen["other"]), fmt(hydrogen["water"]),
-                groups, nb.getReciprocalSpaceForceGroup() if
-                nb.getReciprocalSpaceForceGroup() >= 0 else nb.getForceGroup(), nx, ny, nz,
-                alpha / 10.0, source, nb.getUseDispersionCorrection(),
+    recip = nb.getReciprocalSpaceForceGroup()
+    return ("force groups %s, reciprocal in group %d, PME grid %dx%dx%d order 5 alpha %.4f/A "
+            "(%s), dispersion correction %s, cutoff %.2f nm" % (
+                groups, recip if recip >= 0 else nb.getForceGroup(), nx, ny, nz, alpha / 10.0,
+                source, nb.getUseDispersionCorrection(),
                 nb.getCutoffDistance().value_in_unit(unit.nanometer)))
+
+
+def openmm_check(prmtop, system, nb, context, integrator):
+    from openmm import unit
+    return "%s dt %g fs, %s, %s" % (
+        type(integrator).__name__, integrator.getStepSize().value_in_unit(unit.femtosecond),
+        openmm_constraints_text(prmtop.topology, system), openmm_pme_text(system, nb, context))
 
 
 def openmm_worker(spec):
