@@ -67,8 +67,9 @@ written; it includes the energy rows every --energy-every steps, default every s
 full energy evaluation, so give --energy-every in ARGS: GROMACS computes energies every 100
 steps, OpenMM never). wall_s is the wall time of the whole process (mdrun alone for GROMACS,
 grompp is outside), and setup_fraction = 1 - (timed loop) / wall_s, printed per run. --ps
-sets the simulated time of every run (default: ala2 40 ps, trpcage 12 ps, so that the fastest
-GROMACS row's set-up is about 5 % or less at 2 threads; a row whose median set-up fraction is
+sets the simulated time of every run, or with --seconds S of each row's calibration run,
+from which each row gets the length that times about S seconds (default: ala2 40 ps,
+trpcage 12 ps, so that the fastest GROMACS row's set-up is about 5 % or less at 2 threads; a row whose median set-up fraction is
 over 5 % is marked `!` in the summary). Run it on a quiet machine: with -pin on GROMACS's
 OpenMP threads spin, and its 2-thread runs collapse when another process shares a core (ala2,
 0.2 ps, load 3 on 2 cores: 28 ns/day at 2 threads against 155 at 1).
@@ -511,24 +512,52 @@ def run_longstep(args_text, scene, ps, threads, check):
 
 
 # ------------------------------------------------------------------ the sitting --------------
-def run_row(row, args, threads, repeat, check, pme):
+def run_row(row, args, ps, threads, repeat, check, pme):
     files = system_files(args.system)
     if row in args.longstep:
-        return run_longstep(args.longstep[row], files["scene"], args.ps, threads, check)
+        return run_longstep(args.longstep[row], files["scene"], ps, threads, check)
     if PEER_ROWS[row][0] == "gromacs":
-        return run_gromacs(row, files, args.ps, threads, repeat + 1, check)
-    return run_openmm(row, files, args.ps, threads, repeat + 1, check, pme)
+        return run_gromacs(row, files, ps, threads, repeat + 1, check)
+    return run_openmm(row, files, ps, threads, repeat + 1, check, pme)
+
+
+def run_lengths(args, pme, checks):
+    """{(row, threads): ps}: --ps for every run, or with --seconds S each row's length from
+    one untimed calibration run of --ps, so that its timed loop takes about S seconds (ps =
+    ns/day * S / 86.4, never below --ps). The calibration runs make the check lines."""
+    lengths = {(row, t): args.ps for row in args.rows for t in args.threads}
+    if args.seconds is None:
+        return lengths
+    for threads in args.threads:
+        for row in args.rows:
+            check = row not in checks
+            try:
+                ns_day, _, _, note = run_row(row, args, args.ps, threads, 0, check, pme)
+            except Exception as e:
+                print("  %-20s %d thr  calibration FAILED: %s" % (row, threads, e), flush=True)
+                continue
+            if check:
+                checks[row] = note
+                print("  check %-20s %s" % (row, note), flush=True)
+            lengths[(row, threads)] = max(args.ps, round(ns_day * args.seconds / 86.4, 1))
+            print("  %-20s %d thr  calibration %.1f ns/day: %g ps per run" % (
+                row, threads, ns_day, lengths[(row, threads)]), flush=True)
+    return lengths
 
 
 def sitting(args, pme, writer, sink):
     """Every row at every thread count, interleaved; returns {(row, threads): [runs]}."""
     runs, checks = {}, {}
+    lengths = run_lengths(args, pme, checks)
+    args.lengths = lengths
     for repeat in range(args.repeats):
         for threads in args.threads:
             for row in args.rows:
                 check = row not in checks
+                ps = lengths[(row, threads)]
                 try:
-                    ns_day, wall, loop, note = run_row(row, args, threads, repeat, check, pme)
+                    ns_day, wall, loop, note = run_row(row, args, ps, threads, repeat, check,
+                                                       pme)
                 except Exception as e:  # a failed run is reported; the sitting goes on
                     print("  %-20s %d thr  run %d FAILED: %s" % (row, threads, repeat + 1, e),
                           flush=True)
@@ -539,7 +568,7 @@ def sitting(args, pme, writer, sink):
                 setup = 1.0 - loop / wall
                 runs.setdefault((row, threads), []).append((ns_day, wall, setup))
                 writer.writerow([args.system, row, threads, repeat + 1, "%.4f" % ns_day,
-                                 "%.3f" % wall, "%.4f" % setup, "%.3f" % loop])
+                                 "%.3f" % wall, "%.4f" % setup, "%.3f" % loop, ps])
                 sink.flush()
                 print("  %-20s %d thr  run %d: %9.2f ns/day  process %7.2f s  set-up %5.1f %%" % (
                     row, threads, repeat + 1, ns_day, wall, 100.0 * setup), flush=True)
@@ -595,6 +624,9 @@ def parse_args(argv):
     ap.add_argument("--ps", type=float, default=None,
                     help="simulated ps per run (default ala2 %g, trpcage %g)" % (
                         DEFAULT_PS["ala2"], DEFAULT_PS["trpcage"]))
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="length each row's runs for about this many seconds of timed loop, "
+                         "from a calibration run of --ps (default: every run --ps)")
     ap.add_argument("--out", default=None, help="PREFIX of PREFIX.csv and PREFIX.txt")
     ap.add_argument("--no-install", dest="install", action="store_false")
     args = ap.parse_args(argv)
@@ -632,6 +664,8 @@ def check_args(ap, args):
     args.ps = DEFAULT_PS[args.system] if args.ps is None else args.ps
     if not args.ps > 0:
         ap.error("--ps must be positive")
+    if args.seconds is not None and not args.seconds > 0:
+        ap.error("--seconds must be positive")
     if args.out is None:
         args.out = os.path.join(ROOT, "docs", "data", "sittings", "production-%s-%s" % (
             args.system, time.strftime("%Y-%m-%d", time.gmtime())))
@@ -647,15 +681,18 @@ def header_lines(args, pme):
             cpu.strip(), os.cpu_count(), " ".join("%.2f" % x for x in os.getloadavg()),
             time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())),
         "versions: " + h2h.versions(codes),
-        "system: %s (%s), %g ps per run, %d repeats, threads %s" % (
-            args.system, os.path.relpath(system_files(args.system)["scene"], ROOT), args.ps,
+        "system: %s (%s), %s, %d repeats, threads %s" % (
+            args.system, os.path.relpath(system_files(args.system)["scene"], ROOT),
+            "%g ps per run" % args.ps if args.seconds is None else
+            "runs of about %g s of timed loop (each row's ps from a %g ps calibration run; "
+            "column ps of the csv)" % (args.seconds, args.ps),
             args.repeats, ",".join(map(str, args.threads))),
         "longstep PME: alpha %.6f 1/A, grid %s, order %d (OpenMM gets this alpha and grid, "
         "order 5); GROMACS ewald-rtol %g, fourier-spacing 0.12 nm, order %d" % (
             pme["alpha"], "x".join(map(str, pme["grid"])), pme["order"], h2h.PME_RTOL,
             h2h.PME_ORDER),
-    ] + ["longstep row %s: longstep run SCENE %s --t-end %gps --quiet --out TMP" % (
-        label, flags, args.ps) for label, flags in args.longstep.items()]
+    ] + ["longstep row %s: longstep run SCENE %s --t-end PS --quiet --out TMP" % (
+        label, flags) for label, flags in args.longstep.items()]
 
 
 def main(argv):
@@ -677,7 +714,7 @@ def main(argv):
     with open(args.out + ".csv", "w", newline="") as sink:
         writer = csv.writer(sink)
         writer.writerow(["system", "row", "threads", "repeat", "ns_day", "wall_s",
-                         "setup_fraction", "loop_s"])
+                         "setup_fraction", "loop_s", "ps"])
         start = time.time()
         runs, checks = sitting(args, pme, writer, sink)
     lines = summary(args, runs, checks, header)
