@@ -16,6 +16,16 @@
 //! The errors are treated as independent; paired runs (same start, same noise) are
 //! correlated, so the combined error overstates theirs — a conservative verdict.
 //!
+//! **Backbone basins.** When the scene is a topology whose atom names give a peptide
+//! backbone ([`super::dihedrals::backbone_residues`]), the populations of the (φ, ψ) basins
+//! C7eq/β, αR and αL ([`super::dihedrals::BASINS`]) are compared too, **pooled over every
+//! residue with φ and ψ** ([`super::dihedrals::pooled_populations`]: one row per basin
+//! whatever the protein's length; the alanine dipeptide has one such residue, so pooled is
+//! its own). Each Δp, with the run's block error (shrinking as `1/√T`) and the reference's
+//! as the fixed error, gets the same three-way verdict against `basin_bound` (default 0.1
+//! in absolute population, [`DEFAULT_BASIN_BOUND`]), and joins the point's verdict
+//! ([`verdict::all`]). A scene without a backbone (a water box) compares no basins.
+//!
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
 
@@ -25,6 +35,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::block_average::Estimate;
+use super::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
 use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use super::scan::{
     PointOutputs, ScanSetup, StepResult, Verdict, point_spec, run_once, step_result, until_decided,
@@ -44,6 +55,10 @@ pub struct SamplingCriterion {
     pub potential_bound: f64,
     /// Largest |Δ g(r) first-peak height| that passes.
     pub peak_bound: f64,
+    /// Largest |Δ population| of a backbone basin that passes.
+    pub basin_bound: f64,
+    /// The scene's backbone residues whose basins are compared (empty: no peptide backbone).
+    pub backbone: Vec<BackboneResidue>,
     /// Start of each run left out (equilibration), in the scene's time unit.
     pub discard: f64,
     /// Blocks of the error bars.
@@ -53,6 +68,14 @@ pub struct SamplingCriterion {
     /// Where each point's run directory is written.
     pub runs: PathBuf,
 }
+
+/// The default bound on a basin's |Δ population|: 0.1 of the frames, the resolution a user
+/// of a Ramachandran population asks for (a basin's share to one decimal: whether αR holds
+/// 0.2 or 0.3 of the time). It is a choice, not a derived figure: a basin's indicator is
+/// correlated over the time between transitions (tens of ps for the solvated dipeptide), so
+/// whether a run resolves it is for its error bar to say — a run too short for 0.1 is
+/// undecided, and says how long a run would decide.
+pub const DEFAULT_BASIN_BOUND: f64 = 0.1;
 
 /// Most trajectory frames per run (a bound on a user-given count).
 pub const MAX_FRAMES: usize = 100_000;
@@ -91,6 +114,7 @@ impl SamplingCriterion {
         for (value, flag) in [
             (self.potential_bound, "--potential-bound"),
             (self.peak_bound, "--peak-bound"),
+            (self.basin_bound, "--basin-bound"),
         ] {
             if !(value > 0.0 && value.is_finite()) {
                 return Err(Error::input(format!(
@@ -117,6 +141,28 @@ impl SamplingCriterion {
             )));
         }
         Ok(())
+    }
+
+    /// The analyzer of a run of `scene` (the point's or the reference's): the options of
+    /// [`Self::analysis_options_for`] and the backbone's basins.
+    pub fn analyzer<'a>(
+        &self,
+        scene: &'a crate::io::scene::Scene,
+        dof: Option<f64>,
+    ) -> Result<Analyzer<'a>> {
+        let mut analyzer = Analyzer::new(scene, self.analysis_options_for(dof))?;
+        analyzer.set_backbone(self.backbone.clone());
+        Ok(analyzer)
+    }
+
+    /// What the output says of the basins: the residues they are pooled over, or that the
+    /// scene has no peptide backbone.
+    pub fn basins_note(&self) -> String {
+        if self.backbone.is_empty() {
+            return "no peptide backbone: no basin populations compared".into();
+        }
+        let labels: Vec<&str> = self.backbone.iter().map(|r| r.label.as_str()).collect();
+        format!("pooled over {}", labels.join(" "))
     }
 
     /// Trajectory frame interval in steps of outer step `h` over a run of `t_end`.
@@ -158,7 +204,68 @@ pub struct Comparison {
     /// when either fails).
     pub potential_verdict: verdict::Verdict,
     pub peak_verdict: verdict::Verdict,
+    /// The backbone basins, pooled over residues (empty without a backbone).
+    pub basins: Vec<BasinComparison>,
     pub verdict: verdict::Verdict,
+}
+
+/// One backbone basin's population in a run against the reference's.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BasinComparison {
+    /// Its name ([`BASINS`]).
+    pub basin: String,
+    /// The run's population and its block error.
+    pub population: f64,
+    pub error: f64,
+    /// Run minus reference, and `√(σ_run² + σ_ref²)`.
+    pub difference: f64,
+    pub combined_error: f64,
+    pub verdict: verdict::Verdict,
+}
+
+/// Each basin's population in `run` against `reference`, pooled over residues, judged
+/// against `bound` with the span of `bounds`; none when either has no backbone.
+pub fn compare_basins(
+    reference: &[ResidueBasins],
+    run: &[ResidueBasins],
+    bounds: &Bounds,
+    bound: f64,
+) -> Vec<BasinComparison> {
+    let (Some(reference), Some(run)) = (pooled_populations(reference), pooled_populations(run))
+    else {
+        return Vec::new();
+    };
+    BASINS
+        .iter()
+        .zip(run.iter().zip(&reference))
+        .map(|(name, (p, r))| {
+            let m = difference(p, r, bounds);
+            BasinComparison {
+                basin: name.to_string(),
+                population: p.mean,
+                error: p.error,
+                difference: m.value,
+                combined_error: m.standard_error(),
+                verdict: verdict::judge(&m, bound),
+            }
+        })
+        .collect()
+}
+
+/// [`compare`] with the backbone basins ([`compare_basins`] against `basin_bound`), each
+/// basin's verdict joining the point's.
+pub fn compare_with_basins(
+    reference: &RunAnalysis,
+    run: &RunAnalysis,
+    bounds: &Bounds,
+    basin_bound: f64,
+) -> Comparison {
+    let mut comparison = compare(reference, run, bounds);
+    comparison.basins = compare_basins(&reference.basins, &run.basins, bounds, basin_bound);
+    let mut verdicts = vec![comparison.potential_verdict, comparison.peak_verdict];
+    verdicts.extend(comparison.basins.iter().map(|b| b.verdict));
+    comparison.verdict = verdict::all(&verdicts);
+    comparison
 }
 
 /// The first-peak height of the analysed pair, `None` when no peak was found.
@@ -225,6 +332,7 @@ pub fn compare(reference: &RunAnalysis, run: &RunAnalysis, bounds: &Bounds) -> C
         kinetic_temperature_error: run.kinetic_temperature.error,
         potential_verdict,
         peak_verdict,
+        basins: Vec::new(),
         verdict: verdict::all(&[potential_verdict, peak_verdict]),
     }
 }
@@ -301,7 +409,7 @@ fn judge_sampling_point(
         ));
     }
     let scene = setup.load_scene()?;
-    let analyzer = Analyzer::new(&scene, criterion.analysis_options_for(setup.kinetic_dof))?;
+    let analyzer = criterion.analyzer(&scene, setup.kinetic_dof)?;
     let analysis = analyzer.analyze(&RunFiles {
         energy: dir.join("energy.csv"),
         trajectory: dir.join("trajectory.xyz"),
@@ -312,7 +420,7 @@ fn judge_sampling_point(
         start: criterion.discard,
         span: setup.t_end - criterion.discard,
     };
-    let comparison = compare(reference, &analysis, &bounds);
+    let comparison = compare_with_basins(reference, &analysis, &bounds, criterion.basin_bound);
     let mut result = step_result(
         index,
         method,
