@@ -24,7 +24,9 @@
 //! its own). Each Δp, with the run's block error (shrinking as `1/√T`) and the reference's
 //! as the fixed error, gets the same three-way verdict against `basin_bound` (default 0.1
 //! in absolute population, [`DEFAULT_BASIN_BOUND`]), and joins the point's verdict
-//! ([`verdict::all`]). A scene without a backbone (a water box) compares no basins.
+//! ([`verdict::all`]). A basin whose population has a zero error in both runs (the same in
+//! every block: no transition seen) is undecided, never a pass on no information. A scene
+//! without a backbone (a water box) compares no basins.
 //!
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
@@ -240,13 +242,19 @@ pub fn compare_basins(
         .zip(run.iter().zip(&reference))
         .map(|(name, (p, r))| {
             let m = difference(p, r, bounds);
+            // A zero error is no transition seen in any block of either run: not a
+            // measured certainty, so it decides nothing.
+            let verdict = match m.standard_error() > 0.0 {
+                true => verdict::judge(&m, bound),
+                false => verdict::Verdict::Undecided { decide_at: None },
+            };
             BasinComparison {
                 basin: name.to_string(),
                 population: p.mean,
                 error: p.error,
                 difference: m.value,
                 combined_error: m.standard_error(),
-                verdict: verdict::judge(&m, bound),
+                verdict,
             }
         })
         .collect()
@@ -457,4 +465,87 @@ pub fn run_sampling_points(
         .collect::<Result<Vec<_>>>()?;
     results.sort_by_key(|r| r.index);
     Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::block_average::from_block_means;
+
+    /// A residue whose basins have these block means (C7eq/β, αR; αL a constant).
+    fn residue(c7eq: &[f64], alpha_r: &[f64], alpha_l: f64) -> ResidueBasins {
+        let block_means = [c7eq.to_vec(), alpha_r.to_vec(), vec![alpha_l; c7eq.len()]];
+        ResidueBasins {
+            label: "ALA2".into(),
+            populations: std::array::from_fn(|k| from_block_means(&block_means[k])),
+            block_means,
+            histogram: Vec::new(),
+            frames: 100,
+        }
+    }
+
+    const BOUNDS: Bounds = Bounds {
+        potential: 0.1,
+        peak: 0.05,
+        start: 0.0,
+        span: 100.0,
+    };
+
+    #[test]
+    fn basin_populations_are_judged_against_the_reference() {
+        // Reference C7eq/β block means 0.6 ± 0.02 (alternating): mean 0.6, error
+        // 0.02·√(4/(4·3)) = 0.02/√3 = 0.01155; αR 0.3 alike; αL 0.1 exactly (zero error).
+        let reference = [residue(
+            &[0.62, 0.58, 0.62, 0.58],
+            &[0.28, 0.32, 0.28, 0.32],
+            0.1,
+        )];
+        let e = 0.02 / 3f64.sqrt();
+        // The same populations: Δp = 0 ± √2·0.01155 = 0.0163, 2σ = 0.033 ≤ 0.1: pass; αL's
+        // error is zero in both runs (the same in every block): undecided.
+        let same = compare_basins(&reference, &reference, &BOUNDS, 0.1);
+        assert_eq!(same.len(), 3);
+        assert_eq!(same[0].basin, "C7eq/beta");
+        assert!(same[0].difference.abs() < 1e-15);
+        assert!(
+            (same[0].combined_error - e * 2f64.sqrt()).abs() < 1e-12,
+            "{same:?}"
+        );
+        assert_eq!(same[0].verdict, verdict::Verdict::Pass);
+        assert_eq!(same[2].verdict.name(), "undecided");
+        // αR moved to 0.6 and C7eq/β to 0.3: |Δp| = 0.3, 0.3 − 0.033 > 0.1: fail.
+        let moved = [residue(
+            &[0.32, 0.28, 0.32, 0.28],
+            &[0.58, 0.62, 0.58, 0.62],
+            0.1,
+        )];
+        let wrong = compare_basins(&reference, &moved, &BOUNDS, 0.1);
+        assert!((wrong[1].difference - 0.3).abs() < 1e-12, "{wrong:?}");
+        assert_eq!(wrong[1].verdict, verdict::Verdict::Fail);
+        // Δp = 0.09 ± 0.0163: the interval [0.057, 0.123] straddles 0.1: undecided.
+        let near = [residue(
+            &[0.53, 0.49, 0.53, 0.49],
+            &[0.37, 0.41, 0.37, 0.41],
+            0.1,
+        )];
+        let open = compare_basins(&reference, &near, &BOUNDS, 0.1);
+        assert!((open[0].difference + 0.09).abs() < 1e-12, "{open:?}");
+        assert_eq!(open[0].verdict.name(), "undecided");
+        // No backbone: nothing compared.
+        assert!(compare_basins(&[], &reference, &BOUNDS, 0.1).is_empty());
+    }
+
+    #[test]
+    fn residues_pool_by_their_block_means() {
+        // Two residues, one always C7eq/β and one always αR in blocks 1–2 and swapped in
+        // blocks 3–4: each residue's own error is 0.5/√3, but their pooled block means are
+        // 0.5 in every block, so the pooled C7eq/β population is 0.5 with zero error.
+        let pooled = pooled_populations(&[
+            residue(&[1.0, 1.0, 0.0, 0.0], &[0.0, 0.0, 1.0, 1.0], 0.0),
+            residue(&[0.0, 0.0, 1.0, 1.0], &[1.0, 1.0, 0.0, 0.0], 0.0),
+        ])
+        .unwrap();
+        assert_eq!((pooled[0].mean, pooled[0].error), (0.5, 0.0));
+        assert_eq!((pooled[1].mean, pooled[1].error), (0.5, 0.0));
+    }
 }

@@ -873,6 +873,51 @@ mod tests {
         assert_eq!(drift_rate(&series(0.2, 0.0)), 0.0);
     }
 
+    fn start(value: f64, error: f64) -> Measurement {
+        Measurement {
+            value,
+            error,
+            fixed_error: 0.0,
+            start: 0.0,
+            span: 10.0,
+            exponent: 1.0,
+        }
+    }
+
+    #[test]
+    fn starts_combine_to_their_mean_with_the_wider_error() {
+        let combined = |starts: &[(f64, f64)]| {
+            let m: Vec<Measurement> = starts.iter().map(|&(v, e)| start(v, e)).collect();
+            combine_starts(&m).unwrap()
+        };
+        let third = 1.0 / 3f64.sqrt();
+        // The fits' error wins: mean 0.010, √(3·0.015²)/3 = 0.015/√3 against the spread
+        // 0.002/√3; 0.010 + 2·0.00866 = 0.027 ≤ 0.05: pass.
+        let pass = combined(&[(0.010, 0.015), (0.012, 0.015), (0.008, 0.015)]);
+        assert!((pass.value - 0.010).abs() < 1e-15, "{pass:?}");
+        assert!((pass.error - 0.015 * third).abs() < 1e-15, "{pass:?}");
+        assert_eq!(verdict::judge(&pass, 0.05), verdict::Verdict::Pass);
+        // The spread wins: drifts 0.2, 0.3, 0.1 of tiny fit errors have the sample
+        // deviation 0.1, so σ = 0.1/√3 = 0.0577; 0.2 − 2σ = 0.085 > 0.05: fail.
+        let fail = combined(&[(0.2, 0.001), (0.3, 0.001), (0.1, 0.001)]);
+        assert!((fail.value - 0.2).abs() < 1e-15, "{fail:?}");
+        assert!((fail.error - 0.1 * third).abs() < 1e-15, "{fail:?}");
+        assert_eq!(verdict::judge(&fail, 0.05), verdict::Verdict::Fail);
+        // 0.04 ± 2·0.02/√3 straddles 0.05. The gap 0.01 is 2σ at σ = 0.005: with the
+        // drift's σ ∝ 1/T, a run 0.01155/0.005 = 2.309 times the span of 10 decides.
+        let open = combined(&[(0.04, 0.02), (0.05, 0.02), (0.03, 0.02)]);
+        let verdict::Verdict::Undecided { decide_at: Some(t) } = verdict::judge(&open, 0.05) else {
+            panic!("{open:?}");
+        };
+        let expected = 10.0 * (0.02 * third) / 0.005;
+        assert!((t - expected).abs() < 1e-9, "{t} vs {expected}");
+        // One start is itself: no spread, its own error.
+        assert_eq!(combined(&[(0.04, 0.02)]), start(0.04, 0.02));
+        assert!(combine_starts(&[]).is_none());
+        assert_eq!(check_starts(None).unwrap(), 1);
+        assert!(check_starts(Some(0)).is_err() && check_starts(Some(65)).is_err());
+    }
+
     fn result(method: &str, h: f64, verdict: Verdict) -> StepResult {
         StepResult {
             index: 0,

@@ -494,7 +494,8 @@ fn refuse_sampling_starts(criterion: Criterion, starts: usize, config: Option<&s
     )))
 }
 
-/// Each basin's line of the reference: population and error, or that there is no backbone.
+/// The reference's basin populations with their errors and the residues pooled, or that
+/// there is no peptide backbone.
 fn basins_notice(c: &SamplingCriterion, reference: &RunAnalysis) -> String {
     let note = c.basins_note();
     match crate::analysis::dihedrals::pooled_populations(&reference.basins) {
@@ -504,9 +505,9 @@ fn basins_notice(c: &SamplingCriterion, reference: &RunAnalysis) -> String {
                 .zip(p)
                 .map(|(name, e)| format!("{name} {:.3} ± {:.3}", e.mean, e.error))
                 .collect();
-            format!("basins {note}: reference {}", cells.join(", "))
+            format!("{note}: reference {}", cells.join(", "))
         }
-        None => format!("basins: {note}"),
+        None => note,
     }
 }
 
@@ -614,7 +615,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
             let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
             let reference = reference_analysis(&scene, &c, temperature, setup.kinetic_dof)?;
             if !args.quiet {
-                eprintln!("notice: {}", basins_notice(&c, &reference));
+                eprintln!("notice: backbone basins: {}", basins_notice(&c, &reference));
             }
             Some((c, reference))
         }

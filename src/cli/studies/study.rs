@@ -176,7 +176,7 @@ fn study_reference(
     }
     let reference = reference_analysis(scene, &c, temperature, dof)?;
     if !args.quiet {
-        eprintln!("notice: {}", basins_notice(&c, &reference));
+        eprintln!("notice: backbone basins: {}", basins_notice(&c, &reference));
     }
     Ok((c, reference))
 }
