@@ -72,7 +72,8 @@ pub enum ScanCommand {
 pub enum Criterion {
     /// NVE energy drift (the default; NVE methods only).
     Drift,
-    /// Potential energy per molecule and g(r) first-peak height against --reference.
+    /// Potential energy per molecule, g(r) first-peak height and, for a peptide, the
+    /// backbone basin populations against --reference.
     Sampling,
 }
 
