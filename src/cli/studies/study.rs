@@ -255,13 +255,17 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
         )));
     }
     let study = read_study(path)?;
+    // Before the configurations are built: their checks of the starts are the drift's.
+    if args.criterion == Some(Criterion::Sampling) {
+        for c in &study.configs {
+            let starts = c.starts.or(args.starts).unwrap_or(1);
+            refuse_sampling_starts(Criterion::Sampling, starts, Some(&c.label))?;
+        }
+    }
     let scene = args.source.load(&args.scene, &args.set)?;
     let (base, mut configs) = study_configs(args, &scene, &study)?;
     let methods: Vec<String> = configs.iter().map(|c| c.method.clone()).collect();
     let criterion = choose_criterion(args, &methods)?;
-    for c in &configs {
-        refuse_sampling_starts(criterion, c.setup.starts, Some(&c.label))?;
-    }
     if !args.quiet {
         for c in &configs {
             async_band_warnings(&c.setup, std::slice::from_ref(&c.method), &c.steps)?;
