@@ -434,6 +434,8 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
         pair: ("O".into(), "O".into()),
         potential_bound: 0.1,
         peak_bound: 0.05,
+        basin_bound: 0.1,
+        backbone: Vec::new(),
         discard: 40.0,
         blocks: 5,
         frames: 50,

@@ -151,6 +151,8 @@ pub struct ResidueBasins {
     pub label: String,
     /// Fractions of frames in each of [`BASINS`], with block-average errors.
     pub populations: [Estimate; 3],
+    /// Each basin's population in each block (the means behind `populations`' errors).
+    pub block_means: [Vec<f64>; 3],
     /// Fraction of frames per bin, `HISTOGRAM_BINS²`, φ-major.
     pub histogram: Vec<f64>,
     pub frames: usize,
@@ -203,22 +205,48 @@ impl BasinCounter {
             .map(|((residue, indicator), histogram)| {
                 let overall = indicator.overall_mean();
                 let blocks = indicator.counts().len();
-                let populations = std::array::from_fn(|k| {
-                    let means: Vec<f64> = (0..blocks).map(|b| indicator.block_mean(b)[k]).collect();
-                    Estimate {
-                        mean: overall[k],
-                        ..from_block_means(&means)
-                    }
+                let block_means: [Vec<f64>; 3] = std::array::from_fn(|k| {
+                    (0..blocks).map(|b| indicator.block_mean(b)[k]).collect()
+                });
+                let populations = std::array::from_fn(|k| Estimate {
+                    mean: overall[k],
+                    ..from_block_means(&block_means[k])
                 });
                 ResidueBasins {
                     label: residue.label.clone(),
                     populations,
+                    block_means,
                     histogram: histogram.iter().map(|&c| c as f64 / total).collect(),
                     frames: self.frames,
                 }
             })
             .collect()
     }
+}
+
+/// The basin populations of every residue pooled (each residue's frames counted alike):
+/// per basin the mean of the residues' populations, its error from the means over residues
+/// of their block means (so the residues' correlation within a block is kept). `None`
+/// without residues.
+pub fn pooled_populations(residues: &[ResidueBasins]) -> Option<[Estimate; 3]> {
+    let n = residues.len();
+    let first = residues.first()?;
+    Some(std::array::from_fn(|k| {
+        let blocks = first.block_means[k].len();
+        let means: Vec<f64> = (0..blocks)
+            .map(|b| {
+                residues
+                    .iter()
+                    .map(|r| r.block_means[k].get(b).copied().unwrap_or(f64::NAN))
+                    .sum::<f64>()
+                    / n as f64
+            })
+            .collect();
+        Estimate {
+            mean: residues.iter().map(|r| r.populations[k].mean).sum::<f64>() / n as f64,
+            ..from_block_means(&means)
+        }
+    }))
 }
 
 #[cfg(test)]

@@ -16,6 +16,18 @@
 //! The errors are treated as independent; paired runs (same start, same noise) are
 //! correlated, so the combined error overstates theirs — a conservative verdict.
 //!
+//! **Backbone basins.** When the scene is a topology whose atom names give a peptide
+//! backbone ([`super::dihedrals::backbone_residues`]), the populations of the (φ, ψ) basins
+//! C7eq/β, αR and αL ([`super::dihedrals::BASINS`]) are compared too, **pooled over every
+//! residue with φ and ψ** ([`super::dihedrals::pooled_populations`]: one row per basin
+//! whatever the protein's length; the alanine dipeptide has one such residue, so pooled is
+//! its own). Each Δp, with the run's block error (shrinking as `1/√T`) and the reference's
+//! as the fixed error, gets the same three-way verdict against `basin_bound` (default 0.1
+//! in absolute population, [`DEFAULT_BASIN_BOUND`]), and joins the point's verdict
+//! ([`verdict::all`]). A basin whose population has a zero error in both runs (the same in
+//! every block: no transition seen) is undecided, never a pass on no information. A scene
+//! without a backbone (a water box) compares no basins.
+//!
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
 
@@ -25,6 +37,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::block_average::Estimate;
+use super::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
 use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use super::scan::{
     PointOutputs, ScanSetup, StepResult, Verdict, point_spec, run_once, step_result, until_decided,
@@ -44,6 +57,10 @@ pub struct SamplingCriterion {
     pub potential_bound: f64,
     /// Largest |Δ g(r) first-peak height| that passes.
     pub peak_bound: f64,
+    /// Largest |Δ population| of a backbone basin that passes.
+    pub basin_bound: f64,
+    /// The scene's backbone residues whose basins are compared (empty: no peptide backbone).
+    pub backbone: Vec<BackboneResidue>,
     /// Start of each run left out (equilibration), in the scene's time unit.
     pub discard: f64,
     /// Blocks of the error bars.
@@ -53,6 +70,14 @@ pub struct SamplingCriterion {
     /// Where each point's run directory is written.
     pub runs: PathBuf,
 }
+
+/// The default bound on a basin's |Δ population|: 0.1 of the frames, the resolution a user
+/// of a Ramachandran population asks for (a basin's share to one decimal: whether αR holds
+/// 0.2 or 0.3 of the time). It is a choice, not a derived figure: a basin's indicator is
+/// correlated over the time between transitions (tens of ps for the solvated dipeptide), so
+/// whether a run resolves it is for its error bar to say — a run too short for 0.1 is
+/// undecided, and says how long a run would decide.
+pub const DEFAULT_BASIN_BOUND: f64 = 0.1;
 
 /// Most trajectory frames per run (a bound on a user-given count).
 pub const MAX_FRAMES: usize = 100_000;
@@ -91,6 +116,7 @@ impl SamplingCriterion {
         for (value, flag) in [
             (self.potential_bound, "--potential-bound"),
             (self.peak_bound, "--peak-bound"),
+            (self.basin_bound, "--basin-bound"),
         ] {
             if !(value > 0.0 && value.is_finite()) {
                 return Err(Error::input(format!(
@@ -117,6 +143,28 @@ impl SamplingCriterion {
             )));
         }
         Ok(())
+    }
+
+    /// The analyzer of a run of `scene` (the point's or the reference's): the options of
+    /// [`Self::analysis_options_for`] and the backbone's basins.
+    pub fn analyzer<'a>(
+        &self,
+        scene: &'a crate::io::scene::Scene,
+        dof: Option<f64>,
+    ) -> Result<Analyzer<'a>> {
+        let mut analyzer = Analyzer::new(scene, self.analysis_options_for(dof))?;
+        analyzer.set_backbone(self.backbone.clone());
+        Ok(analyzer)
+    }
+
+    /// What the output says of the basins: the residues they are pooled over, or that the
+    /// scene has no peptide backbone.
+    pub fn basins_note(&self) -> String {
+        if self.backbone.is_empty() {
+            return "no peptide backbone: no basin populations compared".into();
+        }
+        let labels: Vec<&str> = self.backbone.iter().map(|r| r.label.as_str()).collect();
+        format!("pooled over {}", labels.join(" "))
     }
 
     /// Trajectory frame interval in steps of outer step `h` over a run of `t_end`.
@@ -158,7 +206,74 @@ pub struct Comparison {
     /// when either fails).
     pub potential_verdict: verdict::Verdict,
     pub peak_verdict: verdict::Verdict,
+    /// The backbone basins, pooled over residues (empty without a backbone).
+    pub basins: Vec<BasinComparison>,
     pub verdict: verdict::Verdict,
+}
+
+/// One backbone basin's population in a run against the reference's.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BasinComparison {
+    /// Its name ([`BASINS`]).
+    pub basin: String,
+    /// The run's population and its block error.
+    pub population: f64,
+    pub error: f64,
+    /// Run minus reference, and `√(σ_run² + σ_ref²)`.
+    pub difference: f64,
+    pub combined_error: f64,
+    pub verdict: verdict::Verdict,
+}
+
+/// Each basin's population in `run` against `reference`, pooled over residues, judged
+/// against `bound` with the span of `bounds`; none when either has no backbone.
+pub fn compare_basins(
+    reference: &[ResidueBasins],
+    run: &[ResidueBasins],
+    bounds: &Bounds,
+    bound: f64,
+) -> Vec<BasinComparison> {
+    let (Some(reference), Some(run)) = (pooled_populations(reference), pooled_populations(run))
+    else {
+        return Vec::new();
+    };
+    BASINS
+        .iter()
+        .zip(run.iter().zip(&reference))
+        .map(|(name, (p, r))| {
+            let m = difference(p, r, bounds);
+            // A zero error is no transition seen in any block of either run: not a
+            // measured certainty, so it decides nothing.
+            let verdict = match m.standard_error() > 0.0 {
+                true => verdict::judge(&m, bound),
+                false => verdict::Verdict::Undecided { decide_at: None },
+            };
+            BasinComparison {
+                basin: name.to_string(),
+                population: p.mean,
+                error: p.error,
+                difference: m.value,
+                combined_error: m.standard_error(),
+                verdict,
+            }
+        })
+        .collect()
+}
+
+/// [`compare`] with the backbone basins ([`compare_basins`] against `basin_bound`), each
+/// basin's verdict joining the point's.
+pub fn compare_with_basins(
+    reference: &RunAnalysis,
+    run: &RunAnalysis,
+    bounds: &Bounds,
+    basin_bound: f64,
+) -> Comparison {
+    let mut comparison = compare(reference, run, bounds);
+    comparison.basins = compare_basins(&reference.basins, &run.basins, bounds, basin_bound);
+    let mut verdicts = vec![comparison.potential_verdict, comparison.peak_verdict];
+    verdicts.extend(comparison.basins.iter().map(|b| b.verdict));
+    comparison.verdict = verdict::all(&verdicts);
+    comparison
 }
 
 /// The first-peak height of the analysed pair, `None` when no peak was found.
@@ -225,6 +340,7 @@ pub fn compare(reference: &RunAnalysis, run: &RunAnalysis, bounds: &Bounds) -> C
         kinetic_temperature_error: run.kinetic_temperature.error,
         potential_verdict,
         peak_verdict,
+        basins: Vec::new(),
         verdict: verdict::all(&[potential_verdict, peak_verdict]),
     }
 }
@@ -301,7 +417,7 @@ fn judge_sampling_point(
         ));
     }
     let scene = setup.load_scene()?;
-    let analyzer = Analyzer::new(&scene, criterion.analysis_options_for(setup.kinetic_dof))?;
+    let analyzer = criterion.analyzer(&scene, setup.kinetic_dof)?;
     let analysis = analyzer.analyze(&RunFiles {
         energy: dir.join("energy.csv"),
         trajectory: dir.join("trajectory.xyz"),
@@ -312,7 +428,7 @@ fn judge_sampling_point(
         start: criterion.discard,
         span: setup.t_end - criterion.discard,
     };
-    let comparison = compare(reference, &analysis, &bounds);
+    let comparison = compare_with_basins(reference, &analysis, &bounds, criterion.basin_bound);
     let mut result = step_result(
         index,
         method,
@@ -349,4 +465,87 @@ pub fn run_sampling_points(
         .collect::<Result<Vec<_>>>()?;
     results.sort_by_key(|r| r.index);
     Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::block_average::from_block_means;
+
+    /// A residue whose basins have these block means (C7eq/β, αR; αL a constant).
+    fn residue(c7eq: &[f64], alpha_r: &[f64], alpha_l: f64) -> ResidueBasins {
+        let block_means = [c7eq.to_vec(), alpha_r.to_vec(), vec![alpha_l; c7eq.len()]];
+        ResidueBasins {
+            label: "ALA2".into(),
+            populations: std::array::from_fn(|k| from_block_means(&block_means[k])),
+            block_means,
+            histogram: Vec::new(),
+            frames: 100,
+        }
+    }
+
+    const BOUNDS: Bounds = Bounds {
+        potential: 0.1,
+        peak: 0.05,
+        start: 0.0,
+        span: 100.0,
+    };
+
+    #[test]
+    fn basin_populations_are_judged_against_the_reference() {
+        // Reference C7eq/β block means 0.6 ± 0.02 (alternating): mean 0.6, error
+        // 0.02·√(4/(4·3)) = 0.02/√3 = 0.01155; αR 0.3 alike; αL 0.1 exactly (zero error).
+        let reference = [residue(
+            &[0.62, 0.58, 0.62, 0.58],
+            &[0.28, 0.32, 0.28, 0.32],
+            0.1,
+        )];
+        let e = 0.02 / 3f64.sqrt();
+        // The same populations: Δp = 0 ± √2·0.01155 = 0.0163, 2σ = 0.033 ≤ 0.1: pass; αL's
+        // error is zero in both runs (the same in every block): undecided.
+        let same = compare_basins(&reference, &reference, &BOUNDS, 0.1);
+        assert_eq!(same.len(), 3);
+        assert_eq!(same[0].basin, "C7eq/beta");
+        assert!(same[0].difference.abs() < 1e-15);
+        assert!(
+            (same[0].combined_error - e * 2f64.sqrt()).abs() < 1e-12,
+            "{same:?}"
+        );
+        assert_eq!(same[0].verdict, verdict::Verdict::Pass);
+        assert_eq!(same[2].verdict.name(), "undecided");
+        // αR moved to 0.6 and C7eq/β to 0.3: |Δp| = 0.3, 0.3 − 0.033 > 0.1: fail.
+        let moved = [residue(
+            &[0.32, 0.28, 0.32, 0.28],
+            &[0.58, 0.62, 0.58, 0.62],
+            0.1,
+        )];
+        let wrong = compare_basins(&reference, &moved, &BOUNDS, 0.1);
+        assert!((wrong[1].difference - 0.3).abs() < 1e-12, "{wrong:?}");
+        assert_eq!(wrong[1].verdict, verdict::Verdict::Fail);
+        // Δp = 0.09 ± 0.0163: the interval [0.057, 0.123] straddles 0.1: undecided.
+        let near = [residue(
+            &[0.53, 0.49, 0.53, 0.49],
+            &[0.37, 0.41, 0.37, 0.41],
+            0.1,
+        )];
+        let open = compare_basins(&reference, &near, &BOUNDS, 0.1);
+        assert!((open[0].difference + 0.09).abs() < 1e-12, "{open:?}");
+        assert_eq!(open[0].verdict.name(), "undecided");
+        // No backbone: nothing compared.
+        assert!(compare_basins(&[], &reference, &BOUNDS, 0.1).is_empty());
+    }
+
+    #[test]
+    fn residues_pool_by_their_block_means() {
+        // Two residues, one always C7eq/β and one always αR in blocks 1–2 and swapped in
+        // blocks 3–4: each residue's own error is 0.5/√3, but their pooled block means are
+        // 0.5 in every block, so the pooled C7eq/β population is 0.5 with zero error.
+        let pooled = pooled_populations(&[
+            residue(&[1.0, 1.0, 0.0, 0.0], &[0.0, 0.0, 1.0, 1.0], 0.0),
+            residue(&[0.0, 0.0, 1.0, 1.0], &[1.0, 1.0, 0.0, 0.0], 0.0),
+        ])
+        .unwrap();
+        assert_eq!((pooled[0].mean, pooled[0].error), (0.5, 0.0));
+        assert_eq!((pooled[1].mean, pooled[1].error), (0.5, 0.0));
+    }
 }

@@ -17,6 +17,19 @@
 //! With `until_decided` > 1 ([`ScanSetup::until_decided`]) an undecided point is run again
 //! at twice the length, and again, up to that factor of its length.
 //!
+//! With `starts` = N > 1 ([`ScanSetup::starts`], `--starts`) each point runs N independent
+//! starts, Maxwell–Boltzmann velocities at the run's temperature with seeds `s, s+1, …,
+//! s+N−1` (`s` the point's seed, else the default one), and is judged on their mean drift
+//! `d̄ = Σdᵢ/N` ([`combine_starts`]) with the standard error
+//! `σ = max(√(Σσᵢ²)/N, s_d/√N)`: the larger of the error the runs' own fits give the mean
+//! and the spread of the N drifts about it (`s_d` their sample standard deviation; only for
+//! N ≥ 2), so neither a lucky agreement of few starts nor fits too optimistic for a
+//! correlated series makes the bar too narrow. The verdict is [`verdict::judge`]'s with
+//! drift exponent 1 (each fit's error is the fluctuation over the span), so an undecided
+//! point says how long a run would decide and `until_decided` extends every start. Any
+//! start unstable makes the point unstable. The starts of every point run in parallel, and
+//! are combined in seed order: the same result at any thread count. Cost: N runs a point.
+//!
 //! A thermostatted method exchanges energy with its bath by design: it is never judged by
 //! drift, only by the sampling criterion ([`super::sampling`]), whose verdicts are the same
 //! three.
@@ -38,7 +51,10 @@ use crate::run::prepare::{RunRequest, prepare};
 use crate::run::verdict::{self, Measurement};
 use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value, whole_ratio};
+use crate::system::velocities::DEFAULT_SEED;
 use crate::units::Units;
+
+pub use crate::io::study_file::MAX_STARTS;
 
 /// The default drift bound of a scan in a dimensionless scene, in kT per unit time per
 /// degree of freedom (in a scene with real units it is `run`'s, 0.05 kT/ns/dof).
@@ -132,6 +148,9 @@ pub struct ScanDrift {
     pub energy: String,
     #[serde(skip)]
     pub verdict: verdict::Verdict,
+    /// What was judged: the rate, its error over the fitted span, and how it shrinks.
+    #[serde(skip)]
+    pub measurement: Measurement,
 }
 
 /// The drift of a finished run in the scan's unit (kT/ns/dof with real units, kT per unit
@@ -147,6 +166,14 @@ pub fn scan_drift(summary: &RunSummary, bound: f64) -> Option<ScanDrift> {
                 error: report.error,
                 true_energy: report.true_energy,
                 verdict: verdict_of(&report),
+                measurement: Measurement {
+                    value: report.value,
+                    error: report.error,
+                    fixed_error: 0.0,
+                    start: report.from,
+                    span: report.to - report.from,
+                    exponent: 1.0,
+                },
                 energy: report.energy,
             }
         }
@@ -167,6 +194,7 @@ pub fn scan_drift(summary: &RunSummary, bound: f64) -> Option<ScanDrift> {
                 true_energy: fit.true_rate(),
                 energy: energy.to_string(),
                 verdict: verdict::judge(&measurement, bound),
+                measurement,
             }
         }
     })
@@ -212,6 +240,9 @@ pub struct StepResult {
     pub slow_evaluations: u64,
     pub fast_evaluations: u64,
     pub hessian_vector: u64,
+    /// The independent starts the point's verdict combines (1 without `--starts`); the
+    /// counts and `steps` above are one start's, `max_relative_error` the largest of any.
+    pub starts: usize,
     /// The sampling criterion's comparison, when a point is judged by it.
     pub sampling: Option<super::sampling::Comparison>,
     #[serde(skip)]
@@ -244,6 +275,9 @@ pub struct ScanSetup {
     /// The degrees of freedom of the sampling criterion's kinetic temperature when the
     /// model has constraints (`None`: `3N`; [`super::sampling::constrained_dof`]).
     pub kinetic_dof: Option<f64>,
+    /// Independent starts per point of the drift criterion (module documentation; 0 and 1
+    /// are one start; at most [`MAX_STARTS`], [`check_starts`]).
+    pub starts: usize,
 }
 
 impl ScanSetup {
@@ -391,14 +425,153 @@ pub fn until_decided(
     }
 }
 
-/// Run one point and judge it by drift (extended while undecided, [`until_decided`]).
+/// Run one point's starts and judge it by drift (extended while undecided,
+/// [`until_decided`]; every start at once).
 pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Result<StepResult> {
     until_decided(setup, &|setup: &ScanSetup| {
-        let summary = run_once(setup, method, h, &PointOutputs::default())
-            .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
-        let (verdict, drift) = classify(&summary, setup.drift_bound);
-        Ok(step_result(index, method, h, verdict, drift, &summary))
+        let summaries = start_setups(setup, method, h)?
+            .par_iter()
+            .map(|start| {
+                run_once(start, method, h, &PointOutputs::default())
+                    .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(judge_starts(
+            index,
+            method,
+            h,
+            &summaries,
+            setup.drift_bound,
+        ))
     })
+}
+
+/// The `--starts` count: `None` is one start; a count must lie in `[1, MAX_STARTS]`.
+pub fn check_starts(starts: Option<usize>) -> Result<usize> {
+    match starts {
+        None => Ok(1),
+        Some(n) if (1..=MAX_STARTS).contains(&n) => Ok(n),
+        Some(n) => Err(Error::input(format!(
+            "--starts must be between 1 and {MAX_STARTS}, got {n}"
+        ))),
+    }
+}
+
+/// Refuse several starts of a point that cannot make them different: without a temperature
+/// its velocities are the scene's own (its momenta or velocity file), the same every time.
+pub fn check_starts_possible(setup: &ScanSetup, method: &str, h: f64) -> Result<()> {
+    if setup.starts <= 1 || point_settings(setup, method, h)?.temperature.is_some() {
+        return Ok(());
+    }
+    Err(Error::input(format!(
+        "--starts {} needs start velocities drawn at a temperature (seeds s, s+1, …): {method} \
+         at h = {h} has no --temperature (nor a [run] temperature), so every start would take \
+         the scene's own velocities and be the same run; give --temperature T or --starts 1",
+        setup.starts
+    )))
+}
+
+/// The setups of a point's starts: one (the setup itself), or `starts` with the seeds
+/// `s, s+1, …` (`s` the point's seed, else [`DEFAULT_SEED`]).
+pub fn start_setups(setup: &ScanSetup, method: &str, h: f64) -> Result<Vec<ScanSetup>> {
+    if setup.starts <= 1 {
+        return Ok(vec![setup.clone()]);
+    }
+    let seed = point_settings(setup, method, h)?
+        .seed
+        .unwrap_or(DEFAULT_SEED);
+    (0..setup.starts as u64)
+        .map(|k| {
+            let mut start = setup.clone();
+            start.base.seed = Some(seed.checked_add(k).ok_or_else(|| {
+                Error::input(format!(
+                    "--seed {seed} leaves no room for {} starts",
+                    setup.starts
+                ))
+            })?);
+            Ok(start)
+        })
+        .collect()
+}
+
+/// The measurement of a point's starts (module documentation): the mean of their values,
+/// the larger of `√(Σσᵢ²)/N` and the sample deviation over `√N` as its error, the first
+/// start's span and exponent. `None` for no starts.
+pub fn combine_starts(starts: &[Measurement]) -> Option<Measurement> {
+    let first = starts.first()?;
+    let n = starts.len() as f64;
+    let mean = starts.iter().map(|m| m.value).sum::<f64>() / n;
+    let own = starts.iter().map(|m| m.error * m.error).sum::<f64>().sqrt() / n;
+    let spread = if starts.len() >= 2 {
+        let squares: f64 = starts.iter().map(|m| (m.value - mean).powi(2)).sum();
+        (squares / (n - 1.0)).sqrt() / n.sqrt()
+    } else {
+        0.0
+    };
+    Some(Measurement {
+        value: mean,
+        error: own.max(spread),
+        ..*first
+    })
+}
+
+/// The drift of a point's starts, judged against `bound`: one start's as it is, several
+/// combined ([`combine_starts`]), their true-energy drifts averaged.
+pub fn combined_drift(drifts: &[ScanDrift], bound: f64) -> Option<ScanDrift> {
+    if drifts.len() == 1 {
+        return drifts.first().cloned();
+    }
+    let measurements: Vec<Measurement> = drifts.iter().map(|d| d.measurement).collect();
+    let measurement = combine_starts(&measurements)?;
+    let true_energy = drifts.iter().map(|d| d.true_energy).sum::<f64>() / drifts.len() as f64;
+    Some(ScanDrift {
+        value: measurement.value,
+        error: measurement.error,
+        true_energy,
+        energy: drifts[0].energy.clone(),
+        verdict: verdict::judge(&measurement, bound),
+        measurement,
+    })
+}
+
+/// The row of a point from its starts' summaries (in seed order): unstable when any start
+/// is (the first such start's row), else the verdict on their combined drift (undecided
+/// when one is too short to fit); the counts are the first start's.
+pub fn judge_starts(
+    index: usize,
+    method: &str,
+    h: f64,
+    summaries: &[RunSummary],
+    bound: f64,
+) -> StepResult {
+    let judged: Vec<(Verdict, Option<ScanDrift>)> =
+        summaries.iter().map(|s| classify(s, bound)).collect();
+    let unstable = judged.iter().position(|(v, _)| *v == Verdict::Unstable);
+    let mut result = match unstable {
+        Some(k) => step_result(
+            index,
+            method,
+            h,
+            Verdict::Unstable,
+            judged[k].1.clone(),
+            &summaries[k],
+        ),
+        None => {
+            let drifts: Option<Vec<ScanDrift>> = judged.iter().map(|(_, d)| d.clone()).collect();
+            let drift = drifts.and_then(|d| combined_drift(&d, bound));
+            let verdict = drift
+                .as_ref()
+                .map_or(Verdict::Undecided, |d| Verdict::of(&d.verdict));
+            step_result(index, method, h, verdict, drift, &summaries[0])
+        }
+    };
+    result.starts = summaries.len();
+    result.max_relative_error = summaries
+        .iter()
+        .map(|s| s.energy.max_relative_error)
+        .fold(result.max_relative_error, f64::max);
+    result.wall_seconds = summaries.iter().map(|s| s.wall_seconds).sum();
+    result
 }
 
 /// One line per undecided point: `impulse at h = 2 fs: undecided: a run of ~40 ps would
@@ -454,6 +627,7 @@ pub fn step_result(
         slow_evaluations: counts.slow,
         fast_evaluations: counts.fast,
         hessian_vector: counts.hessian_vector,
+        starts: 1,
         sampling: None,
         wall_seconds: summary.wall_seconds,
     }
@@ -699,6 +873,51 @@ mod tests {
         assert_eq!(drift_rate(&series(0.2, 0.0)), 0.0);
     }
 
+    fn start(value: f64, error: f64) -> Measurement {
+        Measurement {
+            value,
+            error,
+            fixed_error: 0.0,
+            start: 0.0,
+            span: 10.0,
+            exponent: 1.0,
+        }
+    }
+
+    #[test]
+    fn starts_combine_to_their_mean_with_the_wider_error() {
+        let combined = |starts: &[(f64, f64)]| {
+            let m: Vec<Measurement> = starts.iter().map(|&(v, e)| start(v, e)).collect();
+            combine_starts(&m).unwrap()
+        };
+        let third = 1.0 / 3f64.sqrt();
+        // The fits' error wins: mean 0.010, √(3·0.015²)/3 = 0.015/√3 against the spread
+        // 0.002/√3; 0.010 + 2·0.00866 = 0.027 ≤ 0.05: pass.
+        let pass = combined(&[(0.010, 0.015), (0.012, 0.015), (0.008, 0.015)]);
+        assert!((pass.value - 0.010).abs() < 1e-15, "{pass:?}");
+        assert!((pass.error - 0.015 * third).abs() < 1e-15, "{pass:?}");
+        assert_eq!(verdict::judge(&pass, 0.05), verdict::Verdict::Pass);
+        // The spread wins: drifts 0.2, 0.3, 0.1 of tiny fit errors have the sample
+        // deviation 0.1, so σ = 0.1/√3 = 0.0577; 0.2 − 2σ = 0.085 > 0.05: fail.
+        let fail = combined(&[(0.2, 0.001), (0.3, 0.001), (0.1, 0.001)]);
+        assert!((fail.value - 0.2).abs() < 1e-15, "{fail:?}");
+        assert!((fail.error - 0.1 * third).abs() < 1e-15, "{fail:?}");
+        assert_eq!(verdict::judge(&fail, 0.05), verdict::Verdict::Fail);
+        // 0.04 ± 2·0.02/√3 straddles 0.05. The gap 0.01 is 2σ at σ = 0.005: with the
+        // drift's σ ∝ 1/T, a run 0.01155/0.005 = 2.309 times the span of 10 decides.
+        let open = combined(&[(0.04, 0.02), (0.05, 0.02), (0.03, 0.02)]);
+        let verdict::Verdict::Undecided { decide_at: Some(t) } = verdict::judge(&open, 0.05) else {
+            panic!("{open:?}");
+        };
+        let expected = 10.0 * (0.02 * third) / 0.005;
+        assert!((t - expected).abs() < 1e-9, "{t} vs {expected}");
+        // One start is itself: no spread, its own error.
+        assert_eq!(combined(&[(0.04, 0.02)]), start(0.04, 0.02));
+        assert!(combine_starts(&[]).is_none());
+        assert_eq!(check_starts(None).unwrap(), 1);
+        assert!(check_starts(Some(0)).is_err() && check_starts(Some(65)).is_err());
+    }
+
     fn result(method: &str, h: f64, verdict: Verdict) -> StepResult {
         StepResult {
             index: 0,
@@ -716,6 +935,7 @@ mod tests {
             slow_evaluations: 0,
             fast_evaluations: 0,
             hessian_vector: 0,
+            starts: 1,
             sampling: None,
             wall_seconds: 0.0,
         }

@@ -7,9 +7,10 @@ use clap::{Args, Subcommand};
 mod study;
 
 use super::common::{SCAN_STEPS, or_default, parse_shard, parse_steps, progress_bar};
+use crate::analysis::dihedrals::{backbone_residues, scene_topology};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
-use crate::analysis::run_analysis::{Analyzer, RunAnalysis};
+use crate::analysis::run_analysis::RunAnalysis;
 use crate::analysis::sampling::{
     SamplingCriterion, check_reference_temperature, run_sampling_points,
 };
@@ -71,7 +72,8 @@ pub enum ScanCommand {
 pub enum Criterion {
     /// NVE energy drift (the default; NVE methods only).
     Drift,
-    /// Potential energy per molecule and g(r) first-peak height against --reference.
+    /// Potential energy per molecule, g(r) first-peak height and, for a peptide, the
+    /// backbone basin populations against --reference.
     Sampling,
 }
 
@@ -117,6 +119,12 @@ pub struct ScanStepsArgs {
     /// --t-end (e.g. 4; at most 64; default: never).
     #[arg(long, value_name = "FACTOR")]
     pub until_decided: Option<f64>,
+    /// Independent starts per point for the drift criterion (at most 64; default 1):
+    /// Maxwell–Boltzmann velocities at --temperature with seeds s, s+1, …, s+N−1 (s: --seed
+    /// or the default). A point's drift is their mean, its error the larger of their fits'
+    /// √(Σσᵢ²)/N and their spread over √N; any start unstable makes the point unstable.
+    #[arg(long, value_name = "N")]
+    pub starts: Option<usize>,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -161,6 +169,10 @@ pub struct SamplingArgs {
     /// Largest |Δ g(r) first-peak height| that passes.
     #[arg(long, default_value_t = 0.05, value_name = "BOUND")]
     pub peak_bound: f64,
+    /// Largest |Δ population| of a backbone (φ, ψ) basin (C7eq/β, αR, αL; pooled over the
+    /// residues) that passes, when the scene's topology has a peptide backbone.
+    #[arg(long, default_value_t = crate::analysis::sampling::DEFAULT_BASIN_BOUND, value_name = "BOUND")]
+    pub basin_bound: f64,
     /// Start of each run, and of the reference, left out as equilibration (default: a fifth
     /// of the run length --t-end).
     #[arg(long, value_name = "T")]
@@ -219,6 +231,7 @@ fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
 fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<()> {
     for method in methods {
         for &h in steps {
+            crate::analysis::scan::check_starts_possible(setup, method, h)?;
             let settings = point_settings(setup, method, h)?;
             crate::run::prepare::check_settings(&settings)
                 .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
@@ -446,6 +459,7 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         start: args.start.clone(),
         until_decided: crate::analysis::scan::check_until_decided(args.until_decided)?,
         kinetic_dof: None,
+        starts: crate::analysis::scan::check_starts(args.starts)?,
     };
     Ok(setup)
 }
@@ -464,6 +478,37 @@ fn choose_criterion(args: &ScanStepsArgs, methods: &[String]) -> Result<Criterio
         )),
         (Some(criterion), _) => Ok(criterion),
         (None, None) => Ok(Criterion::Drift),
+    }
+}
+
+/// Several starts are the drift criterion's: the sampling criterion judges one run per
+/// point against its reference. `config` names a study's configuration.
+fn refuse_sampling_starts(criterion: Criterion, starts: usize, config: Option<&str>) -> Result<()> {
+    if criterion != Criterion::Sampling || starts <= 1 {
+        return Ok(());
+    }
+    let whose = config.map_or(String::new(), |c| format!("configuration \"{c}\": "));
+    Err(Error::input(format!(
+        "{whose}--starts {starts} applies to the drift criterion (the mean drift of several \
+         starts); --criterion sampling judges one run per point against its reference: \
+         leave out --starts (and a study's `starts`) for a sampling scan"
+    )))
+}
+
+/// The reference's basin populations with their errors and the residues pooled, or that
+/// there is no peptide backbone.
+fn basins_notice(c: &SamplingCriterion, reference: &RunAnalysis) -> String {
+    let note = c.basins_note();
+    match crate::analysis::dihedrals::pooled_populations(&reference.basins) {
+        Some(p) => {
+            let cells: Vec<String> = crate::analysis::dihedrals::BASINS
+                .iter()
+                .zip(p)
+                .map(|(name, e)| format!("{name} {:.3} ± {:.3}", e.mean, e.error))
+                .collect();
+            format!("{note}: reference {}", cells.join(", "))
+        }
+        None => note,
     }
 }
 
@@ -494,6 +539,11 @@ fn sampling_criterion(
         })?,
         potential_bound: args.sampling.potential_bound,
         peak_bound: args.sampling.peak_bound,
+        basin_bound: args.sampling.basin_bound,
+        backbone: match scene_topology(&args.scene)? {
+            Some(topology) => backbone_residues(&topology),
+            None => Vec::new(),
+        },
         discard,
         blocks: args.sampling.blocks,
         frames: args.sampling.frames,
@@ -522,8 +572,7 @@ fn reference_analysis(
         .clone()
         .unwrap_or_else(|| "trajectory.xyz".into());
     let files = super::analyze::run_files(&criterion.reference, &trajectory)?;
-    let analyzer = Analyzer::new(scene, criterion.analysis_options_for(dof))?;
-    let analysis = analyzer.analyze(&files)?;
+    let analysis = criterion.analyzer(scene, dof)?.analyze(&files)?;
     let unit = match scene.units {
         Units::Real => " K",
         Units::None => " (k_B T)",
@@ -540,6 +589,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let methods = scan_methods(args)?;
     let (mut setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
+    refuse_sampling_starts(criterion, setup.starts, None)?;
     if args.repeats > MAX_REPEATS {
         return Err(Error::input(format!(
             "--repeats must be at most {MAX_REPEATS}, got {}",
@@ -565,6 +615,9 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
                 crate::analysis::sampling::constrained_dof(&setup, &methods[0], steps[0])?;
             let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
             let reference = reference_analysis(&scene, &c, temperature, setup.kinetic_dof)?;
+            if !args.quiet {
+                eprintln!("notice: backbone basins: {}", basins_notice(&c, &reference));
+            }
             Some((c, reference))
         }
     };
@@ -584,7 +637,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let meta = scan_meta(args, &setup, total, sampling.as_ref(), scene.units);
     let table = match &sampling {
         None => scan_table(meta.clone(), &results),
-        Some(_) => sampling_table(meta.clone(), &results),
+        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty()),
     };
     table.write(&path)?;
     super::draw::draw_scan(&table, &args.out)?;
@@ -814,6 +867,7 @@ fn scan_meta(
         None => {
             pairs.push(("drift_bound", setup.drift_bound.to_string()));
             pairs.push(("drift_unit", drift_unit(units).to_string()));
+            pairs.push(("starts", setup.starts.max(1).to_string()));
             if let Some(t) = setup.fit_from {
                 pairs.push(("fit_from", t.to_string()));
             }
@@ -840,6 +894,8 @@ fn sampling_meta(c: &SamplingCriterion, reference: &RunAnalysis) -> Vec<(&'stati
         ("pair", format!("{}-{}", c.pair.0, c.pair.1)),
         ("potential_bound", c.potential_bound.to_string()),
         ("peak_bound", c.peak_bound.to_string()),
+        ("basin_bound", c.basin_bound.to_string()),
+        ("basins", basins_notice(c, reference)),
         ("discard", c.discard.to_string()),
         ("blocks", c.blocks.to_string()),
         ("frames", c.frames.to_string()),
@@ -930,6 +986,7 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             "hessian_vector",
             "drift_error",
             "decide_at",
+            "starts",
         ],
     );
     for r in results {
@@ -950,6 +1007,7 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             r.hessian_vector.to_string(),
             detail.map_or(String::new(), |d| Num(d.error).to_string()),
             r.decide_at.map_or(String::new(), |t| Num(t).to_string()),
+            r.starts.to_string(),
         ]);
     }
     with_config_column(table, results.iter().map(|r| r.config.as_deref()))
@@ -973,8 +1031,13 @@ fn with_config_column<'a>(
 }
 
 /// The scan's study table by the sampling criterion: each point's differences to the
-/// reference and their combined errors.
-pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> StudyTable {
+/// reference and their combined errors; with a peptide `backbone`, each basin's Δp, its
+/// combined error and the run's population.
+pub fn sampling_table(
+    meta: BTreeMap<String, String>,
+    results: &[StepResult],
+    backbone: bool,
+) -> StudyTable {
     let mut table = StudyTable::new(
         "scan-steps",
         meta,
@@ -1034,7 +1097,33 @@ pub fn sampling_table(meta: BTreeMap<String, String>, results: &[StepResult]) ->
         ]);
         table.rows.push(row);
     }
+    if backbone {
+        add_basin_columns(&mut table, results);
+    }
     with_config_column(table, results.iter().map(|r| r.config.as_deref()))
+}
+
+/// The basin columns of the sampling table: `{basin}_difference`, `{basin}_combined_error`
+/// and `{basin}_population` for each basin (`/` written `_`); empty for a point without a
+/// comparison (unstable).
+fn add_basin_columns(table: &mut StudyTable, results: &[StepResult]) {
+    for name in crate::analysis::dihedrals::BASINS {
+        let key = name.replace('/', "_");
+        for part in ["difference", "combined_error", "population"] {
+            table.header.push(format!("{key}_{part}"));
+        }
+    }
+    for (row, r) in table.rows.iter_mut().zip(results) {
+        let basins = r.sampling.as_ref().map_or(&[][..], |c| &c.basins[..]);
+        for name in crate::analysis::dihedrals::BASINS {
+            match basins.iter().find(|b| b.basin == name) {
+                Some(b) => row.extend(
+                    [b.difference, b.combined_error, b.population].map(|x| Num(x).to_string()),
+                ),
+                None => row.extend(std::iter::repeat_n(String::new(), 3)),
+            }
+        }
+    }
 }
 
 /// Stable steps beyond the first failure as intervals of consecutive scanned steps,

@@ -11,9 +11,11 @@
 //! level_dt = ["0.5fs"]             # as --level-dt (optional)
 //! pme_level = 1                    # as --pme-level / --nonbonded-level (optional)
 //! set = ["k=2"]                    # as --set, after the command line's (optional)
+//! starts = 3                       # as --starts: independent starts per point (optional)
 //! ```
 //!
-//! Every key but `label`, `h`, `level_dt`, `pme_level`, `nonbonded_level` and `set` goes to
+//! Every key but `label`, `h`, `level_dt`, `pme_level`, `nonbonded_level`, `set` and
+//! `starts` goes to
 //! [`RunSpec`], the parser of a scene's `[run]` table, so a study accepts exactly the run
 //! settings a scene does. Each key is checked on its own, so a message names the key.
 
@@ -24,14 +26,19 @@ use crate::error::{Error, Result};
 use crate::settings::{RunSpec, Value};
 
 /// The keys of a configuration that are not `[run]` keys.
-const STUDY_KEYS: [&str; 6] = [
+const STUDY_KEYS: [&str; 7] = [
     "label",
     "h",
     "level_dt",
     "pme_level",
     "nonbonded_level",
     "set",
+    "starts",
 ];
+
+/// Most independent starts of one scan point (`--starts`, a study's `starts`; a bound on a
+/// user-given count).
+pub const MAX_STARTS: usize = 64;
 
 /// Most configurations of one study (a bound on a user-given size).
 pub const MAX_CONFIGS: usize = 1000;
@@ -50,6 +57,8 @@ pub struct StudyConfig {
     pub set: Vec<String>,
     pub pme_level: Option<usize>,
     pub nonbonded_level: Option<usize>,
+    /// Independent starts per point (`None`: the command line's `--starts`).
+    pub starts: Option<usize>,
 }
 
 /// A study file: its configurations in file order, and a fingerprint of its text so the
@@ -149,6 +158,7 @@ fn read_config(entry: &toml::Value, number: usize) -> std::result::Result<StudyC
         pme_level: read_level(table.get("pme_level"), "pme_level").map_err(named)?,
         nonbonded_level: read_level(table.get("nonbonded_level"), "nonbonded_level")
             .map_err(named)?,
+        starts: read_starts(table.get("starts")).map_err(named)?,
         label,
     })
 }
@@ -237,6 +247,18 @@ fn read_level(
     }
 }
 
+fn read_starts(value: Option<&toml::Value>) -> std::result::Result<Option<usize>, String> {
+    match value {
+        None => Ok(None),
+        Some(toml::Value::Integer(n)) if (1..=MAX_STARTS as i64).contains(n) => {
+            Ok(Some(*n as usize))
+        }
+        Some(other) => Err(format!(
+            "`starts` takes a whole number of starts from 1 to {MAX_STARTS}, got {other}"
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,6 +279,11 @@ mod tests {
         assert_eq!(c.run.rigid_water, Some(true));
         assert_eq!(c.steps, "1fs,2");
         assert_eq!(c.pme_level, Some(1));
+        assert_eq!(c.starts, None);
+        let three = config("label = \"c\"\nmethod = \"verlet\"\nh = \"1\"\nstarts = 3");
+        assert_eq!(three.unwrap().starts, Some(3));
+        let many = config("label = \"c\"\nmethod = \"verlet\"\nh = \"1\"\nstarts = 65");
+        assert!(many.unwrap_err().contains("`starts`"));
     }
 
     #[test]

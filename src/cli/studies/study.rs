@@ -7,8 +7,9 @@ use std::path::Path;
 
 use super::super::common::{SCAN_STEPS, parse_shard, parse_steps, progress_bar};
 use super::{
-    Criterion, ScanStepsArgs, async_band_warnings, base_setup, choose_criterion, print_safe_steps,
-    reference_analysis, sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
+    Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, choose_criterion,
+    print_safe_steps, reference_analysis, refuse_sampling_starts, sampling_criterion,
+    sampling_table, scan_meta, scan_table, timing_table,
 };
 use crate::analysis::sampling::{constrained_dof, run_sampling_point};
 use crate::analysis::scan::{
@@ -78,12 +79,16 @@ fn config_setup(
         ));
     }
     setup.set.extend(config.set.iter().cloned());
+    if let Some(starts) = config.starts {
+        setup.starts = starts;
+    }
     let electrostatics = &mut setup.flags.electrostatics;
     electrostatics.pme_level = config.pme_level.or(electrostatics.pme_level);
     electrostatics.nonbonded_level = config.nonbonded_level.or(electrostatics.nonbonded_level);
     let method = config.run.method.clone().unwrap_or_default();
     let steps = parse_steps(&config.steps, units)?;
     for &h in &steps {
+        crate::analysis::scan::check_starts_possible(&setup, &method, h)?;
         let settings = point_settings(&setup, &method, h)?;
         crate::run::prepare::check_settings(&settings)
             .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
@@ -170,6 +175,9 @@ fn study_reference(
         }
     }
     let reference = reference_analysis(scene, &c, temperature, dof)?;
+    if !args.quiet {
+        eprintln!("notice: backbone basins: {}", basins_notice(&c, &reference));
+    }
     Ok((c, reference))
 }
 
@@ -247,6 +255,13 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
         )));
     }
     let study = read_study(path)?;
+    // Before the configurations are built: their checks of the starts are the drift's.
+    if args.criterion == Some(Criterion::Sampling) {
+        for c in &study.configs {
+            let starts = c.starts.or(args.starts).unwrap_or(1);
+            refuse_sampling_starts(Criterion::Sampling, starts, Some(&c.label))?;
+        }
+    }
     let scene = args.source.load(&args.scene, &args.set)?;
     let (base, mut configs) = study_configs(args, &scene, &study)?;
     let methods: Vec<String> = configs.iter().map(|c| c.method.clone()).collect();
@@ -277,7 +292,7 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     study_meta(&study, &mut meta);
     let table = match &sampling {
         None => scan_table(meta.clone(), &results),
-        Some(_) => sampling_table(meta.clone(), &results),
+        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty()),
     };
     let out = args.out.join(SCAN_STEPS);
     table.write(&out)?;
