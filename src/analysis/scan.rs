@@ -269,6 +269,8 @@ pub struct ScanSetup {
     pub flags: SceneFlags,
     /// Start every point from the positions of this structure file (`--start`).
     pub start: Option<PathBuf>,
+    /// `--precision` of the terms that have the choice (`None`: double).
+    pub precision: Option<String>,
     /// Run an undecided point again at twice the length, and again, up to this factor of
     /// `t_end` (≤ 1: never; [`until_decided`]).
     pub until_decided: f64,
@@ -286,6 +288,7 @@ impl ScanSetup {
         RunRequest {
             flags: self.flags.clone(),
             start: self.start.as_deref(),
+            precision: self.precision.as_deref(),
             ..RunRequest::new(&self.scene, &self.set, spec)
         }
     }

@@ -148,6 +148,10 @@ pub struct ScanStepsArgs {
     pub start: Option<PathBuf>,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
+    /// Arithmetic of the non-bonded pair forces in every point's run: double (default) or
+    /// mixed (f32 pair arithmetic, f64 accumulation and integration), as `run --precision`.
+    #[arg(long, value_parser = ["double", "mixed"])]
+    pub precision: Option<String>,
 }
 
 /// The options of `--criterion sampling`.
@@ -457,6 +461,7 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         level_dts,
         flags: args.source.flags()?,
         start: args.start.clone(),
+        precision: args.precision.clone(),
         until_decided: crate::analysis::scan::check_until_decided(args.until_decided)?,
         kinetic_dof: None,
         starts: crate::analysis::scan::check_starts(args.starts)?,
@@ -856,6 +861,10 @@ fn scan_meta(
         ("inner_steps", or_default(run.inner_steps)),
         ("dt", or_default(run.dt.as_ref())),
         ("blowup", setup.base.blowup.unwrap_or(10.0).to_string()),
+        (
+            "precision",
+            args.precision.clone().unwrap_or_else(|| "double".into()),
+        ),
     ];
     let given = given_settings(run);
     pairs.extend(given.iter().map(|(k, v)| (*k, v.clone())));
