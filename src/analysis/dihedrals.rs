@@ -22,7 +22,10 @@
 //!
 //! Populations are fractions of frames per basin; their error bars are the standard errors
 //! of the block means of each basin's indicator ([`super::block_average`]), the blocks of the
-//! rest of the analysis. Cost: one dihedral pair per backbone residue per frame.
+//! rest of the analysis, but never below the error that the count of basin changes allows
+//! ([`transition_error`]): a residue that changes basin less often than the blocks are long
+//! has block means that are not independent, and their scatter understates the error.
+//! Cost: one dihedral pair per backbone residue per frame.
 
 use std::path::Path;
 
@@ -145,10 +148,22 @@ fn bin(angle: f64) -> usize {
     (k.max(0.0) as usize).min(HISTOGRAM_BINS - 1)
 }
 
+/// The standard error of a basin's population `p` measured over a run in which the residue
+/// changed basin `transitions` times, for a two-state (telegraph) process: with rates `k_A`,
+/// `k_B` out of the two states and correlation time `τ = 1/(k_A + k_B)`, the fraction of a
+/// long time `T` spent in A has variance `2 p(1 − p) τ / T`, and the expected count of
+/// changes is `n = 2 T p(1 − p)/τ`; eliminating `τ/T`, `σ = 2 p(1 − p)/√n`. No change seen
+/// (`n = 0`) counts as one: the run saw one dwell, and the error is that of one sample.
+pub fn transition_error(p: f64, transitions: usize) -> f64 {
+    2.0 * p * (1.0 - p) / (transitions.max(1) as f64).sqrt()
+}
+
 /// One residue's basin populations and (φ, ψ) histogram.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ResidueBasins {
     pub label: String,
+    /// Changes of basin between consecutive frames.
+    pub transitions: usize,
     /// Fractions of frames in each of [`BASINS`], with block-average errors.
     pub populations: [Estimate; 3],
     /// Each basin's population in each block (the means behind `populations`' errors).
@@ -164,6 +179,9 @@ pub struct BasinCounter {
     residues: Vec<BackboneResidue>,
     indicators: Vec<BlockAccumulator>,
     histograms: Vec<Vec<u64>>,
+    /// Each residue's basin in the last frame, and its changes of basin so far.
+    last: Vec<Option<usize>>,
+    transitions: Vec<usize>,
     frames: usize,
 }
 
@@ -174,6 +192,8 @@ impl BasinCounter {
             residues,
             indicators: (0..n).map(|_| BlockAccumulator::new(blocks, 3)).collect(),
             histograms: vec![vec![0; HISTOGRAM_BINS * HISTOGRAM_BINS]; n],
+            last: vec![None; n],
+            transitions: vec![0; n],
             frames: 0,
         }
     }
@@ -181,16 +201,17 @@ impl BasinCounter {
     /// Count one frame into `block`.
     pub fn add(&mut self, q: &[f64], periodic_box: Option<&PeriodicBox>, block: usize) {
         self.frames += 1;
-        for ((residue, indicator), histogram) in self
-            .residues
-            .iter()
-            .zip(&mut self.indicators)
-            .zip(&mut self.histograms)
-        {
+        for (r, residue) in self.residues.iter().enumerate() {
             let phi = dihedral_degrees(q, residue.phi, periodic_box);
             let psi = dihedral_degrees(q, residue.psi, periodic_box);
+            let here = basin(phi, psi);
+            if self.last[r].is_some_and(|before| before != here) {
+                self.transitions[r] += 1;
+            }
+            self.last[r] = Some(here);
+            let (indicator, histogram) = (&mut self.indicators[r], &mut self.histograms[r]);
             let mut hit = [0.0; 3];
-            hit[basin(phi, psi)] = 1.0;
+            hit[here] = 1.0;
             indicator.add_vector(block, &hit);
             histogram[bin(phi) * HISTOGRAM_BINS + bin(psi)] += 1;
         }
@@ -202,18 +223,24 @@ impl BasinCounter {
             .iter()
             .zip(&self.indicators)
             .zip(&self.histograms)
-            .map(|((residue, indicator), histogram)| {
+            .zip(&self.transitions)
+            .map(|(((residue, indicator), histogram), &transitions)| {
                 let overall = indicator.overall_mean();
                 let blocks = indicator.counts().len();
                 let block_means: [Vec<f64>; 3] = std::array::from_fn(|k| {
                     (0..blocks).map(|b| indicator.block_mean(b)[k]).collect()
                 });
-                let populations = std::array::from_fn(|k| Estimate {
-                    mean: overall[k],
-                    ..from_block_means(&block_means[k])
+                let populations = std::array::from_fn(|k| {
+                    let blocked = from_block_means(&block_means[k]);
+                    Estimate {
+                        mean: overall[k],
+                        error: blocked.error.max(transition_error(overall[k], transitions)),
+                        ..blocked
+                    }
                 });
                 ResidueBasins {
                     label: residue.label.clone(),
+                    transitions,
                     populations,
                     block_means,
                     histogram: histogram.iter().map(|&c| c as f64 / total).collect(),
@@ -226,7 +253,8 @@ impl BasinCounter {
 
 /// The basin populations of every residue pooled (each residue's frames counted alike):
 /// per basin the mean of the residues' populations, its error from the means over residues
-/// of their block means (so the residues' correlation within a block is kept). `None`
+/// of their block means (so the residues' correlation within a block is kept), never below
+/// the residues' [`transition_error`]s combined as independent, `√(Σ σ_r²)/n`. `None`
 /// without residues.
 pub fn pooled_populations(residues: &[ResidueBasins]) -> Option<[Estimate; 3]> {
     let n = residues.len();
@@ -242,9 +270,17 @@ pub fn pooled_populations(residues: &[ResidueBasins]) -> Option<[Estimate; 3]> {
                     / n as f64
             })
             .collect();
+        let blocked = from_block_means(&means);
+        let floor = residues
+            .iter()
+            .map(|r| transition_error(r.populations[k].mean, r.transitions).powi(2))
+            .sum::<f64>()
+            .sqrt()
+            / n as f64;
         Estimate {
             mean: residues.iter().map(|r| r.populations[k].mean).sum::<f64>() / n as f64,
-            ..from_block_means(&means)
+            error: blocked.error.max(floor),
+            ..blocked
         }
     }))
 }

@@ -472,11 +472,23 @@ mod tests {
     use super::*;
     use crate::analysis::block_average::from_block_means;
 
-    /// A residue whose basins have these block means (C7eq/β, αR; αL a constant).
+    /// A residue whose basins have these block means (C7eq/β, αR; αL a constant), seen
+    /// changing basin a million times (so the transition floor, 2p(1 − p)/1000 ≤ 5e-4, stays
+    /// below the block errors) unless `transitions` says otherwise.
     fn residue(c7eq: &[f64], alpha_r: &[f64], alpha_l: f64) -> ResidueBasins {
+        residue_changing(c7eq, alpha_r, alpha_l, 1_000_000)
+    }
+
+    fn residue_changing(
+        c7eq: &[f64],
+        alpha_r: &[f64],
+        alpha_l: f64,
+        transitions: usize,
+    ) -> ResidueBasins {
         let block_means = [c7eq.to_vec(), alpha_r.to_vec(), vec![alpha_l; c7eq.len()]];
         ResidueBasins {
             label: "ALA2".into(),
+            transitions,
             populations: std::array::from_fn(|k| from_block_means(&block_means[k])),
             block_means,
             histogram: Vec::new(),
@@ -494,15 +506,15 @@ mod tests {
     #[test]
     fn basin_populations_are_judged_against_the_reference() {
         // Reference C7eq/β block means 0.6 ± 0.02 (alternating): mean 0.6, error
-        // 0.02·√(4/(4·3)) = 0.02/√3 = 0.01155; αR 0.3 alike; αL 0.1 exactly (zero error).
+        // 0.02·√(4/(4·3)) = 0.02/√3 = 0.01155; αR 0.3 alike; αL never visited (0 in every block: zero error).
         let reference = [residue(
             &[0.62, 0.58, 0.62, 0.58],
             &[0.28, 0.32, 0.28, 0.32],
-            0.1,
+            0.0,
         )];
         let e = 0.02 / 3f64.sqrt();
         // The same populations: Δp = 0 ± √2·0.01155 = 0.0163, 2σ = 0.033 ≤ 0.1: pass; αL's
-        // error is zero in both runs (the same in every block): undecided.
+        // error is zero in both runs (never visited, so no transition floor): undecided.
         let same = compare_basins(&reference, &reference, &BOUNDS, 0.1);
         assert_eq!(same.len(), 3);
         assert_eq!(same[0].basin, "C7eq/beta");
@@ -517,7 +529,7 @@ mod tests {
         let moved = [residue(
             &[0.32, 0.28, 0.32, 0.28],
             &[0.58, 0.62, 0.58, 0.62],
-            0.1,
+            0.0,
         )];
         let wrong = compare_basins(&reference, &moved, &BOUNDS, 0.1);
         assert!((wrong[1].difference - 0.3).abs() < 1e-12, "{wrong:?}");
@@ -526,7 +538,7 @@ mod tests {
         let near = [residue(
             &[0.53, 0.49, 0.53, 0.49],
             &[0.37, 0.41, 0.37, 0.41],
-            0.1,
+            0.0,
         )];
         let open = compare_basins(&reference, &near, &BOUNDS, 0.1);
         assert!((open[0].difference + 0.09).abs() < 1e-12, "{open:?}");
@@ -539,13 +551,39 @@ mod tests {
     fn residues_pool_by_their_block_means() {
         // Two residues, one always C7eq/β and one always αR in blocks 1–2 and swapped in
         // blocks 3–4: each residue's own error is 0.5/√3, but their pooled block means are
-        // 0.5 in every block, so the pooled C7eq/β population is 0.5 with zero error.
+        // 0.5 in every block, so with many basin changes the pooled C7eq/β population is
+        // 0.5 with zero error.
         let pooled = pooled_populations(&[
             residue(&[1.0, 1.0, 0.0, 0.0], &[0.0, 0.0, 1.0, 1.0], 0.0),
             residue(&[0.0, 0.0, 1.0, 1.0], &[1.0, 1.0, 0.0, 0.0], 0.0),
         ])
         .unwrap();
-        assert_eq!((pooled[0].mean, pooled[0].error), (0.5, 0.0));
-        assert_eq!((pooled[1].mean, pooled[1].error), (0.5, 0.0));
+        assert_eq!(pooled[0].mean, 0.5);
+        assert!(pooled[0].error < 1e-3, "{pooled:?}");
+        // The same block means from residues that each changed basin once: one change is
+        // one dwell in each basin, so each residue's population is known to
+        // 2·0.5·0.5/√1 = 0.5, pooled √(2·0.25)/2 = 0.354, whatever the blocks say.
+        let once = pooled_populations(&[
+            residue_changing(&[1.0, 1.0, 0.0, 0.0], &[0.0, 0.0, 1.0, 1.0], 0.0, 1),
+            residue_changing(&[0.0, 0.0, 1.0, 1.0], &[1.0, 1.0, 0.0, 0.0], 0.0, 1),
+        ])
+        .unwrap();
+        assert!(
+            (once[0].error - 0.5f64.sqrt() / 2.0).abs() < 1e-12,
+            "{once:?}"
+        );
+    }
+
+    #[test]
+    fn a_telegraph_series_has_the_error_its_transitions_give() {
+        // A two-state series that switches every 10 frames over 10 000 frames: p = 1/2,
+        // 999 changes, correlation time τ = 1/(k_A + k_B) = 5 frames, so the error of p is
+        // √(2 p(1 − p) τ/T) = √(2·0.25·5/10⁴) = 0.0158; 2p(1 − p)/√n = 0.5/√999 = 0.0158.
+        let exact = (2.0 * 0.25 * 5.0 / 1e4f64).sqrt();
+        let floor = super::super::dihedrals::transition_error(0.5, 999);
+        assert!((floor / exact - 1.0).abs() < 1e-3, "{floor} vs {exact}");
+        // No change seen in a basin held throughout: zero; in a pooled half-and-half, one.
+        assert_eq!(super::super::dihedrals::transition_error(1.0, 0), 0.0);
+        assert_eq!(super::super::dihedrals::transition_error(0.5, 0), 0.5);
     }
 }
