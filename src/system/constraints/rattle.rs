@@ -213,6 +213,8 @@ pub(super) fn rattle(
     let dim = set.dim;
     let pbc = set.periodic_box.as_ref();
     let threshold = set.tolerance * rms_velocity(p, inverse_mass);
+    // `|dot| ≤ threshold |r|` compared squared: no square root per pair and sweep.
+    let threshold2 = threshold * threshold;
     fit(&set.pairs, &mut set.fitted, dim, inverse_mass);
     for (c, r) in set.fitted.iter().zip(set.reference.chunks_exact_mut(dim)) {
         r.copy_from_slice(&bond(dim, pbc, q, c.i, c.j)[..dim]);
@@ -227,7 +229,7 @@ pub(super) fn rattle(
                 dot += ra * (c.wi * p[i + a] - c.wj * p[j + a]);
                 r2 += ra * ra;
             }
-            if dot.abs() <= threshold * r2.sqrt() {
+            if dot * dot <= threshold2 * r2 {
                 continue;
             }
             converged = false;
