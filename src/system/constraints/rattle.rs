@@ -219,27 +219,13 @@ pub(super) fn rattle(
     for (c, r) in set.fitted.iter().zip(set.reference.chunks_exact_mut(dim)) {
         r.copy_from_slice(&bond(dim, pbc, q, c.i, c.j)[..dim]);
     }
+    let sweep = match dim {
+        1 => rattle_sweep::<1>,
+        2 => rattle_sweep::<2>,
+        _ => rattle_sweep::<3>,
+    };
     for _ in 0..set.max_iterations {
-        let mut converged = true;
-        for (c, r) in set.fitted.iter().zip(set.reference.chunks_exact(dim)) {
-            let (i, j) = (c.i, c.j);
-            let mut dot = 0.0;
-            let mut r2 = 0.0;
-            for (a, &ra) in r.iter().enumerate() {
-                dot += ra * (c.wi * p[i + a] - c.wj * p[j + a]);
-                r2 += ra * ra;
-            }
-            if dot * dot <= threshold2 * r2 {
-                continue;
-            }
-            converged = false;
-            let k = -dot / r2 * c.reduced;
-            for (a, &ra) in r.iter().enumerate() {
-                p[i + a] += k * ra;
-                p[j + a] -= k * ra;
-            }
-        }
-        if converged {
+        if sweep(&set.fitted, &set.reference, p, threshold2) {
             return Ok(());
         }
     }
@@ -247,4 +233,37 @@ pub(super) fn rattle(
         "RATTLE did not converge to relative tolerance {} in {} sweeps",
         set.tolerance, set.max_iterations
     )))
+}
+
+/// One Gauss–Seidel RATTLE sweep in `D` dimensions (fixed-size, so the coordinate loops
+/// unroll); whether every pair already met `dot² ≤ threshold2 · |r|²`.
+fn rattle_sweep<const D: usize>(
+    fitted: &[Pair],
+    reference: &[f64],
+    p: &mut [f64],
+    threshold2: f64,
+) -> bool {
+    let mut converged = true;
+    for (c, r) in fitted.iter().zip(reference.chunks_exact(D)) {
+        let r: &[f64; D] = r.try_into().expect("chunks of D");
+        let (i, j) = (c.i, c.j);
+        let pi: [f64; D] = p[i..i + D].try_into().expect("D coordinates");
+        let pj: [f64; D] = p[j..j + D].try_into().expect("D coordinates");
+        let mut dot = 0.0;
+        let mut r2 = 0.0;
+        for a in 0..D {
+            dot += r[a] * (c.wi * pi[a] - c.wj * pj[a]);
+            r2 += r[a] * r[a];
+        }
+        if dot * dot <= threshold2 * r2 {
+            continue;
+        }
+        converged = false;
+        let k = -dot / r2 * c.reduced;
+        for a in 0..D {
+            p[i + a] += k * r[a];
+            p[j + a] -= k * r[a];
+        }
+    }
+    converged
 }
