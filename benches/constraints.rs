@@ -4,7 +4,8 @@
 //! h-bonds`, 3 456 bonds, the H–O–H angle left flexible). The step is the same in every case
 //! (verlet 1 fs, a step the flexible box also takes; impulse 2 fs / 1 fs), so the
 //! differences are the constraints' own work: one position constraint per drift and one
-//! velocity projection per kick. Run with
+//! velocity projection per run of kicks between drifts (`src/integrators/constrained.rs`).
+//! Run with
 //! `RAYON_NUM_THREADS=1 cargo bench --bench constraints`; the budget is +10 % per
 //! outer step.
 

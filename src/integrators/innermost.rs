@@ -47,8 +47,9 @@ pub trait InnermostStep: Send {
     /// The motion between the two kicks of level 0, over `dt`.
     fn flight(&mut self, system: &mut System, dt: f64) -> Result<(), StepFailure>;
 
-    /// After every outer step (a thermostat's health check).
-    fn after_outer_step(&mut self, _system: &System) -> Result<(), StepFailure> {
+    /// After every outer step (a thermostat's health check; the constrained step's owed
+    /// velocity projection).
+    fn after_outer_step(&mut self, _system: &mut System) -> Result<(), StepFailure> {
         Ok(())
     }
 

@@ -400,7 +400,7 @@ impl InnermostStep for Sinr {
         Ok(())
     }
 
-    fn after_outer_step(&mut self, system: &System) -> Result<(), StepFailure> {
+    fn after_outer_step(&mut self, system: &mut System) -> Result<(), StepFailure> {
         self.check(&system.state.p, system.state.t)
     }
 

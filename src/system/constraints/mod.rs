@@ -21,7 +21,8 @@
 //! vanish as the projection converges). SETTLE is exact to round-off. A SHAKE or RATTLE
 //! sweep that has not converged in `max_iterations` sweeps is a [`ConstraintFailure`].
 //!
-//! **Cost.** SETTLE: ~200 flops per water. SHAKE/RATTLE: `O(iterations × constraints)`;
+//! **Cost.** SETTLE: ~200 flops per water, its constants computed once
+//! ([`settle::Settle`]). SHAKE/RATTLE: `O(iterations × constraints)`;
 //! bonds to hydrogen are decoupled except around a heavy atom, a handful of sweeps.
 //! Nothing is allocated per call: the old bond vectors live in a buffer sized once. The
 //! loops run on one thread in a fixed order, so the bits do not depend on the thread
@@ -91,6 +92,11 @@ pub struct Constraints {
     max_iterations: usize,
     /// The old bond vector of every pair, `dim` numbers each (SHAKE's directions).
     reference: Vec<f64>,
+    /// Every water's SETTLE constants, refitted when the masses are not those they were
+    /// computed for (the first call).
+    settle: Vec<settle::Settle>,
+    /// Every pair's SHAKE/RATTLE record, refitted likewise.
+    fitted: Vec<rattle::Pair>,
 }
 
 impl Constraints {
@@ -107,6 +113,14 @@ impl Constraints {
         check_pairs(n_particles, &pairs)?;
         check_waters(dim, n_particles, &pairs, &waters)?;
         let reference = vec![0.0; pairs.len() * dim];
+        let fitted = pairs
+            .iter()
+            .map(|c| rattle::Pair::unfitted(c, dim))
+            .collect();
+        let settle = waters
+            .iter()
+            .map(|w| settle::Settle::with_masses(w, f64::NAN, f64::NAN))
+            .collect();
         Ok(Constraints {
             dim,
             periodic_box,
@@ -115,6 +129,8 @@ impl Constraints {
             tolerance: DEFAULT_TOLERANCE,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             reference,
+            settle,
+            fitted,
         })
     }
 
@@ -245,8 +261,12 @@ impl Constraints {
         inverse_mass: &[f64],
         dt: f64,
     ) -> Result<(), ConstraintFailure> {
-        for water in &self.waters {
-            settle::positions(water, self.periodic_box, q_old, q_new, p, inverse_mass, dt)?;
+        let pbc = self.periodic_box.as_ref();
+        for (s, water) in self.settle.iter_mut().zip(&self.waters) {
+            if !s.fits(inverse_mass) {
+                *s = settle::Settle::new(water, inverse_mass);
+            }
+            settle::positions(s, pbc, q_old, q_new, p, dt)?;
         }
         if !self.pairs.is_empty() {
             rattle::shake(self, q_old, q_new, p, inverse_mass, dt)?;
@@ -262,8 +282,12 @@ impl Constraints {
         p: &mut [f64],
         inverse_mass: &[f64],
     ) -> Result<(), ConstraintFailure> {
-        for water in &self.waters {
-            settle::velocities(water, self.periodic_box, q, p, inverse_mass)?;
+        let pbc = self.periodic_box.as_ref();
+        for (s, water) in self.settle.iter_mut().zip(&self.waters) {
+            if !s.fits(inverse_mass) {
+                *s = settle::Settle::new(water, inverse_mass);
+            }
+            settle::velocities(s, pbc, q, p)?;
         }
         if !self.pairs.is_empty() {
             rattle::rattle(self, q, p, inverse_mass)?;
@@ -313,30 +337,28 @@ impl Constraints {
             max_iterations: solver.max_iterations.max(10_000),
             ..solver
         };
+        let mut fitted: Vec<_> = all
+            .iter()
+            .map(|c| rattle::Pair::unfitted(c, self.dim))
+            .collect();
+        rattle::fit(&all, &mut fitted, self.dim, inverse_mass);
         rattle::shake_pairs(
             solver,
             &all,
+            &fitted,
             &mut reference,
             &q_start,
             q,
             &mut unused_momenta,
-            inverse_mass,
             1.0,
         )?;
         // SETTLE with no drift rebuilds each water as the exact rigid triangle (the
         // iteration left it within the tolerance), so the waters start rigid to round-off.
         let q_near = q.to_vec();
         for water in &self.waters {
-            let pbc = self.periodic_box;
-            settle::positions(
-                water,
-                pbc,
-                &q_near,
-                q,
-                &mut unused_momenta,
-                inverse_mass,
-                1.0,
-            )?;
+            let water = settle::Settle::new(water, inverse_mass);
+            let pbc = self.periodic_box.as_ref();
+            settle::positions(&water, pbc, &q_near, q, &mut unused_momenta, 1.0)?;
         }
         Ok(())
     }
