@@ -149,13 +149,18 @@ fn bin(angle: f64) -> usize {
 }
 
 /// The standard error of a basin's population `p` measured over a run in which the residue
-/// changed basin `transitions` times, for a two-state (telegraph) process: with rates `k_A`,
-/// `k_B` out of the two states and correlation time `τ = 1/(k_A + k_B)`, the fraction of a
-/// long time `T` spent in A has variance `2 p(1 − p) τ / T`, and the expected count of
-/// changes is `n = 2 T p(1 − p)/τ`; eliminating `τ/T`, `σ = 2 p(1 − p)/√n`. No change seen
-/// (`n = 0`) counts as one: the run saw one dwell, and the error is that of one sample.
+/// changed basin `n` times, for a two-state (telegraph) process: with rates `k_A`, `k_B` out
+/// of the two states and correlation time `τ = 1/(k_A + k_B)`, the fraction of a long time
+/// `T` spent in A has variance `2 p(1 − p) τ / T`, and the expected count of changes is
+/// `n = 2 T p(1 − p)/τ`; eliminating `τ/T`, `σ = 2 p(1 − p)/√n`. Few changes say little
+/// about `p` itself, so `p` is first shrunk towards 1/2 by one pseudo-dwell,
+/// `p̃ = (n p + 1/2)/(n + 1)`, and `σ = 2 p̃(1 − p̃)/√(n + 1)`: a residue that never changed
+/// basin has one dwell, and an error of 1/2 (its population could be anything); many
+/// changes give the telegraph error.
 pub fn transition_error(p: f64, transitions: usize) -> f64 {
-    2.0 * p * (1.0 - p) / (transitions.max(1) as f64).sqrt()
+    let n = transitions as f64;
+    let shrunk = (n * p + 0.5) / (n + 1.0);
+    2.0 * shrunk * (1.0 - shrunk) / (n + 1.0).sqrt()
 }
 
 /// One residue's basin populations and (φ, ψ) histogram.
