@@ -107,82 +107,49 @@ fn two_starts_are_the_mean_of_the_two_seeds() {
 fn starts_that_cannot_differ_are_refused() {
     let out = scratch_dir("scan-starts-refused");
     let out = out.to_str().unwrap();
-    // No temperature: every start would take the scene's own velocities.
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "steps",
-        ALA2,
-        "--method",
-        "verlet",
-        "--h",
-        "1fs",
-        "--t-end",
-        "10fs",
-        "--starts",
-        "2",
-        "--repeats",
-        "0",
-        "--out",
-        out,
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        stderr.contains("--starts 2 needs start velocities"),
-        "{stderr}"
-    );
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "steps",
-        ALA2,
-        "--method",
-        "verlet",
-        "--h",
-        "1fs",
-        "--t-end",
-        "10fs",
-        "--temperature",
-        "300K",
-        "--starts",
-        "65",
-        "--repeats",
-        "0",
-        "--out",
-        out,
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        stderr.contains("--starts must be between 1 and 64"),
-        "{stderr}"
-    );
-    // The sampling criterion judges one run per point.
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "steps",
-        ALA2,
-        "--method",
-        "langevin-respa",
-        "--h",
-        "1fs",
-        "--t-end",
-        "10fs",
-        "--temperature",
-        "300K",
-        "--criterion",
-        "sampling",
-        "--reference",
-        out,
-        "--starts",
-        "2",
-        "--repeats",
-        "0",
-        "--out",
-        out,
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        stderr.contains("applies to the drift criterion"),
-        "{stderr}"
-    );
+    // (what the command adds to a 10 fs scan of ALA2, what the refusal must say)
+    let cases: [(&[&str], &str); 3] = [
+        // No temperature: every start would take the scene's own velocities.
+        (
+            &["--method", "verlet", "--starts", "2"],
+            "--starts 2 needs start velocities",
+        ),
+        (
+            &[
+                "--method",
+                "verlet",
+                "--temperature",
+                "300K",
+                "--starts",
+                "65",
+            ],
+            "--starts must be between 1 and 64",
+        ),
+        // The sampling criterion judges one run per point.
+        (
+            &[
+                "--method",
+                "langevin-respa",
+                "--temperature",
+                "300K",
+                "--criterion",
+                "sampling",
+                "--reference",
+                out,
+                "--starts",
+                "2",
+            ],
+            "applies to the drift criterion",
+        ),
+    ];
+    for (extra, message) in cases {
+        let mut args = vec!["scan", "steps", ALA2, "--h", "1fs", "--t-end", "10fs"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--repeats", "0", "--out", out]);
+        let (code, _, stderr) = run_cli(&args);
+        assert_ne!(code, 0, "{extra:?}");
+        assert!(stderr.contains(message), "{extra:?}: {stderr}");
+    }
 }
 
 #[test]
