@@ -320,10 +320,10 @@ fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
             .map(|c| c.label)
             .collect()
     };
-    assert_eq!(labels("studies/ala2-production-nve.toml").len(), 7);
+    assert_eq!(labels("studies/ala2-production-nve.toml").len(), 8);
     assert_eq!(labels("studies/ala2-production-sampling.toml").len(), 3);
     // The NVE study builds and runs every point end to end (20 fs runs: a smoke test of
-    // the pipeline, not a verdict): 2 + 3 + 3 + 4 + 4 + 3 + 3 points.
+    // the pipeline, not a verdict): 2 + 3 + 3 + 4 + 4 + 3 + 3 + 3 points.
     let out = scratch_dir("study-ala2-nve");
     ok(&[
         "scan",
@@ -340,7 +340,7 @@ fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
         path(&out),
     ]);
     let (_, rows) = table(&out.join("scan.csv"));
-    assert_eq!(rows.len(), 22);
+    assert_eq!(rows.len(), 25);
     let mut seen: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();
     seen.dedup();
     assert_eq!(seen, labels("studies/ala2-production-nve.toml"));
