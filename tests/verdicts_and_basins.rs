@@ -231,6 +231,7 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
     assert_eq!(frames.len(), 21);
     let mut counts = vec![[0.0f64; 3]; blocks];
     let mut per_block = vec![0.0f64; blocks];
+    let (mut previous, mut changes) = (None, 0usize);
     for (t, q) in &frames {
         let phi = dihedral([q[4], q[6], q[8], q[14]]);
         let psi = dihedral([q[6], q[8], q[14], q[16]]);
@@ -241,6 +242,8 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
         } else {
             0
         };
+        changes += usize::from(previous.is_some_and(|b| b != basin));
+        previous = Some(basin);
         let block = ((t / 50_000.0).floor() as usize).min(blocks - 1);
         counts[block][basin] += 1.0;
         per_block[block] += 1.0;
@@ -252,7 +255,12 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
         // Every basin is visited: the test checks a partition, not one box.
         assert!(total > 0.0, "basin {k} empty: {counts:?}");
         let fractions: Vec<f64> = (0..blocks).map(|i| counts[i][k] / per_block[i]).collect();
-        let error = from_block_means(&fractions).error;
+        // The block error, but never below the floor from the count of basin changes n:
+        // 2 p̃(1 − p̃)/√(n + 1) with p̃ = (n p + 1/2)/(n + 1) (src/analysis/dihedrals.rs).
+        let n = changes as f64;
+        let shrunk = (n * total / 21.0 + 0.5) / (n + 1.0);
+        let floor = 2.0 * shrunk * (1.0 - shrunk) / (n + 1.0).sqrt();
+        let error = from_block_means(&fractions).error.max(floor);
         let p = &b[0].populations[k];
         // Sums of at most 21 ones and zeros: exact but for the last bit of a division.
         assert!((p.mean - total / 21.0).abs() < 1e-12, "basin {k}: {p:?}");
