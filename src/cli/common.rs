@@ -141,6 +141,16 @@ pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
     }
 }
 
+/// Keep only the points of the `--shard k/n` slice (none given: all): those whose index is
+/// `k − 1` modulo `n`.
+pub fn keep_shard<T>(points: &mut Vec<(usize, T, f64)>, shard: Option<&str>) -> Result<()> {
+    if let Some(shard) = shard {
+        let (k, n) = parse_shard(shard)?;
+        points.retain(|(index, _, _)| index % n == k);
+    }
+    Ok(())
+}
+
 /// `k/n` → (k − 1, n), checked.
 pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
     let bad = || {

@@ -6,7 +6,7 @@ use clap::{Args, Subcommand};
 
 mod study;
 
-use super::common::{SCAN_STEPS, or_default, parse_shard, parse_steps, progress_bar};
+use super::common::{SCAN_STEPS, keep_shard, or_default, parse_steps, progress_bar};
 use crate::analysis::dihedrals::{backbone_residues, scene_topology};
 use crate::analysis::minimize::{MinimizeOptions, minimize};
 use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
@@ -607,10 +607,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     }
     let mut points = scan_points(&methods, &steps);
     let total = points.len();
-    if let Some(shard) = &args.shard {
-        let (k, n) = parse_shard(shard)?;
-        points.retain(|(index, _, _)| index % n == k);
-    }
+    keep_shard(&mut points, args.shard.as_deref())?;
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let sampling = match criterion {
         Criterion::Drift => None,

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use super::super::common::{SCAN_STEPS, parse_shard, parse_steps, progress_bar};
+use super::super::common::{SCAN_STEPS, keep_shard, parse_steps, progress_bar};
 use super::{
     Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, choose_criterion,
     print_safe_steps, reference_analysis, refuse_sampling_starts, sampling_criterion,
@@ -273,10 +273,7 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     }
     let mut points = config_points(&configs);
     let total = points.len();
-    if let Some(shard) = &args.shard {
-        let (k, n) = parse_shard(shard)?;
-        points.retain(|(index, _, _)| index % n == k);
-    }
+    keep_shard(&mut points, args.shard.as_deref())?;
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let sampling = match criterion {
         Criterion::Drift => None,
