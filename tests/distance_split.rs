@@ -17,11 +17,11 @@
 mod common;
 
 use common::{TestRng, max_abs, max_abs_difference};
-use longstep::forces::ForceTerm;
 use longstep::forces::distance_split::{
     SplitSpec, Switch, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
 };
 use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use longstep::forces::{ForceTerm, Precision};
 
 const K_E: f64 = 332.06371;
 const EPSILON: f64 = 1e-5;
@@ -404,6 +404,44 @@ fn molecule_blocks_give_the_same_bits_on_every_instruction_set() {
                 g == g0,
                 "{electrostatics:?}: gradient on {isa:?} against portable"
             );
+        }
+    }
+}
+
+/// By atom pair the short part is the cluster-pair kernel with the switch in its lanes: the
+/// portable lanes' bits on every instruction set here, in both precisions.
+#[test]
+fn the_switched_cluster_kernel_gives_the_same_bits_on_every_instruction_set() {
+    let mut rng = TestRng::new(29);
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    let available = longstep::forces::simd::Isa::available();
+    for electrostatics in [
+        Electrostatics::DampedShiftedForce { alpha: 0.0 },
+        Electrostatics::Ewald { alpha: 0.35 },
+    ] {
+        for precision in [Precision::Double, Precision::Mixed] {
+            let spec = water_spec(n, 6.0, electrostatics, Some([length; 3]), true);
+            let split = split_spec(SwitchBy::AtomPair, 2.5, 3.5, n, &bonds);
+            let (short, _) = split_nonbonded(spec, &split, &q).unwrap();
+            assert_eq!(short.short_range().pair_loop(), "cluster pairs");
+            assert!(short.set_precision(precision));
+            let mut results = Vec::new();
+            for &isa in &available {
+                short.short_range().set_isa(isa);
+                let g = gradient(&short, &q);
+                results.push((
+                    isa,
+                    short.energy(&q).to_bits(),
+                    g.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                ));
+            }
+            let (_, e0, g0) = &results[0];
+            for (isa, e, g) in &results[1..] {
+                let label = format!("{electrostatics:?}, {precision:?}, {isa:?}");
+                assert_eq!(e, e0, "{label}: energy against portable");
+                assert!(g == g0, "{label}: gradient against portable");
+            }
         }
     }
 }

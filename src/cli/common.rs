@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::error::{Error, Result};
 use crate::expr;
-use crate::io::forcefield::{ElectrostaticsOverrides, InverseLength};
+use crate::io::forcefield::{ElectrostaticsOverrides, InverseLength, SplitSection};
 use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::units::Units;
@@ -292,6 +292,11 @@ pub struct SceneArgs {
     /// longrange-nonbonded`.
     #[arg(long, value_name = "LEVEL")]
     pub nonbonded_level: Option<usize>,
+    /// Split the cutoff term by distance into a short-range part and a remainder on two
+    /// levels: the keys of `[forcefield.split]`/`[topology.split]` as KEY=VALUE pairs,
+    /// e.g. `r_in=5,r_out=6,short_level=0,remainder_level=1` (replaces the scene's split).
+    #[arg(long, value_name = "KEY=VALUE,...")]
+    pub split: Option<String>,
 }
 
 impl SceneArgs {
@@ -334,6 +339,10 @@ impl SceneArgs {
             pme_order: self.pme_order,
             pme_level: self.pme_level,
             nonbonded_level: self.nonbonded_level,
+            split: match &self.split {
+                Some(text) => Some(SplitSection::from_flag(text).map_err(Error::input)?),
+                None => None,
+            },
         })
     }
 

@@ -41,12 +41,19 @@
 //! radial: `W′ = S′V + SV′`, `W″ = S″V + 2S′V′ + SV″`, and the radial Hessian of
 //! [`super::nonbonded`] applies.
 //!
-//! **Cost.** By molecule in a box of one kind of molecule of at most four atoms (water
+//! **Cost.** By atom pair the short part is the cluster-pair kernel of
+//! [`super::nonbonded`] with its list cut at `r_out` and the switch applied in the lanes
+//! ([`Nonbonded::switched`]: the pair energy is computed for the force too, `S` and `S′`
+//! by the quintic in add, multiply and fused multiply-add, the same bits on every
+//! instruction set), in either precision; on the solvated Trp-cage (`r_out` = 6 Å, 9 Å
+//! cutoff) one evaluation costs about half the full term's. By molecule in a box of one
+//! kind of molecule of at most four atoms (water
 //! models), each listed molecule pair inside `r_out` is one SIMD block of 4 × 4 atom pairs
 //! with one switch value ([`lanes`]); other molecules take the row loop of [`kernels`],
-//! which gathers each row's partner atoms (docs/thermostats.md has both costs). The short part
+//! which gathers each row's partner atoms (docs/thermostats.md has both costs); the pairs
+//! inside a molecule take the same row loop pair by pair. By molecule the short part
 //! has its own pair search ([`search`]): molecule pairs whose
-//! reference atoms are closer than `r_out + skin` (or atom pairs, by atom pair), rebuilt
+//! reference atoms are closer than `r_out + skin`, rebuilt
 //! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
 //! (a number that depends only on the atom count), in parallel for large systems, each into
 //! its own buffer, summed in chunk order: the same bits at any thread count. Nothing is
@@ -67,7 +74,7 @@ use rayon::prelude::*;
 use super::clusters::Cluster;
 use super::nonbonded::{CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use super::simd::Isa;
-use super::{ForceTerm, TermClass};
+use super::{ForceTerm, Precision, TermClass};
 use search::PairSearch;
 
 /// Intramolecular non-excluded pairs held for the molecule switch, at most (a bound on
@@ -449,6 +456,9 @@ pub struct ShortRange {
     lanes: Option<lanes::Lanes>,
     listed_atom_pairs: AtomicUsize,
     workspace: Mutex<Workspace>,
+    /// By atom pair: the model's term in the cluster-pair kernel, every pair multiplied by
+    /// the switch ([`Nonbonded::switched`]); the row loops are for molecules.
+    atom_pairs: Option<Nonbonded>,
 }
 
 /// The instruction sets by index, for [`ShortRange::set_isa`].
@@ -526,6 +536,11 @@ impl ShortRange {
             SwitchBy::AtomPair => n,
         };
         let chunks = chunk_count(n);
+        let atom_pairs = match split.by {
+            SwitchBy::AtomPair => Some(Nonbonded::switched(spec.clone(), switch, q)?),
+            SwitchBy::Molecule => None,
+        };
+        let points = if atom_pairs.is_some() { 0 } else { points };
         let mut short = ShortRange {
             model,
             switch,
@@ -539,6 +554,7 @@ impl ShortRange {
             lanes: None,
             listed_atom_pairs: AtomicUsize::new(0),
             workspace: Mutex::new(Self::workspace(spec, switch, split.by, points, chunks)),
+            atom_pairs,
         };
         short.set_isa(Isa::best());
         if split.by == SwitchBy::Molecule {
@@ -630,6 +646,9 @@ impl ShortRange {
         assert!(isa.is_available(), "{} is not available", isa.name());
         let index = INSTRUCTION_SETS.iter().position(|&i| i == isa).unwrap_or(0);
         self.isa.store(index as u8, Ordering::Relaxed);
+        if let Some(pairs) = &self.atom_pairs {
+            pairs.set_isa(isa);
+        }
         self.lock().cached_energy = None;
     }
 
@@ -637,7 +656,7 @@ impl ShortRange {
     /// molecule of at most four atoms), `"molecule rows"` (any molecules) or `"atom pairs"`.
     pub fn pair_loop(&self) -> &'static str {
         match (self.by, &self.lanes) {
-            (SwitchBy::AtomPair, _) => "atom pairs",
+            (SwitchBy::AtomPair, _) => "cluster pairs",
             (SwitchBy::Molecule, Some(_)) => "molecule blocks",
             (SwitchBy::Molecule, None) => "molecule rows",
         }
@@ -917,6 +936,9 @@ impl ShortRange {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
+        if let Some(pairs) = &self.atom_pairs {
+            return pairs.energy(q);
+        }
         let mut workspace = self.lock();
         if let Some(energy) = workspace.cached_energy
             && workspace.cached_q == q
@@ -928,6 +950,9 @@ impl ShortRange {
 
     /// `gradient += sign ∇V_short(q)`, from the cache when `q` is the last gradient's.
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
+        if let Some(pairs) = &self.atom_pairs {
+            return pairs.add_scaled_gradient(q, gradient, sign);
+        }
         let mut guard = self.lock();
         let workspace = &mut *guard;
         if !(workspace.cached_energy.is_some() && workspace.cached_q == q) {
@@ -944,6 +969,9 @@ impl ShortRange {
 
     /// `out += sign ∇²V_short(q) v`.
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
+        if let Some(pairs) = &self.atom_pairs {
+            return pairs.add_scaled_hessian_vector(q, v, out, sign);
+        }
         let mut workspace = self.lock();
         self.run(&mut workspace, q, Mode::HessianVector(v));
         reduce(&workspace.buffers, out, sign);
@@ -951,6 +979,10 @@ impl ShortRange {
 
     /// The energy as (Lennard-Jones, Coulomb), for reports.
     fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
+        if let Some(pairs) = &self.atom_pairs {
+            let (lj, coulomb) = pairs.energy_parts(q);
+            return [lj, coulomb];
+        }
         let mut workspace = self.lock();
         self.refresh(&mut workspace, q);
         let listed = kernels::energy_parts(
@@ -964,6 +996,9 @@ impl ShortRange {
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
+        if let Some(pairs) = &self.atom_pairs {
+            return pairs.couplings();
+        }
         let workspace = self.lock();
         let mut couplings: Vec<Vec<usize>> = match self.by {
             SwitchBy::Molecule => workspace
@@ -1011,7 +1046,18 @@ impl ShortRange {
 
     /// How many times the pair list has been built.
     pub fn list_builds(&self) -> u64 {
-        self.lock().search.builds()
+        match &self.atom_pairs {
+            Some(pairs) => pairs.list_counts().builds,
+            None => self.lock().search.builds(),
+        }
+    }
+
+    /// Atom pairs of the list.
+    fn listed_pairs(&self) -> usize {
+        match &self.atom_pairs {
+            Some(pairs) => pairs.interaction_count(),
+            None => self.listed_atom_pairs.load(Ordering::Relaxed),
+        }
     }
 }
 
@@ -1135,12 +1181,21 @@ impl ForceTerm for NonbondedShort {
     }
 
     fn interaction_count(&self) -> usize {
-        self.short.listed_atom_pairs.load(Ordering::Relaxed)
+        self.short.listed_pairs()
     }
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
         let [lj, coulomb] = self.short.energy_parts(q);
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
+    }
+
+    /// By atom pair (the cluster-pair kernel) in either precision; the molecule loops
+    /// stay in double.
+    fn set_precision(&self, precision: Precision) -> bool {
+        self.short
+            .atom_pairs
+            .as_ref()
+            .is_some_and(|pairs| pairs.set_precision(precision))
     }
 }
 
@@ -1182,6 +1237,11 @@ impl ForceTerm for NonbondedRemainder {
     /// middle level was just evaluated at the same positions).
     fn interaction_count(&self) -> usize {
         self.full.interaction_count()
+    }
+
+    /// The full term's precision (the short part is the other term's).
+    fn set_precision(&self, precision: Precision) -> bool {
+        self.full.set_precision(precision)
     }
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {

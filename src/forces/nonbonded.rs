@@ -44,6 +44,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use super::distance_split::Switch;
 use super::simd::{ERFC_X_MAX, Isa};
 use super::{ForceTerm, TermClass};
 
@@ -429,6 +430,9 @@ pub struct Nonbonded {
     scaled_charges: Vec<f64>,
     workspace: Mutex<engine::Workspace>,
     listed_pairs: AtomicUsize,
+    /// The short-range part of a distance split: every pair multiplied by this switch,
+    /// listed and cut at its `r_out` (the Coulomb form keeps the model's cutoff).
+    switch: Option<Switch>,
 }
 
 /// What a non-bonded term is built from.
@@ -454,6 +458,24 @@ pub struct NonbondedSpec {
 impl Nonbonded {
     /// Build the term and its first list at positions `q`.
     pub fn new(spec: NonbondedSpec, q: &[f64]) -> Result<Self, String> {
+        Self::build(spec, None, q)
+    }
+
+    /// The term's pairs multiplied by `switch` (`S V`, zero beyond `r_out`): the short-range
+    /// part of a distance split by atom pair, in the cluster-pair kernel with a list cut at
+    /// `r_out`. The model (the Coulomb form's cutoff, the Lennard-Jones shift) stays `spec`'s.
+    pub fn switched(spec: NonbondedSpec, switch: Switch, q: &[f64]) -> Result<Self, String> {
+        if switch.r_out() > spec.cutoff {
+            return Err(format!(
+                "r_out = {} is beyond the non-bonded cutoff {}",
+                switch.r_out(),
+                spec.cutoff
+            ));
+        }
+        Self::build(spec, Some(switch), q)
+    }
+
+    fn build(spec: NonbondedSpec, switch: Option<Switch>, q: &[f64]) -> Result<Self, String> {
         let n = spec.types.len();
         if q.len() != 3 * n || spec.charges.len() != n {
             return Err("non-bonded term: sizes of positions, types and charges differ".into());
@@ -482,7 +504,7 @@ impl Nonbonded {
         let (excluded_start, excluded) = exclusion_lists(n, &spec.excluded)?;
         let factored = Factored::find(&spec.lj, n_types, cutoff);
         let list = super::clusters::ClusterList::new(
-            cutoff,
+            switch.map_or(cutoff, |s| s.r_out()),
             spec.skin,
             spec.box_lengths,
             excluded_start,
@@ -491,7 +513,7 @@ impl Nonbonded {
         );
         let term = Nonbonded {
             n,
-            cutoff,
+            cutoff: switch.map_or(cutoff, |s| s.r_out()),
             electrostatics: spec.electrostatics,
             kernel,
             n_types,
@@ -501,9 +523,25 @@ impl Nonbonded {
             scaled_charges,
             workspace: Mutex::new(engine::Workspace::new(list)),
             listed_pairs: AtomicUsize::new(0),
+            switch,
         };
         term.refresh(&mut term.lock(), q);
         Ok(term)
+    }
+
+    /// `gradient += sign ∇V` (the remainder of a distance split subtracts its short part).
+    pub fn add_scaled_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
+        self.evaluate(q, Some(gradient), sign);
+    }
+
+    /// `out += sign ∇²V v`.
+    pub fn add_scaled_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
+        self.hessian_vector(q, v, out, sign);
+    }
+
+    /// The (Lennard-Jones, Coulomb) energies.
+    pub fn energy_parts(&self, q: &[f64]) -> (f64, f64) {
+        self.evaluate(q, None, 1.0)
     }
 
     pub fn electrostatics(&self) -> Electrostatics {
@@ -552,6 +590,7 @@ impl Nonbonded {
         workspace.isa = isa;
         workspace.list.isa = isa;
         workspace.cached = None;
+        workspace.reusable = false;
     }
 
     pub fn isa(&self) -> Isa {
@@ -565,6 +604,7 @@ impl Nonbonded {
         let mut workspace = self.lock();
         workspace.every_group = every;
         workspace.cached = None;
+        workspace.reusable = false;
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, engine::Workspace> {
@@ -572,26 +612,41 @@ impl Nonbonded {
         self.workspace.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// `(V′, V″)` of the pair `i, j` at distance `r < r_c`.
+    /// `(V′, V″)` of the pair `i, j` at distance `r < r_c`; of `W = S V` when switched
+    /// (`W′ = S′V + SV′`, `W″ = S″V + 2S′V′ + SV″`).
     fn pair_derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64) {
+        let (v, d1, d2) = self.pair_values(i, j, r);
+        match self.switch {
+            None => (d1, d2),
+            Some(switch) => {
+                let (s, s1, s2) = switch.derivatives(r);
+                (s1 * v + s * d1, s2 * v + 2.0 * s1 * d1 + s * d2)
+            }
+        }
+    }
+
+    /// `(V, V′, V″)` of the pair `i, j` at distance `r < r_c`, unswitched.
+    fn pair_values(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
         let p = self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize];
         let inv_r = 1.0 / r;
         let inv6 = inv_r.powi(6);
+        let mut v = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
         let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
         let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
         if qq != 0.0 {
-            let (_, a, b) = match self.kernel {
+            let (e, a, b) = match self.kernel {
                 Kernel::Plain(c) => c.derivatives(qq, r),
                 Kernel::ShiftedForce(c) => c.derivatives(qq, r),
                 Kernel::Damped(c) => c.derivatives(qq, r),
                 Kernel::ReactionField(c) => c.derivatives(qq, r),
                 Kernel::Ewald(c) => c.derivatives(qq, r),
             };
+            v += e;
             d1 += a;
             d2 += b;
         }
-        (d1, d2)
+        (v, d1, d2)
     }
 }
 
@@ -686,16 +741,16 @@ impl ForceTerm for Nonbonded {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        let (lj, coulomb) = self.evaluate(q, None);
+        let (lj, coulomb) = self.evaluate(q, None, 1.0);
         lj + coulomb
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        self.evaluate(q, Some(gradient));
+        self.evaluate(q, Some(gradient), 1.0);
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        self.hessian_vector(q, v, out);
+        self.hessian_vector(q, v, out, 1.0);
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
@@ -710,7 +765,7 @@ impl ForceTerm for Nonbonded {
     }
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
-        let (lj, coulomb) = self.evaluate(q, None);
+        let (lj, coulomb) = self.evaluate(q, None, 1.0);
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
     }
 
@@ -718,6 +773,7 @@ impl ForceTerm for Nonbonded {
         let mut workspace = self.lock();
         workspace.precision = precision;
         workspace.cached = None;
+        workspace.reusable = false;
         true
     }
 

@@ -44,7 +44,7 @@ use crate::units::Units;
 
 mod atoms;
 mod bonded;
-mod distance_split;
+pub(crate) mod distance_split;
 mod nonbonded;
 
 pub use nonbonded::inverse_length;
@@ -115,6 +115,8 @@ pub struct ElectrostaticsOverrides {
     pub pme_order: Option<usize>,
     pub pme_level: Option<usize>,
     pub nonbonded_level: Option<usize>,
+    /// The cutoff term split by distance (`--split`): replaces the scene's split section.
+    pub split: Option<SplitSection>,
 }
 
 impl ElectrostaticsOverrides {
@@ -154,6 +156,12 @@ impl ElectrostaticsOverrides {
         put("pme_order", self.pme_order.map(whole));
         put("pme_level", self.pme_level.map(whole));
         put("nonbonded_level", self.nonbonded_level.map(whole));
+        put(
+            "split",
+            self.split
+                .as_ref()
+                .and_then(|s| toml::Value::try_from(s).ok()),
+        );
     }
 
     /// Replace the keys of a scene's `[topology]` that are given here (the flags over a
@@ -170,6 +178,7 @@ impl ElectrostaticsOverrides {
             pme_order: spec.pme_order,
             pme_level: spec.pme_level,
             nonbonded_level: spec.nonbonded_level,
+            split: spec.split.clone(),
             ..ForcefieldSpec::default()
         };
         self.apply(&mut forcefield);
@@ -183,6 +192,7 @@ impl ElectrostaticsOverrides {
         spec.pme_order = forcefield.pme_order;
         spec.pme_level = forcefield.pme_level;
         spec.nonbonded_level = forcefield.nonbonded_level;
+        spec.split = forcefield.split;
     }
 
     /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and
@@ -224,6 +234,9 @@ impl ElectrostaticsOverrides {
         }
         if let Some(order) = self.pme_order {
             spec.pme_order = Some(order);
+        }
+        if let Some(split) = &self.split {
+            spec.split = Some(split.clone());
         }
     }
 }

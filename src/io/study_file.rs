@@ -10,12 +10,13 @@
 //! rigid_water = true
 //! level_dt = ["0.5fs"]             # as --level-dt (optional)
 //! pme_level = 1                    # as --pme-level / --nonbonded-level (optional)
+//! split = { r_in = 5, r_out = 6, short_level = 0, remainder_level = 1 }  # as --split
 //! set = ["k=2"]                    # as --set, after the command line's (optional)
 //! starts = 3                       # as --starts: independent starts per point (optional)
 //! ```
 //!
-//! Every key but `label`, `h`, `level_dt`, `pme_level`, `nonbonded_level`, `set` and
-//! `starts` goes to
+//! Every key but `label`, `h`, `level_dt`, `pme_level`, `nonbonded_level`, `split`, `set`
+//! and `starts` goes to
 //! [`RunSpec`], the parser of a scene's `[run]` table, so a study accepts exactly the run
 //! settings a scene does. Each key is checked on its own, so a message names the key.
 
@@ -23,15 +24,17 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::io::forcefield::SplitSection;
 use crate::settings::{RunSpec, Value};
 
 /// The keys of a configuration that are not `[run]` keys.
-const STUDY_KEYS: [&str; 7] = [
+const STUDY_KEYS: [&str; 8] = [
     "label",
     "h",
     "level_dt",
     "pme_level",
     "nonbonded_level",
+    "split",
     "set",
     "starts",
 ];
@@ -57,6 +60,8 @@ pub struct StudyConfig {
     pub set: Vec<String>,
     pub pme_level: Option<usize>,
     pub nonbonded_level: Option<usize>,
+    /// The cutoff term split by distance (as `--split`; `None`: the command line's).
+    pub split: Option<SplitSection>,
     /// Independent starts per point (`None`: the command line's `--starts`).
     pub starts: Option<usize>,
 }
@@ -159,8 +164,21 @@ fn read_config(entry: &toml::Value, number: usize) -> std::result::Result<StudyC
         nonbonded_level: read_level(table.get("nonbonded_level"), "nonbonded_level")
             .map_err(named)?,
         starts: read_starts(table.get("starts")).map_err(named)?,
+        split: read_split(table.get("split")).map_err(named)?,
         label,
     })
+}
+
+/// `split = { r_in = …, r_out = …, … }`: the keys of `[topology.split]`.
+fn read_split(value: Option<&toml::Value>) -> std::result::Result<Option<SplitSection>, String> {
+    match value {
+        None => Ok(None),
+        Some(toml::Value::Table(table)) => toml::Value::Table(table.clone())
+            .try_into()
+            .map(Some)
+            .map_err(|e: toml::de::Error| format!("`split`: {}", e.message().trim())),
+        Some(_) => Err("`split` takes a table: { r_in = 5, r_out = 6, … }".into()),
+    }
 }
 
 /// The `[run]` keys of a configuration through [`RunSpec`]'s own parser, one key at a time

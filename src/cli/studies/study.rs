@@ -85,6 +85,9 @@ fn config_setup(
     let electrostatics = &mut setup.flags.electrostatics;
     electrostatics.pme_level = config.pme_level.or(electrostatics.pme_level);
     electrostatics.nonbonded_level = config.nonbonded_level.or(electrostatics.nonbonded_level);
+    if config.split.is_some() {
+        electrostatics.split = config.split.clone();
+    }
     let method = config.run.method.clone().unwrap_or_default();
     let steps = parse_steps(&config.steps, units)?;
     for &h in &steps {

@@ -38,6 +38,9 @@ pub struct Workspace {
     /// Positions of the last evaluation and its energies, if computed.
     cached_q: Vec<f64>,
     pub cached: Option<(f64, f64)>,
+    /// The chunks' buffers hold the gradient at `cached_q` for the current list (a switched
+    /// term reuses them: r-RESPA asks for the short part and then the remainder there).
+    pub reusable: bool,
     /// Whether gradients compute the energy too (the last one's energy was asked for).
     energy_wanted: bool,
     energy_used: bool,
@@ -62,6 +65,7 @@ impl Workspace {
             reduced: Vec::new(),
             cached_q: Vec::new(),
             cached: None,
+            reusable: false,
             energy_wanted: false,
             energy_used: false,
         }
@@ -90,6 +94,7 @@ fn window_ranges(window: (usize, usize), n: usize) -> [std::ops::Range<usize>; 2
 impl Nonbonded {
     /// Make the list valid at `q` and the kernel's inputs current.
     pub(super) fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
+        workspace.reusable = false;
         let refresh = workspace.list.update(q);
         if refresh == Refresh::Built {
             self.slot_parameters(workspace);
@@ -156,11 +161,25 @@ impl Nonbonded {
         ensure(&mut workspace.reduced, clusters, most);
     }
 
-    /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += ∇V`.
-    pub(super) fn evaluate(&self, q: &[f64], gradient: Option<&mut [f64]>) -> (f64, f64) {
+    /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += sign ∇V`.
+    pub(super) fn evaluate(
+        &self,
+        q: &[f64],
+        mut gradient: Option<&mut [f64]>,
+        sign: f64,
+    ) -> (f64, f64) {
         let mut guard = self.lock();
         let workspace = &mut *guard;
         let same = workspace.cached_q == q;
+        if let Some(gradient) = gradient.as_deref_mut()
+            && same
+            && workspace.reusable
+            && self.switch.is_some()
+        {
+            // The switched part's last gradient, here again: only the reduction.
+            self.reduce(workspace, gradient, sign);
+            return workspace.cached.unwrap_or_default();
+        }
         if gradient.is_none() && same {
             if let Some(cached) = workspace.cached {
                 workspace.energy_used = true;
@@ -179,13 +198,14 @@ impl Nonbonded {
             Precision::Mixed => self.run_chunks::<f32>(workspace, with_energy),
         };
         if let Some(gradient) = gradient {
-            self.reduce(workspace, gradient);
+            self.reduce(workspace, gradient, sign);
         }
         if workspace.cached_q.len() != q.len() {
             workspace.cached_q = vec![f64::NAN; q.len()];
         }
         workspace.cached_q.copy_from_slice(q);
         workspace.cached = with_energy.then_some(energies);
+        workspace.reusable = true;
         workspace.energy_used = false;
         energies
     }
@@ -241,21 +261,42 @@ impl Nonbonded {
     /// The kernel with this term's Coulomb form.
     fn dispatch<R: KernelReal, const ENERGY: bool>(&self, isa: Isa, job: &Job<R>, out: &mut Out) {
         if self.electrostatics == Electrostatics::None {
-            return R::evaluate::<kernel::NoCoulomb, ENERGY>(isa, job, kernel::NoCoulomb, out);
+            return self.with_switch::<R, _, ENERGY>(isa, job, kernel::NoCoulomb, out);
         }
         match self.kernel {
-            Kernel::Plain(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
-            Kernel::ShiftedForce(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
-            Kernel::Damped(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
-            Kernel::ReactionField(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
-            Kernel::Ewald(c) => R::evaluate::<_, ENERGY>(isa, job, c, out),
+            Kernel::Plain(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+            Kernel::ShiftedForce(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+            Kernel::Damped(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+            Kernel::ReactionField(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+            Kernel::Ewald(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+        }
+    }
+
+    /// The kernel with Coulomb form `c`, multiplied by the switch of a short-range part.
+    fn with_switch<R: KernelReal, C: kernel::Coulomb, const ENERGY: bool>(
+        &self,
+        isa: Isa,
+        job: &Job<R>,
+        c: C,
+        out: &mut Out,
+    ) {
+        match self.switch {
+            None => R::evaluate::<C, ENERGY>(isa, job, c, out),
+            Some(switch) => {
+                let switched = kernel::Switched {
+                    inner: c,
+                    r_in: switch.r_in(),
+                    inverse_width: 1.0 / (switch.r_out() - switch.r_in()),
+                };
+                R::evaluate::<_, ENERGY>(isa, job, switched, out)
+            }
         }
     }
 
     /// `gradient += Σ_c buffer_c`, chunk by chunk in order over each chunk's window
     /// (deterministic), in parallel over blocks of clusters for large systems; then from
     /// cluster slots to atoms.
-    fn reduce(&self, workspace: &mut Workspace, gradient: &mut [f64]) {
+    fn reduce(&self, workspace: &mut Workspace, gradient: &mut [f64], sign: f64) {
         let Workspace {
             list,
             buffers,
@@ -297,9 +338,9 @@ impl Nonbonded {
                 let slot = slot_of[block * BLOCK + k] as usize;
                 let c = &reduced[slot / CLUSTER];
                 let l = slot % CLUSTER;
-                g[0] += c.x[l];
-                g[1] += c.y[l];
-                g[2] += c.z[l];
+                g[0] += sign * c.x[l];
+                g[1] += sign * c.y[l];
+                g[2] += sign * c.z[l];
             }
         };
         if self.n >= PARALLEL_PASSES_MIN_ATOMS {
@@ -314,7 +355,7 @@ impl Nonbonded {
 
     /// `out += ∇²V v` over the pruned list (pairs within the cutoff): for a radial `V`,
     /// `(∇²V v)_j = a Δv + b (d·Δv) d` with `a = V′/r`, `b = (V″ − V′/r)/r²`.
-    pub(super) fn hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+    pub(super) fn hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
         let mut guard = self.lock();
         self.refresh(&mut guard, q);
         let list = &guard.list;
@@ -326,8 +367,8 @@ impl Nonbonded {
             }
             let r = r2.sqrt();
             let (d1, d2) = self.pair_derivatives(i, j, r);
-            let a = d1 / r;
-            let b = (d2 - a) / r2;
+            let a = sign * d1 / r;
+            let b = (sign * d2 - a) / r2;
             let dv: [f64; 3] = std::array::from_fn(|k| v[3 * j + k] - v[3 * i + k]);
             let along = b * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]);
             for k in 0..3 {

@@ -110,6 +110,10 @@ pub struct Out<'a> {
 
 /// A Coulomb form in lanes: `(V, −V′/r)` at `r²` with `1/r`, `1/r²` and `Q = k_e q_i q_j`.
 pub trait Coulomb: Copy + Send + Sync {
+    /// Whether the pair energy (Lennard-Jones and Coulomb) is multiplied by a switch
+    /// ([`Switched`]): then the energy lanes are computed for the force too.
+    const SWITCHED: bool = false;
+
     /// The energy lanes are only meaningful when `ENERGY`.
     fn lanes<S: Simd, const ENERGY: bool>(
         &self,
@@ -119,6 +123,71 @@ pub trait Coulomb: Copy + Send + Sync {
         rinv: S::V,
         rinv2: S::V,
     ) -> (S::V, S::V);
+
+    /// `(r_in, 1/(r_out − r_in))` of the switch (with `SWITCHED`).
+    fn switch_range(&self) -> (f64, f64) {
+        (0.0, 0.0)
+    }
+}
+
+/// A Coulomb form whose pairs, Lennard-Jones included, are multiplied by the quintic
+/// switch `S(r)` from 1 at `r_in` to 0 at `r_out` ([`crate::forces::distance_split::Switch`]):
+/// `W = S V` and `−W′/r = S (−V′/r) − S′ V/r`, the short-range part of a distance split.
+#[derive(Clone, Copy)]
+pub struct Switched<C> {
+    pub inner: C,
+    pub r_in: f64,
+    pub inverse_width: f64,
+}
+
+impl<C: Coulomb> Coulomb for Switched<C> {
+    const SWITCHED: bool = true;
+
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V) {
+        self.inner.lanes::<S, true>(s, qq, r2, rinv, rinv2)
+    }
+
+    fn switch_range(&self) -> (f64, f64) {
+        (self.r_in, self.inverse_width)
+    }
+}
+
+/// `(S f + (−S′) V/r, S E_LJ, S E_C)`: the switch of [`Switched`] on a pair's force
+/// `f = −V′/r` and energies, `V = E_LJ + E_C`, at `r² = r2`. `S` in the form without
+/// cancellation at each end, as [`crate::forces::distance_split::Switch::value_slope`];
+/// only add, multiply, fused multiply-add and select: the same bits on every instruction set.
+#[inline(always)]
+fn switch_lanes<S: Simd>(
+    s: S,
+    (r_in, inverse_width): (f64, f64),
+    (r2, rinv): (S::V, S::V),
+    (f, e_lj, e_q): (S::V, S::V, S::V),
+) -> (S::V, S::V, S::V) {
+    let c = |x: f64| s.splat(S::R::of(x));
+    let (zero, one) = (c(0.0), c(1.0));
+    let t = s.mul(s.sub(s.mul(r2, rinv), c(r_in)), c(inverse_width));
+    let t = s.select(s.less(t, zero), zero, t);
+    let t = s.select(s.less(one, t), one, t);
+    let u = s.sub(one, t);
+    // 10 − 15x + 6x² at x = t and x = u.
+    let poly = |x: S::V| s.fma(x, s.fma(x, c(6.0), c(-15.0)), c(10.0));
+    let (t2, u2) = (s.mul(t, t), s.mul(u, u));
+    let near = s.fnma(s.mul(t2, t), poly(t), one);
+    let far = s.mul(s.mul(u2, u), poly(u));
+    let switch = s.select(s.less(t, c(0.5)), near, far);
+    // −S′ = 30 t² u² / w.
+    let minus_slope = s.mul(s.mul(t2, u2), c(30.0 * inverse_width));
+    let v = s.add(e_lj, e_q);
+    let f = s.fma(s.mul(minus_slope, v), rinv, s.mul(switch, f));
+    (f, s.mul(switch, e_lj), s.mul(switch, e_q))
 }
 
 /// No Coulomb term.
@@ -663,11 +732,19 @@ fn group_pair<S: Simd, C: Coulomb, L: Lj<S>, const LJ: bool, const ENERGY: bool>
     let rinv = s.rsqrt(r2);
     let rinv2 = s.mul(rinv, rinv);
     let qq = s.mul(rows.q[g], s.load4(&j.q));
-    let (e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, qq, r2, rinv, rinv2);
+    let (mut e_q, f_q) = coulomb.lanes::<S, ENERGY>(s, qq, r2, rinv, rinv2);
     let (mut f, mut e_lj) = (f_q, k.zero);
     if LJ {
-        let (e, rinv8, bracket) = lj.lanes::<ENERGY>(s, &rows.lj[g], &lj.j(s, cj), rinv2);
+        let (i, j) = (&rows.lj[g], &lj.j(s, cj));
+        let (e, rinv8, bracket) = if C::SWITCHED {
+            lj.lanes::<true>(s, i, j, rinv2)
+        } else {
+            lj.lanes::<ENERGY>(s, i, j, rinv2)
+        };
         (f, e_lj) = (s.fma(rinv8, bracket, f_q), e);
+    }
+    if C::SWITCHED {
+        (f, e_lj, e_q) = switch_lanes(s, coulomb.switch_range(), (r2, rinv), (f, e_lj, e_q));
     }
     let f = s.select(m, f, k.zero);
     let mut out = [k.zero; 5];

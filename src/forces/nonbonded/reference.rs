@@ -85,6 +85,13 @@ impl Nonbonded {
             e += ec;
             f += fc;
         }
-        (e, f)
+        match self.switch {
+            None => (e, f),
+            // −(S V)′/r = S (−V′/r) − S′ V/r.
+            Some(switch) => {
+                let (sw, slope) = switch.value_slope(s.sqrt());
+                (sw * e, sw * f - slope * e * inv_r)
+            }
+        }
     }
 }

@@ -1,5 +1,6 @@
-//! `[forcefield.split]`: the cutoff non-bonded term split by distance into a short-range
-//! part and a remainder on two levels (`forces::distance_split` has the formulas):
+//! `[forcefield.split]` and `[topology.split]` (and `--split KEY=VALUE,…` over either): the
+//! cutoff non-bonded term split by distance into a short-range part and a remainder on two
+//! levels (`forces::distance_split` has the formulas):
 //!
 //! ```toml
 //! [forcefield.split]
@@ -14,8 +15,15 @@
 //! Molecules are the connected components of the bond graph. Each molecule's reference
 //! atom is its first atom (in file order) whose type name or element is `reference`; without
 //! `reference`, its first heaviest atom (O for water).
+//!
+//! A topology's split is by atom pair unless it says `by = "molecule"`: its molecules
+//! include a protein, whose pairs with the water would all be switched on the distance of
+//! one reference atom; with PME the real-space pairs beyond `r_in` are screened by
+//! `erfc(α r)`, so the remainder by atom pair is small (erfc(0.347 × 5) = 0.014 at
+//! GROMACS's default α). Rigid waters (`[ settles ]`) count as bonded for the molecules, and
+//! the topology's 1-4 pairs go to the short part's level.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use super::atoms::AtomTable;
 use super::{ForcefieldInput, Terms};
@@ -28,12 +36,13 @@ use crate::split::Assignment;
 /// Levels a split may name, at most (the splitter sizes a table per level).
 const MAX_LEVEL: usize = 15;
 
-#[derive(Clone, Debug, Deserialize)]
+/// `[forcefield.split]` and `[topology.split]` (and `--split KEY=VALUE,…`).
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct SplitSection {
     pub r_in: f64,
     pub r_out: f64,
-    /// `"molecule"` (default) or `"atom"`.
+    /// `"molecule"` or `"atom"`; the default is the caller's.
     pub by: Option<String>,
     /// By molecule: element or type name of each molecule's reference atom.
     pub reference: Option<String>,
@@ -41,8 +50,50 @@ pub struct SplitSection {
     pub remainder_level: Option<usize>,
 }
 
-/// The short-range part and the remainder of the cutoff term `spec`, on their levels; one
-/// report line.
+impl SplitSection {
+    /// The section from `--split r_in=6,r_out=7,by=atom,short_level=0,remainder_level=1`:
+    /// the section's keys as `KEY=VALUE` pairs separated by commas.
+    pub fn from_flag(text: &str) -> Result<SplitSection, String> {
+        let mut table = toml::Table::new();
+        for pair in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let Some((key, value)) = pair.split_once('=') else {
+                return Err(format!("--split: \"{pair}\" is no KEY=VALUE pair"));
+            };
+            let value = value.trim();
+            let value = match (value.parse::<i64>(), value.parse::<f64>()) {
+                (Ok(n), _) => toml::Value::Integer(n),
+                (_, Ok(x)) => toml::Value::Float(x),
+                _ => toml::Value::String(value.into()),
+            };
+            table.insert(key.trim().into(), value);
+        }
+        toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| {
+                format!(
+                    "--split \"{text}\": {} (keys r_in, r_out, by, reference, short_level, \
+                 remainder_level; e.g. r_in=5,r_out=6,short_level=0,remainder_level=1)",
+                    e.message().trim()
+                )
+            })
+    }
+}
+
+/// What a split needs of the atoms, whatever file they came from.
+pub(crate) struct SplitAtoms<'a> {
+    /// Bonds between atoms: molecules are the connected components.
+    pub bonds: &'a [[usize; 2]],
+    pub masses: &'a [f64],
+    /// Whether atom `i` has the element or type name `name`.
+    pub is_named: &'a dyn Fn(usize, &str) -> bool,
+    /// The section's name in messages (`[forcefield.split]`, `[topology.split]`).
+    pub table: &'a str,
+    /// `by` when the section gives none.
+    pub default_by: SwitchBy,
+}
+
+/// The short-range part and the remainder of the cutoff term `spec` of a scene's
+/// force field, on their levels; one report line.
 pub(super) fn terms(
     input: &ForcefieldInput,
     atoms: &AtomTable,
@@ -51,10 +102,33 @@ pub(super) fn terms(
     terms: &mut Terms,
     report: &mut Vec<String>,
 ) -> Result<(), String> {
-    let fail = |e: String| format!("[forcefield.split] {e}");
+    let is_named =
+        |i: usize, name: &str| input.atoms[i].type_name == name || atoms.elements[i] == name;
+    let split_atoms = SplitAtoms {
+        bonds: input.bonds,
+        masses: &atoms.masses,
+        is_named: &is_named,
+        table: "[forcefield.split]",
+        default_by: SwitchBy::Molecule,
+    };
+    split_terms(section, &split_atoms, spec, input.q, terms, report)
+}
+
+/// The short-range part and the remainder of the cutoff term `spec` at positions `q`, as
+/// `section` asks, pushed on `terms` with one report line.
+pub(crate) fn split_terms(
+    section: &SplitSection,
+    atoms: &SplitAtoms,
+    spec: NonbondedSpec,
+    q: &[f64],
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<(), String> {
+    let fail = |e: String| format!("{} {e}", atoms.table);
     let (short_level, remainder_level) = levels(section).map_err(fail)?;
     let by = match section.by.as_deref() {
-        None | Some("molecule") => SwitchBy::Molecule,
+        None => atoms.default_by,
+        Some("molecule") => SwitchBy::Molecule,
         Some("atom") => SwitchBy::AtomPair,
         Some(other) => {
             return Err(fail(format!(
@@ -67,11 +141,10 @@ pub(super) fn terms(
             "reference is for by = \"molecule\" (by = \"atom\" has no reference atoms)".into(),
         ));
     }
-    let n = atoms.masses.len();
     let (molecule_of, reference) = match by {
         SwitchBy::Molecule => {
-            let molecule_of = molecules_from_bonds(n, input.bonds);
-            let reference = references(input, atoms, section, &molecule_of).map_err(fail)?;
+            let molecule_of = molecules_from_bonds(atoms.masses.len(), atoms.bonds);
+            let reference = references(atoms, section, &molecule_of).map_err(fail)?;
             (molecule_of, reference)
         }
         SwitchBy::AtomPair => (Vec::new(), Vec::new()),
@@ -83,14 +156,17 @@ pub(super) fn terms(
         molecule_of,
         reference_atoms: reference,
     };
-    let (short, remainder) = split_nonbonded(spec, &split, input.q).map_err(fail)?;
-    let reference_name = match by {
-        SwitchBy::Molecule => format!(
-            ", reference {} in each of {} molecules",
-            reference_label(section),
-            split.reference_atoms.len()
+    let (short, remainder) = split_nonbonded(spec, &split, q).map_err(fail)?;
+    let (reference_name, by_name) = match by {
+        SwitchBy::Molecule => (
+            format!(
+                ", reference {} in each of {} molecules",
+                reference_label(section),
+                split.reference_atoms.len()
+            ),
+            format!("by molecule ({})", reference_label(section)),
         ),
-        SwitchBy::AtomPair => String::new(),
+        SwitchBy::AtomPair => (String::new(), "by atom pair".into()),
     };
     report.push(format!(
         "nonbonded split: short-range part on level {short_level} {}{reference_name}, \
@@ -98,10 +174,6 @@ pub(super) fn terms(
         short.short_range().describe(),
         short.short_range().pair_loop()
     ));
-    let by_name = match by {
-        SwitchBy::Molecule => format!("by molecule ({})", reference_label(section)),
-        SwitchBy::AtomPair => "by atom pair".into(),
-    };
     let short_name = format!(
         "short-range: switched off from r_in = {} to r_out = {} {by_name}",
         section.r_in, section.r_out
@@ -140,20 +212,19 @@ fn reference_label(section: &SplitSection) -> String {
 
 /// Each molecule's reference atom (module doc); errors name the reference or the molecule.
 fn references(
-    input: &ForcefieldInput,
-    atoms: &AtomTable,
+    atoms: &SplitAtoms,
     section: &SplitSection,
     molecule_of: &[u32],
 ) -> Result<Vec<usize>, String> {
     let Some(name) = &section.reference else {
-        return reference_atoms(molecule_of, &atoms.masses, None);
+        return reference_atoms(molecule_of, atoms.masses, None);
     };
-    let matches = |i: usize| &input.atoms[i].type_name == name || &atoms.elements[i] == name;
+    let matches = |i: usize| (atoms.is_named)(i, name);
     if !(0..molecule_of.len()).any(matches) {
         return Err(format!(
             "reference = \"{name}\" is no element or type name of the structure's atoms"
         ));
     }
-    reference_atoms(molecule_of, &atoms.masses, Some(&matches))
+    reference_atoms(molecule_of, atoms.masses, Some(&matches))
         .map_err(|e| format!("reference = \"{name}\": {e}"))
 }

@@ -150,6 +150,9 @@ pub struct TopologySpec {
     pub pme_level: Option<usize>,
     /// The level of the cutoff (real-space) term (default: the slowest).
     pub nonbonded_level: Option<usize>,
+    /// The cutoff term split by distance across two levels (`[topology.split]`, the
+    /// keys of `[forcefield.split]`; by atom pair unless `by = "molecule"`).
+    pub split: Option<crate::io::forcefield::SplitSection>,
     /// A GROMACS topology's preprocessor defines (`"FLEXIBLE"`, `"NAME=value"`), as
     /// `grompp`'s `define = -DFLEXIBLE`.
     pub defines: Option<Vec<String>>,

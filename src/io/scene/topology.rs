@@ -153,6 +153,7 @@ impl Builder<'_> {
             },
             pme_level: spec.pme_level,
             nonbonded_level: spec.nonbonded_level,
+            split: spec.split.clone(),
         };
         Ok(Some(Loaded {
             topology,

@@ -19,6 +19,7 @@ use std::collections::BTreeMap;
 use super::Topology;
 use crate::forces::angle::{AngleBend, HarmonicAngles};
 use crate::forces::coulomb::Coulomb as CoulombPair;
+use crate::forces::distance_split::SwitchBy;
 use crate::forces::ewald::{EwaldParameters, EwaldRequest, PmeReciprocal, resolve};
 use crate::forces::harmonic_dihedral::{HarmonicDihedral, HarmonicDihedrals};
 use crate::forces::lennard_jones::LennardJones;
@@ -27,6 +28,8 @@ use crate::forces::pair::{Pair, PairTerm};
 use crate::forces::spring::HarmonicBond;
 use crate::forces::torsion::{Cosine, Dihedral, Torsions};
 use crate::forces::{ForceTerm, PeriodicBox, Site, TermClass};
+use crate::io::forcefield::SplitSection;
+use crate::io::forcefield::distance_split::{SplitAtoms, split_terms};
 use crate::split::Assignment;
 use crate::units::COULOMB_KCAL_ANGSTROM;
 
@@ -83,6 +86,9 @@ pub struct NonbondedOptions {
     pub pme_level: Option<usize>,
     /// The level of the cutoff term (default: the slowest).
     pub nonbonded_level: Option<usize>,
+    /// The cutoff term split by distance into a short-range part and a remainder
+    /// (`[topology.split]`), by atom pair unless `by = "molecule"`.
+    pub split: Option<SplitSection>,
 }
 
 /// The terms with what the scene needs besides them.
@@ -128,10 +134,15 @@ pub fn build_terms(
         ));
     }
     let electrostatics = nonbonded(topology, q, options, &mut terms, &mut report)?;
+    // With a distance split the 1-4 pairs, short-range by construction, go with its
+    // short part; otherwise with the non-bonded terms (the slowest level by default).
+    let level_14 = options.split.as_ref().map_or(Assignment::Default, |s| {
+        Assignment::Level(s.short_level.unwrap_or(1))
+    });
     pairs_14(
         topology,
         electrostatics,
-        periodic_box,
+        (periodic_box, level_14),
         &mut terms,
         &mut report,
     );
@@ -416,12 +427,8 @@ fn nonbonded(
         },
         electrostatics.describe()
     ));
+    cutoff_terms(topology, spec, q, options, terms, report)?;
     let level = |l: Option<usize>| l.map_or(Assignment::Default, Assignment::Level);
-    terms.push((
-        "nonbonded".into(),
-        Box::new(Nonbonded::new(spec, q)?),
-        level(options.nonbonded_level),
-    ));
     if let (Some(params), Some(lengths)) = (ewald, topology.periodic_box) {
         let charges = topology.atoms.iter().map(|a| a.charge).collect();
         let term = PmeReciprocal::new(
@@ -446,11 +453,60 @@ fn nonbonded(
     Ok(electrostatics)
 }
 
+/// The cutoff term `spec` whole on `nonbonded_level`, or split by distance.
+fn cutoff_terms(
+    topology: &Topology,
+    spec: NonbondedSpec,
+    q: &[f64],
+    options: &NonbondedOptions,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<(), String> {
+    let Some(section) = &options.split else {
+        let level = options
+            .nonbonded_level
+            .map_or(Assignment::Default, Assignment::Level);
+        terms.push((
+            "nonbonded".into(),
+            Box::new(Nonbonded::new(spec, q)?),
+            level,
+        ));
+        return Ok(());
+    };
+    if options.nonbonded_level.is_some() {
+        return Err(
+            "nonbonded_level places the whole cutoff term; with a split give its \
+                    short_level and remainder_level instead"
+                .into(),
+        );
+    }
+    // A rigid water's O–H pairs hold it together as bonds would.
+    let bonds: Vec<[usize; 2]> = (topology.bonds.iter().map(|b| b.atoms))
+        .chain(topology.settles.iter().flat_map(|s| {
+            let [o, h1, h2] = s.atoms;
+            [[o, h1], [o, h2]]
+        }))
+        .collect();
+    let masses: Vec<f64> = topology.atoms.iter().map(|a| a.mass).collect();
+    let is_named = |i: usize, name: &str| {
+        let atom = &topology.atoms[i];
+        atom.element == name || atom.name == name
+    };
+    let atoms = SplitAtoms {
+        bonds: &bonds,
+        masses: &masses,
+        is_named: &is_named,
+        table: "[topology.split]",
+        default_by: SwitchBy::AtomPair,
+    };
+    split_terms(section, &atoms, spec, q, terms, report)
+}
+
 /// The scaled 1-4 pairs, without cutoff, plain Coulomb: `lj-14` and `coulomb-14`.
 fn pairs_14(
     topology: &Topology,
     electrostatics: Electrostatics,
-    periodic_box: Option<PeriodicBox>,
+    (periodic_box, level): (Option<PeriodicBox>, Assignment),
     terms: &mut Terms,
     report: &mut Vec<String>,
 ) {
@@ -504,12 +560,12 @@ fn pairs_14(
     for (name, kind, list) in [("lj-14", "lennard-jones-14", lj_pairs)] {
         if !list.is_empty() {
             let term = PairTerm::new(kind, TermClass::Nonbonded, 3, list, periodic_box);
-            terms.push((name.into(), Box::new(term), Assignment::Default));
+            terms.push((name.into(), Box::new(term), level));
         }
     }
     if !coulomb_pairs.is_empty() {
         let kind = "coulomb-14";
         let term = PairTerm::new(kind, TermClass::Nonbonded, 3, coulomb_pairs, periodic_box);
-        terms.push(("coulomb-14".into(), Box::new(term), Assignment::Default));
+        terms.push(("coulomb-14".into(), Box::new(term), level));
     }
 }
