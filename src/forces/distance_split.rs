@@ -563,7 +563,7 @@ impl ShortRange {
         if split.by == SwitchBy::Molecule {
             short.intramolecular = short.intramolecular_pairs()?;
         }
-        {
+        if short.atom_pairs.is_none() {
             let mut workspace = short.lock();
             short.refresh(&mut workspace, q);
         }
@@ -699,48 +699,32 @@ impl ShortRange {
         Ok(pairs)
     }
 
-    /// The position of search point `k` (a reference atom, or an atom).
+    /// The position of search point `k`, molecule `k`'s reference atom.
     #[inline(always)]
     fn point(&self, q: &[f64], k: usize) -> [f64; 3] {
-        let i = match self.by {
-            SwitchBy::Molecule => self.molecules.reference[k] as usize,
-            SwitchBy::AtomPair => k,
-        };
+        let i = self.molecules.reference[k] as usize;
         [q[3 * i], q[3 * i + 1], q[3 * i + 2]]
     }
 
-    /// Rebuild the pair list if a point has moved half the skin.
+    /// Rebuild the molecule pair list if a reference atom has moved half the skin.
     fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
         let search = &mut workspace.search;
         if !search.needs_rebuild(|k| self.point(q, k)) {
             return;
         }
-        match self.by {
-            SwitchBy::Molecule => search.build(|k| self.point(q, k), |_, _| true),
-            SwitchBy::AtomPair => {
-                search.build(|k| self.point(q, k), |a, b| !self.is_excluded(a, b))
-            }
-        }
-        let listed = match self.by {
-            SwitchBy::Molecule => {
-                search
-                    .pairs
-                    .iter()
-                    .map(|&[a, b]| {
-                        self.molecules.atoms(a as usize).len()
-                            * self.molecules.atoms(b as usize).len()
-                    })
-                    .sum::<usize>()
-                    + self.intramolecular.len()
-            }
-            SwitchBy::AtomPair => search.pairs.len(),
-        };
+        search.build(|k| self.point(q, k));
+        let listed = search
+            .pairs
+            .iter()
+            .map(|&[a, b]| {
+                self.molecules.atoms(a as usize).len() * self.molecules.atoms(b as usize).len()
+            })
+            .sum::<usize>()
+            + self.intramolecular.len();
         self.listed_atom_pairs.store(listed, Ordering::Relaxed);
-        if self.by == SwitchBy::Molecule {
-            let (partners, atoms) = self.largest_row(&workspace.search.pairs);
-            for scratch in &mut workspace.scratch {
-                scratch.reserve(partners, atoms);
-            }
+        let (partners, atoms) = self.largest_row(&workspace.search.pairs);
+        for scratch in &mut workspace.scratch {
+            scratch.reserve(partners, atoms);
         }
     }
 
@@ -985,12 +969,7 @@ impl ShortRange {
         }
         let mut workspace = self.lock();
         self.refresh(&mut workspace, q);
-        let listed = kernels::energy_parts(
-            self,
-            q,
-            &workspace.search.pairs,
-            self.by == SwitchBy::Molecule,
-        );
+        let listed = kernels::energy_parts(self, q, &workspace.search.pairs, true);
         let inside = kernels::energy_parts(self, q, &self.intramolecular, false);
         [listed[0] + inside[0], listed[1] + inside[1]]
     }
@@ -1000,29 +979,15 @@ impl ShortRange {
             return pairs.couplings();
         }
         let workspace = self.lock();
-        let mut couplings: Vec<Vec<usize>> = match self.by {
-            SwitchBy::Molecule => workspace
-                .search
-                .pairs
-                .iter()
-                .map(|&[a, b]| {
-                    let mut atoms: Vec<usize> = self
-                        .molecules
-                        .atoms(a as usize)
-                        .iter()
-                        .map(|&i| i as usize)
-                        .collect();
-                    atoms.extend(self.molecules.atoms(b as usize).iter().map(|&i| i as usize));
-                    atoms
-                })
-                .collect(),
-            SwitchBy::AtomPair => workspace
-                .search
-                .pairs
-                .iter()
-                .map(|&[a, b]| vec![a as usize, b as usize])
-                .collect(),
-        };
+        let mut couplings: Vec<Vec<usize>> = workspace
+            .search
+            .pairs
+            .iter()
+            .map(|&[a, b]| {
+                let atoms = |m: u32| self.molecules.atoms(m as usize).iter().map(|&i| i as usize);
+                atoms(a).chain(atoms(b)).collect()
+            })
+            .collect();
         couplings.extend(
             self.intramolecular
                 .iter()

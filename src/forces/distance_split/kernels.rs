@@ -1,7 +1,8 @@
 //! The short part's pair loops (formulas in the parent module's doc): by molecule, a
 //! listed molecule pair inside `r_out` gets one switch value `S(R)` for all its atom pairs;
-//! by atom pair, each pair is switched on its own distance. Gradients and Hessian-vector
-//! products go into one chunk's buffer.
+//! the pairs inside a molecule are each switched on their own distance (a split by atom
+//! pair runs in the cluster-pair kernel instead). Gradients and Hessian-vector products go
+//! into one chunk's buffer.
 
 use super::{Model, ShortRange, Switch};
 

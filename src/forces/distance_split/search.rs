@@ -78,12 +78,8 @@ impl PairSearch {
         })
     }
 
-    /// List every pair `a < b` of points closer than `reach` for which `keep(a, b)`.
-    pub fn build(
-        &mut self,
-        point: impl Fn(usize) -> [f64; 3],
-        keep: impl Fn(usize, usize) -> bool,
-    ) {
+    /// List every pair `a < b` of points closer than `reach`.
+    pub fn build(&mut self, point: impl Fn(usize) -> [f64; 3]) {
         let n = self.reference.len();
         for k in 0..n {
             self.reference[k] = point(k);
@@ -97,12 +93,12 @@ impl PairSearch {
         if all_pairs {
             for a in 0..n {
                 for b in a + 1..n {
-                    self.consider(a, b, reach2, &keep);
+                    self.consider(a, b, reach2);
                 }
             }
         } else {
             self.bin(counts);
-            self.scan_cells(counts, reach2, &keep);
+            self.scan_cells(counts, reach2);
         }
         let room = self.pairs.len() + self.pairs.len() / 4;
         self.pairs.reserve(room.saturating_sub(self.pairs.len()));
@@ -111,9 +107,9 @@ impl PairSearch {
     }
 
     #[inline(always)]
-    fn consider(&mut self, a: usize, b: usize, reach2: f64, keep: &impl Fn(usize, usize) -> bool) {
+    fn consider(&mut self, a: usize, b: usize, reach2: f64) {
         let d = self.displacement(self.reference[a], self.reference[b]);
-        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < reach2 && keep(a, b) {
+        if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < reach2 {
             self.pairs.push([a as u32, b as u32]);
         }
     }
@@ -205,12 +201,7 @@ impl PairSearch {
 
     /// Every point against the points of its own and the 26 neighbouring cells (distinct:
     /// a periodic axis has ≥ 3 cells), keeping partners `b > a`: each pair once.
-    fn scan_cells(
-        &mut self,
-        counts: [usize; 3],
-        reach2: f64,
-        keep: &impl Fn(usize, usize) -> bool,
-    ) {
+    fn scan_cells(&mut self, counts: [usize; 3], reach2: f64) {
         let n = self.reference.len();
         let periodic: [bool; 3] = std::array::from_fn(|a| self.period[a] > 0.0);
         let neighbour = |c: usize, offset: isize, axis: usize| -> Option<usize> {
@@ -249,7 +240,7 @@ impl PairSearch {
                         for t in range {
                             let b = self.cell_points[t] as usize;
                             if b > a {
-                                self.consider(a, b, reach2, keep);
+                                self.consider(a, b, reach2);
                             }
                         }
                     }

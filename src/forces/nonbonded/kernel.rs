@@ -49,6 +49,13 @@
 //! sum) takes 1.44× the α = 0 run, and 500 PME steps took 5.75 s instead of 26.1 s in double, 2.29 s instead of 18.6 s in
 //! mixed precision (`docs/data/sittings/pme-erfc-2026-11-26.txt`).
 //!
+//! **Switched pairs.** The short-range part of a distance split by atom pair
+//! ([`crate::forces::distance_split`]) is this kernel with the Coulomb form wrapped in
+//! [`Switched`]: its list is cut at `r_out`, the pair energy (Lennard-Jones and Coulomb) is
+//! computed for the force too, and [`switch_lanes`] multiplies it by the quintic `S(r)`,
+//! `−W′/r = S(−V′/r) − S′V/r` — `SWITCHED` is a constant of the form, so the unswitched
+//! kernels compile as before.
+//!
 //! Mixed precision: the same code with `f32` lanes. The i-positions (with their image
 //! shift) are formed in f64 and rounded once, the j-positions are rounded once per
 //! evaluation; every cluster pair's contributions go into f64 buffers.

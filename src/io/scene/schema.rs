@@ -136,7 +136,7 @@ pub struct TopologySpec {
     pub epsilon_rf: Option<f64>,
     /// DSF damping α (1/Å), default 0.
     pub dsf_alpha: Option<f64>,
-    /// Neighbour-list skin (Å), default 2.
+    /// Neighbour-list skin (Å), default 4 (`io::topology::build::DEFAULT_SKIN`).
     pub skin: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
     pub lj_shift: Option<bool>,

@@ -33,6 +33,14 @@ use crate::io::forcefield::distance_split::{SplitAtoms, split_terms};
 use crate::split::Assignment;
 use crate::units::COULOMB_KCAL_ANGSTROM;
 
+/// The pair-list skin when none is given (Å): the list holds pairs within cutoff + skin and
+/// is rebuilt when two atoms may have closed it. With constraints and 4 fs steps a topology's
+/// water hydrogens close 2 Å within a few dozen steps; 4 Å was 9–11 % faster than 2 Å with
+/// HMR at 4 fs on the solvated dipeptide and Trp-cage (5 Å within the repeats' spread of it)
+/// and 2–3 % faster at 1 fs flexible (`scripts/skin_sitting.py`,
+/// docs/data/sittings/topology-skin-2026-11-26.*).
+pub const DEFAULT_SKIN: f64 = 4.0;
+
 /// The cutoff when none is given but one is needed (Å).
 pub const DEFAULT_CUTOFF: f64 = 9.0;
 /// OpenMM's default reaction-field dielectric.
@@ -75,7 +83,7 @@ pub struct NonbondedOptions {
     pub epsilon_rf: Option<f64>,
     /// 1/Å, default 0 (shifted force).
     pub dsf_alpha: Option<f64>,
-    /// Neighbour-list skin (Å), default 2 as `[forcefield]`.
+    /// Neighbour-list skin (Å), default [`DEFAULT_SKIN`].
     pub skin: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff (the force is unchanged), so
     /// the energy does not jump as pairs cross it; default false, as OpenMM.
@@ -379,7 +387,7 @@ fn nonbonded(
     report: &mut Vec<String>,
 ) -> Result<Electrostatics, String> {
     let (electrostatics, cutoff, ewald) = electrostatics(topology, options)?;
-    let skin = options.skin.unwrap_or(2.0);
+    let skin = options.skin.unwrap_or(DEFAULT_SKIN);
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("skin must be ≥ 0, got {skin}"));
     }
