@@ -46,7 +46,7 @@ figures: cmake
 	$(CARGO) build --release
 	mkdir -p $(FIGURES) $(FIGURE_DATA)
 # docs/production.md: ns/day against the outer step, from the committed sitting and study.
-	python3 scripts/production_chart.py --date 2026-11-26 --out $(FIGURES)
+	python3 scripts/production_chart.py --date 2026-11-26 --sitting 2026-11-26-b --out $(FIGURES)
 # GSS98 Figure 1 (and 4): LongAverage, h = 1/2, the strip near Γ1 + Γ2 = 2π.
 	$(MAP) --method long-average --gamma1 0:2*pi --gamma2 0:2*pi --n 1000 \
 		--out $(FIGURE_DATA)/fig1-long-average.csv --png $(FIGURES)/fig1-long-average.png

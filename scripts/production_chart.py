@@ -8,7 +8,7 @@ by what its study point says: filled when every decided criterion passes and non
 (undecided criteria named in docs/production.md), a cross when a criterion fails, hollow when
 not studied. The peers are horizontal lines at their medians (GROMACS solid, OpenMM dashed).
 
-    python3 scripts/production_chart.py --date 2026-11-26 --out docs/figures
+    python3 scripts/production_chart.py --date 2026-11-26 --sitting 2026-11-26-b --out docs/figures
 
 Writes docs/figures/production-ala2.svg and production-trpcage.svg (not committed; `make
 figures` does not run the sitting, so this script draws from the committed sitting).
@@ -36,6 +36,9 @@ ROWS = {
         "trpcage": ("trp-sampling-con", "langevin-respa-recip-hmr", 12)}),
     "sinr-three-level-96fs": (96, {"ala2": ("ala2-sampling", "sinr-three-level", 96),
                                    "trpcage": ("trp-sampling-flex", "sinr-three-level", 96)}),
+    "langevin-respa-split-hmr-12fs": (12, {
+        "trpcage": ("trp-split-con", "langevin-respa-split-hmr", 12)}),
+    "sinr-split-96fs": (96, {"trpcage": ("trp-split-flex", "sinr-three-level-split", 96)}),
 }
 PEERS = {"gmx-hbonds-2fs", "gmx-hmr-4fs", "gmx-mts-hmr-4fs", "gmx-mts-2fs",
          "openmm-hbonds-2fs", "openmm-hmr-4fs", "openmm-mts-4fs"}
@@ -113,19 +116,22 @@ def svg(title, points, peers):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--date", required=True, help="the sitting's and the study's date")
+    ap.add_argument("--date", required=True, help="the study's date")
+    ap.add_argument("--sitting", help="the sitting's tag, production-SYSTEM-TAG.csv "
+                    "(default: the date)")
     ap.add_argument("--out", default=os.path.join(ROOT, "docs", "figures"))
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     for system in ("ala2", "trpcage"):
-        sitting = os.path.join(DATA, "sittings", "production-%s-%s.csv" % (system, args.date))
+        tag = args.sitting or args.date
+        sitting = os.path.join(DATA, "sittings", "production-%s-%s.csv" % (system, tag))
         if not os.path.exists(sitting):
             print("no sitting %s: skipped" % os.path.relpath(sitting, ROOT))
             continue
         med = medians(sitting, 1)
         points = []
         for row, (h, studies) in ROWS.items():
-            if row in med:
+            if row in med and system in studies:
                 stem, label, at = studies[system]
                 points.append((row, h, med[row], verdict(stem, args.date, label, at)))
         peers = {row: v for row, v in med.items() if row in PEERS}

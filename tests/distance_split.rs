@@ -18,7 +18,8 @@ mod common;
 
 use common::{TestRng, max_abs, max_abs_difference};
 use longstep::forces::distance_split::{
-    SplitSpec, Switch, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
+    NonbondedShort, SplitSpec, Switch, SwitchBy, molecules_from_bonds, reference_atoms,
+    split_nonbonded,
 };
 use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use longstep::forces::{ForceTerm, Precision};
@@ -371,7 +372,6 @@ fn molecule_blocks_give_the_same_bits_on_every_instruction_set() {
     let mut rng = TestRng::new(23);
     let (q, bonds, length) = waters(4, 60, &mut rng);
     let n = q.len() / 3;
-    let available = longstep::forces::simd::Isa::available();
     for electrostatics in [
         Electrostatics::DampedShiftedForce { alpha: 0.0 },
         Electrostatics::DampedShiftedForce { alpha: 0.2 },
@@ -382,29 +382,28 @@ fn molecule_blocks_give_the_same_bits_on_every_instruction_set() {
         // r_in 2.5 < R < r_out 3.5 puts many pairs on the switch's slope.
         let split = split_spec(SwitchBy::Molecule, 2.5, 3.5, n, &bonds);
         let (short, _) = split_nonbonded(spec, &split, &q).unwrap();
-        let range = short.short_range();
-        assert_eq!(range.pair_loop(), "molecule blocks");
-        let mut results = Vec::new();
-        for &isa in &available {
-            range.set_isa(isa);
-            let g = gradient(&short, &q);
-            results.push((
-                isa,
-                short.energy(&q).to_bits(),
-                g.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-            ));
-        }
-        let (_, e0, g0) = &results[0];
-        for (isa, e, g) in &results[1..] {
-            assert_eq!(
-                e, e0,
-                "{electrostatics:?}: energy on {isa:?} against portable"
-            );
-            assert!(
-                g == g0,
-                "{electrostatics:?}: gradient on {isa:?} against portable"
-            );
-        }
+        assert_eq!(short.short_range().pair_loop(), "molecule blocks");
+        assert_same_bits_on_every_isa(&short, &q, &format!("{electrostatics:?}"));
+    }
+}
+
+/// The short part's energy and gradient at `q` have the same bits on every instruction set
+/// here as on the first (the portable lanes).
+fn assert_same_bits_on_every_isa(short: &NonbondedShort, q: &[f64], label: &str) {
+    let mut results = Vec::new();
+    for isa in longstep::forces::simd::Isa::available() {
+        short.short_range().set_isa(isa);
+        let g = gradient(short, q);
+        results.push((
+            isa,
+            short.energy(q).to_bits(),
+            g.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        ));
+    }
+    let (_, e0, g0) = &results[0];
+    for (isa, e, g) in &results[1..] {
+        assert_eq!(e, e0, "{label}: energy on {isa:?} against portable");
+        assert!(g == g0, "{label}: gradient on {isa:?} against portable");
     }
 }
 
@@ -415,7 +414,6 @@ fn the_switched_cluster_kernel_gives_the_same_bits_on_every_instruction_set() {
     let mut rng = TestRng::new(29);
     let (q, bonds, length) = waters(4, 60, &mut rng);
     let n = q.len() / 3;
-    let available = longstep::forces::simd::Isa::available();
     for electrostatics in [
         Electrostatics::DampedShiftedForce { alpha: 0.0 },
         Electrostatics::Ewald { alpha: 0.35 },
@@ -426,22 +424,11 @@ fn the_switched_cluster_kernel_gives_the_same_bits_on_every_instruction_set() {
             let (short, _) = split_nonbonded(spec, &split, &q).unwrap();
             assert_eq!(short.short_range().pair_loop(), "cluster pairs");
             assert!(short.set_precision(precision));
-            let mut results = Vec::new();
-            for &isa in &available {
-                short.short_range().set_isa(isa);
-                let g = gradient(&short, &q);
-                results.push((
-                    isa,
-                    short.energy(&q).to_bits(),
-                    g.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-                ));
-            }
-            let (_, e0, g0) = &results[0];
-            for (isa, e, g) in &results[1..] {
-                let label = format!("{electrostatics:?}, {precision:?}, {isa:?}");
-                assert_eq!(e, e0, "{label}: energy against portable");
-                assert!(g == g0, "{label}: gradient against portable");
-            }
+            assert_same_bits_on_every_isa(
+                &short,
+                &q,
+                &format!("{electrostatics:?}, {precision:?}"),
+            );
         }
     }
 }
