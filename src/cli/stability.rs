@@ -98,6 +98,9 @@ pub struct StabilityMapArgs {
     /// No progress bar, notices or summary on stderr.
     #[arg(long)]
     pub quiet: bool,
+    /// Write the map even when its CSV would be larger than 2 GB.
+    #[arg(long)]
+    pub allow_large: bool,
     /// The asynchronous map's own arguments (with --method async-pseudo-energy).
     #[command(flatten)]
     pub asynchronous: AsyncArgs,
@@ -351,6 +354,27 @@ fn check_points(args: &StabilityMapArgs) -> Result<usize> {
     Ok(n)
 }
 
+/// Bytes of one CSV row of a map, about (four numbers in their shortest round-trip form:
+/// 340 MB for the first 8.5 million rows of a 20 000² map), and the most a map writes
+/// without `--allow-large`.
+const ROW_BYTES: f64 = 40.0;
+const MAX_MAP_BYTES: f64 = 2e9;
+
+/// Refuse a map whose CSV of `rows` rows would be larger than [`MAX_MAP_BYTES`], before
+/// anything is written.
+fn check_output_size(rows: usize, allow_large: bool) -> Result<()> {
+    let bytes = rows as f64 * ROW_BYTES;
+    if allow_large || bytes <= MAX_MAP_BYTES {
+        return Ok(());
+    }
+    Err(Error::input(format!(
+        "the map's CSV would hold {rows} rows, about {:.0} GB (~{ROW_BYTES} bytes a row), more \
+         than {:.0} GB: give a coarser --n, compute it in slices (--shard k/n), or --allow-large",
+        bytes / 1e9,
+        MAX_MAP_BYTES / 1e9
+    )))
+}
+
 /// Points along each axis of a map without --n.
 const DEFAULT_POINTS: usize = 400;
 
@@ -389,6 +413,7 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {
             grid.len()
         )));
     }
+    check_output_size(range.len(), args.allow_large)?;
     let tally = compute_map(args, &evaluator, &grid, shard, range.clone(), drawing)?;
 
     let shard_note = if shard.count > 1 {
