@@ -51,7 +51,7 @@ def run_once(args, out_dir):
     """(stepping-loop wall time from the summary, process wall time), in seconds."""
     env = dict(os.environ, RAYON_NUM_THREADS="1")
     started = time.perf_counter()
-    done = subprocess.run(args + ["--out", out_dir], env=env, capture_output=True, text=True)
+    done = subprocess.run(args + ["--force", "--out", out_dir], env=env, capture_output=True, text=True)
     process = time.perf_counter() - started
     if done.returncode != 0:
         sys.exit(f"failed ({done.returncode}): {' '.join(args)}\n{done.stderr}")

@@ -29,7 +29,7 @@ LONGSTEP = ROOT / "target" / "release" / "longstep"
 def one_run(scene, method, common, out):
     words = shlex.split(method)
     command = [str(LONGSTEP), "run", scene, "--method", *words, *common, "--json", "--quiet",
-               "--energy-every", "100", "--drift-bound", "1e9", "--out", out]
+               "--energy-every", "100", "--drift-bound", "1e9", "--force", "--out", out]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode not in (0, 3):
         sys.exit(f"{' '.join(command)} failed:\n{done.stderr}")

@@ -150,7 +150,7 @@ def run_longstep(args, out):
            "--inner", str(args.inner), "--temperature", "%gK" % args.temperature,
            "--friction", "%g/ps" % args.friction, "--seed", str(args.seed),
            "--t-end", "%gps" % args.t_end, "--energy-every", str(args.energy_every),
-           "--trajectory-every", str(args.frame_every), "--quiet", "--out", out]
+           "--trajectory-every", str(args.frame_every), "--force", "--quiet", "--out", out]
     print("running:", " ".join(cmd), flush=True)
     subprocess.run(cmd, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
 

@@ -89,7 +89,7 @@ def command(scene, flags, h, t_end, out):
     start = ["--temperature", "300K"] if "alanine" in scene else []
     return ([BIN, "run", scene] + flags + start
             + ["--h", f"{h:g}fs", "--t-end", f"{t_end}ps", "--fit-from", "5ps",
-               "--energy-every", "5", "--json", "--quiet", "--out", out])
+               "--energy-every", "5", "--force", "--json", "--quiet", "--out", out])
 
 
 def judge(summary):

@@ -62,7 +62,7 @@ CASES = [
 
 def one_run(scene, flags, ps, out):
     command = [str(LONGSTEP), "run", scene, *flags.split(), "--t-end", f"{ps}ps",
-               "--json", "--quiet", "--out", out]
+               "--json", "--quiet", "--force", "--out", out]
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
     done = subprocess.run(command, capture_output=True, text=True)
     user = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - before

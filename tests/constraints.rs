@@ -561,7 +561,7 @@ fn a_rigid_water_box_at_two_femtoseconds_conserves_energy() {
     // within its bound of 0.05 kT/ns/dof. The flexible box at 2 fs exceeds it (+0.276
     // kT/ns/dof over the same 4 ps, its energy fluctuating 4.6 kcal/mol rms against 0.11:
     // the O–H stretch, period ≈ 9 fs, is barely resolved).
-    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("constraints-nve");
+    let out = common::scratch_dir("constraints-nve");
     let args = [
         "run",
         "systems/water-box/scene.toml",
@@ -589,8 +589,7 @@ fn a_rigid_water_box_at_two_femtoseconds_conserves_energy() {
 #[test]
 fn constrained_runs_are_the_same_bits_on_one_and_two_threads() {
     let energy = |threads: usize, method: &str| {
-        let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("constraints-threads-{method}-{threads}"));
+        let out = common::scratch_dir(&format!("constraints-threads-{method}-{threads}"));
         let args = [
             "run",
             "systems/water-box/scene.toml",
@@ -710,7 +709,8 @@ fn constraints_and_hmr_on_a_scene_without_hydrogen() {
     // runs with a notice that nothing is constrained (exit 0, all 3N − 3 degrees of freedom
     // kept); `--hydrogen-mass` and a tolerance ≤ 0 are errors (exit 1) saying why.
     let melt = "systems/polymer-melt/scene.toml";
-    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("constraints-melt");
+    // A fresh folder: a run refuses one holding an earlier run's outputs.
+    let out = common::scratch_dir("constraints-melt");
     let out = out.to_str().unwrap();
     let base = [
         "run", melt, "--method", "verlet", "--h", "10fs", "--t-end", "20fs",
@@ -873,8 +873,7 @@ fn hydrogen_mass_repartitioning_makes_four_femtoseconds_conserve_energy() {
     // chaotic, unstable trajectory). So the test sees the difference the masses make, not
     // a bound loose enough for both.
     let run = |hmr: bool| {
-        let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("constraints-hmr-{hmr}"));
+        let out = common::scratch_dir(&format!("constraints-hmr-{hmr}"));
         let mut args = vec![
             "run",
             "systems/molecules/alanine-dipeptide.toml",

@@ -44,6 +44,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::io::manifest::RunManifest;
 use crate::io::scene::{Scene, SceneFlags};
 use crate::io::summary::{RunSummary, Status, format_time};
 use crate::run::drift::{judge, verdict_of};
@@ -372,8 +373,15 @@ pub fn run_once(
         every: outputs.frame_every.max(1),
         names: prepared.scene.elements.clone(),
     });
+    // A point's folder is rewritten whole (both files, every time), so nothing stale is
+    // left; its manifest lets `analyze` check the pair.
+    let mut manifest = None;
     if let Some(dir) = outputs.dir {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let files = ["energy.csv", "trajectory.xyz"].map(String::from);
+        let record = RunManifest::start(std::env::args().collect(), &files);
+        record.write(dir)?;
+        manifest = Some((dir, record));
     }
     let options = RunOptions {
         t_end: setup.t_end,
@@ -386,7 +394,11 @@ pub fn run_once(
         fit_from: setup.fit_from,
         ..RunOptions::default()
     };
-    prepared.run(&options)
+    let summary = prepared.run(&options)?;
+    if let Some((dir, mut record)) = manifest {
+        record.finish(dir)?;
+    }
+    Ok(summary)
 }
 
 /// Most extension factor of `until_decided` (a bound on a user-given size: the run of an

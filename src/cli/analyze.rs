@@ -153,7 +153,8 @@ fn options(args: &AnalyzeArgs, scene: &Scene) -> Result<AnalysisOptions> {
     })
 }
 
-/// The files of one run directory; missing ones are errors naming the directory.
+/// The files of one run directory; missing ones, or ones that its manifest says come from
+/// different runs ([`crate::io::manifest::check_same_run`]), are errors naming the directory.
 pub(super) fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
     if !dir.is_dir() {
         return Err(Error::Structure {
@@ -183,6 +184,7 @@ pub(super) fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
             });
         }
     }
+    crate::io::manifest::check_same_run(dir, &[&files.energy, &files.trajectory])?;
     Ok(files)
 }
 

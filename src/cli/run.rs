@@ -8,6 +8,7 @@ use clap::Args;
 use super::common::EXIT_UNSTABLE;
 use crate::error::{Error, Result};
 use crate::io::energy_table::EnergyTable;
+use crate::io::manifest::{RunManifest, clear_earlier_run};
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::judge;
@@ -55,6 +56,11 @@ pub struct RunArgs {
     /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
     #[arg(long)]
     pub allow_large: bool,
+    /// Reuse an output directory that holds an earlier run's outputs: remove exactly those
+    /// files first (the ones its manifest.json lists and the names a run or `analyze`
+    /// writes), naming them on stderr. Without it such a directory is refused.
+    #[arg(long)]
+    pub force: bool,
     /// How the energy drift is judged at the end of the run.
     #[command(flatten)]
     pub drift: DriftArgs,
@@ -169,6 +175,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     };
     let steps = prepared.check_size(t_end, &plan)?;
     let out_dir = output_dir(args, &prepared.scene, &prepared.settings.method)?;
+    let mut manifest = start_manifest(args, &prepared.scene, &out_dir, trajectory_every)?;
     if !args.quiet {
         prepared
             .header()
@@ -192,6 +199,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
     }
+    manifest.finish(&out_dir)?;
     if let Some(t) = &options.trajectory
         && !args.quiet
     {
@@ -241,14 +249,55 @@ fn output_dir(args: &RunArgs, scene: &Scene, method: &str) -> Result<PathBuf> {
     Ok(out_dir)
 }
 
-fn trajectory_options(scene: &Scene, out_dir: &std::path::Path, every: usize) -> TrajectoryOptions {
-    let name = scene
+/// Clear `out_dir` of an earlier run's outputs (refused without `--force`), then write the
+/// manifest of this run ([`RunManifest`]) with the files it plans to write.
+fn start_manifest(
+    args: &RunArgs,
+    scene: &Scene,
+    out_dir: &std::path::Path,
+    trajectory_every: Option<usize>,
+) -> Result<RunManifest> {
+    let mut planned = vec!["energy.csv".to_string()];
+    if trajectory_every.is_some() {
+        planned.push(trajectory_name(scene).to_string());
+    }
+    if args.plot {
+        planned.extend(
+            [
+                "energy.png",
+                "energy.svg",
+                "energy-error.png",
+                "energy-error.svg",
+            ]
+            .map(String::from),
+        );
+    }
+    let removed = clear_earlier_run(out_dir, &planned, args.force)?;
+    if !removed.is_empty() {
+        eprintln!(
+            "--force: removed the earlier run's {} from {}",
+            removed.join(", "),
+            out_dir.display()
+        );
+    }
+    let manifest = RunManifest::start(std::env::args().collect(), &planned);
+    manifest.write(out_dir)?;
+    Ok(manifest)
+}
+
+/// The trajectory's file name in the output directory: the scene's `[output] trajectory`,
+/// else `trajectory.xyz`.
+fn trajectory_name(scene: &Scene) -> &str {
+    scene
         .output
         .trajectory
         .as_deref()
-        .unwrap_or("trajectory.xyz");
+        .unwrap_or("trajectory.xyz")
+}
+
+fn trajectory_options(scene: &Scene, out_dir: &std::path::Path, every: usize) -> TrajectoryOptions {
     TrajectoryOptions {
-        path: out_dir.join(name),
+        path: out_dir.join(trajectory_name(scene)),
         every,
         names: scene.elements.clone(),
     }

@@ -3,6 +3,7 @@
 pub mod csv;
 pub mod energy_table;
 pub mod forcefield;
+pub mod manifest;
 pub mod number;
 pub mod scene;
 pub mod structure;
