@@ -278,7 +278,7 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(report) = &minimized {
-        println!("minimised  {report}");
+        println!("minimised  {}", report.text(scene.units));
     }
     print_curvature_warning(&modes, minimized.is_some());
     print_modes(&modes, scene.units);
@@ -1205,4 +1205,20 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn islands_carry_the_time_unit_in_a_real_scene() {
+        let scanned = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        assert_eq!(
+            islands(&[3.0, 4.0, 6.0], &scanned, Units::Real),
+            "3 fs–4 fs, 6 fs"
+        );
+        assert_eq!(islands(&[3.0, 4.0, 6.0], &scanned, Units::None), "3–4, 6");
+        assert_eq!(islands(&[], &scanned, Units::Real), "-");
+    }
 }
