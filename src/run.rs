@@ -152,7 +152,9 @@ pub fn run(
         message,
         wall_seconds,
     };
-    Ok(summarise(scene, system, integrator, &recorder, outcome))
+    let mut summary = summarise(scene, system, integrator, &recorder, outcome);
+    summary.requested_t_end = Some(options.t_end);
+    Ok(summary)
 }
 
 /// How a run ended, for its summary.

@@ -212,12 +212,13 @@ fn minimize_saves_and_run_starts_from_it() {
         saved.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{stderr}");
-    // "N iterations, E before -> after, …": the minimised energy.
+    // "N iterations, E before kcal/mol -> after kcal/mol, …": the minimised energy (to 10
+    // significant digits: 1e-9 relative, far inside the 1e-6 below).
     let after: f64 = stdout
         .split("-> ")
         .nth(1)
-        .and_then(|rest| rest.split(',').next())
-        .and_then(|e| e.trim().parse().ok())
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|e| e.parse().ok())
         .expect("the minimised energy in the report");
     let (code, stdout, stderr) = run(&[
         "run",

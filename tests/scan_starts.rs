@@ -51,7 +51,11 @@ fn scan(out: &Path, extra: &[&str], threads: Option<&str>) -> (Vec<String>, Vec<
 }
 
 fn number(row: &[String], header: &[String], name: &str) -> f64 {
-    let k = header.iter().position(|h| h == name).unwrap();
+    // A real scene's header carries units (`drift[kT/ns/dof]`).
+    let k = header
+        .iter()
+        .position(|h| h == name || h.starts_with(&format!("{name}[")))
+        .unwrap();
     row[k].parse().unwrap_or_else(|_| panic!("{name}: {row:?}"))
 }
 

@@ -20,7 +20,8 @@ fn ok(args: &[&str]) -> String {
     stdout
 }
 
-/// The energies `E a -> b` of a minimisation report.
+/// The energies `E a kcal/mol -> b kcal/mol` of a minimisation report (the number before
+/// its unit).
 fn energies(report: &str) -> (f64, f64) {
     let line = report
         .lines()
@@ -28,16 +29,9 @@ fn energies(report: &str) -> (f64, f64) {
         .expect("E a -> b");
     let after_e = line.split(" E ").nth(1).expect("E");
     let mut parts = after_e.split(" -> ");
-    let a: f64 = parts.next().unwrap().trim().parse().unwrap();
-    let b: f64 = parts
-        .next()
-        .unwrap()
-        .split(',')
-        .next()
-        .unwrap()
-        .trim()
-        .parse()
-        .unwrap();
+    let number = |part: &str| -> f64 { part.split_whitespace().next().unwrap().parse().unwrap() };
+    let a = number(parts.next().unwrap());
+    let b = number(parts.next().unwrap().split(',').next().unwrap());
     (a, b)
 }
 

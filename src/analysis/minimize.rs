@@ -10,6 +10,7 @@
 use serde::Serialize;
 
 use crate::system::System;
+use crate::units::Units;
 
 #[derive(Clone, Debug)]
 pub struct MinimizeOptions {
@@ -36,11 +37,20 @@ pub struct MinimizeReport {
     pub converged: bool,
 }
 
-impl std::fmt::Display for MinimizeReport {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{} iterations, E {:.10e} -> {:.10e}, max force {:.2e}{}",
+impl MinimizeReport {
+    /// The one-line report: energies to 10 significant digits and the largest force, with
+    /// their units in a real scene (`E -1.234567890e1 kcal/mol -> …, max force 6.4e-7
+    /// kcal/mol/Å`).
+    pub fn text(&self, units: Units) -> String {
+        let (energy, force) = match units {
+            Units::None => (String::new(), String::new()),
+            _ => (
+                format!(" {}", units.energy_name()),
+                format!(" {}/{}", units.energy_name(), units.length_name()),
+            ),
+        };
+        format!(
+            "{} iterations, E {:.9e}{energy} -> {:.9e}{energy}, max force {:.2e}{force}{}",
             self.iterations,
             self.energy_before,
             self.energy_after,
@@ -51,6 +61,12 @@ impl std::fmt::Display for MinimizeReport {
                 " (not converged)"
             }
         )
+    }
+}
+
+impl std::fmt::Display for MinimizeReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text(Units::None))
     }
 }
 

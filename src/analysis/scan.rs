@@ -824,9 +824,33 @@ pub struct SafeStep {
     pub stable_beyond: Vec<f64>,
 }
 
+/// One scanned point as the safe-step table needs it (a run's result, or a row of a merged
+/// `scan.csv`).
+#[derive(Clone, Debug)]
+pub struct ScanPoint {
+    pub config: Option<String>,
+    pub method: String,
+    pub h: f64,
+    pub verdict: Verdict,
+}
+
 /// The safe steps of each method (each configuration of a study), in order of appearance.
 pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
-    let key = |r: &StepResult| (r.config.clone(), r.method.clone());
+    let points: Vec<ScanPoint> = results
+        .iter()
+        .map(|r| ScanPoint {
+            config: r.config.clone(),
+            method: r.method.clone(),
+            h: r.h,
+            verdict: r.verdict,
+        })
+        .collect();
+    safe_steps_of(&points)
+}
+
+/// [`safe_steps`] of points however they were found.
+pub fn safe_steps_of(results: &[ScanPoint]) -> Vec<SafeStep> {
+    let key = |r: &ScanPoint| (r.config.clone(), r.method.clone());
     let mut groups: Vec<(Option<String>, String)> = Vec::new();
     for r in results {
         if !groups.contains(&key(r)) {
@@ -836,7 +860,7 @@ pub fn safe_steps(results: &[StepResult]) -> Vec<SafeStep> {
     groups
         .into_iter()
         .map(|(config, method)| {
-            let mut rows: Vec<&StepResult> = results
+            let mut rows: Vec<&ScanPoint> = results
                 .iter()
                 .filter(|r| r.method == method && r.config == config)
                 .collect();

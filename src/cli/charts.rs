@@ -110,6 +110,10 @@ pub fn work_precision_command(args: &WorkPrecisionArgs) -> Result<()> {
 
     let meta = work_precision_meta(args, &times, total, weights);
     let (table, wall) = work_precision_tables(meta, &results);
+    let table = table.with_units(&[
+        ("h", scene.units.time_name()),
+        ("max_position_error", scene.units.length_name()),
+    ]);
     table.write(&args.out.join(WORK_PRECISION))?;
     wall.write(&args.out.join(WALL_TIME))?;
     draw_work_precision(&table, Some(&wall), &args.out)?;

@@ -8,10 +8,14 @@ use clap::Args;
 
 use super::common::{SCAN_STEPS, SCAN_STIFFNESS, WALL_TIME, WORK_PRECISION};
 use super::draw::{draw_scan, draw_work_precision};
+use super::studies::{Criterion, print_safe_steps};
+use crate::analysis::scan::{SafeStep, ScanPoint, Verdict, safe_steps_of};
 use crate::analysis::stability::map::Shard;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::study_csv::{StudyTable, differing_setting, merge};
+use crate::io::summary::REAL_DRIFT_UNIT;
+use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct MergeArgs {
@@ -236,6 +240,7 @@ fn draw_merged(merged_tables: &BTreeMap<String, StudyTable>, out: &Path) -> Resu
     }
     if let Some(table) = merged_tables.get("scan-steps") {
         draw_scan(table, out)?;
+        print_merged_safe_steps(table)?;
     }
     if merged_tables.contains_key("scan-stiffness") {
         eprintln!(
@@ -243,5 +248,55 @@ fn draw_merged(merged_tables: &BTreeMap<String, StudyTable>, out: &Path) -> Resu
              `longstep scan stiffness` itself"
         );
     }
+    Ok(())
+}
+
+/// The safe-step table of a merged step scan, as an unsharded `scan steps` prints it
+/// (without the timing columns: shards take no timings).
+fn print_merged_safe_steps(table: &StudyTable) -> Result<()> {
+    let (method, h, status) = (
+        table.column("method")?,
+        table.column("h")?,
+        table.column("status")?,
+    );
+    let config = table.column("config").ok();
+    let mut points = Vec::with_capacity(table.rows.len());
+    for row in &table.rows {
+        let verdict = Verdict::parse(&row[status]).ok_or_else(|| {
+            Error::input(format!(
+                "point {} of the merged scan has status \"{}\", which is no verdict",
+                row[0], row[status]
+            ))
+        })?;
+        points.push(ScanPoint {
+            config: config.map(|c| row[c].clone()),
+            method: row[method].clone(),
+            h: table.number(row, h),
+            verdict,
+        });
+    }
+    let steps = |s: &SafeStep| -> Vec<f64> {
+        points
+            .iter()
+            .filter(|p| p.method == s.method && p.config == s.config)
+            .map(|p| p.h)
+            .collect()
+    };
+    let sampling = table.meta.get("criterion").map(String::as_str) == Some("sampling");
+    let real =
+        sampling || table.meta.get("drift_unit").map(String::as_str) == Some(REAL_DRIFT_UNIT);
+    let units = if real { Units::Real } else { Units::None };
+    let criterion = if sampling {
+        Criterion::Sampling
+    } else {
+        Criterion::Drift
+    };
+    print_safe_steps(
+        &safe_steps_of(&points),
+        &steps,
+        &[],
+        units,
+        (criterion, None),
+    );
     Ok(())
 }

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::io::energy_table::EnergyTable;
 use crate::io::manifest::{RunManifest, clear_earlier_run};
 use crate::io::scene::{Scene, load_scene};
-use crate::io::summary::{RunSummary, Status};
+use crate::io::summary::{RunSummary, Status, format_time};
 use crate::run::drift::judge;
 use crate::run::prepare::{OutputPlan, RunRequest, check_scene, prepare};
 use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
@@ -126,7 +126,9 @@ impl DriftArgs {
         let t = value.evaluate_time(parameters, "--fit-from", units.time_units())?;
         if !(0.0..t_end).contains(&t) {
             return Err(Error::input(format!(
-                "--fit-from {t} is outside the run [0, {t_end}): the fit needs rows after it"
+                "--fit-from {} is outside the run [0, {}): the fit needs rows after it",
+                format_time(t, units),
+                format_time(t_end, units)
             )));
         }
         Ok(Some(t))

@@ -23,7 +23,7 @@ use crate::io::number::Num;
 use std::collections::BTreeMap;
 
 use crate::io::study_csv::StudyTable;
-use crate::io::summary::format_time;
+use crate::io::summary::{REAL_DRIFT_UNIT, format_time};
 use crate::run::prepare::{self, RunRequest};
 use crate::settings::{RunSpec, Value};
 use crate::units::Units;
@@ -278,7 +278,7 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(report) = &minimized {
-        println!("minimised  {report}");
+        println!("minimised  {}", report.text(scene.units));
     }
     print_curvature_warning(&modes, minimized.is_some());
     print_modes(&modes, scene.units);
@@ -750,6 +750,7 @@ fn timing_table(meta: BTreeMap<String, String>, timings: &[Timing], units: Units
             per_day_column,
         ],
     );
+    table = table.with_units(&[("h", units.time_name())]);
     for t in timings {
         table.rows.push(vec![
             t.method.clone(),
@@ -765,7 +766,7 @@ fn timing_table(meta: BTreeMap<String, String>, timings: &[Timing], units: Units
 
 /// The summary table: one line per method (per configuration of a study), with the
 /// scanned steps of each (`steps`) for its islands.
-fn print_safe_steps(
+pub(super) fn print_safe_steps(
     safe: &[SafeStep],
     steps: &dyn Fn(&SafeStep) -> Vec<f64>,
     timings: &[Timing],
@@ -831,7 +832,7 @@ fn print_safe_steps(
                 });
             line += &format!(" {cell:>20}");
         }
-        println!("{line}  {}", islands(&s.stable_beyond, &steps(s)));
+        println!("{line}  {}", islands(&s.stable_beyond, &steps(s), units));
     }
 }
 
@@ -975,7 +976,7 @@ fn given_settings(run: &RunSpec) -> Vec<(&'static str, String)> {
 pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> StudyTable {
     let mut table = StudyTable::new(
         "scan-steps",
-        meta,
+        meta.clone(),
         &[
             "index",
             "method",
@@ -995,6 +996,18 @@ pub fn scan_table(meta: BTreeMap<String, String>, results: &[StepResult]) -> Stu
             "starts",
         ],
     );
+    let drift = match meta.get("drift_unit").map(String::as_str) {
+        Some(REAL_DRIFT_UNIT) => (REAL_DRIFT_UNIT, Units::Real.time_name()),
+        _ => ("", ""),
+    };
+    table = table.with_units(&[
+        ("h", drift.1),
+        ("drift", drift.0),
+        ("true_drift", drift.0),
+        ("blowup_time", drift.1),
+        ("drift_error", drift.0),
+        ("decide_at", drift.1),
+    ]);
     for r in results {
         let detail = r.drift_detail.as_ref();
         table.rows.push(vec![
@@ -1133,8 +1146,8 @@ fn add_basin_columns(table: &mut StudyTable, results: &[StepResult]) {
 }
 
 /// Stable steps beyond the first failure as intervals of consecutive scanned steps,
-/// e.g. "0.23–0.255, 0.27–0.305".
-fn islands(stable: &[f64], scanned: &[f64]) -> String {
+/// e.g. "0.23–0.255, 0.27–0.305" (`7 fs, 9 fs–10 fs` in a real scene).
+fn islands(stable: &[f64], scanned: &[f64], units: Units) -> String {
     let mut sorted: Vec<f64> = scanned.to_vec();
     sorted.sort_by(f64::total_cmp);
     let mut runs: Vec<(f64, f64)> = Vec::new();
@@ -1153,9 +1166,9 @@ fn islands(stable: &[f64], scanned: &[f64]) -> String {
     runs.iter()
         .map(|(a, b)| {
             if a == b {
-                format!("{a}")
+                format_time(*a, units)
             } else {
-                format!("{a}–{b}")
+                format!("{}–{}", format_time(*a, units), format_time(*b, units))
             }
         })
         .collect::<Vec<_>>()
@@ -1174,7 +1187,7 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
             max_iterations: args.max_iterations,
         },
     );
-    println!("{report}");
+    println!("{}", report.text(scene.units));
     if let Some(path) = &args.save {
         let system = &scene.system;
         let mut writer = crate::io::trajectory::TrajectoryWriter::create(
@@ -1192,4 +1205,20 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn islands_carry_the_time_unit_in_a_real_scene() {
+        let scanned = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        assert_eq!(
+            islands(&[3.0, 4.0, 6.0], &scanned, Units::Real),
+            "3 fs–4 fs, 6 fs"
+        );
+        assert_eq!(islands(&[3.0, 4.0, 6.0], &scanned, Units::None), "3–4, 6");
+        assert_eq!(islands(&[], &scanned, Units::Real), "-");
+    }
 }

@@ -69,9 +69,11 @@ use crate::units::Units;
 pub const DEFAULT_THERMOSTATS: usize = 4;
 /// The most thermostat pairs per degree of freedom (memory is `2 L n` numbers).
 pub const MAX_THERMOSTATS: usize = 16;
-/// τ in a real scene when `--tau` is not given: 10 fs, the value recommended for water by
-/// the SIN(R) code of LMT13's second author (Tinker `TAU-TEMPERATURE 0.01 ps`).
-pub const DEFAULT_TAU_FS: f64 = 10.0;
+/// τ in a real scene when `--tau` is not given: 5 fs, the value docs/thermostats.md shows
+/// sampling the water box correctly with the default L = 4 (the 50 fs Done-when command,
+/// PE and peak inside the bound). Tinker's `TAU-TEMPERATURE 0.01 ps` (10 fs) samples it
+/// 0.33 kcal/mol/molecule high there (issue 30 item 5); a 3 fs middle step needs 3 fs.
+pub const DEFAULT_TAU_FS: f64 = 5.0;
 /// A thermostat share `1 − m v²/(L kT)` below this is a collapse. With L = 1 the share
 /// is near 0 with probability ~√share at equilibrium, so 1e-100 (probability ~1e-50 per
 /// sample) is reached only by a kick that pins the velocity, never by fluctuation.
@@ -157,7 +159,7 @@ impl Sinr {
     }
 
     /// SIN(R) from a method's settings: `--temperature` (required), `--thermostats`
-    /// (default 4), `--tau` (default 10 fs in a real scene, required in a dimensionless
+    /// (default 4), `--tau` (default 5 fs in a real scene, required in a dimensionless
     /// one), `--friction` on the thermostat variables (default 1/τ), `--seed`.
     pub fn from_settings(settings: &MethodSettings) -> Result<Self> {
         let kt = required_kt(settings)?;

@@ -575,6 +575,47 @@ fn parameters(
     })
 }
 
+/// The scene's `box` against `[forcefield] cutoff`, for a scene to check before it looks
+/// for overlapping atoms: a box too small for the cutoff wraps the structure onto itself,
+/// and the overlap it causes is not what the user must fix. Every box length must exceed
+/// 2 × cutoff (the minimum-image convention, as [`Nonbonded::new`] requires); the message
+/// names the keys and says how far the structure (`q`, `n × 3`) spans, for comparison.
+pub fn check_box(
+    spec: &ForcefieldSpec,
+    periodic_box: Option<PeriodicBox>,
+    q: &[f64],
+) -> Result<(), String> {
+    let (Some(cutoff), Some(pb)) = (spec.cutoff, periodic_box) else {
+        return Ok(());
+    };
+    let shortest = pb.lengths.iter().cloned().fold(f64::INFINITY, f64::min);
+    if 2.0 * cutoff < shortest {
+        return Ok(());
+    }
+    let span: Vec<String> = (0..3)
+        .map(|axis| {
+            let along = q.iter().skip(axis).step_by(3);
+            let lo = along.clone().cloned().fold(f64::INFINITY, f64::min);
+            let hi = along.cloned().fold(f64::NEG_INFINITY, f64::max);
+            crate::io::number::Num(if hi >= lo { hi - lo } else { 0.0 }).to_string()
+        })
+        .collect();
+    let lengths: Vec<String> = pb
+        .lengths
+        .iter()
+        .map(|&l| crate::io::number::Num(l).to_string())
+        .collect();
+    Err(format!(
+        "box = [{}] is too small for [forcefield] cutoff = {}: every box length must be \
+         larger than 2 × cutoff = {} (the minimum-image convention); the structure's atoms \
+         span [{}] — give the box the structure was made in, or a shorter cutoff",
+        lengths.join(", "),
+        crate::io::number::Num(cutoff),
+        crate::io::number::Num(2.0 * cutoff),
+        span.join(", ")
+    ))
+}
+
 /// The closest pair of atoms nearer than `limit`, if any (`q` is `n × 3`).
 pub fn closest_overlap(
     q: &[f64],
@@ -675,4 +716,43 @@ fn lookup<'a, T>(
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(cutoff: f64) -> ForcefieldSpec {
+        ForcefieldSpec {
+            cutoff: Some(cutoff),
+            ..ForcefieldSpec::default()
+        }
+    }
+
+    #[test]
+    fn a_box_not_larger_than_twice_the_cutoff_is_named() {
+        let q = [0.0, 0.0, 0.0, 18.5, 1.0, 2.0];
+        let small = PeriodicBox {
+            lengths: [10.0, 10.0, 10.0],
+        };
+        let message = check_box(&spec(9.0), Some(small), &q).unwrap_err();
+        assert!(
+            message.starts_with("box = [10, 10, 10] is too small for [forcefield] cutoff = 9")
+                && message.contains("2 × cutoff = 18")
+                && message.contains("span [18.5, 1, 2]"),
+            "{message}"
+        );
+        // Exactly 2 × cutoff is refused (Nonbonded::new's `2 cutoff >= shortest`).
+        let edge = PeriodicBox {
+            lengths: [30.0, 18.0, 30.0],
+        };
+        assert!(check_box(&spec(9.0), Some(edge), &q).is_err());
+        let fine = PeriodicBox {
+            lengths: [18.6, 18.6, 18.6],
+        };
+        assert_eq!(check_box(&spec(9.0), Some(fine), &q), Ok(()));
+        assert_eq!(check_box(&spec(9.0), None, &q), Ok(()));
+        let no_cutoff = ForcefieldSpec::default();
+        assert_eq!(check_box(&no_cutoff, Some(small), &q), Ok(()));
+    }
 }

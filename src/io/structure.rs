@@ -125,6 +125,60 @@ fn check_text(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// An XYZ file's first line counts the atom lines of the frame after the comment line;
+/// chemfiles trusts it, so a count smaller than the atom lines drops atoms (read as a
+/// broken next frame) and a larger one reads past them. Check the first frame: exactly
+/// `count` atom lines, then the end of the file, blank lines or the next frame's count.
+fn check_xyz_count(path: &Path) -> Result<()> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    if extension != "xyz" && extension != "extxyz" {
+        return Ok(());
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let lines: Vec<&str> = text.lines().collect();
+    let Some(Ok(count)) = lines.first().map(|l| l.trim().parse::<usize>()) else {
+        return Ok(()); // chemfiles names a count line that is no number
+    };
+    let at = |line: usize, message: String| Error::Scene {
+        location: format!("{}:{line}", path.display()),
+        message,
+    };
+    let atom_lines = lines.iter().skip(2).take(count);
+    if let Some(blank) = atom_lines.clone().position(|l| l.trim().is_empty()) {
+        return Err(at(
+            blank + 3,
+            format!(
+                "line 1 counts {count} atoms, but the frame has {blank} atom lines before this \
+                 blank line: make the count the number of atom lines"
+            ),
+        ));
+    }
+    let present = atom_lines.count();
+    if present < count {
+        return Err(at(
+            1,
+            format!(
+                "this count line says {count} atoms, but the file has {present} atom lines \
+                 after the comment line: make the count the number of atom lines"
+            ),
+        ));
+    }
+    match lines.get(count + 2).map(|l| l.trim()) {
+        Some(next) if !next.is_empty() && next.parse::<usize>().is_err() => Err(at(
+            count + 3,
+            format!(
+                "line 1 counts {count} atoms, but this line (after the {count}th atom line) is \
+                 another atom line, not the next frame's count: make the count the number of \
+                 atom lines"
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// chemfiles guesses bonds from van der Waals radii, which only elements have: name the
 /// first atom without one, and the two ways on.
 fn check_radii(path: &Path, frame: &chemfiles::Frame) -> Result<()> {
@@ -194,6 +248,7 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
         });
     }
     check_text(path)?;
+    check_xyz_count(path)?;
     collect_warnings();
     let mut trajectory = chemfiles::Trajectory::open(path, 'r')
         .map_err(|e| structure_error(path, format!("cannot open: {}", e.message)))?;

@@ -12,6 +12,7 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
+use crate::io::energy_table::column_matches;
 
 /// A study table in memory.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,12 +43,27 @@ impl StudyTable {
             .ok_or_else(|| Error::input(format!("study {} has no `points` count", self.study)))
     }
 
-    /// The column named `name`.
+    /// The column named `name`, with or without a unit (`h` finds `h` and `h[fs]`, so
+    /// tables written before the headers carried units read as well).
     pub fn column(&self, name: &str) -> Result<usize> {
         self.header
             .iter()
-            .position(|h| h == name)
+            .position(|h| column_matches(h, name))
             .ok_or_else(|| Error::input(format!("study {} has no column {name}", self.study)))
+    }
+
+    /// Put units on header fields in a scene with real units, as `energy.csv` writes them
+    /// (`h[fs]`, `drift[kT/ns/dof]`): each `(name, unit)` renames the field `name`; an
+    /// empty unit (a dimensionless scene) leaves it as it is.
+    pub fn with_units(mut self, units: &[(&str, &str)]) -> Self {
+        for field in &mut self.header {
+            if let Some((name, unit)) = units.iter().find(|(name, _)| field == name)
+                && !unit.is_empty()
+            {
+                *field = format!("{name}[{unit}]");
+            }
+        }
+        self
     }
 
     /// A numeric cell (empty cells read as NaN).

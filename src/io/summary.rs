@@ -256,6 +256,9 @@ pub struct RunSummary {
     pub steps: u64,
     /// The time reached (the requested end time, or the time of a blow-up).
     pub t_end: f64,
+    /// The end time asked for (`--t-end`): a whole number of steps of `h` may pass it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub requested_t_end: Option<f64>,
     pub force_evaluations: ForceEvaluations,
     pub energy: EnergySummary,
     pub wall_seconds: f64,
@@ -308,6 +311,22 @@ impl RunSummary {
         }
     }
 
+    /// `" (past --t-end 21 fs: a whole number of steps of 2 fs)"` when the run ended
+    /// later than asked (more than rounding), else empty.
+    fn past_end_note(&self) -> String {
+        let units = self.scene_units;
+        match self.requested_t_end {
+            Some(asked) if self.status == Status::Ok && self.t_end > asked + 1e-9 * self.h => {
+                format!(
+                    " (past --t-end {}: a whole number of steps of {})",
+                    format_time(asked, units),
+                    format_time(self.h, units)
+                )
+            }
+            _ => String::new(),
+        }
+    }
+
     /// The one-screen text form.
     pub fn to_text(&self) -> String {
         let units = self.scene_units;
@@ -324,7 +343,12 @@ impl RunSummary {
                 self.method,
                 annotate_times(&self.parameters, units)
             ),
-            format!("steps      {} to t = {}", self.steps, time(self.t_end)),
+            format!(
+                "steps      {} to t = {}{}",
+                self.steps,
+                time(self.t_end),
+                self.past_end_note()
+            ),
             format!(
                 "forces     fast {}, slow {}, hessian-vector {}  (per level: {:?})",
                 f.fast, f.slow, f.hessian_vector, f.levels
@@ -380,7 +404,7 @@ impl RunSummary {
             lines.push(format!(
                 "{:<10} {}",
                 key.replace('_', "-"),
-                compact_json(value)
+                compact_json(value, units)
             ));
         }
         if let Some(path) = &self.energy_csv {
@@ -436,22 +460,54 @@ pub fn annotate_times(parameters: &str, units: Units) -> String {
     parameters
         .split(", ")
         .map(|part| match part.split_once(" = ") {
-            Some((name, value)) if TIMES.contains(&name) => match value.parse::<f64>() {
-                Ok(t) => format!("{name} = {}", format_time(t, units)),
-                Err(_) => part.to_string(),
+            Some((name, value)) => match value.parse::<f64>() {
+                Ok(t) if TIMES.contains(&name) => format!("{name} = {}", format_time(t, units)),
+                Ok(x) => format!("{name} = {}", with_unit(name, x, units)),
+                Err(_) => annotate_leading(name, value, units),
             },
-            _ => part.to_string(),
+            None => part.to_string(),
         })
         .collect::<Vec<_>>()
         .join(", ")
 }
 
+/// `value` (`"0.1 (on v2)"`) with the unit of `name` after its leading number, in a real scene.
+fn annotate_leading(name: &str, value: &str, units: Units) -> String {
+    match value.split_once(' ') {
+        Some((number, rest)) => match number.parse::<f64>() {
+            Ok(x) => format!("{name} = {} {rest}", with_unit(name, x, units)),
+            Err(_) => format!("{name} = {value}"),
+        },
+        None => format!("{name} = {value}"),
+    }
+}
+
+/// A run parameter with its unit in a real scene: `kT` as energy (6 significant digits),
+/// `friction` as a rate (1/fs); anything else as it is.
+fn with_unit(name: &str, x: f64, units: Units) -> String {
+    match name {
+        "kT" => format!("{} {}", significant(x, 6), units.energy_name()),
+        "friction" => format!("{} 1/{}", Num(x), units.time_name()),
+        _ => Num(x).to_string(),
+    }
+}
+
 /// A JSON object on one line, numbers in short exponent form: `a = 1.2e-13, b = "gl3"`.
-fn compact_json(value: &serde_json::Value) -> String {
+/// In a real scene `kT`, `friction` and `tau` carry their units (`kT = 5.961613e-1 kcal/mol`).
+fn compact_json(value: &serde_json::Value, units: Units) -> String {
     match value {
         serde_json::Value::Object(map) => map
             .iter()
-            .map(|(k, v)| format!("{k} = {}", compact_json(v)))
+            .map(|(k, v)| {
+                let unit = match (units, k.as_str()) {
+                    (Units::None, _) => String::new(),
+                    (_, "kT") => format!(" {}", units.energy_name()),
+                    (_, "friction") => format!(" 1/{}", units.time_name()),
+                    (_, "tau") => format!(" {}", units.time_name()),
+                    _ => String::new(),
+                };
+                format!("{k} = {}{unit}", compact_json(v, units))
+            })
             .collect::<Vec<_>>()
             .join(", "),
         serde_json::Value::Number(n) => match n.as_f64() {

@@ -73,6 +73,37 @@ impl ProbeScene {
     }
 }
 
+/// Refuse a scene without the parameters `omega1` and `omega2` that integrator mode sets
+/// for every (Γ1, Γ2) point, in the user's terms (the `--scene` they gave), before the
+/// override machinery blames a `--set omega1` the user never typed.
+fn check_frequency_parameters(parsed: &SceneFile, path: &Path) -> Result<()> {
+    let missing: Vec<&str> = ["omega1", "omega2"]
+        .into_iter()
+        .filter(|name| !parsed.parameters.contains_key(*name))
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let has = if parsed.parameters.is_empty() {
+        "none".to_string()
+    } else {
+        parsed
+            .parameters
+            .keys()
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    Err(Error::input(format!(
+        "--scene {}: stability-map --mode integrator sets Γ1 = h·omega1 and Γ2 = h·omega2 at \
+         every point, so the scene needs [parameters] omega1 and omega2 (the two frequencies \
+         the map varies); it lacks {} (its parameters: {has}). Leave out --scene for the \
+         three-spring system of GSS98, or use `longstep scan steps` for a molecule",
+        path.display(),
+        missing.join(" and ")
+    )))
+}
+
 /// One method with its settings on one scene: measures propagation matrices.
 pub struct IntegratorProbe {
     scene: ProbeScene,
@@ -90,6 +121,7 @@ impl IntegratorProbe {
         let mut notices = Vec::new();
         integrators::build(&settings, &mut notices)?;
         let parsed = parse_scene(&scene.text, &scene.path)?;
+        check_frequency_parameters(&parsed, &scene.path)?;
         build_parsed_scene(&parsed, &scene.text, &scene.path, &[])?;
         Ok(IntegratorProbe {
             scene,
