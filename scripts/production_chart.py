@@ -58,7 +58,8 @@ def verdict(stem, date, label, h):
     with open(path) as f:
         lines = [l for l in f if not l.startswith("#")]
     for r in csv.DictReader(lines):
-        if r.get("config") == label and abs(float(r["h"]) - h) < 1e-9:
+        step = r["h"] if "h" in r else r["h[fs]"]  # tables since the units in headers
+        if r.get("config") == label and abs(float(step) - h) < 1e-9:
             return r["status"]
     return None
 

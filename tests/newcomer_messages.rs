@@ -74,6 +74,8 @@ fn a_run_past_t_end_says_so_and_fit_from_has_units() {
             t_end,
             "--out",
             out.to_str().unwrap(),
+            // Each run replaces the one before it in the folder.
+            "--force",
         ]
     };
     // 21 fs in steps of 2 fs ends at 22 fs.
@@ -267,4 +269,32 @@ fn work_precision_headers_carry_units_in_a_real_scene() {
     for column in ["h[fs]", "max_position_error[Å]"] {
         assert!(header.split(',').any(|c| c == column), "{column}: {header}");
     }
+}
+
+/// Item 11: a box too small for the cutoff is named as such, not as overlapping atoms.
+#[test]
+fn a_box_too_small_for_the_cutoff_is_named() {
+    let dir = scratch_dir("messages-small-box");
+    let scene = std::fs::read_to_string("systems/water-box/scene.toml").unwrap();
+    let start = scene
+        .find("box = [")
+        .expect("the water box scene gives its box");
+    let end = start + scene[start..].find('\n').unwrap();
+    let small = format!("{}box = [17, 17, 17]{}", &scene[..start], &scene[end..]).replace(
+        "file = \"water216.xyz\"",
+        &format!(
+            "file = \"{}\"",
+            std::fs::canonicalize("systems/water-box/water216.xyz")
+                .unwrap()
+                .display()
+        ),
+    );
+    let path = dir.join("small-box.toml");
+    std::fs::write(&path, small).unwrap();
+    let (code, _, stderr) = common::run_cli(&["check", path.to_str().unwrap()]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("too small for [forcefield] cutoff = 9") && !stderr.contains("overlap"),
+        "{stderr}"
+    );
 }

@@ -4,7 +4,9 @@
 use super::particles::Start;
 use super::{Builder, OVERLAP_LIMIT, SceneFile, Terms};
 use crate::error::Result;
-use crate::io::forcefield::{FfAtom, ForcefieldInput, build_forcefield, closest_overlap};
+use crate::io::forcefield::{
+    FfAtom, ForcefieldInput, build_forcefield, check_box, closest_overlap,
+};
 use crate::system::PeriodicBox;
 use crate::system::topology::BondedTopology;
 use crate::units::Units;
@@ -45,6 +47,8 @@ impl Builder<'_> {
         let n_particles = start.masses.len();
         let structure_spec = file.structure.as_ref().map(|s| s.get_ref());
         let bonds = self.structure_bonds(structure, structure_spec, n_particles)?;
+        // A box too small for the cutoff folds atoms onto each other: say so first.
+        check_box(ff.get_ref(), periodic_box, &start.q).map_err(|e| self.error(e))?;
         if let Some((i, j, r)) = closest_overlap(&start.q, periodic_box, OVERLAP_LIMIT) {
             return Err(self.error(format!(
                 "atoms {i} ({}) and {j} ({}) overlap: they are {r:.4} Å apart (closer than \
