@@ -182,7 +182,7 @@ fn a_fit_window_skips_the_start_and_a_bad_one_is_refused() {
     for (extra, fragment) in [
         (
             ["--fit-from", "20ps"],
-            "--fit-from 20000 is outside the run",
+            "--fit-from 20 ps is outside the run [0, 10 fs)",
         ),
         (["--drift-bound", "0"], "--drift-bound must be positive"),
     ] {
