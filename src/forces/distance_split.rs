@@ -119,6 +119,11 @@ impl Switch {
         self.r_out
     }
 
+    /// `1/(r_out − r_in)`.
+    pub fn inverse_width(&self) -> f64 {
+        self.inverse_width
+    }
+
     /// `(S, S′)` at `r`.
     #[inline(always)]
     pub fn value_slope(&self, r: f64) -> (f64, f64) {
@@ -438,11 +443,18 @@ struct Workspace {
     cached_energy: Option<f64>,
 }
 
-/// The short-range part, shared by the two terms (the remainder subtracts it).
+/// The short-range part, shared by the two terms (the remainder subtracts it): by atom
+/// pair the model's term in the cluster-pair kernel with every pair multiplied by the
+/// switch ([`Nonbonded::switched`]), by molecule the molecule loops of [`ShortRange`].
+pub enum ShortPart {
+    AtomPairs(Box<Nonbonded>),
+    Molecules(Box<ShortRange>),
+}
+
+/// The short-range part by molecule.
 pub struct ShortRange {
     pub(crate) model: Model,
     pub(crate) switch: Switch,
-    by: SwitchBy,
     pub(crate) molecules: Molecules,
     /// Non-excluded pairs inside one molecule (by molecule), switched on their distance.
     intramolecular: Vec<[u32; 2]>,
@@ -456,9 +468,6 @@ pub struct ShortRange {
     lanes: Option<lanes::Lanes>,
     listed_atom_pairs: AtomicUsize,
     workspace: Mutex<Workspace>,
-    /// By atom pair: the model's term in the cluster-pair kernel, every pair multiplied by
-    /// the switch ([`Nonbonded::switched`]); the row loops are for molecules.
-    atom_pairs: Option<Nonbonded>,
 }
 
 /// The instruction sets by index, for [`ShortRange::set_isa`].
@@ -475,13 +484,13 @@ fn chunk_count(n_atoms: usize) -> usize {
 
 /// The short-range part on its level.
 pub struct NonbondedShort {
-    short: Arc<ShortRange>,
+    short: Arc<ShortPart>,
 }
 
 /// The full non-bonded term minus the short-range part, on a higher level.
 pub struct NonbondedRemainder {
     full: Nonbonded,
-    short: Arc<ShortRange>,
+    short: Arc<ShortPart>,
 }
 
 /// Split the non-bonded term of `spec` by `split` at positions `q`: the short-range part
@@ -499,7 +508,14 @@ pub fn split_nonbonded(
             split.r_out, spec.cutoff
         ));
     }
-    let short = ShortRange::new(&spec, switch, split, q)?;
+    let short = match split.by {
+        SwitchBy::AtomPair => {
+            ShortPart::AtomPairs(Box::new(Nonbonded::switched(spec.clone(), switch, q)?))
+        }
+        SwitchBy::Molecule => {
+            ShortPart::Molecules(Box::new(ShortRange::new(&spec, switch, split, q)?))
+        }
+    };
     let full = Nonbonded::new(spec, q)?;
     let short = Arc::new(short);
     Ok((
@@ -520,31 +536,12 @@ impl ShortRange {
         let n = spec.types.len();
         let model = Self::model(spec, q)?;
         let (excluded_start, excluded_partners) = exclusion_table(n, &spec.excluded)?;
-        let molecules = match split.by {
-            SwitchBy::Molecule => molecule_table(n, split, &spec.types)?,
-            SwitchBy::AtomPair => Molecules {
-                start: vec![0],
-                atoms: Vec::new(),
-                reference: Vec::new(),
-                reference_slot: Vec::new(),
-                types: Vec::new(),
-                uniform_size: 0,
-            },
-        };
-        let points = match split.by {
-            SwitchBy::Molecule => molecules.reference.len(),
-            SwitchBy::AtomPair => n,
-        };
+        let molecules = molecule_table(n, split, &spec.types)?;
+        let points = molecules.reference.len();
         let chunks = chunk_count(n);
-        let atom_pairs = match split.by {
-            SwitchBy::AtomPair => Some(Nonbonded::switched(spec.clone(), switch, q)?),
-            SwitchBy::Molecule => None,
-        };
-        let points = if atom_pairs.is_some() { 0 } else { points };
         let mut short = ShortRange {
             model,
             switch,
-            by: split.by,
             molecules,
             intramolecular: Vec::new(),
             excluded_start,
@@ -553,17 +550,12 @@ impl ShortRange {
             isa: AtomicU8::new(0),
             lanes: None,
             listed_atom_pairs: AtomicUsize::new(0),
-            workspace: Mutex::new(Self::workspace(spec, switch, split.by, points, chunks)),
-            atom_pairs,
+            workspace: Mutex::new(Self::workspace(spec, switch, points, chunks)),
         };
         short.set_isa(Isa::best());
-        if split.by == SwitchBy::Molecule {
-            short.lanes = lanes::Lanes::of(&short.model, &short.molecules);
-        }
-        if split.by == SwitchBy::Molecule {
-            short.intramolecular = short.intramolecular_pairs()?;
-        }
-        if short.atom_pairs.is_none() {
+        short.lanes = lanes::Lanes::of(&short.model, &short.molecules);
+        short.intramolecular = short.intramolecular_pairs()?;
+        {
             let mut workspace = short.lock();
             short.refresh(&mut workspace, q);
         }
@@ -609,13 +601,7 @@ impl ShortRange {
 
     /// The buffers, sized once here: the pair search over `points` (molecule reference
     /// atoms or atoms), one scratch and gradient buffer per chunk, the position cache.
-    fn workspace(
-        spec: &NonbondedSpec,
-        switch: Switch,
-        by: SwitchBy,
-        points: usize,
-        chunks: usize,
-    ) -> Workspace {
+    fn workspace(spec: &NonbondedSpec, switch: Switch, points: usize, chunks: usize) -> Workspace {
         let n = spec.types.len();
         Workspace {
             search: PairSearch::new(
@@ -624,8 +610,8 @@ impl ShortRange {
                 spec.skin,
                 spec.box_lengths,
             ),
-            packed: vec![[0.0; 4]; if by == SwitchBy::Molecule { n } else { 0 }],
-            clusters: vec![Cluster::default(); if by == SwitchBy::Molecule { points } else { 0 }],
+            packed: vec![[0.0; 4]; n],
+            clusters: vec![Cluster::default(); points],
             scratch: (0..chunks).map(|_| kernels::Scratch::default()).collect(),
             buffers: vec![vec![0.0; 3 * n]; chunks],
             energies: vec![0.0; chunks],
@@ -646,19 +632,15 @@ impl ShortRange {
         assert!(isa.is_available(), "{} is not available", isa.name());
         let index = INSTRUCTION_SETS.iter().position(|&i| i == isa).unwrap_or(0);
         self.isa.store(index as u8, Ordering::Relaxed);
-        if let Some(pairs) = &self.atom_pairs {
-            pairs.set_isa(isa);
-        }
         self.lock().cached_energy = None;
     }
 
-    /// Which pair loop evaluates the short part: `"molecule blocks"` (SIMD, one kind of
-    /// molecule of at most four atoms), `"molecule rows"` (any molecules) or `"atom pairs"`.
+    /// Which loop evaluates the molecule pairs: `"molecule blocks"` (SIMD, one kind of
+    /// molecule of at most four atoms) or `"molecule rows"` (any molecules).
     pub fn pair_loop(&self) -> &'static str {
-        match (self.by, &self.lanes) {
-            (SwitchBy::AtomPair, _) => "cluster pairs",
-            (SwitchBy::Molecule, Some(_)) => "molecule blocks",
-            (SwitchBy::Molecule, None) => "molecule rows",
+        match &self.lanes {
+            Some(_) => "molecule blocks",
+            None => "molecule rows",
         }
     }
 
@@ -743,7 +725,7 @@ impl ShortRange {
     /// product). The buffers hold the gradient or product afterwards (not for `Energy`).
     fn run(&self, workspace: &mut Workspace, q: &[f64], mode: Mode) -> f64 {
         self.refresh(workspace, q);
-        let whole = self.by == SwitchBy::Molecule && self.pack_molecules(q, &mut workspace.packed);
+        let whole = self.pack_molecules(q, &mut workspace.packed);
         if let (true, Some(lanes)) = (whole, &self.lanes) {
             lanes.pack(&workspace.packed, &mut workspace.clusters);
         }
@@ -769,7 +751,7 @@ impl ShortRange {
                 clusters,
                 scratch,
             });
-            self.evaluate(q, mode, part, self.by, whole, buffer)
+            self.evaluate(q, mode, part, SwitchBy::Molecule, whole, buffer)
         };
         if chunks > 1 {
             buffers
@@ -920,9 +902,6 @@ impl ShortRange {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        if let Some(pairs) = &self.atom_pairs {
-            return pairs.energy(q);
-        }
         let mut workspace = self.lock();
         if let Some(energy) = workspace.cached_energy
             && workspace.cached_q == q
@@ -934,9 +913,6 @@ impl ShortRange {
 
     /// `gradient += sign ∇V_short(q)`, from the cache when `q` is the last gradient's.
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
-        if let Some(pairs) = &self.atom_pairs {
-            return pairs.add_scaled_gradient(q, gradient, sign);
-        }
         let mut guard = self.lock();
         let workspace = &mut *guard;
         if !(workspace.cached_energy.is_some() && workspace.cached_q == q) {
@@ -953,9 +929,6 @@ impl ShortRange {
 
     /// `out += sign ∇²V_short(q) v`.
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
-        if let Some(pairs) = &self.atom_pairs {
-            return pairs.add_scaled_hessian_vector(q, v, out, sign);
-        }
         let mut workspace = self.lock();
         self.run(&mut workspace, q, Mode::HessianVector(v));
         reduce(&workspace.buffers, out, sign);
@@ -963,10 +936,6 @@ impl ShortRange {
 
     /// The energy as (Lennard-Jones, Coulomb), for reports.
     fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
-        if let Some(pairs) = &self.atom_pairs {
-            let (lj, coulomb) = pairs.energy_parts(q);
-            return [lj, coulomb];
-        }
         let mut workspace = self.lock();
         self.refresh(&mut workspace, q);
         let listed = kernels::energy_parts(self, q, &workspace.search.pairs, true);
@@ -975,9 +944,6 @@ impl ShortRange {
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
-        if let Some(pairs) = &self.atom_pairs {
-            return pairs.couplings();
-        }
         let workspace = self.lock();
         let mut couplings: Vec<Vec<usize>> = workspace
             .search
@@ -996,32 +962,93 @@ impl ShortRange {
         couplings
     }
 
+    /// How many times the molecule pair list has been built.
+    pub fn list_builds(&self) -> u64 {
+        self.lock().search.builds()
+    }
+}
+
+impl ShortPart {
     /// `"switched off between r_in = 6 and r_out = 7 by molecule (reference atoms' distance)"`.
     pub fn describe(&self) -> String {
-        let by = match self.by {
-            SwitchBy::Molecule => "by molecule (distance of the reference atoms)",
-            SwitchBy::AtomPair => "by atom pair",
+        let (by, switch) = match self {
+            ShortPart::AtomPairs(pairs) => ("by atom pair", pairs.switch()),
+            ShortPart::Molecules(short) => (
+                "by molecule (distance of the reference atoms)",
+                Some(short.switch),
+            ),
         };
-        format!(
-            "switched off between r_in = {} and r_out = {} {by}",
-            self.switch.r_in(),
-            self.switch.r_out()
-        )
+        let (r_in, r_out) = switch.map_or((0.0, 0.0), |s| (s.r_in(), s.r_out()));
+        format!("switched off between r_in = {r_in} and r_out = {r_out} {by}")
+    }
+
+    /// Which loop evaluates the short part: `"cluster pairs"` by atom pair, else
+    /// [`ShortRange::pair_loop`].
+    pub fn pair_loop(&self) -> &'static str {
+        match self {
+            ShortPart::AtomPairs(_) => "cluster pairs",
+            ShortPart::Molecules(short) => short.pair_loop(),
+        }
+    }
+
+    /// The instruction set of the pair loops (every set gives the same bits).
+    pub fn set_isa(&self, isa: Isa) {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.set_isa(isa),
+            ShortPart::Molecules(short) => short.set_isa(isa),
+        }
     }
 
     /// How many times the pair list has been built.
     pub fn list_builds(&self) -> u64 {
-        match &self.atom_pairs {
-            Some(pairs) => pairs.list_counts().builds,
-            None => self.lock().search.builds(),
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.list_counts().builds,
+            ShortPart::Molecules(short) => short.list_builds(),
+        }
+    }
+
+    fn energy(&self, q: &[f64]) -> f64 {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.energy(q),
+            ShortPart::Molecules(short) => short.energy(q),
+        }
+    }
+
+    /// `gradient += sign ∇V_short(q)` (from the last evaluation at the same `q`).
+    fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.add_scaled_gradient(q, gradient, sign),
+            ShortPart::Molecules(short) => short.add_gradient(q, gradient, sign),
+        }
+    }
+
+    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.add_scaled_hessian_vector(q, v, out, sign),
+            ShortPart::Molecules(short) => short.add_hessian_vector(q, v, out, sign),
+        }
+    }
+
+    /// The energy as (Lennard-Jones, Coulomb).
+    fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.energy_parts(q).into(),
+            ShortPart::Molecules(short) => short.energy_parts(q),
+        }
+    }
+
+    fn couplings(&self) -> Vec<Vec<usize>> {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.couplings(),
+            ShortPart::Molecules(short) => short.couplings(),
         }
     }
 
     /// Atom pairs of the list.
     fn listed_pairs(&self) -> usize {
-        match &self.atom_pairs {
-            Some(pairs) => pairs.interaction_count(),
-            None => self.listed_atom_pairs.load(Ordering::Relaxed),
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.interaction_count(),
+            ShortPart::Molecules(short) => short.listed_atom_pairs.load(Ordering::Relaxed),
         }
     }
 }
@@ -1115,7 +1142,7 @@ fn molecule_table(n: usize, split: &SplitSpec, types: &[u32]) -> Result<Molecule
 
 impl NonbondedShort {
     /// The shared short-range part (its switch, description and list statistics).
-    pub fn short_range(&self) -> &ShortRange {
+    pub fn short_range(&self) -> &ShortPart {
         &self.short
     }
 }
@@ -1157,10 +1184,10 @@ impl ForceTerm for NonbondedShort {
     /// By atom pair (the cluster-pair kernel) in either precision; the molecule loops
     /// stay in double.
     fn set_precision(&self, precision: Precision) -> bool {
-        self.short
-            .atom_pairs
-            .as_ref()
-            .is_some_and(|pairs| pairs.set_precision(precision))
+        match &*self.short {
+            ShortPart::AtomPairs(pairs) => pairs.set_precision(precision),
+            ShortPart::Molecules(_) => false,
+        }
     }
 }
 

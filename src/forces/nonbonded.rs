@@ -529,6 +529,11 @@ impl Nonbonded {
         Ok(term)
     }
 
+    /// The switch of a short-range part ([`Nonbonded::switched`]), `None` for a whole term.
+    pub fn switch(&self) -> Option<Switch> {
+        self.switch
+    }
+
     /// `gradient += sign ∇V` (the remainder of a distance split subtracts its short part).
     pub fn add_scaled_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
         self.evaluate(q, Some(gradient), sign);

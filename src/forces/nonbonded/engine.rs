@@ -286,7 +286,7 @@ impl Nonbonded {
                 let switched = kernel::Switched {
                     inner: c,
                     r_in: switch.r_in(),
-                    inverse_width: 1.0 / (switch.r_out() - switch.r_in()),
+                    inverse_width: switch.inverse_width(),
                 };
                 R::evaluate::<_, ENERGY>(isa, job, switched, out)
             }
