@@ -388,6 +388,19 @@ fn the_sampling_criterion_passes_the_reference_itself_and_fails_a_biased_sampler
         std::fs::read(reference.join("energy.csv")).unwrap(),
         std::fs::read(out.join("runs/0000-langevin-respa-h0.5/energy.csv")).unwrap()
     );
+    // The headers carry the real scene's units, as energy.csv's do (issue 30 item 12).
+    let text = std::fs::read_to_string(out.join("scan.csv")).unwrap();
+    let header = text.lines().nth(1).unwrap();
+    for field in [
+        "h[fs]",
+        "potential_difference[kcal/mol]",
+        "potential_combined_error[kcal/mol]",
+        "peak_difference",
+        "kinetic_temperature[K]",
+        "decide_at[fs]",
+    ] {
+        assert!(header.split(',').any(|f| f == field), "{field} in {header}");
+    }
     let table = rows(&out.join("scan.csv"));
     let number = |row: &[String], k: usize| -> f64 { row[k].parse().unwrap() };
     assert_eq!(table[0][3], "pass", "{table:?}");

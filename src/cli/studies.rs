@@ -639,7 +639,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let meta = scan_meta(args, &setup, total, sampling.as_ref(), scene.units);
     let table = match &sampling {
         None => scan_table(meta.clone(), &results),
-        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty()),
+        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty(), scene.units),
     };
     table.write(&path)?;
     super::draw::draw_scan(&table, &args.out)?;
@@ -1051,11 +1051,13 @@ fn with_config_column<'a>(
 
 /// The scan's study table by the sampling criterion: each point's differences to the
 /// reference and their combined errors; with a peptide `backbone`, each basin's Δp, its
-/// combined error and the run's population.
+/// combined error and the run's population. In a scene with real units the headers carry
+/// them (`h[fs]`, `potential_difference[kcal/mol]`, `kinetic_temperature[K]`).
 pub fn sampling_table(
     meta: BTreeMap<String, String>,
     results: &[StepResult],
     backbone: bool,
+    units: Units,
 ) -> StudyTable {
     let mut table = StudyTable::new(
         "scan-steps",
@@ -1081,7 +1083,8 @@ pub fn sampling_table(
             "fast_evaluations",
             "decide_at",
         ],
-    );
+    )
+    .with_units(&sampling_units(units));
     for r in results {
         let mut row = vec![
             r.index.to_string(),
@@ -1120,6 +1123,27 @@ pub fn sampling_table(
         add_basin_columns(&mut table, results);
     }
     with_config_column(table, results.iter().map(|r| r.config.as_deref()))
+}
+
+/// The units of the sampling table's columns (empty in a dimensionless scene; the g(r) peak
+/// heights and the basin populations have none).
+fn sampling_units(units: Units) -> [(&'static str, &'static str); 9] {
+    let (time, energy, temperature) = (
+        units.time_name(),
+        units.energy_name(),
+        units.temperature_name(),
+    );
+    [
+        ("h", time),
+        ("potential_difference", energy),
+        ("potential_combined_error", energy),
+        ("potential_per_molecule", energy),
+        ("potential_error", energy),
+        ("kinetic_temperature", temperature),
+        ("kinetic_temperature_error", temperature),
+        ("blowup_time", time),
+        ("decide_at", time),
+    ]
 }
 
 /// The basin columns of the sampling table: `{basin}_difference`, `{basin}_combined_error`

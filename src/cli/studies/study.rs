@@ -292,7 +292,7 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
     study_meta(&study, &mut meta);
     let table = match &sampling {
         None => scan_table(meta.clone(), &results),
-        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty()),
+        Some((c, _)) => sampling_table(meta.clone(), &results, !c.backbone.is_empty(), scene.units),
     };
     let out = args.out.join(SCAN_STEPS);
     table.write(&out)?;
