@@ -8,6 +8,10 @@ time of the whole process), the median per case, its ns/day and its ratio to the
 box. Run from a clone after `cargo build --release`:
 
     RAYON_NUM_THREADS=1 python3 scripts/thermostat_ns_per_day.py --repeats 3
+
+`--box 15` keeps one box's cases and `--ps T` runs every case for T picoseconds (the
+README's headline: `--box 15 --ps 10 --repeats 5`). Each repeat's ratio to the box's
+baseline in the same repeat is printed too, and their range beside the median.
 """
 
 import argparse
@@ -77,33 +81,44 @@ def one_run(scene, flags, ps, out):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--box", choices=["9", "12", "15"],
+                        help="only this box's cases (its baseline first)")
+    parser.add_argument("--ps", type=float,
+                        help="simulated time of every case, in ps (default: each case's own)")
     args = parser.parse_args()
+    cases = [(box, label, scene, flags, args.ps or ps)
+             for box, label, scene, flags, ps in CASES
+             if args.box is None or box == f"{args.box} A"]
     if not LONGSTEP.exists():
         sys.exit(f"{LONGSTEP} not found: run `cargo build --release` first")
     print(f"# RAYON_NUM_THREADS={os.environ.get('RAYON_NUM_THREADS', '(unset)')}, "
           f"load before: {os.getloadavg()[0]:.2f}")
-    for k, (box, label, scene, flags, ps) in enumerate(CASES, 1):
+    for k, (box, label, scene, flags, ps) in enumerate(cases, 1):
         print(f"# case {k} ({box}): longstep run {scene} {flags} --t-end {ps}ps")
-    walls = [[] for _ in CASES]
-    simulated = [0.0 for _ in CASES]
+    walls = [[] for _ in cases]
+    simulated = [0.0 for _ in cases]
     with tempfile.TemporaryDirectory() as scratch:
         for repeat in range(1, args.repeats + 1):
-            for k, (_, _, scene, flags, ps) in enumerate(CASES):
+            for k, (_, _, scene, flags, ps) in enumerate(cases):
                 wall, user, status, simulated[k] = one_run(scene, flags, ps, f"{scratch}/{k}")
                 walls[k].append(wall)
                 print(f"run {repeat} case {k + 1} wall_s {wall:.3f} user_s {user:.2f} "
                       f"simulated_ps {simulated[k]:.3f} {status}")
     print(f"\n# load after: {os.getloadavg()[0]:.2f}")
-    print("box  case                             median wall s (runs)          ns/day  ratio")
+    print("box  case                             median wall s (runs)          ns/day  ratio"
+          "  (range over repeats)")
     baseline = {}
-    for k, (box, label, _, _, _) in enumerate(CASES):
+    for k, (box, label, _, _, _) in enumerate(cases):
         median = statistics.median(walls[k])
         ns_per_day = simulated[k] * 1e-3 * 86400 / median
-        baseline.setdefault(box, ns_per_day)
+        first = baseline.setdefault(box, (k, ns_per_day))
+        # Per repeat: the case's ns/day over its baseline's in the same repeat.
+        base_k = first[0]
+        ratios = [(simulated[k] / w) / (simulated[base_k] / b)
+                  for w, b in zip(walls[k], walls[base_k])]
         runs = ", ".join(f"{w:.2f}" for w in walls[k])
         print(f"{box:4s} {label:32s} {median:7.2f} ({runs})  {ns_per_day:7.1f}  "
-              f"{ns_per_day / baseline[box]:.2f}x")
-
+              f"{ns_per_day / first[1]:.2f}x  ({min(ratios):.2f}-{max(ratios):.2f})")
 
 if __name__ == "__main__":
     main()
