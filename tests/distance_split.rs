@@ -18,8 +18,8 @@ mod common;
 
 use common::{TestRng, max_abs, max_abs_difference};
 use longstep::forces::distance_split::{
-    NonbondedShort, SplitSpec, Switch, SwitchBy, molecules_from_bonds, reference_atoms,
-    split_nonbonded,
+    NonbondedShort, ShortCoulomb, SplitSpec, Switch, SwitchBy, molecules_from_bonds,
+    reference_atoms, split_nonbonded,
 };
 use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 use longstep::forces::{ForceTerm, Precision};
@@ -142,6 +142,7 @@ fn split_spec(by: SwitchBy, r_in: f64, r_out: f64, n: usize, bonds: &[[usize; 2]
         r_in,
         r_out,
         by,
+        short_coulomb: ShortCoulomb::Model,
         reference_atoms: reference_atoms(&molecule_of, &masses, None).unwrap(),
         molecule_of,
     }

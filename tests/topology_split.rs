@@ -163,6 +163,8 @@ fn check_reports_the_split_and_its_levels() {
     for expected in [
         "nonbonded split: short-range part on level 0 switched off between r_in = 5 and \
          r_out = 6 by atom pair, computed as cluster pairs; remainder (full − short) on level 1",
+        // With PME the short part takes the bare Coulomb by default (LAMMPS's rRESPA).
+        "nonbonded split: the short part's Coulomb is bare 1/r (short_coulomb = \"bare\")",
         "0 (fast) = ",
         "1 (slow) = ",
     ] {

@@ -171,12 +171,26 @@ impl SwitchBy {
     }
 }
 
+/// The Coulomb form of the short-range part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShortCoulomb {
+    /// The term's own form (shifted force, reaction field, PME's `erfc(αr)/r`).
+    Model,
+    /// Bare `1/r`, as LAMMPS's rRESPA inner and middle levels take it with `coul/long`: with
+    /// PME the near-field Coulomb force is on the short level in full, and the remainder
+    /// (real space − switched bare Coulomb) with the reciprocal sum is smooth. With
+    /// `erfc(αr)/r` in the short part the reciprocal sum's `erf(αr)/r` near field stays on
+    /// the slow level.
+    Bare,
+}
+
 /// How to split a non-bonded term.
 #[derive(Clone, Debug)]
 pub struct SplitSpec {
     pub r_in: f64,
     pub r_out: f64,
     pub by: SwitchBy,
+    pub short_coulomb: ShortCoulomb,
     /// Molecule index per atom (by molecule; see [`molecules_from_bonds`]).
     pub molecule_of: Vec<u32>,
     /// The reference atom of each molecule (by molecule; see [`reference_atoms`]).
@@ -508,12 +522,16 @@ pub fn split_nonbonded(
             split.r_out, spec.cutoff
         ));
     }
+    let mut short_spec = spec.clone();
+    if split.short_coulomb == ShortCoulomb::Bare && spec.electrostatics != Electrostatics::None {
+        short_spec.electrostatics = Electrostatics::Plain;
+    }
     let short = match split.by {
         SwitchBy::AtomPair => {
-            ShortPart::AtomPairs(Box::new(Nonbonded::switched(spec.clone(), switch, q)?))
+            ShortPart::AtomPairs(Box::new(Nonbonded::switched(short_spec, switch, q)?))
         }
         SwitchBy::Molecule => {
-            ShortPart::Molecules(Box::new(ShortRange::new(&spec, switch, split, q)?))
+            ShortPart::Molecules(Box::new(ShortRange::new(&short_spec, switch, split, q)?))
         }
     };
     let full = Nonbonded::new(spec, q)?;

@@ -494,7 +494,12 @@ impl Nonbonded {
                 ));
             }
         }
-        let kernel = coulomb_kernel(spec.electrostatics, cutoff)?;
+        // A switched term may take plain Coulomb inside its r_out (the bare short part of a
+        // distance split with PME); unswitched, plain Coulomb has no cutoff form.
+        let kernel = match (switch, spec.electrostatics) {
+            (Some(_), Electrostatics::Plain) => Kernel::Plain(Plain),
+            _ => coulomb_kernel(spec.electrostatics, cutoff)?,
+        };
         let root_ke = spec.coulomb_constant.sqrt();
         let scaled_charges: Vec<f64> = if spec.electrostatics == Electrostatics::None {
             vec![0.0; n]

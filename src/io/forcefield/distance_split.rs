@@ -10,6 +10,8 @@
 //! reference = "O"        # by molecule: the reference atom's element or type name
 //! short_level = 1        # level of the short-range part (default 1)
 //! remainder_level = 2    # level of the remainder (default short_level + 1)
+//! short_coulomb = "bare" # the short part's Coulomb: "bare" 1/r or the term's own "model"
+//!                        # form; default "bare" with PME, "model" otherwise
 //! ```
 //!
 //! Molecules are the connected components of the bond graph. Each molecule's reference
@@ -20,7 +22,10 @@
 //! include a protein, whose pairs with the water would all be switched on the distance of
 //! one reference atom; with PME the real-space pairs beyond `r_in` are screened by
 //! `erfc(α r)`, so the remainder by atom pair is small (erfc(0.347 × 5) = 0.014 at
-//! GROMACS's default α). Rigid waters (`[ settles ]`) count as bonded for the molecules, and
+//! GROMACS's default α). With PME the short part takes the bare Coulomb `1/r` by default
+//! (LAMMPS's rRESPA inner and middle levels with `coul/long` do the same): the near-field
+//! Coulomb force, which `erfc(αr)/r` would leave to the reciprocal sum, is then on the short
+//! level, and the slow level holds only a smooth remainder. Rigid waters (`[ settles ]`) count as bonded for the molecules, and
 //! the topology's 1-4 pairs go to the short part's level.
 
 use serde::{Deserialize, Serialize};
@@ -28,9 +33,9 @@ use serde::{Deserialize, Serialize};
 use super::atoms::AtomTable;
 use super::{ForcefieldInput, Terms};
 use crate::forces::distance_split::{
-    SplitSpec, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
+    ShortCoulomb, SplitSpec, SwitchBy, molecules_from_bonds, reference_atoms, split_nonbonded,
 };
-use crate::forces::nonbonded::NonbondedSpec;
+use crate::forces::nonbonded::{Electrostatics, NonbondedSpec};
 use crate::split::Assignment;
 
 /// Levels a split may name, at most (the splitter sizes a table per level).
@@ -48,6 +53,8 @@ pub struct SplitSection {
     pub reference: Option<String>,
     pub short_level: Option<usize>,
     pub remainder_level: Option<usize>,
+    /// `"bare"` or `"model"`; the default is `"bare"` with PME, `"model"` otherwise.
+    pub short_coulomb: Option<String>,
 }
 
 impl SplitSection {
@@ -72,7 +79,8 @@ impl SplitSection {
             .map_err(|e: toml::de::Error| {
                 format!(
                     "--split \"{text}\": {} (keys r_in, r_out, by, reference, short_level, \
-                 remainder_level; e.g. r_in=5,r_out=6,short_level=0,remainder_level=1)",
+                 remainder_level, short_coulomb; e.g. r_in=5,r_out=6,short_level=0,\
+                 remainder_level=1)",
                     e.message().trim()
                 )
             })
@@ -149,10 +157,13 @@ pub(crate) fn split_terms(
         }
         SwitchBy::AtomPair => (Vec::new(), Vec::new()),
     };
+    let short_coulomb = short_coulomb(section, &spec).map_err(fail)?;
+    let spec_charged = spec.electrostatics != Electrostatics::None;
     let split = SplitSpec {
         r_in: section.r_in,
         r_out: section.r_out,
         by,
+        short_coulomb,
         molecule_of,
         reference_atoms: reference,
     };
@@ -174,6 +185,16 @@ pub(crate) fn split_terms(
         short.short_range().describe(),
         short.short_range().pair_loop()
     ));
+    if spec_charged {
+        report.push(match short_coulomb {
+            ShortCoulomb::Bare => "nonbonded split: the short part's Coulomb is bare 1/r \
+                                   (short_coulomb = \"bare\")"
+                .into(),
+            ShortCoulomb::Model => "nonbonded split: the short part's Coulomb is the term's \
+                                    own form (short_coulomb = \"model\")"
+                .into(),
+        });
+    }
     let short_name = format!(
         "short-range: switched off from r_in = {} to r_out = {} {by_name}",
         section.r_in, section.r_out
@@ -185,6 +206,21 @@ pub(crate) fn split_terms(
         Assignment::Level(remainder_level),
     ));
     Ok(())
+}
+
+/// The short part's Coulomb form: the section's `short_coulomb`, by default bare with PME
+/// (the near field on the short level) and the term's own form otherwise.
+fn short_coulomb(section: &SplitSection, spec: &NonbondedSpec) -> Result<ShortCoulomb, String> {
+    match section.short_coulomb.as_deref() {
+        None if matches!(spec.electrostatics, Electrostatics::Ewald { .. }) => {
+            Ok(ShortCoulomb::Bare)
+        }
+        None | Some("model") => Ok(ShortCoulomb::Model),
+        Some("bare") => Ok(ShortCoulomb::Bare),
+        Some(other) => Err(format!(
+            "short_coulomb = \"{other}\": use \"bare\" (1/r) or \"model\" (the term's own form)"
+        )),
+    }
 }
 
 /// `(short_level, remainder_level)`: the remainder above the short part, both bounded.
