@@ -545,7 +545,8 @@ fn draw_guide_labels<DB: DrawingBackend>(
 }
 
 /// Labels beside points, in their series' colour, placed so no two overlap (a label
-/// repeating the same text right beside it is left out).
+/// repeating the same text right beside it is left out), 8 px from the point: clear of a
+/// cross's 6 px arms.
 fn draw_point_labels<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     texts: &[((i32, i32), &str, Colour)],
@@ -564,7 +565,7 @@ fn draw_point_labels<DB: DrawingBackend>(
             text,
         });
     }
-    for (place, (_, text, colour)) in place_point_labels(&labels, area, 5, 12).iter().zip(texts) {
+    for (place, (_, text, colour)) in place_point_labels(&labels, area, 8, 12).iter().zip(texts) {
         let Some(place) = place else { continue };
         let style = TextStyle::from(font.clone())
             .color(colour)
@@ -930,8 +931,12 @@ impl Picture for Panels<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let areas = root.split_evenly((self.0.len().max(1), 1));
+        let mut side = 0;
         for (panel, area) in self.0.iter().zip(&areas) {
-            panel.draw_body(area)?;
+            side = side.max(panel.legend_width(area)?);
+        }
+        for (panel, area) in self.0.iter().zip(&areas) {
+            panel.draw_body_beside(area, side)?;
         }
         Ok(())
     }
@@ -1054,24 +1059,45 @@ impl PreparedChart<'_> {
     /// The chart in `root`: with the legend outside, the plot on the left and the legend
     /// in a column on the right as wide as its longest entry.
     fn draw_body<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
-        let entries = self.legend_entries();
-        if self.chart.legend != Corner::Outside || entries.is_empty() {
-            return self.draw_plot(root);
+        let side = self.legend_width(root)?;
+        self.draw_body_beside(root, side)
+    }
+
+    /// The width of the legend column: its longest entry and the key, at most half the
+    /// area; 0 with the legend inside the plot or nothing to name.
+    fn legend_width<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<u32, String> {
+        if self.chart.legend != Corner::Outside {
+            return Ok(0);
         }
         let font = TextStyle::from(("sans-serif", 14).into_font());
-        let mut widest = 0;
-        for (name, _) in &entries {
-            widest = widest.max(
-                root.estimate_text_size(name, &font)
-                    .map_err(|e| e.to_string())?
-                    .0,
-            );
+        let mut widest = None;
+        for (name, _) in &self.legend_entries() {
+            let width = root
+                .estimate_text_size(name, &font)
+                .map_err(|e| e.to_string())?
+                .0;
+            widest = Some(widest.unwrap_or(0).max(width));
+        }
+        Ok(widest.map_or(0, |w| (w + 52).min(root.dim_in_pixel().0 / 2)))
+    }
+
+    /// The plot with a legend column `side` pixels wide on its right (none for 0), so that
+    /// stacked panels given the same width line their time axes up.
+    fn draw_body_beside<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        side: u32,
+    ) -> Result<(), String> {
+        if side == 0 {
+            return self.draw_plot(root);
         }
         let (width, _) = root.dim_in_pixel();
-        let side = (widest + 52).min(width / 2);
-        let (plot, legend) = root.split_horizontally(width - side);
+        let (plot, legend) = root.split_horizontally(width.saturating_sub(side));
         self.draw_plot(&plot)?;
-        draw_side_legend(&legend, &entries)
+        draw_side_legend(&legend, &self.legend_entries())
     }
 
     fn legend_entries(&self) -> Vec<(String, LegendKey)> {
