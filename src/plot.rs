@@ -24,14 +24,18 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use plotters::coord::Shift;
-use plotters::coord::ranged1d::{AsRangedCoord, Ranged, ValueFormatter};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged, ValueFormatter};
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::error::{Error, Result};
 
 mod labels;
-use labels::{PointText, TextBox, group_guides, log_ticks, place_point_labels, stack_in_rows};
+use labels::{
+    PointText, TextBox, group_guides, linear_ticks, log_axis_ticks, log_ticks, place_point_labels,
+    stack_in_rows,
+};
 
 /// DejaVu Sans 2.37 (assets/fonts/README.md).
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
@@ -99,12 +103,14 @@ pub enum Scale {
     Pi,
 }
 
-/// An axis: label (with units), scale, and an optional fixed range (else from the data).
+/// An axis: label (with units), scale, an optional fixed range (else from the data) and
+/// optional tick values (else round values inside the range, at least three).
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisSpec {
     pub label: String,
     pub scale: Scale,
     pub range: Option<(f64, f64)>,
+    pub ticks: Option<Vec<f64>>,
 }
 
 impl AxisSpec {
@@ -113,6 +119,7 @@ impl AxisSpec {
             label: label.into(),
             scale: Scale::Linear,
             range: None,
+            ticks: None,
         }
     }
 
@@ -121,6 +128,7 @@ impl AxisSpec {
             label: label.into(),
             scale: Scale::Log,
             range: None,
+            ticks: None,
         }
     }
 
@@ -129,11 +137,18 @@ impl AxisSpec {
             label: label.into(),
             scale: Scale::Pi,
             range: None,
+            ticks: None,
         }
     }
 
     pub fn with_range(mut self, start: f64, end: f64) -> Self {
         self.range = Some((start, end));
+        self
+    }
+
+    /// Ticks at these values only (those inside the range), e.g. whole thread counts.
+    pub fn with_ticks(mut self, ticks: Vec<f64>) -> Self {
+        self.ticks = Some(ticks);
         self
     }
 
@@ -228,6 +243,8 @@ pub struct HeatMap {
     pub colouring: Colouring,
     /// Picture size in pixels.
     pub size: (u32, u32),
+    /// A line under the map saying what its symbols mean; empty for none.
+    pub note: String,
 }
 
 impl HeatMap {
@@ -279,7 +296,19 @@ impl HeatMap {
 impl Picture for HeatMap {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let (width, _) = root.dim_in_pixel();
+        let (width, height) = root.dim_in_pixel();
+        let root = if self.note.is_empty() {
+            root.clone()
+        } else {
+            let (upper, note) = root.split_vertically(height.saturating_sub(26));
+            note.draw(&Text::new(
+                self.note.clone(),
+                (12, 4),
+                ("sans-serif", 13).into_font(),
+            ))
+            .map_err(|e| e.to_string())?;
+            upper
+        };
         let side = 150.min(width / 3);
         let (main, side_area) = root.split_horizontally(width - side);
         let (dx, dy) = self.cell_steps();
@@ -472,18 +501,18 @@ const GUIDE_GROUP_GAP: i32 = 10;
 /// backing so crosses and grid lines under it do not garble it.
 fn draw_guide_labels<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    guides: &[((i32, i32), String)],
+    guides: &[(i32, String)],
+    top: i32,
     x_middle: i32,
 ) -> Result<(), String> {
-    let Some(top) = guides.iter().map(|g| g.0.1).min() else {
+    if guides.is_empty() {
         return Ok(());
-    };
+    }
     let grey = BLACK.mix(0.7);
     let style = TextStyle::from(("sans-serif", 12).into_font())
         .color(&grey)
         .pos(Pos::new(HPos::Left, VPos::Top));
-    let xs: Vec<(i32, String)> = guides.iter().map(|g| (g.0.0, g.1.clone())).collect();
-    let groups = group_guides(&xs, GUIDE_GROUP_GAP);
+    let groups = group_guides(guides, GUIDE_GROUP_GAP);
     let mut first_row = Vec::with_capacity(groups.len());
     for (x, text) in &groups {
         let (w, h) = root
@@ -493,7 +522,7 @@ fn draw_guide_labels<DB: DrawingBackend>(
         let left = if *x > x_middle { x - 4 - w } else { x + 4 };
         first_row.push(TextBox {
             left,
-            top: top + 4,
+            top,
             width: w,
             height: h,
         });
@@ -516,7 +545,8 @@ fn draw_guide_labels<DB: DrawingBackend>(
 }
 
 /// Labels beside points, in their series' colour, placed so no two overlap (a label
-/// repeating the same text right beside it is left out).
+/// repeating the same text right beside it is left out), 8 px from the point: clear of a
+/// cross's 6 px arms.
 fn draw_point_labels<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     texts: &[((i32, i32), &str, Colour)],
@@ -535,7 +565,7 @@ fn draw_point_labels<DB: DrawingBackend>(
             text,
         });
     }
-    for (place, (_, text, colour)) in place_point_labels(&labels, area, 5, 12).iter().zip(texts) {
+    for (place, (_, text, colour)) in place_point_labels(&labels, area, 8, 12).iter().zip(texts) {
         let Some(place) = place else { continue };
         let style = TextStyle::from(font.clone())
             .color(colour)
@@ -640,6 +670,8 @@ pub enum SeriesStyle {
     Line,
     Points,
     LineAndPoints,
+    /// A vertical stick from the bottom of the plot to each point (a line spectrum).
+    Sticks,
 }
 
 /// A named series of (x, y) points.
@@ -653,27 +685,33 @@ pub struct Series {
     /// Text beside each point, in the order of `points` (for example its step size);
     /// empty for none.
     pub point_labels: Vec<String>,
+    /// Points drawn as open circles, in the order of `points` (for example a negative
+    /// value drawn by its magnitude on a logarithmic axis); empty for none.
+    pub hollow: Vec<bool>,
 }
 
 impl Series {
-    pub fn line(name: &str, points: Vec<(f64, f64)>) -> Self {
+    fn with_style(name: &str, points: Vec<(f64, f64)>, style: SeriesStyle) -> Self {
         Series {
             name: name.into(),
             points,
-            style: SeriesStyle::Line,
+            style,
             colour: None,
             point_labels: Vec::new(),
+            hollow: Vec::new(),
         }
     }
 
+    pub fn line(name: &str, points: Vec<(f64, f64)>) -> Self {
+        Series::with_style(name, points, SeriesStyle::Line)
+    }
+
     pub fn scatter(name: &str, points: Vec<(f64, f64)>) -> Self {
-        Series {
-            name: name.into(),
-            points,
-            style: SeriesStyle::Points,
-            colour: None,
-            point_labels: Vec::new(),
-        }
+        Series::with_style(name, points, SeriesStyle::Points)
+    }
+
+    pub fn sticks(name: &str, points: Vec<(f64, f64)>) -> Self {
+        Series::with_style(name, points, SeriesStyle::Sticks)
     }
 }
 
@@ -681,39 +719,61 @@ impl Series {
 pub enum MarkerShape {
     Cross,
     Triangle,
+    /// An open circle.
     Circle,
 }
 
 /// Special points drawn on top of the series with their own legend entry (for example
-/// the runs that went unstable).
+/// the runs that went unstable). A set without points is a legend entry only (a key to
+/// how points are drawn).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MarkerSet {
     pub name: String,
     pub points: Vec<(f64, f64)>,
     pub shape: MarkerShape,
     pub colour: Colour,
+    /// Drawn in a band along the top edge of the plot whatever their y (runs without a
+    /// meaningful value), and left out of the y range.
+    pub pin_top: bool,
+    /// Text beside each marker, in the order of `points`; empty for none.
+    pub labels: Vec<String>,
 }
 
 impl MarkerSet {
+    pub fn new(name: &str, shape: MarkerShape, colour: Colour, points: Vec<(f64, f64)>) -> Self {
+        MarkerSet {
+            name: name.into(),
+            points,
+            shape,
+            colour,
+            pin_top: false,
+            labels: Vec::new(),
+        }
+    }
+
     /// Crosses in a method's colour labelled "<method> unstable": unstable runs of several
     /// methods stay told apart.
     pub fn unstable_of(method: &str, colour: Colour, points: Vec<(f64, f64)>) -> Self {
-        MarkerSet {
-            name: format!("{method} unstable"),
-            points,
-            shape: MarkerShape::Cross,
+        MarkerSet::new(
+            &format!("{method} unstable"),
+            MarkerShape::Cross,
             colour,
-        }
+            points,
+        )
+    }
+
+    /// Crosses in a method's colour on the top edge of the plot, labelled "<method>
+    /// unstable (top edge)": runs without a meaningful value, kept out of the y range.
+    pub fn unstable_on_top(method: &str, colour: Colour, points: Vec<(f64, f64)>) -> Self {
+        let mut set = MarkerSet::unstable_of(method, colour, points);
+        set.name = format!("{method} unstable (top edge)");
+        set.pin_top = true;
+        set
     }
 
     /// Red crosses labelled "unstable".
     pub fn unstable(points: Vec<(f64, f64)>) -> Self {
-        MarkerSet {
-            name: "unstable".into(),
-            points,
-            shape: MarkerShape::Cross,
-            colour: RGBColor(200, 0, 0),
-        }
+        MarkerSet::new("unstable", MarkerShape::Cross, RGBColor(200, 0, 0), points)
     }
 }
 
@@ -724,10 +784,29 @@ pub struct Guide {
     pub label: String,
 }
 
-/// Where the legend goes inside the plot.
+/// A horizontal dashed line at `y` across the plot, named in the legend (a bound).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    pub y: f64,
+    pub name: String,
+    pub colour: Colour,
+}
+
+/// A shaded band between `low` and `high` along x (an error band), named in the legend.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Band {
+    pub name: String,
+    /// (x, low, high), in order of x.
+    pub points: Vec<(f64, f64, f64)>,
+    pub colour: Colour,
+}
+
+/// Where the legend goes: right of the plot (the default: it hides no data), or inside
+/// the plot in a corner.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Corner {
     #[default]
+    Outside,
     UpperLeft,
     UpperRight,
     LowerLeft,
@@ -743,6 +822,8 @@ pub struct LineChart {
     pub series: Vec<Series>,
     pub markers: Vec<MarkerSet>,
     pub guides: Vec<Guide>,
+    pub levels: Vec<Level>,
+    pub bands: Vec<Band>,
     pub legend: Corner,
 }
 
@@ -756,6 +837,8 @@ impl LineChart {
             series: Vec::new(),
             markers: Vec::new(),
             guides: Vec::new(),
+            levels: Vec::new(),
+            bands: Vec::new(),
             legend: Corner::default(),
         }
     }
@@ -765,19 +848,56 @@ impl LineChart {
     }
 
     pub fn save_sized(&self, path: &Path, size: (u32, u32)) -> Result<()> {
-        let points = || {
-            self.series
-                .iter()
-                .flat_map(|s| s.points.iter())
-                .chain(self.markers.iter().flat_map(|m| m.points.iter()))
-        };
+        render(path, size, &self.prepare()?)
+    }
+
+    /// The x and y values that decide the plotted ranges (pinned markers only x).
+    fn range_values(&self) -> (Vec<f64>, Vec<f64>) {
+        let mut xs = Vec::new();
+        let mut ys = Vec::new();
+        for p in self.series.iter().flat_map(|s| s.points.iter()) {
+            xs.push(p.0);
+            ys.push(p.1);
+        }
+        for set in &self.markers {
+            xs.extend(set.points.iter().map(|p| p.0));
+            if !set.pin_top {
+                ys.extend(set.points.iter().map(|p| p.1));
+            }
+        }
+        for band in &self.bands {
+            xs.extend(band.points.iter().map(|p| p.0));
+            ys.extend(band.points.iter().flat_map(|p| [p.1, p.2]));
+        }
+        ys.extend(self.levels.iter().map(|l| l.y));
+        (xs, ys)
+    }
+
+    /// The chart with its axes' ranges and ticks decided.
+    fn prepare(&self) -> Result<PreparedChart<'_>> {
+        let (xs, ys) = self.range_values();
+        let pinned = self
+            .markers
+            .iter()
+            .any(|m| m.pin_top && !m.points.is_empty());
         let x_range = match self.x.range {
             Some(range) => range,
-            None => data_range(points().map(|p| p.0), self.x.scale, "x", &self.title)?,
+            None => data_range(xs.into_iter(), self.x.scale, "x", &self.title)?,
         };
         let y_range = match self.y.range {
             Some(range) => range,
-            None => data_range(points().map(|p| p.1), self.y.scale, "y", &self.title)?,
+            None if pinned && ys.iter().all(|y| !y.is_finite()) => match self.y.scale {
+                Scale::Log => (1e-3, 1.0),
+                _ => (0.0, 1.0),
+            },
+            None => {
+                let range = data_range(ys.into_iter(), self.y.scale, "y", &self.title)?;
+                if pinned {
+                    room_on_top(range, self.y.scale)
+                } else {
+                    range
+                }
+            }
         };
         for (range, axis, what) in [(x_range, &self.x, "x"), (y_range, &self.y, "y")] {
             if axis.scale == Scale::Log && !(range.0 > 0.0 && range.1 > range.0) {
@@ -787,134 +907,463 @@ impl LineChart {
                 )));
             }
         }
-        let prepared = PreparedChart {
+        Ok(PreparedChart {
             chart: self,
-            x: (self.x.coordinate(x_range.0), self.x.coordinate(x_range.1)),
-            y: (self.y.coordinate(y_range.0), self.y.coordinate(y_range.1)),
-        };
-        render(path, size, &prepared)
+            x: TickedAxis::new(&self.x, x_range),
+            y: TickedAxis::new(&self.y, y_range),
+        })
     }
+}
 
-    fn draw_in<DB, XS, YS>(
-        &self,
-        root: &DrawingArea<DB, Shift>,
-        x_spec: XS,
-        y_spec: YS,
-    ) -> Result<(), String>
-    where
-        DB: DrawingBackend,
-        XS: AsRangedCoord<Value = f64>,
-        YS: AsRangedCoord<Value = f64>,
-        XS::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
-        YS::CoordDescType: Ranged<ValueType = f64> + ValueFormatter<f64>,
-    {
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, ("sans-serif", 22))
-            .margin(14)
-            .x_label_area_size(48)
-            .y_label_area_size(72)
-            .build_cartesian_2d(x_spec, y_spec)
-            .map_err(|e| e.to_string())?;
-        configure_mesh(&mut chart, &self.x, &self.y, true)?;
-        let (xc, yc) = (|v: f64| self.x.coordinate(v), |v: f64| self.y.coordinate(v));
-        let (x_range, y_range) = (chart.x_range(), chart.y_range());
-        let x_middle = chart.backend_coord(&(x_range.start, y_range.start)).0 / 2
-            + chart.backend_coord(&(x_range.end, y_range.start)).0 / 2;
-        let mut guide_pixels = Vec::with_capacity(self.guides.len());
-        for guide in &self.guides {
-            let x = xc(guide.x);
-            chart
-                .draw_series(LineSeries::new(
-                    [(x, y_range.start), (x, y_range.end)],
-                    BLACK.mix(0.4).stroke_width(1),
-                ))
-                .map_err(|e| e.to_string())?;
-            guide_pixels.push((chart.backend_coord(&(x, y_range.end)), guide.label.clone()));
+/// Charts stacked top to bottom in one picture, each with its own axes and legend (for
+/// quantities whose scales differ).
+pub fn save_panels(charts: &[LineChart], path: &Path, size: (u32, u32)) -> Result<()> {
+    let prepared = charts
+        .iter()
+        .map(LineChart::prepare)
+        .collect::<Result<Vec<_>>>()?;
+    render(path, size, &Panels(prepared))
+}
+
+struct Panels<'a>(Vec<PreparedChart<'a>>);
+
+impl Picture for Panels<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((self.0.len().max(1), 1));
+        let mut side = 0;
+        for (panel, area) in self.0.iter().zip(&areas) {
+            side = side.max(panel.legend_width(area)?);
         }
-        draw_guide_labels(root, &guide_pixels, x_middle)?;
-        let mut point_texts: Vec<((i32, i32), &str, Colour)> = Vec::new();
-        for (k, series) in self.series.iter().enumerate() {
-            let colour = series.colour.unwrap_or(PALETTE[k % PALETTE.len()]);
-            for (&(x, y), text) in series.points.iter().zip(&series.point_labels) {
-                if x.is_finite() && y.is_finite() {
-                    point_texts.push((chart.backend_coord(&(xc(x), yc(y))), text, colour));
-                }
-            }
-            let points: Vec<(f64, f64)> = series
-                .points
-                .iter()
-                .filter(|p| p.0.is_finite() && p.1.is_finite())
-                .map(|&(x, y)| (xc(x), yc(y)))
-                .collect();
-            draw_series_in(&mut chart, series, colour, &points)?;
-        }
-        for set in &self.markers {
-            let points: Vec<(f64, f64)> = set
-                .points
-                .iter()
-                .filter(|p| p.0.is_finite() && p.1.is_finite())
-                .map(|&(x, y)| (xc(x), yc(y)))
-                .collect();
-            draw_markers_in(&mut chart, set, &points)?;
-        }
-        let plot_area = {
-            let (left, top) = chart.backend_coord(&(x_range.start, y_range.end));
-            let (right, bottom) = chart.backend_coord(&(x_range.end, y_range.start));
-            TextBox {
-                left,
-                top,
-                width: right - left,
-                height: bottom - top,
-            }
-        };
-        draw_point_labels(root, &point_texts, plot_area)?;
-        if !self.series.is_empty() || !self.markers.is_empty() {
-            draw_series_legend(&mut chart, self.legend)?;
+        for (panel, area) in self.0.iter().zip(&areas) {
+            panel.draw_body_beside(area, side)?;
         }
         Ok(())
     }
 }
 
-type Cartesian<'a, DB, X, Y> = ChartContext<'a, DB, Cartesian2d<X, Y>>;
+/// 8 % more room above the data, for the band of pinned markers.
+fn room_on_top(range: (f64, f64), scale: Scale) -> (f64, f64) {
+    match scale {
+        Scale::Log => (range.0, range.1 * (range.1 / range.0).powf(0.08)),
+        _ => (range.0, range.1 + 0.08 * (range.1 - range.0)),
+    }
+}
 
-/// One series in backend-ready coordinates: a path per segment and/or dots, with its
-/// legend entry.
-fn draw_series_in<'a, DB, X, Y>(
-    chart: &mut Cartesian<'a, DB, X, Y>,
+/// A chart axis in plot coordinates (radians as multiples of π), linear or logarithmic,
+/// with the values its ticks and grid lines are drawn at.
+#[derive(Clone, Debug)]
+struct TickedAxis {
+    low: f64,
+    high: f64,
+    log: bool,
+    ticks: Vec<f64>,
+}
+
+impl TickedAxis {
+    fn new(spec: &AxisSpec, range: (f64, f64)) -> Self {
+        let (low, high) = (spec.coordinate(range.0), spec.coordinate(range.1));
+        let log = spec.scale == Scale::Log;
+        let ticks = match &spec.ticks {
+            Some(ticks) => ticks
+                .iter()
+                .map(|&t| spec.coordinate(t))
+                .filter(|t| *t >= low.min(high) && *t <= low.max(high))
+                .collect(),
+            None if log => log_axis_ticks(low, high),
+            None => linear_ticks(low.min(high), low.max(high)),
+        };
+        TickedAxis {
+            low,
+            high,
+            log,
+            ticks,
+        }
+    }
+
+    /// The position of a value along the axis, 0 at `low` and 1 at `high`.
+    fn fraction(&self, value: f64) -> f64 {
+        if self.log {
+            (value.max(f64::MIN_POSITIVE).log10() - self.low.log10())
+                / (self.high.log10() - self.low.log10())
+        } else {
+            (value - self.low) / (self.high - self.low)
+        }
+    }
+
+    /// The value at a position along the axis.
+    fn at_fraction(&self, f: f64) -> f64 {
+        if self.log {
+            10f64.powf(self.low.log10() + f * (self.high.log10() - self.low.log10()))
+        } else {
+            self.low + f * (self.high - self.low)
+        }
+    }
+}
+
+impl Ranged for TickedAxis {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, value: &f64, limit: (i32, i32)) -> i32 {
+        let f = self.fraction(*value);
+        // Far outside the plot is far enough: no overflow of the pixel type.
+        let f = if f.is_finite() {
+            f.clamp(-10.0, 10.0)
+        } else {
+            0.0
+        };
+        limit.0 + ((limit.1 - limit.0) as f64 * f).round() as i32
+    }
+
+    fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            Vec::new()
+        } else {
+            self.ticks.clone()
+        }
+    }
+
+    fn range(&self) -> std::ops::Range<f64> {
+        self.low..self.high
+    }
+}
+
+type Cartesian<'a, DB> = ChartContext<'a, DB, Cartesian2d<TickedAxis, TickedAxis>>;
+
+/// A chart with its plot ranges decided.
+struct PreparedChart<'a> {
+    chart: &'a LineChart,
+    x: TickedAxis,
+    y: TickedAxis,
+}
+
+impl Picture for PreparedChart<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        self.draw_body(root)
+    }
+}
+
+/// How a legend entry's key is drawn.
+#[derive(Clone, Copy)]
+enum LegendKey {
+    Line(Colour),
+    Dot(Colour),
+    Marker(MarkerShape, Colour),
+    Band(Colour),
+    Dashed(Colour),
+}
+
+impl PreparedChart<'_> {
+    /// The chart in `root`: with the legend outside, the plot on the left and the legend
+    /// in a column on the right as wide as its longest entry.
+    fn draw_body<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        let side = self.legend_width(root)?;
+        self.draw_body_beside(root, side)
+    }
+
+    /// The width of the legend column: its longest entry and the key, at most half the
+    /// area; 0 with the legend inside the plot or nothing to name.
+    fn legend_width<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<u32, String> {
+        if self.chart.legend != Corner::Outside {
+            return Ok(0);
+        }
+        let font = TextStyle::from(("sans-serif", 14).into_font());
+        let mut widest = None;
+        for (name, _) in &self.legend_entries() {
+            let width = root
+                .estimate_text_size(name, &font)
+                .map_err(|e| e.to_string())?
+                .0;
+            widest = Some(widest.unwrap_or(0).max(width));
+        }
+        Ok(widest.map_or(0, |w| (w + 52).min(root.dim_in_pixel().0 / 2)))
+    }
+
+    /// The plot with a legend column `side` pixels wide on its right (none for 0), so that
+    /// stacked panels given the same width line their time axes up.
+    fn draw_body_beside<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        side: u32,
+    ) -> Result<(), String> {
+        if side == 0 {
+            return self.draw_plot(root);
+        }
+        let (width, _) = root.dim_in_pixel();
+        let (plot, legend) = root.split_horizontally(width.saturating_sub(side));
+        self.draw_plot(&plot)?;
+        draw_side_legend(&legend, &self.legend_entries())
+    }
+
+    fn legend_entries(&self) -> Vec<(String, LegendKey)> {
+        let chart = self.chart;
+        let mut entries = Vec::new();
+        for (k, series) in chart.series.iter().enumerate() {
+            let colour = series.colour.unwrap_or(PALETTE[k % PALETTE.len()]);
+            let key = match series.style {
+                SeriesStyle::Points => LegendKey::Dot(colour),
+                _ => LegendKey::Line(colour),
+            };
+            entries.push((series.name.clone(), key));
+        }
+        for band in &chart.bands {
+            entries.push((band.name.clone(), LegendKey::Band(band.colour)));
+        }
+        for level in &chart.levels {
+            entries.push((level.name.clone(), LegendKey::Dashed(level.colour)));
+        }
+        for set in &chart.markers {
+            entries.push((set.name.clone(), LegendKey::Marker(set.shape, set.colour)));
+        }
+        entries
+    }
+
+    fn draw_plot<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        let chart = self.chart;
+        let mut context = ChartBuilder::on(root)
+            .caption(&chart.title, ("sans-serif", 22))
+            .margin(14)
+            .x_label_area_size(48)
+            .y_label_area_size(72)
+            .build_cartesian_2d(self.x.clone(), self.y.clone())
+            .map_err(|e| e.to_string())?;
+        configure_mesh(&mut context, &chart.x, &chart.y, true)?;
+        let base = root.get_base_pixel();
+        let pixel = |context: &Cartesian<'_, DB>, p: (f64, f64)| {
+            let (x, y) = context.backend_coord(&p);
+            (x - base.0, y - base.1)
+        };
+        let (left, top) = pixel(&context, (self.x.low, self.y.high));
+        let (right, bottom) = pixel(&context, (self.x.high, self.y.low));
+        let plot_area = TextBox {
+            left,
+            top,
+            width: right - left,
+            height: bottom - top,
+        };
+        let guide_pixels = self.draw_backdrop(&mut context, base)?;
+        let pinned = chart
+            .markers
+            .iter()
+            .any(|m| m.pin_top && !m.points.is_empty());
+        // Pinned markers sit 8 px below the top edge; guide labels hang below them.
+        let pin_y = self
+            .y
+            .at_fraction(1.0 - 8.0 / f64::from(plot_area.height.max(16)));
+        let label_top = top + if pinned { 18 } else { 4 };
+        draw_guide_labels(root, &guide_pixels, label_top, left + plot_area.width / 2)?;
+        let mut point_texts: Vec<((i32, i32), &str, Colour)> = Vec::new();
+        for (k, series) in chart.series.iter().enumerate() {
+            let colour = series.colour.unwrap_or(PALETTE[k % PALETTE.len()]);
+            let points = self.plotted(&series.points, |i| {
+                series.hollow.get(i).copied().unwrap_or(false)
+            });
+            for (&(x, y), text) in series.points.iter().zip(&series.point_labels) {
+                if x.is_finite() && y.is_finite() {
+                    let at = (chart.x.coordinate(x), chart.y.coordinate(y));
+                    point_texts.push((pixel(&context, at), text, colour));
+                }
+            }
+            draw_series_in(&mut context, series, colour, &points, self.y.low)?;
+        }
+        for set in &chart.markers {
+            let points = self.marker_points(set, pin_y);
+            for (p, text) in points.iter().zip(&set.labels) {
+                point_texts.push((pixel(&context, (p.0, p.1)), text, set.colour));
+            }
+            draw_markers_in(&mut context, set, &points)?;
+        }
+        draw_point_labels(root, &point_texts, plot_area)?;
+        if chart.legend != Corner::Outside
+            && (!chart.series.is_empty() || !chart.markers.is_empty())
+        {
+            draw_series_legend(&mut context, chart.legend)?;
+        }
+        Ok(())
+    }
+
+    /// A marker set's finite points in plot coordinates; pinned ones at `pin_y`.
+    fn marker_points(&self, set: &MarkerSet, pin_y: f64) -> Vec<Plotted> {
+        if !set.pin_top {
+            return self.plotted(&set.points, |_| false);
+        }
+        // Any finite y will do: it is replaced by the band's.
+        let on_top: Vec<(f64, f64)> = set.points.iter().map(|p| (p.0, 1.0)).collect();
+        let mut points = self.plotted(&on_top, |_| false);
+        points.iter_mut().for_each(|p| p.1 = pin_y);
+        points
+    }
+
+    /// Finite points in plot coordinates, each with its `hollow` flag.
+    fn plotted(&self, points: &[(f64, f64)], hollow: impl Fn(usize) -> bool) -> Vec<Plotted> {
+        let (x, y) = (&self.chart.x, &self.chart.y);
+        points
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.0.is_finite() && p.1.is_finite())
+            .map(|(i, &(px, py))| (x.coordinate(px), y.coordinate(py), hollow(i)))
+            .collect()
+    }
+
+    /// Bands, levels and guide lines, under the data. Returns each guide's pixel x in the
+    /// drawing area whose top-left backend pixel is `base`, with its label.
+    fn draw_backdrop<'a, DB: DrawingBackend + 'a>(
+        &self,
+        context: &mut Cartesian<'a, DB>,
+        base: (i32, i32),
+    ) -> Result<Vec<(i32, String)>, String> {
+        let (x, y) = (&self.chart.x, &self.chart.y);
+        for band in &self.chart.bands {
+            let upper = band.points.iter().map(|p| (p.0, p.2));
+            let lower = band.points.iter().rev().map(|p| (p.0, p.1));
+            let outline: Vec<(f64, f64)> = upper
+                .chain(lower)
+                .filter(|p| p.0.is_finite() && p.1.is_finite())
+                .map(|p| (x.coordinate(p.0), y.coordinate(p.1)))
+                .collect();
+            context
+                .draw_series(std::iter::once(Polygon::new(
+                    outline,
+                    band.colour.mix(0.3).filled(),
+                )))
+                .map_err(|e| e.to_string())?;
+        }
+        for level in &self.chart.levels {
+            let at = y.coordinate(level.y);
+            context
+                .draw_series(std::iter::once(DashedPathElement::new(
+                    vec![(self.x.low, at), (self.x.high, at)],
+                    8,
+                    5,
+                    level.colour.stroke_width(2),
+                )))
+                .map_err(|e| e.to_string())?;
+        }
+        let mut guides = Vec::with_capacity(self.chart.guides.len());
+        for guide in &self.chart.guides {
+            let at = x.coordinate(guide.x);
+            context
+                .draw_series(LineSeries::new(
+                    [(at, self.y.low), (at, self.y.high)],
+                    BLACK.mix(0.4).stroke_width(1),
+                ))
+                .map_err(|e| e.to_string())?;
+            let pixel = context.backend_coord(&(at, self.y.high)).0 - base.0;
+            guides.push((pixel, guide.label.clone()));
+        }
+        Ok(guides)
+    }
+}
+
+/// A point in plot coordinates and whether it is drawn open.
+type Plotted = (f64, f64, bool);
+
+/// The legend in its own column: a key and the name of each entry, top to bottom.
+fn draw_side_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(String, LegendKey)],
+) -> Result<(), String> {
+    let style =
+        TextStyle::from(("sans-serif", 14).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
+    for (k, (name, key)) in entries.iter().enumerate() {
+        let y = 64 + 24 * k as i32;
+        match *key {
+            LegendKey::Line(c) => {
+                area.draw(&PathElement::new(vec![(4, y), (28, y)], c.stroke_width(2)))
+            }
+            LegendKey::Dot(c) => area.draw(&Circle::new((16, y), 3, c.filled())),
+            LegendKey::Marker(MarkerShape::Cross, c) => {
+                area.draw(&Cross::new((16, y), 5, c.stroke_width(2)))
+            }
+            LegendKey::Marker(MarkerShape::Triangle, c) => {
+                area.draw(&TriangleMarker::new((16, y), 5, c.filled()))
+            }
+            LegendKey::Marker(MarkerShape::Circle, c) => {
+                area.draw(&Circle::new((16, y), 4, c.stroke_width(2)))
+            }
+            LegendKey::Band(c) => area.draw(&Rectangle::new(
+                [(4, y - 6), (28, y + 6)],
+                c.mix(0.3).filled(),
+            )),
+            LegendKey::Dashed(c) => area.draw(&DashedPathElement::new(
+                vec![(4, y), (28, y)],
+                6,
+                3,
+                c.stroke_width(2),
+            )),
+        }
+        .map_err(|e| e.to_string())?;
+        area.draw(&Text::new(name.clone(), (36, y), style.clone()))
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// One series in plot coordinates: a path per segment, dots (open where flagged) or
+/// sticks up from `bottom`.
+fn draw_series_in<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Cartesian<'a, DB>,
     series: &Series,
     colour: Colour,
-    points: &[(f64, f64)],
-) -> Result<(), String>
-where
-    DB: DrawingBackend + 'a,
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
+    points: &[Plotted],
+    bottom: f64,
+) -> Result<(), String> {
     let line = matches!(series.style, SeriesStyle::Line | SeriesStyle::LineAndPoints);
     let dots = matches!(
         series.style,
         SeriesStyle::Points | SeriesStyle::LineAndPoints
     );
-    if line {
+    let at = |p: &Plotted| (p.0, p.1);
+    let annotation = if line {
         // One path per segment: a single wide polyline joins its segments with miters,
         // and where a dense series turns back sharply (an oscillating energy at 2000
         // rows) a miter shoots far past the plotting area.
         let style = colour.stroke_width(2);
-        chart
-            .draw_series(
-                points
-                    .windows(2)
-                    .map(move |w| PathElement::new(vec![w[0], w[1]], style)),
-            )
-            .map_err(|e| e.to_string())?
-            .label(series.name.clone())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
-            });
+        Some(
+            chart
+                .draw_series(
+                    points
+                        .windows(2)
+                        .map(move |w| PathElement::new(vec![at(&w[0]), at(&w[1])], style)),
+                )
+                .map_err(|e| e.to_string())?,
+        )
+    } else if series.style == SeriesStyle::Sticks {
+        let style = colour.stroke_width(2);
+        Some(
+            chart
+                .draw_series(
+                    points
+                        .iter()
+                        .map(move |p| PathElement::new(vec![(p.0, bottom), at(p)], style)),
+                )
+                .map_err(|e| e.to_string())?,
+        )
+    } else {
+        None
+    };
+    if let Some(annotation) = annotation {
+        annotation.label(series.name.clone()).legend(move |(x, y)| {
+            PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+        });
     }
     if dots {
         let annotation = chart
-            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            .draw_series(points.iter().flat_map(|p| {
+                if p.2 {
+                    vec![
+                        Circle::new(at(p), 4, WHITE.filled()),
+                        Circle::new(at(p), 4, colour.stroke_width(2)),
+                    ]
+                } else {
+                    vec![Circle::new(at(p), 3, colour.filled())]
+                }
+            }))
             .map_err(|e| e.to_string())?;
         if !line {
             annotation
@@ -925,31 +1374,31 @@ where
     Ok(())
 }
 
-/// A marker set in backend-ready coordinates; its legend entry shows its own shape.
-fn draw_markers_in<'a, DB, X, Y>(
-    chart: &mut Cartesian<'a, DB, X, Y>,
+/// A marker set in plot coordinates; its legend entry shows its own shape.
+fn draw_markers_in<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Cartesian<'a, DB>,
     set: &MarkerSet,
-    points: &[(f64, f64)],
-) -> Result<(), String>
-where
-    DB: DrawingBackend + 'a,
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
+    points: &[Plotted],
+) -> Result<(), String> {
     let (colour, shape) = (set.colour, set.shape);
     let style = colour.stroke_width(2);
+    let at = |p: &Plotted| (p.0, p.1);
     let annotation = match shape {
-        MarkerShape::Cross => {
-            chart.draw_series(points.iter().map(|&p| Cross::new(p, 6, style).into_dyn()))
-        }
+        MarkerShape::Cross => chart.draw_series(
+            points
+                .iter()
+                .map(|p| Cross::new(at(p), 6, style).into_dyn()),
+        ),
         MarkerShape::Triangle => chart.draw_series(
             points
                 .iter()
-                .map(|&p| TriangleMarker::new(p, 6, colour.filled()).into_dyn()),
+                .map(|p| TriangleMarker::new(at(p), 6, colour.filled()).into_dyn()),
         ),
-        MarkerShape::Circle => {
-            chart.draw_series(points.iter().map(|&p| Circle::new(p, 5, style).into_dyn()))
-        }
+        MarkerShape::Circle => chart.draw_series(
+            points
+                .iter()
+                .map(|p| Circle::new(at(p), 5, style).into_dyn()),
+        ),
     }
     .map_err(|e| e.to_string())?;
     annotation
@@ -964,50 +1413,24 @@ where
     Ok(())
 }
 
-/// The legend box in the chosen corner.
-fn draw_series_legend<'a, DB, X, Y>(
-    chart: &mut Cartesian<'a, DB, X, Y>,
+/// The legend box in the chosen corner inside the plot.
+fn draw_series_legend<'a, DB: DrawingBackend + 'a>(
+    chart: &mut Cartesian<'a, DB>,
     corner: Corner,
-) -> Result<(), String>
-where
-    DB: DrawingBackend + 'a,
-    X: Ranged<ValueType = f64>,
-    Y: Ranged<ValueType = f64>,
-{
+) -> Result<(), String> {
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
         .position(match corner {
-            Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+            Corner::UpperLeft | Corner::Outside => SeriesLabelPosition::UpperLeft,
             Corner::UpperRight => SeriesLabelPosition::UpperRight,
             Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
             Corner::LowerRight => SeriesLabelPosition::LowerRight,
         })
         .draw()
         .map_err(|e| e.to_string())
-}
-
-/// A chart with its plot ranges decided.
-struct PreparedChart<'a> {
-    chart: &'a LineChart,
-    x: (f64, f64),
-    y: (f64, f64),
-}
-
-impl Picture for PreparedChart<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let chart = self.chart;
-        let ((x0, x1), (y0, y1)) = (self.x, self.y);
-        match (chart.x.scale == Scale::Log, chart.y.scale == Scale::Log) {
-            (false, false) => chart.draw_in(root, x0..x1, y0..y1),
-            (true, false) => chart.draw_in(root, (x0..x1).log_scale(), y0..y1),
-            (false, true) => chart.draw_in(root, x0..x1, (y0..y1).log_scale()),
-            (true, true) => chart.draw_in(root, (x0..x1).log_scale(), (y0..y1).log_scale()),
-        }
-    }
 }
 
 /// The range of the finite (and for a log axis, positive) values, padded by 5 %.

@@ -5,63 +5,8 @@
 
 mod common;
 
+use common::svg::{SvgText, overlap, svg_texts, text_box};
 use common::{longstep, scratch_dir};
-
-/// One `<text>` element of an SVG written by plotters.
-#[derive(Debug)]
-struct SvgText {
-    x: f64,
-    y: f64,
-    size: f64,
-    anchor: String,
-    content: String,
-}
-
-fn attribute(tag: &str, name: &str) -> Option<String> {
-    let start = tag.find(&format!(" {name}=\""))? + name.len() + 3;
-    let end = start + tag[start..].find('"')?;
-    Some(tag[start..end].to_string())
-}
-
-fn svg_texts(svg: &str) -> Vec<SvgText> {
-    let mut texts = Vec::new();
-    for piece in svg.split("<text").skip(1) {
-        let Some((tag, rest)) = piece.split_once('>') else {
-            continue;
-        };
-        let content = rest
-            .split("</text>")
-            .next()
-            .unwrap_or("")
-            .trim()
-            .to_string();
-        let number = |name: &str| attribute(tag, name).and_then(|v| v.parse::<f64>().ok());
-        texts.push(SvgText {
-            x: number("x").unwrap_or(0.0),
-            y: number("y").unwrap_or(0.0),
-            size: number("font-size").unwrap_or(0.0),
-            anchor: attribute(tag, "text-anchor").unwrap_or_else(|| "start".into()),
-            content,
-        });
-    }
-    texts
-}
-
-/// The box a label covers, with a generous width: DejaVu Sans averages about 0.55 em per
-/// character on this text, 0.62 em bounds it (digits and capitals are the widest).
-fn text_box(t: &SvgText) -> (f64, f64, f64, f64) {
-    let width = 0.62 * t.size * t.content.chars().count() as f64;
-    let left = match t.anchor.as_str() {
-        "end" => t.x - width,
-        "middle" => t.x - width / 2.0,
-        _ => t.x,
-    };
-    (left, t.y, left + width, t.y + t.size)
-}
-
-fn overlap(a: (f64, f64, f64, f64), b: (f64, f64, f64, f64)) -> bool {
-    a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3
-}
 
 fn run_ok(args: &[&str]) {
     let output = longstep().args(args).output().expect("longstep runs");

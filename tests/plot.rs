@@ -34,6 +34,8 @@ fn chart(y: AxisSpec) -> LineChart {
             x: 4.4,
             label: "predicted resonance".into(),
         }],
+        levels: Vec::new(),
+        bands: Vec::new(),
         legend: Corner::UpperLeft,
     }
 }
@@ -89,6 +91,7 @@ fn bad_pictures_are_errors_not_panics() {
         values: vec![0.0; 8],
         colouring: Colouring::Categorical(vec![]),
         size: (400, 300),
+        note: String::new(),
     };
     assert!(map.save(&scratch("short.png")).is_err());
 }
@@ -125,6 +128,7 @@ fn heat_maps_continuous_and_categorical() {
             }),
         },
         size: (800, 600),
+        note: String::new(),
     };
     let svg = scratch("heat.svg");
     continuous.save(&svg).expect("svg");

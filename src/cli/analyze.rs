@@ -20,7 +20,7 @@ use crate::analysis::dihedrals::{BASINS, backbone_residues, scene_topology};
 use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles, parse_pair};
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
-use crate::plot::{AxisSpec, Corner, LineChart, Series};
+use crate::plot::{AxisSpec, Band, LineChart, PALETTE, Series};
 use crate::settings::Value;
 
 #[derive(Args, Debug)]
@@ -510,11 +510,29 @@ fn draw_rdf(png: &Path, scene: &Scene, labels: &[String], results: &[RunAnalysis
             AxisSpec::linear(&format!("r ({length})")),
             AxisSpec::linear("g(r)"),
         );
-        chart.legend = Corner::UpperRight;
-        for (label, r) in labels.iter().zip(results) {
+        for (index, (label, r)) in labels.iter().zip(results).enumerate() {
             let rdf = &r.rdf[k];
+            let colour = PALETTE[index % PALETTE.len()];
             let points = rdf.r.iter().copied().zip(rdf.g.iter().copied()).collect();
-            chart.series.push(Series::line(label, points));
+            let mut series = Series::line(label, points);
+            series.colour = Some(colour);
+            chart.series.push(series);
+            // rdf.csv's error column: the standard error of the blocks' g(r), per bin.
+            let band: Vec<(f64, f64, f64)> = rdf
+                .r
+                .iter()
+                .zip(&rdf.g)
+                .zip(&rdf.g_error)
+                .filter(|(_, e)| e.is_finite())
+                .map(|((&r, &g), &e)| (r, g - e, g + e))
+                .collect();
+            if !band.is_empty() {
+                chart.bands.push(Band {
+                    name: format!("{label} ± 1 standard error (blocks)"),
+                    points: band,
+                    colour,
+                });
+            }
         }
         let path = chart_path(png, name, pairs);
         chart.save(&path)?;

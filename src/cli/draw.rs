@@ -6,13 +6,28 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use crate::analysis::modes::{fast_modes, predicted_resonances};
+use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
 use crate::error::Result;
 use crate::io::scene::load_scene;
 use crate::io::study_csv::StudyTable;
 use crate::plot::{
-    AxisSpec, Colour, Corner, Guide, LineChart, MarkerSet, PALETTE, Series, SeriesStyle,
+    AxisSpec, Colour, Guide, Level, LineChart, MarkerSet, MarkerShape, PALETTE, Series, SeriesStyle,
 };
+
+/// The unit a study table's header gives a column (`h[fs]` → `fs`), if any.
+fn unit_of(table: &StudyTable, name: &str) -> Option<String> {
+    let header = &table.header[table.column(name).ok()?];
+    let (_, rest) = header.split_once('[')?;
+    Some(rest.trim_end_matches(']').to_string()).filter(|u| !u.is_empty())
+}
+
+/// `text (unit)` where the column carries a unit, else `text`.
+fn with_unit(text: &str, table: &StudyTable, column: &str) -> String {
+    match unit_of(table, column) {
+        Some(unit) => format!("{text} ({unit})"),
+        None => text.to_string(),
+    }
+}
 
 /// The scene's file stem and its --set values, for titles.
 fn scene_label(table: &StudyTable) -> String {
@@ -46,7 +61,7 @@ fn scene_label(table: &StudyTable) -> String {
 struct MethodPoints {
     method: String,
     stable: Vec<((f64, f64), String)>,
-    failed: Vec<(f64, f64)>,
+    failed: Vec<((f64, f64), String)>,
 }
 
 /// Points of each method, unstable runs separated.
@@ -58,6 +73,7 @@ fn method_points(
     let method = table.column("method")?;
     let status = table.column("status")?;
     let h = table.column("h")?;
+    let h_unit = unit_of(table, "h").map_or(String::new(), |u| format!(" {u}"));
     let mut groups: Vec<MethodPoints> = Vec::new();
     for row in &table.rows {
         let name = &row[method];
@@ -73,10 +89,11 @@ fn method_points(
             }
         };
         let point = (cost(row), table.number(row, error_column));
+        let label = format!("h = {}{h_unit}", row[h]);
         if row[status] == "ok" {
-            groups[k].stable.push((point, format!("h = {}", row[h])));
+            groups[k].stable.push((point, label));
         } else {
-            groups[k].failed.push(point);
+            groups[k].failed.push((point, label));
         }
     }
     Ok(groups)
@@ -90,7 +107,7 @@ struct WorkPrecisionChart<'a> {
     x_label: &'static str,
     cost: CostFn<'a>,
     error_column: usize,
-    y_label: &'static str,
+    y_label: String,
 }
 
 /// Error-against-cost pictures; unstable runs are drawn as crosses at the top of the plot.
@@ -112,27 +129,28 @@ pub fn draw_work_precision(
         })
         .unwrap_or_default();
     let weighted_label = "force evaluations, weighted by measured cost (slow-force units)";
+    let position_label = with_unit("max position error", table, "max_position_error");
     let mut charts = vec![
         WorkPrecisionChart {
             name: "error-vs-slow-evaluations",
             x_label: "slow-force evaluations",
             cost: Box::new(move |r: &[String]| table.number(r, slow)),
             error_column: position,
-            y_label: "max position error",
+            y_label: position_label.clone(),
         },
         WorkPrecisionChart {
             name: "error-vs-force-evaluations",
             x_label: weighted_label,
             cost: Box::new(move |r: &[String]| table.number(r, weighted)),
             error_column: position,
-            y_label: "max position error",
+            y_label: position_label.clone(),
         },
         WorkPrecisionChart {
             name: "energy-error-vs-force-evaluations",
             x_label: weighted_label,
             cost: Box::new(move |r: &[String]| table.number(r, weighted)),
             error_column: energy,
-            y_label: "max relative energy error",
+            y_label: "max relative energy error".to_string(),
         },
     ];
     if wall.is_some() {
@@ -141,7 +159,7 @@ pub fn draw_work_precision(
             x_label: "wall time (s)",
             cost: Box::new(|r: &[String]| wall_of.get(&r[0]).copied().unwrap_or(f64::NAN)),
             error_column: position,
-            y_label: "max position error",
+            y_label: position_label.clone(),
         });
     }
     let scene = scene_label(table);
@@ -166,18 +184,11 @@ fn work_precision_chart(
     groups: &[MethodPoints],
 ) -> LineChart {
     let finite = |p: &(f64, f64)| p.0 > 0.0 && p.1 > 0.0 && p.0.is_finite() && p.1.is_finite();
-    let top = groups
-        .iter()
-        .flat_map(|g| g.stable.iter().map(|s| s.0))
-        .filter(finite)
-        .map(|p| p.1)
-        .fold(f64::NAN, f64::max);
     let mut chart = LineChart::new(
         &format!("Work–precision, {scene}"),
         AxisSpec::log(spec.x_label),
-        AxisSpec::log(spec.y_label),
+        AxisSpec::log(&spec.y_label),
     );
-    chart.legend = Corner::LowerLeft;
     for (k, group) in groups.iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
         let (points, labels): (Vec<(f64, f64)>, Vec<String>) = group
@@ -193,18 +204,18 @@ fn work_precision_chart(
             series.point_labels = labels;
             chart.series.push(series);
         }
-        // An unstable run has no meaningful error: it is drawn at the top of the plot.
-        let ceiling = if top.is_finite() { 2.0 * top } else { 1.0 };
-        let unstable: Vec<(f64, f64)> = group
+        // An unstable run has no meaningful error: it is drawn on the top edge of the
+        // plot, labelled with its outer step.
+        let (unstable, labels): (Vec<(f64, f64)>, Vec<String>) = group
             .failed
             .iter()
-            .filter(|p| p.0 > 0.0 && p.0.is_finite())
-            .map(|p| (p.0, ceiling))
-            .collect();
+            .filter(|p| p.0.0 > 0.0 && p.0.0.is_finite())
+            .map(|(p, label)| ((p.0, f64::NAN), label.clone()))
+            .unzip();
         if !unstable.is_empty() {
-            chart
-                .markers
-                .push(MarkerSet::unstable_of(&group.method, colour, unstable));
+            let mut set = MarkerSet::unstable_on_top(&group.method, colour, unstable);
+            set.labels = labels;
+            chart.markers.push(set);
         }
     }
     chart
@@ -225,7 +236,8 @@ pub fn draw_scan(table: &StudyTable, out: &Path) -> Result<()> {
 }
 
 /// The sampling criterion's differences to the reference against outer step, one chart per
-/// compared quantity (`scan-potential`, `scan-peak`), unstable runs as crosses.
+/// compared quantity (`scan-potential`, `scan-peak`), unstable runs as crosses on the top
+/// edge.
 fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
     let (method, h, status) = (
         series_column(table)?,
@@ -245,23 +257,20 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
         let value = table.column(column)?;
         let mut chart = LineChart::new(
             &format!("Sampling against the reference, {scene}"),
-            AxisSpec::linear("outer step h"),
-            AxisSpec::linear(&format!("{label} (run − reference)")),
+            AxisSpec::linear(&with_unit("outer step h", table, "h")),
+            AxisSpec::linear(&with_unit(
+                &format!("{label} (run − reference)"),
+                table,
+                column,
+            )),
         );
-        chart.legend = Corner::UpperLeft;
-        let mut methods: Vec<&str> = Vec::new();
-        for row in &table.rows {
-            if !methods.contains(&row[method].as_str()) {
-                methods.push(&row[method]);
-            }
-        }
-        for (k, m) in methods.iter().enumerate() {
+        for (k, m) in series_names(table, method).iter().enumerate() {
             let colour = PALETTE[k % PALETTE.len()];
             let (mut points, mut unstable) = (Vec::new(), Vec::new());
             for row in table.rows.iter().filter(|r| r[method] == *m) {
                 let (x, y) = (table.number(row, h), table.number(row, value));
                 if row[status] == "unstable" {
-                    unstable.push((x, 0.0));
+                    unstable.push((x, f64::NAN));
                 } else if y.is_finite() {
                     points.push((x, y));
                 }
@@ -278,8 +287,19 @@ fn draw_scan_sampling(table: &StudyTable, out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The distinct values of a table's series column, in order of appearance.
+fn series_names(table: &StudyTable, column: usize) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for row in &table.rows {
+        if !names.contains(&row[column]) {
+            names.push(row[column].clone());
+        }
+    }
+    names
+}
+
 /// A method's line through its points in order of outer step, and its unstable runs as
-/// crosses, both in its colour.
+/// crosses on the top edge of the plot, both in its colour.
 fn add_method(
     chart: &mut LineChart,
     name: &str,
@@ -297,12 +317,13 @@ fn add_method(
     if !unstable.is_empty() {
         chart
             .markers
-            .push(MarkerSet::unstable_of(name, colour, unstable));
+            .push(MarkerSet::unstable_on_top(name, colour, unstable));
     }
 }
 
 /// Simulated time per day at each method's largest safe step against the thread count,
-/// from the timing table.
+/// from the timing table: a point per method and thread count on a linear axis from zero,
+/// the threads axis ticked at the counts measured.
 pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
     let (method, h, threads) = (
         series_column(timing)?,
@@ -313,12 +334,32 @@ pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
         Ok(c) => (c, "ns/day"),
         Err(_) => (timing.column("time_per_day")?, "time units/day"),
     };
+    let h_unit = unit_of(timing, "h").map_or(String::new(), |u| format!(" {u}"));
+    let mut counts: Vec<f64> = timing
+        .rows
+        .iter()
+        .map(|r| timing.number(r, threads))
+        .filter(|t| t.is_finite())
+        .collect();
+    counts.sort_by(f64::total_cmp);
+    counts.dedup();
+    let (Some(&fewest), Some(&most)) = (counts.first(), counts.last()) else {
+        return Ok(());
+    };
+    let fastest = timing
+        .rows
+        .iter()
+        .map(|r| timing.number(r, per_day))
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
     let mut chart = LineChart::new(
         &format!("Speed at the largest safe step, {}", scene_label(timing)),
-        AxisSpec::linear("threads"),
-        AxisSpec::log(&format!("simulated time per day ({unit})")),
+        AxisSpec::linear("threads")
+            .with_range(fewest - 0.5, most + 0.5)
+            .with_ticks(counts.clone()),
+        AxisSpec::linear(&format!("simulated time per day ({unit})"))
+            .with_range(0.0, 1.1 * fastest.max(f64::MIN_POSITIVE)),
     );
-    chart.legend = Corner::UpperLeft;
     let mut methods: Vec<(&str, &str)> = Vec::new();
     for row in &timing.rows {
         if !methods.contains(&(row[method].as_str(), row[h].as_str())) {
@@ -334,7 +375,8 @@ pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
             .filter(|p| p.1.is_finite() && p.1 > 0.0)
             .collect();
         if !points.is_empty() {
-            let mut series = Series::line(&format!("{m}, h = {step}"), points);
+            let name = format!("{m}, h = {step}{h_unit} ({unit})");
+            let mut series = Series::line(&name, points);
             series.style = SeriesStyle::LineAndPoints;
             chart.series.push(series);
         }
@@ -348,54 +390,70 @@ pub fn draw_ns_per_day(timing: &StudyTable, out: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Drift against outer step for each method, unstable runs as crosses, and the resonances
-/// predicted from the fast normal modes as guide lines.
+/// Drift against outer step for each method on a logarithmic axis of |drift| — a negative
+/// drift (cooling) as an open circle —, the drift bound as a dashed line, unstable runs as
+/// crosses on the top edge, and the resonances predicted from the fast normal modes as
+/// guide lines.
 fn draw_scan_steps(table: &StudyTable, out: &Path) -> Result<()> {
     let method = series_column(table)?;
     let h = table.column("h")?;
     let status = table.column("status")?;
     let drift = table.column("drift")?;
     let scene = scene_label(table);
+    let unit = table
+        .meta
+        .get("drift_unit")
+        .map_or("kT per unit time per dof", String::as_str);
     let mut chart = LineChart::new(
         &format!("Step-size safety scan, {scene}"),
-        AxisSpec::linear("outer step h"),
-        AxisSpec::log(&format!(
-            "|energy drift| ({})",
-            table
-                .meta
-                .get("drift_unit")
-                .map_or("kT per unit time per dof", String::as_str)
-        )),
+        AxisSpec::linear(&with_unit("outer step h", table, "h")),
+        AxisSpec::log(&format!("|energy drift| ({unit})")),
     );
-    chart.legend = Corner::UpperLeft;
+    // A drift of exactly zero still gets a place on the logarithmic axis.
     let floor = 1e-16;
-    let mut methods: Vec<&str> = Vec::new();
-    for row in &table.rows {
-        if !methods.contains(&row[method].as_str()) {
-            methods.push(&row[method]);
-        }
-    }
-    let top = table
-        .rows
-        .iter()
-        .map(|r| table.number(r, drift).abs())
-        .filter(|d| d.is_finite())
-        .fold(floor, f64::max);
-    for (k, name) in methods.iter().enumerate() {
+    let mut cooling = false;
+    for (k, name) in series_names(table, method).iter().enumerate() {
         let colour = PALETTE[k % PALETTE.len()];
         let (mut points, mut unstable) = (Vec::new(), Vec::new());
         for row in table.rows.iter().filter(|r| r[method] == *name) {
             let x = table.number(row, h);
             if row[status] == "unstable" {
-                unstable.push((x, 10.0 * top));
-            } else {
-                points.push((x, table.number(row, drift).abs().max(floor)));
+                unstable.push((x, f64::NAN));
+            } else if table.number(row, drift).is_finite() {
+                points.push((x, table.number(row, drift)));
             }
         }
-        add_method(&mut chart, name, colour, points, unstable);
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let hollow: Vec<bool> = points.iter().map(|p| p.1 < 0.0).collect();
+        cooling |= hollow.iter().any(|&c| c);
+        let magnitudes = points.iter().map(|p| (p.0, p.1.abs().max(floor))).collect();
+        add_method(&mut chart, name, colour, magnitudes, unstable);
+        if let Some(series) = chart.series.last_mut().filter(|s| s.name == *name) {
+            series.hollow = hollow;
+        }
+    }
+    if let Some(bound) = table
+        .meta
+        .get("drift_bound")
+        .and_then(|b| b.parse::<f64>().ok())
+        .filter(|b| *b > 0.0)
+    {
+        chart.levels.push(Level {
+            y: bound,
+            name: format!("drift bound {bound} {unit}"),
+            colour: plotters::style::RGBColor(200, 0, 0),
+        });
+    }
+    if cooling {
+        chart.markers.push(MarkerSet::new(
+            "open circle: drift < 0 (cooling)",
+            MarkerShape::Circle,
+            plotters::style::RGBColor(90, 90, 90),
+            Vec::new(),
+        ));
     }
     chart.guides.extend(resonance_guides(table, h));
-    if chart.series.is_empty() && chart.markers.is_empty() {
+    if chart.series.is_empty() && chart.markers.iter().all(|m| m.points.is_empty()) {
         return Ok(());
     }
     for extension in ["png", "svg"] {
@@ -435,4 +493,56 @@ fn resonance_guides(table: &StudyTable, h: usize) -> Vec<Guide> {
         }
     }
     guides
+}
+
+/// The spectrum of the fast modes as sticks at their periods (one stick per period, its
+/// height the number of modes within 1 % of it) up to twice the largest outer step asked
+/// about — the longest period that resonates there (h = T/2) —, and the predicted resonant
+/// outer steps (h = k·T/2 and the type-2 combinations) as labelled guide lines on the same
+/// time axis.
+pub fn draw_modes(
+    path: &Path,
+    scene: &str,
+    modes: &[Mode],
+    resonances: &[Resonance],
+    h_max: f64,
+    units: crate::units::Units,
+) -> Result<()> {
+    let longest = 2.0 * h_max;
+    let mut periods: Vec<f64> = modes
+        .iter()
+        .filter(|m| !m.unstable && m.frequency > 0.0 && m.period <= longest)
+        .map(|m| m.period)
+        .collect();
+    periods.sort_by(f64::total_cmp);
+    let mut sticks: Vec<(f64, f64)> = Vec::new();
+    for period in periods {
+        match sticks.last_mut() {
+            Some(last) if period <= 1.01 * last.0 => last.1 += 1.0,
+            _ => sticks.push((period, 1.0)),
+        }
+    }
+    let unit = match units {
+        crate::units::Units::Real => " (fs)",
+        crate::units::Units::None => "",
+    };
+    let tallest = sticks.iter().map(|s| s.1).fold(1.0, f64::max);
+    let mut chart = LineChart::new(
+        &format!("Fast modes (sticks) and resonant outer steps (grey lines), {scene}"),
+        AxisSpec::linear(&format!("period T of a mode, outer step h{unit}"))
+            .with_range(0.0, longest.max(f64::MIN_POSITIVE)),
+        AxisSpec::linear("modes at this period").with_range(0.0, 1.25 * tallest),
+    );
+    if !sticks.is_empty() {
+        chart
+            .series
+            .push(Series::sticks("modes (stick at period T)", sticks));
+    }
+    for r in resonances {
+        chart.guides.push(Guide {
+            x: r.h,
+            label: format!("{:?} k={}", r.kind, r.k).to_lowercase(),
+        });
+    }
+    chart.save(path)
 }

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::number::Num;
 use crate::io::scene::{Scene, load_scene};
-use crate::plot::{AxisSpec, Corner, LineChart, Series};
+use crate::plot::{AxisSpec, LineChart, Series};
 use crate::run::prepare::{self, RunRequest};
 use crate::settings::{MethodSettings, Value};
 
@@ -363,7 +363,6 @@ fn chart(scene: &str, runs: &[GrowthRun]) -> LineChart {
         AxisSpec::linear("t"),
         AxisSpec::log("max |E − E0| / E0 per window"),
     );
-    chart.legend = Corner::LowerRight;
     for run in runs {
         let points: Vec<(f64, f64)> = run
             .envelope

@@ -449,76 +449,111 @@ pub fn check_command(args: &CheckArgs) -> Result<()> {
     Ok(())
 }
 
-/// Kinetic, potential and total energy against time from energy.csv, and the relative
-/// error of the total on a second chart.
+/// The energy pictures of a run from its energy.csv: `energy.*` in three panels, each on
+/// its own scale (kinetic, potential, and total with the method's conserved energy when
+/// it reports one), and `energy-error.*`, the relative change of the total and of the
+/// conserved energy — the one the drift verdict judges.
 fn plot_energies(
     csv: &std::path::Path,
     summary: &crate::io::summary::RunSummary,
     out: &std::path::Path,
 ) -> Result<()> {
-    use crate::plot::{AxisSpec, Corner, LineChart, Series};
+    use crate::plot::{AxisSpec, LineChart, save_panels};
     let table = EnergyTable::read(csv, &["t", "kinetic", "potential", "total"])?;
-    let time = table.column(0);
-    // In a real scene the axes carry units, time in ps beyond 1 ps of run.
-    let units = summary.scene_units;
-    let (time_scale, time_label, energy_label) = match units {
-        Units::None => (1.0, "time t".to_string(), "energy".to_string()),
-        _ if summary.t_end > 1e3 => (
-            1e3,
-            "time t (ps)".to_string(),
-            format!("energy ({})", units.energy_name()),
-        ),
-        _ => (
-            1.0,
-            format!("time t ({})", units.time_name()),
-            format!("energy ({})", units.energy_name()),
-        ),
+    // The method's conserved energy, where its energy.csv has one.
+    let conserved = crate::run::drift::CONSERVED_COLUMNS
+        .iter()
+        .find_map(|name| {
+            EnergyTable::read(csv, &[name])
+                .ok()
+                .map(|t| (name.to_string(), t.column(0).to_vec()))
+        });
+    let judged = match (&summary.drift, &conserved) {
+        (Some(report), _) => report.energy.clone(),
+        (None, Some((name, _))) => name.clone(),
+        (None, None) => "total".to_string(),
     };
-    let series = |name: &str, c: usize| {
-        Series::line(
-            name,
-            time.iter()
-                .zip(table.column(c))
-                .map(|(t, x)| (t / time_scale, *x))
-                .collect(),
-        )
-    };
+    let (time_scale, time_label, energy_label) = energy_axes(summary);
+    let time: Vec<f64> = table.column(0).iter().map(|t| t / time_scale).collect();
     let title = format!(
         "{}: {}, h = {}",
         summary.scene,
         summary.method,
-        crate::io::summary::format_time(summary.h, units)
+        crate::io::summary::format_time(summary.h, summary.scene_units)
     );
-    let mut chart = LineChart::new(
-        &title,
-        AxisSpec::linear(&time_label),
-        AxisSpec::linear(&energy_label),
-    );
-    chart.series = vec![
-        series("kinetic", 1),
-        series("potential", 2),
-        series("total", 3),
+    let panel = |title: &str, lines: Vec<(&str, &[f64])>| {
+        let mut chart = LineChart::new(
+            title,
+            AxisSpec::linear(&time_label),
+            AxisSpec::linear(&energy_label),
+        );
+        for (name, values) in lines {
+            chart.series.push(along(&time, name, values));
+        }
+        chart
+    };
+    let mut totals: Vec<(&str, &[f64])> = vec![("total", table.column(3))];
+    if let Some((name, values)) = &conserved {
+        totals.push((name.as_str(), values));
+    }
+    let panels = [
+        panel(&title, vec![("kinetic", table.column(1))]),
+        panel("potential energy", vec![("potential", table.column(2))]),
+        panel(
+            "total energy and the energy the method conserves",
+            totals.clone(),
+        ),
     ];
-    chart.legend = Corner::UpperRight;
     let initial = summary.energy.initial;
     let scale = if initial != 0.0 { initial.abs() } else { 1.0 };
     let mut error = LineChart::new(
         &format!("{title}: energy error"),
         AxisSpec::linear(&time_label),
-        AxisSpec::linear("(E − E0)/|E0|"),
+        AxisSpec::linear("(E − E(0))/|E0|"),
     );
-    error.series = vec![Series::line(
-        "total",
-        time.iter()
-            .zip(table.column(3))
-            .map(|(t, e)| (t / time_scale, (e - initial) / scale))
-            .collect(),
-    )];
+    for (name, values) in totals {
+        let change: Vec<f64> = values.iter().map(|e| (e - values[0]) / scale).collect();
+        let label = if judged == name {
+            format!("{name} (judged by the drift verdict)")
+        } else {
+            name.to_string()
+        };
+        error.series.push(along(&time, &label, &change));
+    }
     for extension in ["png", "svg"] {
-        chart.save(&out.join(format!("energy.{extension}")))?;
+        save_panels(
+            &panels,
+            &out.join(format!("energy.{extension}")),
+            (900, 900),
+        )?;
         error.save(&out.join(format!("energy-error.{extension}")))?;
     }
     Ok(())
+}
+
+/// A line of `values` against `time`.
+fn along(time: &[f64], name: &str, values: &[f64]) -> crate::plot::Series {
+    crate::plot::Series::line(
+        name,
+        time.iter().copied().zip(values.iter().copied()).collect(),
+    )
+}
+
+/// The time scale (ps beyond 1 ps of run in a real scene) and the axis labels, with units.
+fn energy_axes(summary: &crate::io::summary::RunSummary) -> (f64, String, String) {
+    match summary.scene_units {
+        Units::None => (1.0, "time t".to_string(), "energy".to_string()),
+        units if summary.t_end > 1e3 => (
+            1e3,
+            "time t (ps)".to_string(),
+            format!("energy ({})", units.energy_name()),
+        ),
+        units => (
+            1.0,
+            format!("time t ({})", units.time_name()),
+            format!("energy ({})", units.energy_name()),
+        ),
+    }
 }
 
 /// `check`'s energy line: E0, kinetic and per-level potential energies to 10 significant

@@ -421,7 +421,11 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {
     } else {
         String::new()
     };
-    let title = format!("Spectral radius: {description}{shard_note}");
+    let what = match args.colour {
+        ColourBy::Radius => "Spectral radius",
+        ColourBy::Type => "Instability type",
+    };
+    let title = format!("{what}: {description}{shard_note}");
     for path in [&args.png, &args.svg].into_iter().flatten() {
         draw_map(
             path,
@@ -651,8 +655,21 @@ pub fn draw_map(
         values,
         colouring,
         size: (1000, 800),
+        note: map_note(title),
     }
     .save(path)
+}
+
+/// What the map's symbols mean: Γ on the axes, and α, β where the title gives them.
+fn map_note(title: &str) -> String {
+    let gamma = "Γ1 = hΩ1, Γ2 = hΩ2: the outer step h times the fast frequencies Ω1, Ω2";
+    if title.contains("α = (") {
+        format!(
+            "{gamma}; α = (α1, α2), β: the slow coupling U = [[α1, β], [β, α2]] (GSS98 eq. (27))"
+        )
+    } else {
+        gamma.to_string()
+    }
 }
 
 /// Colour by ρ − 1 on a log scale; stable points (ρ = 1) as their own category.

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::io::csv::CsvWriter;
 use crate::io::number::Num;
 use crate::io::study_csv::StudyTable;
-use crate::plot::{AxisSpec, Corner, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
+use crate::plot::{AxisSpec, LineChart, MarkerSet, MarkerShape, PALETTE, Series};
 
 // The shared method and step flags (common::MethodSteps), described as this study uses them.
 #[derive(Args, Debug)]
@@ -307,7 +307,6 @@ fn chart(
             chart.y = chart.y.with_range(0.0, 1.05 * top);
         }
     }
-    chart.legend = Corner::UpperRight;
     // Unstable runs sit on the axis (their error is unbounded), as crosses in their
     // method's colour.
     let floor = curves
@@ -347,12 +346,12 @@ fn chart(
         }
     }
     if !maxima.is_empty() {
-        chart.markers.push(MarkerSet {
-            name: "largest".into(),
-            points: maxima,
-            shape: MarkerShape::Circle,
-            colour: plotters::style::RGBColor(0, 0, 0),
-        });
+        chart.markers.push(MarkerSet::new(
+            "largest",
+            MarkerShape::Circle,
+            plotters::style::RGBColor(0, 0, 0),
+            maxima,
+        ));
     }
     chart
 }

@@ -47,6 +47,13 @@ pub struct ModesArgs {
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Draw the spectrum (periods as sticks) with the predicted resonant outer steps
+    /// marked, as PNG.
+    #[arg(long, value_name = "FILE")]
+    pub png: Option<PathBuf>,
+    /// The same picture as SVG.
+    #[arg(long, value_name = "FILE")]
+    pub svg: Option<PathBuf>,
     /// Start from the positions of this structure file (e.g. from `minimize --save`): same
     /// atoms in the same order; the scene's force field, velocities and box are kept.
     #[arg(long, value_name = "FILE")]
@@ -263,6 +270,12 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
         None => (0.0, 0.0),
     };
     let resonances = predicted_resonances(&modes, lo, hi, args.top);
+    for path in [&args.png, &args.svg].into_iter().flatten() {
+        super::draw::draw_modes(path, &scene.name, &modes, &resonances, hi, scene.units)?;
+        if !args.json {
+            println!("picture    {}", path.display());
+        }
+    }
     if args.json {
         let json = serde_json::json!({
             "scene": scene.name,

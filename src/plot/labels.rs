@@ -64,6 +64,66 @@ pub fn log_ticks(min: f64, max: f64) -> Vec<f64> {
     ticks
 }
 
+/// Tick values for a linear axis over `[low, high]`: multiples of a round step (1, 2, 2.5
+/// or 5 times a power of ten) chosen for about six ticks; never fewer than three, since the
+/// step is at most 2.5 times a sixth of the span.
+pub fn linear_ticks(low: f64, high: f64) -> Vec<f64> {
+    if !(high > low && low.is_finite() && high.is_finite()) {
+        return Vec::new();
+    }
+    let raw = (high - low) / 6.0;
+    let magnitude = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 2.5, 5.0, 10.0]
+        .iter()
+        .map(|m| m * magnitude)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * magnitude);
+    let (first, last) = ((low / step).ceil() as i64, (high / step).floor() as i64);
+    (first..=last)
+        .map(|k| k as f64 * step)
+        .map(|v| if v.abs() < 1e-9 * step { 0.0 } else { v })
+        .collect()
+}
+
+/// Tick values for a logarithmic chart axis over `[low, high]`: the decades (every k-th
+/// when there are more than ten), else 1-2-5 in each decade, else 1–9 — the first that
+/// gives at least three ticks; a range too narrow for that (200–340) gets round linear
+/// ticks inside it, so the axis always carries numbers.
+pub fn log_axis_ticks(low: f64, high: f64) -> Vec<f64> {
+    if !(low > 0.0 && high > low && high.is_finite()) {
+        return Vec::new();
+    }
+    let (first, last) = (low.log10().floor() as i32, high.log10().ceil() as i32);
+    let within = |mantissas: &[f64]| -> Vec<f64> {
+        (first..=last)
+            .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
+            .filter(|v| *v >= low * (1.0 - 1e-9) && *v <= high * (1.0 + 1e-9))
+            .collect()
+    };
+    let decades = within(&[1.0]);
+    if decades.len() > 10 {
+        let every = decades.len().div_ceil(8) as i64;
+        return decades
+            .into_iter()
+            .filter(|v| (v.log10().round() as i64).rem_euclid(every) == 0)
+            .collect();
+    }
+    let ladders: [&[f64]; 2] = [&[1.0, 2.0, 5.0], &[1., 2., 3., 4., 5., 6., 7., 8., 9.]];
+    if decades.len() >= 3 {
+        return decades;
+    }
+    for mantissas in ladders {
+        let ticks = within(mantissas);
+        if ticks.len() >= 3 {
+            return ticks;
+        }
+    }
+    linear_ticks(low, high)
+        .into_iter()
+        .filter(|v| *v > 0.0)
+        .collect()
+}
+
 /// The label of each group of guide lines drawn closer than `min_gap` pixels apart (their
 /// labels would print over each other): one label naming the distinct texts and, for
 /// more than one line, how many lines. Input: pixel x and text of each guide, any order.
@@ -211,6 +271,22 @@ mod tests {
         assert_eq!(wide, vec![1e-3, 2e-3, 5e-3, 1e-2, 2e-2]);
         assert_eq!(log_ticks(1e-12, 1.0).len(), 13);
         assert!(log_ticks(0.0, 1.0).is_empty());
+    }
+
+    #[test]
+    fn chart_axes_always_carry_at_least_three_round_ticks() {
+        // ns/day between 200 and 340 on a log axis: no decade, no 1-2-5 value but 200.
+        let ticks = log_axis_ticks(200.0, 340.0);
+        assert!(ticks.len() >= 3, "{ticks:?}");
+        assert!(ticks.iter().all(|t| (200.0..=340.0).contains(t)));
+        // Drifts from 1e-16 to 1e7: at most ten decades, each once.
+        let wide = log_axis_ticks(1e-16, 1e7);
+        assert!((3..=10).contains(&wide.len()), "{wide:?}");
+        // A work-precision cost axis of one decade: 1-2-5, not a lone tick.
+        assert_eq!(log_axis_ticks(30.0, 300.0), vec![50.0, 100.0, 200.0]);
+        let linear = linear_ticks(-2100.0, 550.0);
+        assert!(linear.len() >= 3 && linear.contains(&0.0), "{linear:?}");
+        assert_eq!(linear_ticks(0.5, 2.5), vec![0.5, 1.0, 1.5, 2.0, 2.5]);
     }
 
     #[test]

@@ -283,3 +283,4 @@ pub fn assert_forces_match(
         );
     }
 }
+pub mod svg;
