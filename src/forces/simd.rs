@@ -91,11 +91,13 @@ macro_rules! real_lanes {
         #[cfg(target_arch = "x86_64")]
         type Avx512 = $avx512;
         #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
         unsafe fn avx2() -> $avx2 {
             // SAFETY: the caller's contract is the constructor's.
             unsafe { $avx2::new_unchecked() }
         }
         #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
         unsafe fn avx512() -> $avx512 {
             // SAFETY: the caller's contract is the constructor's.
             unsafe { $avx512::new_unchecked() }
