@@ -67,9 +67,46 @@ pub trait Real:
     /// `2^n` from `self = n + ROUND_MAGIC`: the low bits of `self`, shifted into the exponent
     /// field, plus the bias (exact integer arithmetic; `−bias < n ≤ bias`).
     fn pow2_from_magic(self) -> Self;
+    /// The AVX2 lanes of this precision, for [`simd_dispatch!`].
+    #[cfg(target_arch = "x86_64")]
+    type Avx2: Simd<R = Self>;
+    /// The AVX-512 lanes of this precision, for [`simd_dispatch!`].
+    #[cfg(target_arch = "x86_64")]
+    type Avx512: Simd<R = Self>;
+    /// # Safety
+    /// The processor must have AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn avx2() -> Self::Avx2;
+    /// # Safety
+    /// The processor must have AVX-512 F, VL and DQ.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn avx512() -> Self::Avx512;
+}
+
+/// [`Real`]'s lanes of each instruction set, from their types.
+macro_rules! real_lanes {
+    ($avx2:ident, $avx512:ident) => {
+        #[cfg(target_arch = "x86_64")]
+        type Avx2 = $avx2;
+        #[cfg(target_arch = "x86_64")]
+        type Avx512 = $avx512;
+        #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
+        unsafe fn avx2() -> $avx2 {
+            // SAFETY: the caller's contract is the constructor's.
+            unsafe { $avx2::new_unchecked() }
+        }
+        #[cfg(target_arch = "x86_64")]
+        #[inline(always)]
+        unsafe fn avx512() -> $avx512 {
+            // SAFETY: the caller's contract is the constructor's.
+            unsafe { $avx512::new_unchecked() }
+        }
+    };
 }
 
 impl Real for f64 {
+    real_lanes!(Avx2F64, Avx512F64);
     const NEWTON: usize = 4;
     const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
     const EXP_T_MAX: f64 = 708.0;
@@ -101,6 +138,7 @@ impl Real for f64 {
 }
 
 impl Real for f32 {
+    real_lanes!(Avx2F32, Avx512F32);
     const NEWTON: usize = 3;
     const ROUND_MAGIC: f64 = 12_582_912.0; // 1.5 · 2^23
     const EXP_T_MAX: f64 = 87.0;
@@ -374,22 +412,13 @@ impl Isa {
     }
 
     /// `f` with its body compiled for this instruction set: `f` is inlined into a function
-    /// with the set's target features, so its loops vectorise for it (mark the closure
-    /// `#[inline(always)]`, and what it calls). Rust never fuses a multiply and an add on
-    /// its own, so plain arithmetic gives the same bits on every set. Panics if the
-    /// processor lacks the set.
+    /// with the set's target features (made by [`simd_dispatch!`]), so its loops vectorise
+    /// for it (mark the closure `#[inline(always)]`, and what it calls). Rust never fuses a
+    /// multiply and an add on its own, so plain arithmetic gives the same bits on every set.
+    /// Panics if the processor lacks the set.
     #[inline(always)]
-    pub fn run<R>(self, f: impl FnOnce() -> R) -> R {
-        assert!(self.is_available(), "{} is not available", self.name());
-        match self {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 and FMA are available (asserted above).
-            Isa::Avx2 => unsafe { run_avx2(f) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX-512 F, VL and DQ are available (asserted above).
-            Isa::Avx512 => unsafe { run_avx512(f) },
-            _ => f(),
-        }
+    pub fn run<T>(self, f: impl FnOnce() -> T) -> T {
+        run_on(self, f)
     }
 
     pub fn name(self) -> &'static str {
@@ -407,17 +436,77 @@ impl Isa {
     }
 }
 
-/// [`Isa::run`]'s copy for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
-    f()
+/// `fn $name<$generics>(isa: Isa, $args) -> $ret`: `$body(s, $args)` with `s` the lanes
+/// of `isa` in precision `$real` (`lanes $real`), the body compiled for the instruction
+/// set. This is the one place where a function with target features is written: for AVX2
+/// and AVX-512 it emits a copy of the body with the set's `#[target_feature]`, whose lanes
+/// token is made only after [`Isa::is_available`] said so, and the portable path calls the
+/// body directly. `$body` is generic over the lanes and `#[inline(always)]` (with what it
+/// calls), so it is compiled inside each copy. The generics are given twice, declared and
+/// then by name (`[C: Coulomb, const G: bool] [C, G]`), as the copies redeclare them.
+///
+/// The copies take the arguments one by one, as a hand-written one would: one generic copy
+/// per set taking them packed in a struct (a trait with a method generic over the lanes,
+/// as `pulp::WithSimd`) ran the molecule blocks of `distance_split::lanes` with 7 % more
+/// instructions (callgrind, AVX2), the cluster kernel and pruning as before.
+///
+/// ```ignore
+/// simd_dispatch! {
+///     /// `prune` on the instruction set `isa`.
+///     fn prune_on[][](work: &Work, inner: &mut PairList) = prune, lanes f64;
+/// }
+/// ```
+macro_rules! simd_dispatch {
+    (
+        $(#[$attr:meta])*
+        $vis:vis fn $name:ident [$($generics:tt)*] [$($names:tt)*]
+            ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? = $body:expr, lanes $real:ty;
+    ) => {
+        $(#[$attr])*
+        $vis fn $name<$($generics)*>(
+            isa: $crate::forces::simd::Isa,
+            $($arg: $ty),*
+        ) $(-> $ret)? {
+            use $crate::forces::simd::{Isa, Portable, Real};
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2<$($generics)*>($($arg: $ty),*) $(-> $ret)? {
+                // SAFETY: this copy runs only where AVX2 and FMA are (a target-feature
+                // function is called in an `unsafe` block, below after the check).
+                let s = unsafe { <$real as Real>::avx2() };
+                $body(s, $($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+            fn avx512<$($generics)*>($($arg: $ty),*) $(-> $ret)? {
+                // SAFETY: this copy runs only where AVX-512 F, VL and DQ are (as above).
+                let s = unsafe { <$real as Real>::avx512() };
+                $body(s, $($arg),*)
+            }
+            assert!(isa.is_available(), "{} is not available", isa.name());
+            match isa {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: AVX2 and FMA are available (asserted above).
+                Isa::Avx2 => unsafe { avx2::<$($names)*>($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: AVX-512 F, VL and DQ are available (asserted above).
+                Isa::Avx512 => unsafe { avx512::<$($names)*>($($arg),*) },
+                _ => $body(Portable::<$real>::new(), $($arg),*),
+            }
+        }
+    };
+}
+pub(crate) use simd_dispatch;
+
+simd_dispatch! {
+    /// [`Isa::run`].
+    #[inline(always)]
+    fn run_on[T, F: FnOnce() -> T][T, F](f: F) -> T = call, lanes f64;
 }
 
-/// [`Isa::run`]'s copy for AVX-512.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
+/// `f()`, whatever the lanes.
+#[inline(always)]
+fn call<S, T>(_: S, f: impl FnOnce() -> T) -> T {
     f()
 }
 
@@ -573,27 +662,32 @@ mod x86 {
         }
     }
 
-    /// The five arithmetic methods, the same for every type, from their intrinsics.
-    macro_rules! arithmetic {
-        ($v:ty, $add:ident, $sub:ident, $mul:ident, $div:ident, $sqrt:ident, $fma:ident, $fnma:ident, $fms:ident) => {
+    /// The methods written the same for every type, from their intrinsics: the lane
+    /// arithmetic, and moving `WIDTH` values (at most 16) between memory and a register.
+    macro_rules! common {
+        ($v:ty, $r:ty;
+         splat $splat:ident, load $load:ident, store $store:ident,
+         add $add:ident, sub $sub:ident, mul $mul:ident, div $div:ident, sqrt $sqrt:ident,
+         fma $fma:ident, fnma $fnma:ident, fms $fms:ident) => {
             #[inline(always)]
-            fn fms(self, a: $v, b: $v, c: $v) -> $v {
-                // SAFETY: the token proves the instruction set (module doc).
-                unsafe { $fms(a, b, c) }
+            fn splat(self, x: $r) -> $v {
+                // SAFETY (every method here): the token proves the instruction set (module
+                // doc), and the loads and stores touch `WIDTH ≤ 16` values of 16.
+                unsafe { $splat(x) }
             }
             #[inline(always)]
-            fn fma(self, a: $v, b: $v, c: $v) -> $v {
-                // SAFETY: the token proves the instruction set (module doc).
-                unsafe { $fma(a, b, c) }
-            }
-            #[inline(always)]
-            fn fnma(self, a: $v, b: $v, c: $v) -> $v {
+            fn load(self, values: &[$r; 16]) -> $v {
                 // SAFETY: as above.
-                unsafe { $fnma(a, b, c) }
+                unsafe { $load(values.as_ptr()) }
+            }
+            #[inline(always)]
+            fn store(self, v: $v, out: &mut [$r; 16]) {
+                // SAFETY: as above.
+                unsafe { $store(out.as_mut_ptr(), v) }
             }
             #[inline(always)]
             fn add(self, a: $v, b: $v) -> $v {
-                // SAFETY: the token proves the instruction set (module doc).
+                // SAFETY: as above.
                 unsafe { $add(a, b) }
             }
             #[inline(always)]
@@ -616,6 +710,21 @@ mod x86 {
                 // SAFETY: as above.
                 unsafe { $sqrt(a) }
             }
+            #[inline(always)]
+            fn fma(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $fma(a, b, c) }
+            }
+            #[inline(always)]
+            fn fnma(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $fnma(a, b, c) }
+            }
+            #[inline(always)]
+            fn fms(self, a: $v, b: $v, c: $v) -> $v {
+                // SAFETY: as above.
+                unsafe { $fms(a, b, c) }
+            }
         };
     }
 
@@ -624,36 +733,16 @@ mod x86 {
         type V = __m256d;
         type M = __m256d;
         const WIDTH: usize = 4;
-        arithmetic!(
-            __m256d,
-            _mm256_add_pd,
-            _mm256_sub_pd,
-            _mm256_mul_pd,
-            _mm256_div_pd,
-            _mm256_sqrt_pd,
-            _mm256_fmadd_pd,
-            _mm256_fnmadd_pd,
-            _mm256_fmsub_pd
+        common!(
+            __m256d, f64;
+            splat _mm256_set1_pd, load _mm256_loadu_pd, store _mm256_storeu_pd,
+            add _mm256_add_pd, sub _mm256_sub_pd, mul _mm256_mul_pd, div _mm256_div_pd,
+            sqrt _mm256_sqrt_pd, fma _mm256_fmadd_pd, fnma _mm256_fnmadd_pd, fms _mm256_fmsub_pd
         );
-        #[inline(always)]
-        fn splat(self, x: f64) -> __m256d {
-            // SAFETY: the token proves AVX2.
-            unsafe { _mm256_set1_pd(x) }
-        }
-        #[inline(always)]
-        fn load(self, values: &[f64; 16]) -> __m256d {
-            // SAFETY: AVX2; 4 of the 16 values are read.
-            unsafe { _mm256_loadu_pd(values.as_ptr()) }
-        }
         #[inline(always)]
         fn load4(self, values: &[f64; 4]) -> __m256d {
             // SAFETY: AVX2; exactly 4 values are read.
             unsafe { _mm256_loadu_pd(values.as_ptr()) }
-        }
-        #[inline(always)]
-        fn store(self, v: __m256d, out: &mut [f64; 16]) {
-            // SAFETY: AVX2; 4 of the 16 values are written.
-            unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m256d) -> __m256d {
@@ -716,36 +805,16 @@ mod x86 {
         type V = __m256;
         type M = __m256;
         const WIDTH: usize = 8;
-        arithmetic!(
-            __m256,
-            _mm256_add_ps,
-            _mm256_sub_ps,
-            _mm256_mul_ps,
-            _mm256_div_ps,
-            _mm256_sqrt_ps,
-            _mm256_fmadd_ps,
-            _mm256_fnmadd_ps,
-            _mm256_fmsub_ps
+        common!(
+            __m256, f32;
+            splat _mm256_set1_ps, load _mm256_loadu_ps, store _mm256_storeu_ps,
+            add _mm256_add_ps, sub _mm256_sub_ps, mul _mm256_mul_ps, div _mm256_div_ps,
+            sqrt _mm256_sqrt_ps, fma _mm256_fmadd_ps, fnma _mm256_fnmadd_ps, fms _mm256_fmsub_ps
         );
-        #[inline(always)]
-        fn splat(self, x: f32) -> __m256 {
-            // SAFETY: the token proves AVX2.
-            unsafe { _mm256_set1_ps(x) }
-        }
-        #[inline(always)]
-        fn load(self, values: &[f32; 16]) -> __m256 {
-            // SAFETY: AVX2; 8 of the 16 values are read.
-            unsafe { _mm256_loadu_ps(values.as_ptr()) }
-        }
         #[inline(always)]
         fn load4(self, values: &[f32; 4]) -> __m256 {
             // SAFETY: AVX2; exactly 4 values are read.
             unsafe { _mm256_broadcast_ps(&*(values.as_ptr() as *const __m128)) }
-        }
-        #[inline(always)]
-        fn store(self, v: __m256, out: &mut [f32; 16]) {
-            // SAFETY: AVX2; 8 of the 16 values are written.
-            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m256) -> __m256 {
@@ -811,36 +880,16 @@ mod x86 {
         type V = __m512d;
         type M = __mmask8;
         const WIDTH: usize = 8;
-        arithmetic!(
-            __m512d,
-            _mm512_add_pd,
-            _mm512_sub_pd,
-            _mm512_mul_pd,
-            _mm512_div_pd,
-            _mm512_sqrt_pd,
-            _mm512_fmadd_pd,
-            _mm512_fnmadd_pd,
-            _mm512_fmsub_pd
+        common!(
+            __m512d, f64;
+            splat _mm512_set1_pd, load _mm512_loadu_pd, store _mm512_storeu_pd,
+            add _mm512_add_pd, sub _mm512_sub_pd, mul _mm512_mul_pd, div _mm512_div_pd,
+            sqrt _mm512_sqrt_pd, fma _mm512_fmadd_pd, fnma _mm512_fnmadd_pd, fms _mm512_fmsub_pd
         );
-        #[inline(always)]
-        fn splat(self, x: f64) -> __m512d {
-            // SAFETY: the token proves AVX-512F.
-            unsafe { _mm512_set1_pd(x) }
-        }
-        #[inline(always)]
-        fn load(self, values: &[f64; 16]) -> __m512d {
-            // SAFETY: AVX-512F; 8 of the 16 values are read.
-            unsafe { _mm512_loadu_pd(values.as_ptr()) }
-        }
         #[inline(always)]
         fn load4(self, values: &[f64; 4]) -> __m512d {
             // SAFETY: AVX-512F; exactly 4 values are read.
             unsafe { _mm512_broadcast_f64x4(_mm256_loadu_pd(values.as_ptr())) }
-        }
-        #[inline(always)]
-        fn store(self, v: __m512d, out: &mut [f64; 16]) {
-            // SAFETY: AVX-512F; 8 of the 16 values are written.
-            unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m512d) -> __m512d {
@@ -898,36 +947,16 @@ mod x86 {
         type V = __m512;
         type M = __mmask16;
         const WIDTH: usize = 16;
-        arithmetic!(
-            __m512,
-            _mm512_add_ps,
-            _mm512_sub_ps,
-            _mm512_mul_ps,
-            _mm512_div_ps,
-            _mm512_sqrt_ps,
-            _mm512_fmadd_ps,
-            _mm512_fnmadd_ps,
-            _mm512_fmsub_ps
+        common!(
+            __m512, f32;
+            splat _mm512_set1_ps, load _mm512_loadu_ps, store _mm512_storeu_ps,
+            add _mm512_add_ps, sub _mm512_sub_ps, mul _mm512_mul_ps, div _mm512_div_ps,
+            sqrt _mm512_sqrt_ps, fma _mm512_fmadd_ps, fnma _mm512_fnmadd_ps, fms _mm512_fmsub_ps
         );
-        #[inline(always)]
-        fn splat(self, x: f32) -> __m512 {
-            // SAFETY: the token proves AVX-512F.
-            unsafe { _mm512_set1_ps(x) }
-        }
-        #[inline(always)]
-        fn load(self, values: &[f32; 16]) -> __m512 {
-            // SAFETY: AVX-512F; all 16 values are read.
-            unsafe { _mm512_loadu_ps(values.as_ptr()) }
-        }
         #[inline(always)]
         fn load4(self, values: &[f32; 4]) -> __m512 {
             // SAFETY: AVX-512F; exactly 4 values are read.
             unsafe { _mm512_broadcast_f32x4(_mm_loadu_ps(values.as_ptr())) }
-        }
-        #[inline(always)]
-        fn store(self, v: __m512, out: &mut [f32; 16]) {
-            // SAFETY: AVX-512F; all 16 values are written.
-            unsafe { _mm512_storeu_ps(out.as_mut_ptr(), v) }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m512) -> __m512 {

@@ -3,7 +3,7 @@
 //! SIMD over the 16 atom pairs, in the instruction set of the kernel.
 
 use super::{Cluster, Entry, PairList};
-use crate::forces::simd::{Isa, Portable, Simd, row_lanes};
+use crate::forces::simd::{Isa, Simd, row_lanes, simd_dispatch};
 
 /// `to` = the pairs of `from` with a marked atom pair within `reach`.
 pub fn list(
@@ -14,22 +14,13 @@ pub fn list(
     shifts: &[[f64; 3]; 27],
     reach: f64,
 ) {
-    let (outer, inner) = (from, to);
     let work = Work {
-        outer,
+        outer: from,
         positions,
         shifts,
         reach,
     };
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the caller's instruction set is available (checked when it was chosen).
-        Isa::Avx2 => unsafe { avx2(&work, inner) },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: as above.
-        Isa::Avx512 => unsafe { avx512(&work, inner) },
-        _ => prune(Portable::<f64>::new(), &work, inner),
-    }
+    prune_on(isa, &work, to)
 }
 
 struct Work<'a> {
@@ -39,26 +30,9 @@ struct Work<'a> {
     reach: f64,
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn avx2(work: &Work, inner: &mut PairList) {
-    // SAFETY: compiled for AVX2 and called only when it is available.
-    prune(
-        unsafe { crate::forces::simd::Avx2F64::new_unchecked() },
-        work,
-        inner,
-    )
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-fn avx512(work: &Work, inner: &mut PairList) {
-    // SAFETY: compiled for AVX-512 and called only when it is available.
-    prune(
-        unsafe { crate::forces::simd::Avx512F64::new_unchecked() },
-        work,
-        inner,
-    )
+simd_dispatch! {
+    /// [`prune`] on the instruction set `isa`.
+    fn prune_on[][](work: &Work, inner: &mut PairList) = prune, lanes f64;
 }
 
 #[inline(always)]

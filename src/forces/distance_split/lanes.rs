@@ -22,7 +22,7 @@ use crate::forces::nonbonded::kernel::{
     lennard_jones_force,
 };
 use crate::forces::nonbonded::{CoulombLanes, CoulombPair};
-use crate::forces::simd::{Isa, Portable, Simd, row_lanes};
+use crate::forces::simd::{Isa, Simd, row_lanes, simd_dispatch};
 
 /// The lane constants of one molecule kind: per lane `4 × row + column` (row an atom of
 /// the row molecule, column one of the partner's).
@@ -128,41 +128,23 @@ pub(crate) fn evaluate<const GRADIENT: bool>(
         type Out = f64;
         fn with<C: Coulomb>(self, coulomb: C) -> f64 {
             let Run(isa, block, scratch, buffer) = self;
-            match isa {
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: the instruction set was detected when it was chosen (`Isa::best`).
-                Isa::Avx2 => unsafe { avx2::<C, G>(block, coulomb, scratch, buffer) },
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: as above.
-                Isa::Avx512 => unsafe { avx512::<C, G>(block, coulomb, scratch, buffer) },
-                _ => rows::<_, C, G>(Portable::<f64>::new(), block, coulomb, scratch, buffer),
-            }
+            rows_on::<C, G>(isa, block, coulomb, scratch, buffer)
         }
     }
-    assert!(isa.is_available(), "{} is not available", isa.name());
     block
         .lanes
         .coulomb
         .lanes(Run::<GRADIENT>(isa, block, scratch, buffer))
 }
 
-// The blocks' copies per instruction set, written out as pruning writes its own: a generic
-// dispatch over f64 lanes shared by both was tried and ran these blocks 6–8 % slower
-// (3 alternating runs of the 15 Å SIN(R) case, same bits).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn avx2<C: Coulomb, const G: bool>(b: &Block, c: C, sc: &mut Scratch, out: &mut [f64]) -> f64 {
-    // SAFETY: compiled for AVX2 and called only when it is available.
-    let s = unsafe { crate::forces::simd::Avx2F64::new_unchecked() };
-    rows::<_, C, G>(s, b, c, sc, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-fn avx512<C: Coulomb, const G: bool>(b: &Block, c: C, sc: &mut Scratch, out: &mut [f64]) -> f64 {
-    // SAFETY: compiled for AVX-512 and called only when it is available.
-    let s = unsafe { crate::forces::simd::Avx512F64::new_unchecked() };
-    rows::<_, C, G>(s, b, c, sc, out)
+simd_dispatch! {
+    /// [`rows`] on the instruction set `isa`.
+    fn rows_on[C: Coulomb, const G: bool][C, G](
+        block: &Block,
+        coulomb: C,
+        scratch: &mut Scratch,
+        buffer: &mut [f64],
+    ) -> f64 = rows::<_, C, G>, lanes f64;
 }
 
 /// The lane constants in registers, one per group of rows.

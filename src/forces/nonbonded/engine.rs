@@ -7,7 +7,7 @@ use std::sync::atomic::Ordering;
 
 use rayon::prelude::*;
 
-use super::kernel::{self, Gradient4, Job, KernelReal, LjData, Out};
+use super::kernel::{self, Gradient4, Job, LjData, Out};
 use super::{Electrostatics, Kernel, Nonbonded, Precision};
 use crate::forces::clusters::{
     CLUSTER, Chunk, Cluster, ClusterList, PAD, PARALLEL_MIN_ATOMS, PARALLEL_PASSES_MIN_ATOMS,
@@ -211,7 +211,7 @@ impl Nonbonded {
     }
 
     /// The kernel over every chunk; the chunks' energies summed in chunk order.
-    fn run_chunks<R: KernelReal>(&self, workspace: &mut Workspace, energy: bool) -> (f64, f64)
+    fn run_chunks<R: Real>(&self, workspace: &mut Workspace, energy: bool) -> (f64, f64)
     where
         Workspace: Inputs<R>,
     {
@@ -259,7 +259,7 @@ impl Nonbonded {
     }
 
     /// The kernel with this term's Coulomb form.
-    fn dispatch<R: KernelReal, const ENERGY: bool>(&self, isa: Isa, job: &Job<R>, out: &mut Out) {
+    fn dispatch<R: Real, const ENERGY: bool>(&self, isa: Isa, job: &Job<R>, out: &mut Out) {
         if self.electrostatics == Electrostatics::None {
             return self.with_switch::<R, _, ENERGY>(isa, job, kernel::NoCoulomb, out);
         }
@@ -273,7 +273,7 @@ impl Nonbonded {
     }
 
     /// The kernel with Coulomb form `c`, multiplied by the switch of a short-range part.
-    fn with_switch<R: KernelReal, C: kernel::Coulomb, const ENERGY: bool>(
+    fn with_switch<R: Real, C: kernel::Coulomb, const ENERGY: bool>(
         &self,
         isa: Isa,
         job: &Job<R>,
@@ -281,14 +281,14 @@ impl Nonbonded {
         out: &mut Out,
     ) {
         match self.switch {
-            None => R::evaluate::<C, ENERGY>(isa, job, c, out),
+            None => kernel::evaluate::<R, C, ENERGY>(isa, job, c, out),
             Some(switch) => {
                 let switched = kernel::Switched {
                     inner: c,
                     r_in: switch.r_in(),
                     inverse_width: switch.inverse_width(),
                 };
-                R::evaluate::<_, ENERGY>(isa, job, switched, out)
+                kernel::evaluate::<R, _, ENERGY>(isa, job, switched, out)
             }
         }
     }

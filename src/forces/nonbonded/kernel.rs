@@ -65,7 +65,7 @@ use super::{
     TWO_OVER_SQRT_PI,
 };
 use crate::forces::clusters::{CLUSTER, Cluster, Entry, PairList};
-use crate::forces::simd::{Isa, Portable, Real, Simd, erfc_exp, row, row_lanes};
+use crate::forces::simd::{Real, Simd, erfc_exp, row, row_lanes, simd_dispatch};
 
 /// Gradient of a cluster's four atoms, in f64.
 #[derive(Clone, Copy, Debug, Default)]
@@ -946,64 +946,14 @@ fn run<S: Simd, C: Coulomb, const ENERGY: bool>(s: S, job: &Job<S::R>, coulomb: 
     }
 }
 
-/// The kernel for each precision: dispatch to the instruction set.
-pub trait KernelReal: Real {
-    fn evaluate<C: Coulomb, const ENERGY: bool>(
-        isa: Isa,
-        job: &Job<Self>,
+simd_dispatch! {
+    /// The kernel on the instruction set `isa`, in the job's precision.
+    pub fn evaluate[R: Real, C: Coulomb, const ENERGY: bool][R, C, ENERGY](
+        job: &Job<R>,
         coulomb: C,
         out: &mut Out,
-    );
+    ) = run::<_, C, ENERGY>, lanes R;
 }
-
-/// `$name`: the kernel compiled for `$features` with lanes `$lanes`.
-macro_rules! compiled {
-    ($name:ident, $features:literal, $lanes:ty, $real:ty) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        fn $name<C: Coulomb, const ENERGY: bool>(job: &Job<$real>, coulomb: C, out: &mut Out) {
-            // SAFETY: called only after `Isa::is_available` (see `KernelReal::evaluate`).
-            let s = unsafe { <$lanes>::new_unchecked() };
-            run::<_, C, ENERGY>(s, job, coulomb, out)
-        }
-    };
-}
-
-#[cfg(target_arch = "x86_64")]
-use crate::forces::simd::{Avx2F32, Avx2F64, Avx512F32, Avx512F64};
-
-compiled!(avx2_f64, "avx2,fma", Avx2F64, f64);
-compiled!(avx2_f32, "avx2,fma", Avx2F32, f32);
-compiled!(avx512_f64, "avx512f,avx512vl,avx512dq", Avx512F64, f64);
-compiled!(avx512_f32, "avx512f,avx512vl,avx512dq", Avx512F32, f32);
-
-/// `$real`'s dispatch over the instruction sets.
-macro_rules! precision {
-    ($real:ty, $avx2:ident, $avx512:ident) => {
-        impl KernelReal for $real {
-            fn evaluate<C: Coulomb, const ENERGY: bool>(
-                isa: Isa,
-                job: &Job<Self>,
-                coulomb: C,
-                out: &mut Out,
-            ) {
-                assert!(isa.is_available(), "{} is not available", isa.name());
-                match isa {
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: AVX2 is available (asserted above).
-                    Isa::Avx2 => unsafe { $avx2::<C, ENERGY>(job, coulomb, out) },
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: AVX-512 F, VL and DQ are available (asserted above).
-                    Isa::Avx512 => unsafe { $avx512::<C, ENERGY>(job, coulomb, out) },
-                    _ => run::<_, C, ENERGY>(Portable::<$real>::new(), job, coulomb, out),
-                }
-            }
-        }
-    };
-}
-
-precision!(f64, avx2_f64, avx512_f64);
-precision!(f32, avx2_f32, avx512_f32);
 
 const _: () = assert!(
     CLUSTER == 4,
