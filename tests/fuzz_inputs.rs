@@ -330,6 +330,8 @@ fn mutated_checkpoints_never_panic() {
             "4",
             "--temperature",
             "0.1",
+            "--friction",
+            "1",
             "--t-end",
             t_end,
             "--quiet",

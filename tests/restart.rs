@@ -463,3 +463,66 @@ fn manifest_lists_the_checkpoint_and_summary_says_continued() {
     // 10 steps were taken before the checkpoint, 10 after it.
     assert!(stdout.contains("steps      10 to t = 0.2"), "{stdout}");
 }
+
+/// A trajectory written with --trajectory-velocities carries the velocities, and its last
+/// frame given to --start restarts with them: the kinetic energy at the start is the first
+/// run's final one. Not bit for bit (v = p/m goes through a decimal and chemfiles' parser,
+/// and p = m v rounds again): a few ulps per component, so a relative 1e-12 is ample, while
+/// a start that lost the velocities would be off by O(1).
+#[test]
+fn trajectory_velocities_are_a_start() {
+    let dir = scratch_dir("restart-trajectory-velocities");
+    let first = dir.join("first");
+    run_ok(
+        &[
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.1",
+            "--t-end",
+            "1",
+            "--trajectory-every",
+            "5",
+            "--trajectory-velocities",
+            "--quiet",
+            "--out",
+            &first.display().to_string(),
+        ],
+        1,
+    );
+    let frames = lines(&first.join("trajectory.xyz"));
+    let n: usize = frames[0].parse().unwrap();
+    let last = &frames[frames.len() - (n + 2)..];
+    assert!(last[1].contains("velo:R:3"), "{}", last[1]);
+    assert_eq!(last[2].split_whitespace().count(), 7, "{}", last[2]);
+    let frame = dir.join("last.xyz");
+    std::fs::write(&frame, last.join("\n") + "\n").unwrap();
+    let second = dir.join("second");
+    run_ok(
+        &[
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.1",
+            "--t-end",
+            "0.1",
+            "--start",
+            &frame.display().to_string(),
+            "--quiet",
+            "--out",
+            &second.display().to_string(),
+        ],
+        1,
+    );
+    let kinetic = |row: &str| -> f64 { row.split(',').nth(1).unwrap().parse().unwrap() };
+    let end = kinetic(lines(&first.join("energy.csv")).last().unwrap());
+    let start = kinetic(&lines(&second.join("energy.csv"))[1]);
+    assert!(
+        (start - end).abs() <= 1e-12 * end.abs(),
+        "kinetic energy {start} at the start, {end} at the frame"
+    );
+}
