@@ -252,7 +252,7 @@ fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<
                 scene.units.time_units(),
             )?;
             let steps = (t / prepared.settings.h).round();
-            if !(t.is_finite() && t > 0.0 && steps >= 1.0 && steps < 1e18) {
+            if !(t.is_finite() && t > 0.0 && (1.0..1e18).contains(&steps)) {
                 return Err(Error::input(format!(
                     "--checkpoint-every must be at least one outer step (h = {}), got {}",
                     format_time(prepared.settings.h, scene.units),

@@ -314,10 +314,10 @@ pub fn start_positions(scene: &mut Scene, path: &Path, flag: &str) -> Result<()>
         // --trajectory-velocities) replace the scene's momenta.
         let dim = system.dim;
         for (i, v) in velocities.iter().enumerate() {
-            for a in 0..dim {
+            for (a, va) in v.iter().take(dim).enumerate() {
                 let k = i * dim + a;
                 let w = system.inverse_mass[k];
-                system.state.p[k] = if w > 0.0 { v[a] / w } else { 0.0 };
+                system.state.p[k] = if w > 0.0 { va / w } else { 0.0 };
             }
         }
         scene.velocities_file = Some(path.to_path_buf());
