@@ -26,6 +26,11 @@ pub enum Error {
     #[error("{location}: {message}")]
     Topology { location: String, message: String },
 
+    /// A checkpoint file (`run --restart`) that does not parse, is of another format
+    /// version, or belongs to another scene, method or setting.
+    #[error("{path}: {message}")]
+    Checkpoint { path: PathBuf, message: String },
+
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,

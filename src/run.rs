@@ -14,9 +14,12 @@ use std::time::Instant;
 
 use crate::error::{Error, Result};
 use crate::integrators::Integrator;
+use crate::io::checkpoint::{Checkpoint, Fingerprint, Restart};
 use crate::io::csv::CsvWriter;
-use crate::io::summary::{EnergySummary, ForceEvaluations, RunSummary, Status, TemperatureSummary};
-use crate::io::trajectory::TrajectoryWriter;
+use crate::io::summary::{
+    Continuation, EnergySummary, ForceEvaluations, RunSummary, Status, TemperatureSummary,
+};
+use crate::io::trajectory::{Momenta, TrajectoryWriter};
 use crate::run::drift::{CONSERVED_COLUMNS, DriftFit};
 use crate::run::monitor::EnergyMonitor;
 use crate::system::System;
@@ -43,6 +46,21 @@ pub struct RunOptions {
     pub fit_from: Option<f64>,
     /// Advanced by one per outer step (a terminal's progress bar; hidden by default).
     pub progress: indicatif::ProgressBar,
+    /// Write a checkpoint every so many outer steps (`run --checkpoint-every`).
+    pub checkpoint: Option<CheckpointPlan>,
+    /// Continue from this checkpoint (`run --restart`): its state is already in the
+    /// system ([`prepare`](crate::run::prepare)); the run restores the integrator's hidden
+    /// state and counts steps and time from the checkpoint's.
+    pub resume: Option<Restart>,
+}
+
+/// Where and how often a run writes its checkpoint.
+#[derive(Clone, Debug)]
+pub struct CheckpointPlan {
+    pub path: PathBuf,
+    /// Outer steps between checkpoints (counted from the start of the whole run).
+    pub every: u64,
+    pub fingerprint: Fingerprint,
 }
 
 /// A trajectory file: positions through chemfiles, format by extension.
@@ -52,6 +70,8 @@ pub struct TrajectoryOptions {
     pub every: usize,
     /// Atom names (element symbols) for the file.
     pub names: Vec<String>,
+    /// Velocities beside the positions (extended XYZ only; not with a mass matrix).
+    pub velocities: bool,
 }
 
 impl Default for RunOptions {
@@ -66,6 +86,8 @@ impl Default for RunOptions {
             temperature: None,
             fit_from: None,
             progress: indicatif::ProgressBar::hidden(),
+            checkpoint: None,
+            resume: None,
         }
     }
 }
@@ -82,26 +104,55 @@ pub fn run(
     check_applicable(scene, system, integrator)?;
     system.forces.reset_counts();
     integrator.setup(system)?;
+    if let Some(resume) = &options.resume {
+        check_resume_time(resume, integrator)?;
+        integrator
+            .restore_state(&resume.checkpoint.integrator)
+            .map_err(|e| Error::Checkpoint {
+                path: resume.path.clone(),
+                message: e.to_string(),
+            })?;
+    }
+    if options.checkpoint.is_some() {
+        // A method whose state cannot be saved says so before the run, not at its first
+        // checkpoint.
+        integrator.save_state()?;
+    }
     let h = integrator.outer_step();
+    let first_step = options.resume.as_ref().map_or(0, |r| r.checkpoint.step);
     // The trajectory first: a format chemfiles cannot write fails before energy.csv exists.
     let mut trajectory = match &options.trajectory {
         Some(t) => {
-            let writer =
+            let mut writer =
                 TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
-            Some((writer, t.every.max(1) as u64, 0))
+            if t.velocities {
+                if system.mass_matrix.is_some() {
+                    return Err(Error::input(
+                        "--trajectory-velocities: the velocities of a non-diagonal mass matrix \
+                         are not written; leave the flag out",
+                    ));
+                }
+                writer = writer.with_velocities()?;
+            }
+            Some((writer, t.every.max(1) as u64, first_step))
         }
         None => None,
     };
     let mut recorder = Recorder::new(system, integrator, options)?;
-    recorder.record(system, integrator)?;
+    if first_step.is_multiple_of(options.energy_every as u64) {
+        recorder.record(system, integrator)?;
+    }
     if let Some((writer, _, _)) = &mut trajectory {
-        writer.write(&system.state.q, 0, system.state.t)?;
+        writer.write_state(&system.state.q, momenta(system), first_step, system.state.t)?;
     }
 
-    let t_start = system.state.t;
+    let t_start = options
+        .resume
+        .as_ref()
+        .map_or(system.state.t, |r| r.checkpoint.t0);
     let started = Instant::now();
     let end_tolerance = 1e-9 * h;
-    let mut steps: u64 = 0;
+    let mut steps: u64 = first_step;
     let mut status = Status::Ok;
     let mut message = None;
     while system.state.t < options.t_end - end_tolerance {
@@ -119,10 +170,21 @@ pub fn run(
         // it happens, not at the next recorded row.
         let kinetic_finite = system.kinetic_energy().is_finite();
         options.progress.inc(1);
+        if let Some(plan) = &options.checkpoint
+            && kinetic_finite
+            && steps.is_multiple_of(plan.every)
+        {
+            let at = CheckpointAt {
+                step: steps,
+                t0: t_start,
+                monitor: &recorder.monitor,
+            };
+            write_checkpoint(plan, system, integrator, at)?;
+        }
         if let Some((writer, every, written)) = &mut trajectory
             && (last || !kinetic_finite || steps.is_multiple_of(*every))
         {
-            writer.write(&system.state.q, steps, system.state.t)?;
+            writer.write_state(&system.state.q, momenta(system), steps, system.state.t)?;
             *written = steps;
         }
         if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
@@ -140,21 +202,90 @@ pub fn run(
     if let Some((writer, _, written)) = &mut trajectory
         && *written != steps
     {
-        writer.write(&system.state.q, steps, system.state.t)?;
+        writer.write_state(&system.state.q, momenta(system), steps, system.state.t)?;
     }
     if let Some(csv) = &mut recorder.csv {
         csv.flush()?;
     }
     let outcome = Outcome {
         h,
-        steps,
+        steps: steps - first_step,
         status,
         message,
         wall_seconds,
     };
     let mut summary = summarise(scene, system, integrator, &recorder, outcome);
     summary.requested_t_end = Some(options.t_end);
+    if let Some(resume) = &options.resume {
+        let c = &resume.checkpoint;
+        summary.continued_from = Some(Continuation {
+            checkpoint: resume.path.display().to_string(),
+            step: c.step,
+            t: c.t,
+            t0: c.t0,
+        });
+    }
     Ok(summary)
+}
+
+/// The momenta and inverse masses a trajectory frame's velocities come from.
+fn momenta(system: &System) -> Option<Momenta<'_>> {
+    Some(Momenta {
+        p: &system.state.p,
+        inverse_mass: &system.inverse_mass,
+    })
+}
+
+/// A fixed-step method's time is `t0 + step h` exactly (the run loop sets it so): a
+/// checkpoint whose three disagree was edited or damaged, and would run for ever or from
+/// the wrong time.
+fn check_resume_time(resume: &Restart, integrator: &dyn Integrator) -> Result<()> {
+    let c = &resume.checkpoint;
+    let h = integrator.outer_step();
+    if integrator.fixed_step() && c.t0 + c.step as f64 * h != c.t {
+        return Err(Error::Checkpoint {
+            path: resume.path.clone(),
+            message: format!(
+                "its time t = {} is not t0 + step h = {} + {} × {h}: the file was changed",
+                c.t, c.t0, c.step
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// Where in the whole run a checkpoint is taken.
+struct CheckpointAt<'a> {
+    step: u64,
+    t0: f64,
+    monitor: &'a EnergyMonitor,
+}
+
+/// Write the checkpoint, then do what a restart from it does: rebuild every pair list
+/// and recompute the integrator's cached forces (`setup`, then its saved hidden state
+/// back). The run that wrote the checkpoint and a run continued from it then take the
+/// same steps bit for bit, whatever lists the first had built before. Allocates (the
+/// saved state, the JSON), once per checkpoint; costs one more force evaluation.
+fn write_checkpoint(
+    plan: &CheckpointPlan,
+    system: &mut System,
+    integrator: &mut dyn Integrator,
+    at: CheckpointAt,
+) -> Result<()> {
+    let state = integrator.save_state()?;
+    let mut checkpoint = Checkpoint::new(&plan.fingerprint, &system.state.q, &system.state.p);
+    checkpoint.every = plan.every;
+    checkpoint.step = at.step;
+    checkpoint.t0 = at.t0;
+    checkpoint.t = system.state.t;
+    checkpoint.initial_kinetic = at.monitor.initial_kinetic;
+    checkpoint.initial_potentials = at.monitor.initial_potentials.clone();
+    checkpoint.integrator = state;
+    checkpoint.write(&plan.path)?;
+    let state = checkpoint.integrator;
+    system.forces.rebuild_lists();
+    integrator.setup(system)?;
+    integrator.restore_state(&state)
 }
 
 /// How a run ended, for its summary.
@@ -361,11 +492,18 @@ impl Recorder {
             row: Vec::with_capacity(header.len()),
             potentials: vec![0.0; n_levels],
             extras: Vec::with_capacity(extra_columns.len()),
-            monitor: EnergyMonitor::new(
-                system.kinetic_energy(),
-                &system.potential_energies(),
-                options.blowup,
-            ),
+            monitor: match &options.resume {
+                Some(resume) => EnergyMonitor::new(
+                    resume.checkpoint.initial_kinetic,
+                    &resume.checkpoint.initial_potentials,
+                    options.blowup,
+                ),
+                None => EnergyMonitor::new(
+                    system.kinetic_energy(),
+                    &system.potential_energies(),
+                    options.blowup,
+                ),
+            },
             fit: DriftFit::default(),
             fit_from: options.fit_from.unwrap_or(f64::NEG_INFINITY),
             conserved,

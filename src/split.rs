@@ -264,6 +264,13 @@ impl ForceSplit {
         &self.counts
     }
 
+    /// Forget every term's pair lists and cached results ([`ForceTerm::rebuild_lists`]).
+    pub fn rebuild_lists(&self) {
+        for term in &self.terms {
+            term.term.rebuild_lists();
+        }
+    }
+
     pub fn reset_counts(&mut self) {
         let n = self.n_levels();
         self.counts = ForceCounts {

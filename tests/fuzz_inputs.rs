@@ -1,5 +1,6 @@
 //! A bounded, seeded mutation fuzz of what a user hands longstep besides scenes: structure
-//! files (XYZ) and command-line flags (issue 14). Every case must end with exit 0, 1, 2
+//! files (XYZ), command-line flags (issue 14), topologies (AMBER prmtop, GROMACS .top) and
+//! checkpoint files (issue 30). Every case must end with exit 0, 1, 2
 //! or 3 — never a panic (101), a signal or a hang — and a refusal must start with
 //! "error:" (or clap's usage message). The same seed gives the same cases on every run.
 
@@ -259,5 +260,108 @@ fn mutated_command_lines_never_panic() {
     assert!(
         failures_seen > 20,
         "only {failures_seen} of 200 command lines were refused"
+    );
+}
+
+/// `cases` mutated copies (1–3 mutations each) of the file `name` in `dir`, each handed to
+/// longstep as `args` (which name the file); returns how many were refused.
+fn fuzz_file(
+    dir: &std::path::Path,
+    name: &str,
+    original: &[u8],
+    args: &[String],
+    seed: u64,
+    cases: usize,
+) -> usize {
+    let mut rng = TestRng::new(seed);
+    let mut refused = 0;
+    for case in 0..cases {
+        let mut bytes = original.to_vec();
+        for _ in 0..1 + rng.next_u64() % 3 {
+            bytes = mutate(&bytes, &mut rng);
+        }
+        std::fs::write(dir.join(name), &bytes).unwrap();
+        let outcome = run_bounded(args, &dir.join("stderr"));
+        judge(&format!("{name} case {case}"), &outcome);
+        refused += usize::from(outcome.code != Some(0));
+    }
+    refused
+}
+
+/// 120 mutated copies each of alanine dipeptide's AMBER prmtop and GROMACS .top, read by
+/// `check` (which builds the whole force field from them).
+#[test]
+fn mutated_topologies_never_panic() {
+    let dir = scratch_dir("fuzz-topologies");
+    for file in ["ala2.prmtop", "ala2.inpcrd", "ala2.top", "ala2.gro"] {
+        std::fs::copy(
+            format!("systems/alanine-dipeptide-amber/{file}"),
+            dir.join(file),
+        )
+        .unwrap();
+    }
+    for (name, seed) in [("ala2.prmtop", 30), ("ala2.top", 31)] {
+        let original = std::fs::read(dir.join(name)).unwrap();
+        let args = ["check".to_string(), dir.join(name).display().to_string()];
+        let refused = fuzz_file(&dir, name, &original, &args, seed, 120);
+        // Hostile mutations of a topology are mostly refused (else the fuzz tests nothing).
+        assert!(
+            refused > 20,
+            "only {refused} of 120 mutated {name} were refused"
+        );
+    }
+}
+
+/// 150 mutated checkpoints (pretty-printed first, so line and word mutations bite) of a
+/// langevin-respa run, each continued with `run --restart`: a clear refusal or a valid run.
+#[test]
+fn mutated_checkpoints_never_panic() {
+    let dir = scratch_dir("fuzz-checkpoints");
+    let origin = dir.join("origin");
+    let base = |t_end: &str, out: &std::path::Path| -> Vec<String> {
+        [
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "langevin-respa",
+            "--h",
+            "0.1",
+            "--inner",
+            "4",
+            "--temperature",
+            "0.1",
+            "--friction",
+            "1",
+            "--t-end",
+            t_end,
+            "--quiet",
+            "--out",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .chain([out.display().to_string()])
+        .collect()
+    };
+    let mut first = base("1", &origin);
+    first.extend(["--checkpoint-every".to_string(), "1".to_string()]);
+    let outcome = run_bounded(&first, &dir.join("stderr"));
+    assert_eq!(outcome.code, Some(0), "{}", outcome.stderr);
+    let text = std::fs::read_to_string(origin.join("checkpoint.json")).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let pretty = serde_json::to_string_pretty(&value).unwrap();
+    let mut args = base("2", &dir.join("continued"));
+    args.extend([
+        "--force".to_string(),
+        "--restart".to_string(),
+        dir.join("mutated.json").display().to_string(),
+    ]);
+    // The pretty form reads back as the checkpoint itself.
+    std::fs::write(dir.join("mutated.json"), &pretty).unwrap();
+    let outcome = run_bounded(&args, &dir.join("stderr"));
+    assert_eq!(outcome.code, Some(0), "{}", outcome.stderr);
+    let refused = fuzz_file(&dir, "mutated.json", pretty.as_bytes(), &args, 32, 150);
+    assert!(
+        refused > 20,
+        "only {refused} of 150 mutated checkpoints were refused"
     );
 }

@@ -372,6 +372,7 @@ pub fn run_once(
         path: dir.join("trajectory.xyz"),
         every: outputs.frame_every.max(1),
         names: prepared.scene.elements.clone(),
+        velocities: false,
     });
     // A point's folder is rewritten whole (both files, every time), so nothing stale is
     // left; its manifest lets `analyze` check the pair.

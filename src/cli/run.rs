@@ -7,13 +7,14 @@ use clap::Args;
 
 use super::common::EXIT_UNSTABLE;
 use crate::error::{Error, Result};
+use crate::io::checkpoint::CHECKPOINT_FILE;
 use crate::io::energy_table::EnergyTable;
 use crate::io::manifest::{RunManifest, clear_earlier_run};
 use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status, format_time};
 use crate::run::drift::judge;
-use crate::run::prepare::{OutputPlan, RunRequest, check_scene, prepare};
-use crate::run::{RunOptions, TrajectoryOptions, is_stochastic};
+use crate::run::prepare::{OutputPlan, PreparedRun, RunRequest, check_scene, prepare};
+use crate::run::{CheckpointPlan, RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::split::ParticleClass;
 use crate::system::exact::position_error;
@@ -42,6 +43,10 @@ pub struct RunArgs {
     /// trajectory.xyz in the output directory; any chemfiles format by extension).
     #[arg(long, value_name = "N")]
     pub trajectory_every: Option<usize>,
+    /// Write the velocities beside the positions in every trajectory frame (extended XYZ
+    /// `velo:R:3` columns, full precision); `--start` reads such a frame back with them.
+    #[arg(long)]
+    pub trajectory_velocities: bool,
     /// Print no level table or notices on stderr.
     #[arg(long)]
     pub quiet: bool,
@@ -50,9 +55,22 @@ pub struct RunArgs {
     #[arg(long)]
     pub plot: bool,
     /// Start from the positions of this structure file (e.g. from `minimize --save`): same
-    /// atoms in the same order; the scene's force field, velocities and box are kept.
+    /// atoms in the same order; the scene's force field and box are kept, and its
+    /// velocities unless the file carries its own (a frame written with
+    /// --trajectory-velocities).
     #[arg(long, value_name = "FILE")]
     pub start: Option<PathBuf>,
+    /// Write checkpoint.json in the output directory every T of simulated time (e.g. 2ps;
+    /// every round(T/h) outer steps), atomically, for --restart. Each checkpoint rebuilds
+    /// the pair lists and recomputes cached forces, as a restart from it does.
+    #[arg(long, value_name = "T")]
+    pub checkpoint_every: Option<Value>,
+    /// Continue from a checkpoint written by --checkpoint-every: give the original command
+    /// (same scene, flags and settings; --t-end is the end of the whole run) with its own
+    /// --out. energy.csv then holds the rows from the checkpoint on, the same bits as the
+    /// uninterrupted run's.
+    #[arg(long, value_name = "FILE")]
+    pub restart: Option<PathBuf>,
     /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
     #[arg(long)]
     pub allow_large: bool,
@@ -157,9 +175,12 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         start: args.start.as_deref(),
         precision: args.precision.as_deref(),
         flags: args.source.flags()?,
+        restart: args.restart.as_deref(),
     };
     let mut prepared = prepare(&request)?;
     let t_end = prepared.t_end()?;
+    let checkpoint_every = checkpoint_interval(args, &prepared)?;
+    check_restart_end(&prepared, t_end)?;
     let (energy_every, trajectory_every) = output_intervals(args, &prepared.scene)?;
     let drift_bound = args.drift.bound()?;
     let scene = &prepared.scene;
@@ -178,6 +199,11 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     let steps = prepared.check_size(t_end, &plan)?;
     let out_dir = output_dir(args, &prepared.scene, &prepared.settings.method)?;
     let mut manifest = start_manifest(args, &prepared.scene, &out_dir, trajectory_every)?;
+    let checkpoint = checkpoint_every.map(|every| CheckpointPlan {
+        path: out_dir.join(CHECKPOINT_FILE),
+        every,
+        fingerprint: prepared.fingerprint.clone(),
+    });
     if !args.quiet {
         prepared
             .header()
@@ -189,12 +215,15 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         energy_every,
         blowup: prepared.settings.blowup,
         energy_csv: Some(out_dir.join("energy.csv")),
-        trajectory: trajectory_every
-            .map(|every| trajectory_options(&prepared.scene, &out_dir, every)),
+        trajectory: trajectory_every.map(|every| {
+            trajectory_options(&prepared.scene, &out_dir, every, args.trajectory_velocities)
+        }),
         units: prepared.scene.units,
         temperature: prepared.degrees_of_freedom,
         fit_from,
         progress: run_progress(steps, args.quiet),
+        checkpoint,
+        resume: prepared.restart.clone(),
     };
     let mut summary = prepared.run(&options)?;
     complete_summary(args, &prepared.scene, &mut summary, drift_bound)?;
@@ -210,11 +239,78 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     report(args, &summary)
 }
 
+/// Outer steps between checkpoints: `--checkpoint-every T` as round(T/h), at least one;
+/// on a restart the checkpoint's own interval (another one is refused: checkpoints rebuild
+/// pair lists, so a continued run must take them where the original did).
+fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<u64>> {
+    let scene = &prepared.scene;
+    let every = match &args.checkpoint_every {
+        Some(value) => {
+            let t = value.evaluate_time(
+                &scene.parameters,
+                "--checkpoint-every",
+                scene.units.time_units(),
+            )?;
+            let steps = (t / prepared.settings.h).round();
+            if !(t.is_finite() && t > 0.0 && (1.0..1e18).contains(&steps)) {
+                return Err(Error::input(format!(
+                    "--checkpoint-every must be at least one outer step (h = {}), got {}",
+                    format_time(prepared.settings.h, scene.units),
+                    format_time(t, scene.units)
+                )));
+            }
+            Some(steps as u64)
+        }
+        None => None,
+    };
+    let Some(restart) = &prepared.restart else {
+        return Ok(every);
+    };
+    let saved = restart.checkpoint.every;
+    match every {
+        Some(every) if every != saved => Err(Error::Checkpoint {
+            path: restart.path.clone(),
+            message: format!(
+                "written every {saved} outer steps, but --checkpoint-every asks for every \
+                 {every}: give the original interval (or leave the flag out to keep it)"
+            ),
+        }),
+        _ => Ok(Some(saved)),
+    }
+}
+
+/// A restart must have somewhere to go: `--t-end` (the whole run's end) past the
+/// checkpoint's time.
+fn check_restart_end(prepared: &PreparedRun, t_end: f64) -> Result<()> {
+    let Some(restart) = &prepared.restart else {
+        return Ok(());
+    };
+    let t = restart.checkpoint.t;
+    if t_end <= t {
+        let units = prepared.scene.units;
+        return Err(Error::Checkpoint {
+            path: restart.path.clone(),
+            message: format!(
+                "written at t = {}, but the run ends at t = {}: --t-end is the end of the whole \
+                 run and must lie after the checkpoint",
+                format_time(t, units),
+                format_time(t_end, units)
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Steps between energy rows (default 1) and between trajectory frames (default none):
 /// the flag, else the scene's `[output]` table; each at least 1.
 fn output_intervals(args: &RunArgs, scene: &Scene) -> Result<(usize, Option<usize>)> {
     let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
     let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
+    if args.trajectory_velocities && trajectory_every.is_none() {
+        return Err(Error::input(
+            "--trajectory-velocities needs a trajectory: give --trajectory-every N",
+        ));
+    }
     for (flag, every) in [
         ("--energy-every", Some(energy_every)),
         ("--trajectory-every", trajectory_every),
@@ -263,6 +359,9 @@ fn start_manifest(
     if trajectory_every.is_some() {
         planned.push(trajectory_name(scene).to_string());
     }
+    if args.checkpoint_every.is_some() || args.restart.is_some() {
+        planned.push(CHECKPOINT_FILE.to_string());
+    }
     if args.plot {
         planned.extend(
             [
@@ -297,11 +396,17 @@ fn trajectory_name(scene: &Scene) -> &str {
         .unwrap_or("trajectory.xyz")
 }
 
-fn trajectory_options(scene: &Scene, out_dir: &std::path::Path, every: usize) -> TrajectoryOptions {
+fn trajectory_options(
+    scene: &Scene,
+    out_dir: &std::path::Path,
+    every: usize,
+    velocities: bool,
+) -> TrajectoryOptions {
     TrajectoryOptions {
         path: out_dir.join(trajectory_name(scene)),
         every,
         names: scene.elements.clone(),
+        velocities,
     }
 }
 

@@ -1199,12 +1199,31 @@ impl ForceTerm for NonbondedShort {
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
     }
 
+    fn rebuild_lists(&self) {
+        self.short.rebuild_lists();
+    }
+
     /// By atom pair (the cluster-pair kernel) in either precision; the molecule loops
     /// stay in double.
     fn set_precision(&self, precision: Precision) -> bool {
         match &*self.short {
             ShortPart::AtomPairs(pairs) => pairs.set_precision(precision),
             ShortPart::Molecules(_) => false,
+        }
+    }
+}
+
+impl ShortPart {
+    /// Forget the pair list and the cached gradient ([`ForceTerm::rebuild_lists`]).
+    fn rebuild_lists(&self) {
+        match self {
+            ShortPart::AtomPairs(pairs) => pairs.rebuild_lists(),
+            ShortPart::Molecules(molecules) => {
+                let mut workspace = molecules.lock();
+                workspace.search.invalidate();
+                workspace.cached_q.fill(f64::NAN);
+                workspace.cached_energy = None;
+            }
         }
     }
 }
@@ -1227,6 +1246,11 @@ impl ForceTerm for NonbondedRemainder {
 
     fn energy(&self, q: &[f64]) -> f64 {
         self.full.energy(q) - self.short.energy(q)
+    }
+
+    fn rebuild_lists(&self) {
+        self.full.rebuild_lists();
+        self.short.rebuild_lists();
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {

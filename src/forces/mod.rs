@@ -170,6 +170,12 @@ pub trait ForceTerm: Send + Sync {
         false
     }
 
+    /// Forget every pair list and cached result, so the next evaluation rebuilds its lists
+    /// at the positions it is given, as a freshly built term would. A checkpoint does this
+    /// (in the run that writes it and in the run that continues from it) so that both sum
+    /// over the same lists in the same order. Nothing to do for a term without lists.
+    fn rebuild_lists(&self) {}
+
     /// The concrete term, for term-specific settings and reports (tests, benchmarks):
     /// `term.as_any().and_then(|t| t.downcast_ref::<Nonbonded>())`. `None` by default.
     fn as_any(&self) -> Option<&dyn std::any::Any> {

@@ -779,6 +779,14 @@ impl ForceTerm for Nonbonded {
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
     }
 
+    fn rebuild_lists(&self) {
+        let mut workspace = self.lock();
+        let (outer, inner) = workspace.list.buffers();
+        workspace.list.set_buffers(outer, inner);
+        workspace.cached = None;
+        workspace.reusable = false;
+    }
+
     fn set_precision(&self, precision: Precision) -> bool {
         let mut workspace = self.lock();
         workspace.precision = precision;

@@ -39,7 +39,7 @@
 //! the scalar root finding (arclength) or one pass over the pair distances
 //! (min-distance), neither of them a force evaluation.
 
-use super::integrator::{Integrator, StepFailure, drift, kick};
+use super::integrator::{Integrator, StepFailure, drift, kick, state_from_json, state_to_json};
 use crate::error::{Error, Result};
 use crate::forces::TermClass;
 use crate::system::System;
@@ -485,6 +485,31 @@ impl Integrator for AdaptiveVerlet {
         false
     }
 
+    /// HL97's `ρ_{n−½}` (the next step's root search starts from it) and the step
+    /// statistics; the gradient is recomputed by `setup`.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        let state = AdaptiveState {
+            rho_half: self.rho_half,
+            last_dt: self.last_dt.is_finite().then_some(self.last_dt),
+            last_root_evaluations: self.last_root_evaluations,
+            root_evaluations: self.root_evaluations,
+            smallest_dt: self.smallest_dt.is_finite().then_some(self.smallest_dt),
+            largest_dt: self.largest_dt,
+        };
+        state_to_json(self.name(), &state)
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        let saved: AdaptiveState = state_from_json(self.name(), state)?;
+        self.rho_half = saved.rho_half;
+        self.last_dt = saved.last_dt.unwrap_or(f64::NAN);
+        self.last_root_evaluations = saved.last_root_evaluations;
+        self.root_evaluations = saved.root_evaluations;
+        self.smallest_dt = saved.smallest_dt.unwrap_or(f64::INFINITY);
+        self.largest_dt = saved.largest_dt;
+        Ok(())
+    }
+
     fn extra_columns(&self) -> Vec<&'static str> {
         vec!["dt", "root_evaluations"]
     }
@@ -493,6 +518,18 @@ impl Integrator for AdaptiveVerlet {
         out.push(self.last_dt);
         out.push(self.last_root_evaluations as f64);
     }
+}
+
+/// What a checkpoint holds of adaptive Verlet.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct AdaptiveState {
+    rho_half: Option<f64>,
+    /// `None` before the first step (NaN then).
+    last_dt: Option<f64>,
+    last_root_evaluations: u32,
+    root_evaluations: u64,
+    smallest_dt: Option<f64>,
+    largest_dt: f64,
 }
 
 #[cfg(test)]

@@ -220,6 +220,22 @@ impl InnermostStep for Constrained {
         self.project_velocities(system)
     }
 
+    /// The Langevin generator of a constrained BAOAB step; a constrained Verlet step keeps
+    /// nothing between outer steps (the owed projection is done at their end).
+    fn save_state(&self) -> Result<serde_json::Value> {
+        match &self.flight {
+            Flight::Baoab(langevin) => langevin.save_state(),
+            Flight::Verlet => Ok(serde_json::Value::Null),
+        }
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        match &mut self.flight {
+            Flight::Baoab(langevin) => langevin.restore_state(state),
+            Flight::Verlet => super::integrator::expect_no_state(self.name, state),
+        }
+    }
+
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         match &self.flight {
             Flight::Baoab(langevin) => Some(("langevin", langevin.report())),

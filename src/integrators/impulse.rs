@@ -361,6 +361,19 @@ impl Integrator for Impulse {
         notices
     }
 
+    /// The innermost step's state (a thermostat's generator and variables); the
+    /// gradients are recomputed by `setup`.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        if let Some(mollifier) = &self.mollifier {
+            mollifier.check_checkpoint()?;
+        }
+        self.step.save_state()
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        self.step.restore_state(state)
+    }
+
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         match self.step.report() {
             Some(report) => Some(report),

@@ -68,6 +68,19 @@ pub trait InnermostStep: Send {
     fn is_plain_verlet(&self) -> bool {
         false
     }
+
+    /// The step's hidden state for a checkpoint ([`Integrator::save_state`]); `Null`
+    /// for none.
+    ///
+    /// [`Integrator::save_state`]: super::Integrator::save_state
+    fn save_state(&self) -> Result<serde_json::Value> {
+        Ok(serde_json::Value::Null)
+    }
+
+    /// Restore what [`InnermostStep::save_state`] saved, after `setup`.
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        super::integrator::expect_no_state(self.method_name().unwrap_or("verlet"), state)
+    }
 }
 
 /// Velocity Verlet: kick `dt/2`, drift `dt`, kick `dt/2`.

@@ -64,6 +64,65 @@ pub trait Integrator {
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         None
     }
+
+    /// The method's hidden state for a checkpoint: what cannot be recomputed bit for bit
+    /// from the positions and momenta (a random-number generator, thermostat variables,
+    /// staggered momenta, the adaptive step's history). `Null` for a method with none
+    /// (the default); an error for a method whose state cannot be saved yet. Cached forces
+    /// are not saved: [`Integrator::setup`] recomputes them.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        Ok(serde_json::Value::Null)
+    }
+
+    /// Restore what [`Integrator::save_state`] saved, after [`Integrator::setup`]; an
+    /// error names what is missing or malformed.
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        expect_no_state(self.name(), state)
+    }
+}
+
+/// The default [`Integrator::restore_state`]: a method with no hidden state accepts only
+/// `null`.
+pub fn expect_no_state(method: &str, state: &serde_json::Value) -> Result<()> {
+    if state.is_null() {
+        Ok(())
+    } else {
+        Err(crate::error::Error::input(format!(
+            "the checkpoint holds integrator state, but {method} keeps none"
+        )))
+    }
+}
+
+/// A method's hidden state as JSON (f64 as shortest round-trip decimals, which
+/// `serde_json`'s `float_roundtrip` parsing reads back to the same bits).
+pub fn state_to_json<T: serde::Serialize>(method: &str, state: &T) -> Result<serde_json::Value> {
+    serde_json::to_value(state)
+        .map_err(|e| crate::error::Error::input(format!("cannot save the state of {method}: {e}")))
+}
+
+/// The inverse of [`state_to_json`]; the error names the method and what is malformed.
+pub fn state_from_json<T: serde::de::DeserializeOwned>(
+    method: &str,
+    state: &serde_json::Value,
+) -> Result<T> {
+    T::deserialize(state).map_err(|e| {
+        crate::error::Error::input(format!(
+            "the checkpoint's state of {method} is malformed: {e}"
+        ))
+    })
+}
+
+/// Copy a saved vector into a buffer sized by `setup`, refusing another length.
+pub fn restore_vector(method: &str, what: &str, saved: &[f64], into: &mut [f64]) -> Result<()> {
+    if saved.len() != into.len() {
+        return Err(crate::error::Error::input(format!(
+            "the checkpoint's {what} of {method} has {} values, this system {}",
+            saved.len(),
+            into.len()
+        )));
+    }
+    into.copy_from_slice(saved);
+    Ok(())
 }
 
 /// `p -= scale · gradient`: a kick by the force `−gradient` over time `scale`.

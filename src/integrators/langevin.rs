@@ -27,8 +27,9 @@ use rand_distr::StandardNormal;
 /// The seed used when `--seed` is not given (runs stay reproducible; say `--seed` to vary).
 pub const DEFAULT_SEED: u64 = 2013;
 
-/// A seeded stream of standard normal numbers.
-#[derive(Clone, Debug)]
+/// A seeded stream of standard normal numbers. Its state is the generator's four words
+/// (rand's serde form), which a checkpoint saves so a continued run draws the same numbers.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Gaussian {
     rng: Xoshiro256PlusPlus,
 }
@@ -39,6 +40,23 @@ impl Gaussian {
         Gaussian {
             rng: Xoshiro256PlusPlus::seed_from_u64(seed ^ salt),
         }
+    }
+
+    /// Refuse a restored generator whose state is all zeros: Xoshiro256++ then returns
+    /// zeros for ever (no seed gives that state, so only an edited file holds it).
+    pub fn check(&self, method: &str) -> Result<()> {
+        let zero = serde_json::to_value(&self.rng)
+            .ok()
+            .and_then(|v| v.get("s").cloned())
+            .and_then(|s| serde_json::from_value::<[u64; 4]>(s).ok())
+            .is_some_and(|s| s == [0; 4]);
+        if zero {
+            return Err(Error::input(format!(
+                "the checkpoint's random-number generator of {method} is all zeros, which no \
+                 seed gives"
+            )));
+        }
+        Ok(())
     }
 
     /// The next standard normal number.
@@ -203,5 +221,41 @@ impl InnermostStep for Baoab {
 
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
         Some(("langevin", self.0.report()))
+    }
+
+    /// The generator: the only state of BAOAB's O step (the noise amplitudes follow from
+    /// the masses).
+    fn save_state(&self) -> Result<serde_json::Value> {
+        self.0.save_state()
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        self.0.restore_state(state)
+    }
+}
+
+/// What a checkpoint holds of a Langevin O step.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct LangevinState {
+    gaussian: Gaussian,
+}
+
+impl Langevin {
+    /// The generator's state for a checkpoint.
+    pub fn save_state(&self) -> Result<serde_json::Value> {
+        super::integrator::state_to_json(
+            "langevin",
+            &LangevinState {
+                gaussian: self.gaussian.clone(),
+            },
+        )
+    }
+
+    /// Restore the generator saved by [`Langevin::save_state`].
+    pub fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        let saved: LangevinState = super::integrator::state_from_json("langevin", state)?;
+        saved.gaussian.check("langevin")?;
+        self.gaussian = saved.gaussian;
+        Ok(())
     }
 }

@@ -80,6 +80,12 @@ pub trait SlowMollifier: Send {
     fn report(&self) -> Option<serde_json::Value> {
         None
     }
+
+    /// Whether a checkpoint can hold this mollifier's state: the GSS98 averages keep none
+    /// between steps (the default); a mollifier that warm-starts a solver refuses.
+    fn check_checkpoint(&self) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// The weight function φ of the average (GSS98 section 2).

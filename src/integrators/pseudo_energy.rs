@@ -33,14 +33,14 @@
 //! (uncounted) energy evaluation for the pseudo-energy monitor; rejected attempts cost
 //! the same again.
 
-use super::integrator::{Integrator, StepFailure};
+use super::integrator::{Integrator, StepFailure, restore_vector, state_from_json, state_to_json};
 use super::quadrature::Quadrature;
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
 use crate::system::System;
 
 /// Running statistics of the pseudo-energy at the nodes where it is conserved.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PseudoEnergyMonitor {
     pub initial: f64,
     pub last: f64,
@@ -361,6 +361,38 @@ impl Integrator for PseudoEnergy {
         self.h
     }
 
+    /// The staggered momenta `p^{n∓½}` of (6) and their velocities, the pseudo-energy
+    /// statistics and the step-size history; `∇V(qⁿ)` is recomputed by `setup`.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        let state = PseudoEnergyState {
+            p_minus: self.p_minus.clone(),
+            p_plus: self.p_plus.clone(),
+            v_minus: self.v_minus.clone(),
+            v_plus: self.v_plus.clone(),
+            monitor: self.monitor.clone(),
+            last_h: self.last_h,
+            smallest_h: self.smallest_h.is_finite().then_some(self.smallest_h),
+            largest_h: self.largest_h,
+            rejected: self.rejected,
+        };
+        state_to_json(self.name(), &state)
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        let name = self.name();
+        let saved: PseudoEnergyState = state_from_json(name, state)?;
+        restore_vector(name, "p^{n-1/2}", &saved.p_minus, &mut self.p_minus)?;
+        restore_vector(name, "p^{n+1/2}", &saved.p_plus, &mut self.p_plus)?;
+        restore_vector(name, "v^{n-1/2}", &saved.v_minus, &mut self.v_minus)?;
+        restore_vector(name, "v^{n+1/2}", &saved.v_plus, &mut self.v_plus)?;
+        self.monitor = saved.monitor;
+        self.last_h = saved.last_h;
+        self.smallest_h = saved.smallest_h.unwrap_or(f64::INFINITY);
+        self.largest_h = saved.largest_h;
+        self.rejected = saved.rejected;
+        Ok(())
+    }
+
     fn setup(&mut self, system: &mut System) -> Result<()> {
         let n = system.n_dofs();
         // Initialisation (5)/(7): p^{−1/2} = p^{1/2} = p(t⁰).
@@ -492,4 +524,19 @@ impl Integrator for PseudoEnergy {
         }
         Some(("pseudo_energy", serde_json::Value::Object(map)))
     }
+}
+
+/// What a checkpoint holds of the MEMM18 (6) scheme.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct PseudoEnergyState {
+    p_minus: Vec<f64>,
+    p_plus: Vec<f64>,
+    v_minus: Vec<f64>,
+    v_plus: Vec<f64>,
+    monitor: PseudoEnergyMonitor,
+    last_h: f64,
+    /// `None` before the first step.
+    smallest_h: Option<f64>,
+    largest_h: f64,
+    rejected: u64,
 }

@@ -387,6 +387,33 @@ impl InnermostStep for Sinr {
         self.start(dt, system)
     }
 
+    /// The generator, the thermostat variables `v1`, `v2` (LMT13's auxiliary velocities)
+    /// and the health statistics the summary reports.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        let state = SinrState {
+            gaussian: self.gaussian.clone(),
+            v1: self.v1.clone(),
+            v2: self.v2.clone(),
+            max_violation: self.max_violation,
+            min_share: self.min_share.is_finite().then_some(self.min_share),
+            collapsed: self.collapsed,
+        };
+        super::integrator::state_to_json("sinr", &state)
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        use super::integrator::{restore_vector, state_from_json};
+        let saved: SinrState = state_from_json("sinr", state)?;
+        saved.gaussian.check("sinr")?;
+        restore_vector("sinr", "thermostat variables v1", &saved.v1, &mut self.v1)?;
+        restore_vector("sinr", "thermostat variables v2", &saved.v2, &mut self.v2)?;
+        self.gaussian = saved.gaussian;
+        self.max_violation = saved.max_violation;
+        self.min_share = saved.min_share.unwrap_or(f64::INFINITY);
+        self.collapsed = saved.collapsed;
+        Ok(())
+    }
+
     fn kick(&mut self, system: &mut System, gradient: &[f64], scale: f64) {
         self.isokinetic_kick(&mut system.state.p, gradient, scale);
     }
@@ -606,6 +633,19 @@ mod lanes {
             (*pi, *a, *b) = (p, a_, b_);
         }
     }
+}
+
+/// What a checkpoint holds of SIN(R): everything its step reads that positions and momenta
+/// do not give.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct SinrState {
+    gaussian: Gaussian,
+    v1: Vec<f64>,
+    v2: Vec<f64>,
+    max_violation: f64,
+    /// `None` before the first kick (the share's minimum is then infinite).
+    min_share: Option<f64>,
+    collapsed: Option<usize>,
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Input and output: scene files, structure files through chemfiles, CSV and JSON.
 
+pub mod checkpoint;
 pub mod csv;
 pub mod energy_table;
 pub mod forcefield;

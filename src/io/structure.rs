@@ -23,6 +23,9 @@ pub struct Structure {
     pub cell: Option<[f64; 3]>,
     /// Bonds the file lists (none for plain XYZ).
     pub bonds: Vec<[usize; 2]>,
+    /// Velocities the file carries (extended XYZ `velo:R:3`, as `run
+    /// --trajectory-velocities` writes them), one per atom, checked finite.
+    pub velocities: Option<Vec<[f64; 3]>>,
 }
 
 /// Chemfiles warnings of the current read, attached to the error when the read fails.
@@ -240,6 +243,32 @@ fn check_coordinates(path: &Path, frame: &chemfiles::Frame) -> Result<()> {
     Ok(())
 }
 
+/// The frame's velocities: chemfiles' own (formats that carry them), else the extended XYZ
+/// `velo:R:3` columns (an atom property there), which every atom must have.
+fn velocities(path: &Path, frame: &chemfiles::Frame) -> Result<Option<Vec<[f64; 3]>>> {
+    if let Some(v) = frame.velocities() {
+        return Ok(Some(v.to_vec()));
+    }
+    let velocity = |i: usize| match frame.atom(i).get("velo") {
+        Some(chemfiles::Property::Vector3D(v)) => Some(v),
+        _ => None,
+    };
+    if frame.size() == 0 || velocity(0).is_none() {
+        return Ok(None);
+    }
+    (0..frame.size())
+        .map(|i| {
+            velocity(i).ok_or_else(|| {
+                structure_error(
+                    path,
+                    format!("atom {i} has no velocity (velo), but atom 0 has one"),
+                )
+            })
+        })
+        .collect::<Result<Vec<_>>>()
+        .map(Some)
+}
+
 pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> {
     if !path.exists() {
         return Err(Error::Structure {
@@ -290,5 +319,19 @@ pub fn read_structure_with(path: &Path, guess_bonds: bool) -> Result<Structure> 
         }
     };
     let bonds = frame.topology().bonds();
-    Ok(Structure { atoms, cell, bonds })
+    let velocities = velocities(path, &frame)?;
+    if let Some(v) = &velocities
+        && let Some(i) = v.iter().position(|v| v.iter().any(|x| !x.is_finite()))
+    {
+        return Err(structure_error(
+            path,
+            format!("atom {i} has a non-finite velocity {:?}", v[i]),
+        ));
+    }
+    Ok(Structure {
+        atoms,
+        cell,
+        bonds,
+        velocities,
+    })
 }

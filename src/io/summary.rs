@@ -295,6 +295,21 @@ pub struct RunSummary {
     /// exact solution).
     #[serde(flatten)]
     pub extra: BTreeMap<String, serde_json::Value>,
+    /// A run continued from a checkpoint (`run --restart`): its steps, energy errors,
+    /// drift fit and temperature cover only the continued part.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub continued_from: Option<Continuation>,
+}
+
+/// Where a continued run took over.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Continuation {
+    pub checkpoint: String,
+    /// The checkpoint's outer step, counted from the start of the whole run.
+    pub step: u64,
+    pub t: f64,
+    /// The time the whole run started at.
+    pub t0: f64,
 }
 
 impl RunSummary {
@@ -361,6 +376,17 @@ impl RunSummary {
                 self.energy.max_relative_error
             ),
         ];
+        if let Some(c) = &self.continued_from {
+            lines.push(format!(
+                "continued  from {} at step {}, t = {} (the run began at t0 = {}): E0 is the \
+                 whole run's; steps, max |dE|, the drift fit and the temperature cover t ≥ {} only",
+                c.checkpoint,
+                c.step,
+                time(c.t),
+                time(c.t0),
+                time(c.t)
+            ));
+        }
         if let Some(t) = &self.temperature {
             let unit = match units {
                 Units::None => " (k_B T)".to_string(),

@@ -1,7 +1,9 @@
 //! Trajectory output: XYZ by default, written here as extended XYZ (the cell as `Lattice`,
 //! the time as `time`) with every coordinate in full precision (the shortest decimal that
-//! reads back to the same double); any other format chemfiles writes by the file's extension
-//! (`.pdb`, `.gro`, …), at that format's own precision.
+//! reads back to the same double), and optionally the velocities beside the positions
+//! (`velo:R:3` columns, [`TrajectoryWriter::with_velocities`]), which the structure reader
+//! takes back as a start; any other format chemfiles writes by the file's extension
+//! (`.pdb`, `.gro`, …), at that format's own precision, positions only.
 //!
 //! Every frame is written by opening the file for appending, writing and closing it, so what
 //! is on disk is always whole frames: a run that blows up or is killed leaves a valid file
@@ -27,15 +29,28 @@ struct XyzFrame {
     names: Vec<String>,
     lattice: Option<[f64; 3]>,
     text: String,
+    /// Write velocities `v = M⁻¹p` beside the positions.
+    velocities: bool,
+}
+
+/// Momenta and inverse masses of a frame, for its velocity columns.
+#[derive(Clone, Copy)]
+pub struct Momenta<'a> {
+    pub p: &'a [f64],
+    pub inverse_mass: &'a [f64],
 }
 
 impl XyzFrame {
     /// The frame of positions `q` at `time` into `self.text`.
-    fn format(&mut self, q: &[f64], dim: usize, time: f64) {
+    fn format(&mut self, q: &[f64], momenta: Option<Momenta>, dim: usize, time: f64) {
         use std::fmt::Write;
         self.text.clear();
         let _ = writeln!(self.text, "{}", self.names.len());
         self.text.push_str("Properties=species:S:1:pos:R:3");
+        let momenta = momenta.filter(|_| self.velocities);
+        if momenta.is_some() {
+            self.text.push_str(":velo:R:3");
+        }
         if let Some([a, b, c]) = self.lattice {
             let _ = write!(self.text, " Lattice=\"{a} 0 0 0 {b} 0 0 0 {c}\"");
         }
@@ -45,6 +60,17 @@ impl XyzFrame {
             for a in 0..3 {
                 let x = if a < dim { q[i * dim + a] } else { 0.0 };
                 let _ = write!(self.text, " {x}");
+            }
+            if let Some(m) = momenta {
+                for a in 0..3 {
+                    let k = i * dim + a;
+                    let v = if a < dim {
+                        m.p[k] * m.inverse_mass[k]
+                    } else {
+                        0.0
+                    };
+                    let _ = write!(self.text, " {v}");
+                }
             }
             self.text.push('\n');
         }
@@ -97,6 +123,7 @@ impl TrajectoryWriter {
                     [lengths[0], lengths[1], lengths[2]]
                 }),
             text: String::new(),
+            velocities: false,
         });
         Ok(TrajectoryWriter {
             path: path.to_path_buf(),
@@ -105,6 +132,21 @@ impl TrajectoryWriter {
             frames: 0,
             xyz,
         })
+    }
+
+    /// Write velocities beside the positions (`velo:R:3` columns, full precision) in
+    /// every frame [`TrajectoryWriter::write_state`] writes; extended XYZ only.
+    pub fn with_velocities(mut self) -> Result<Self> {
+        match &mut self.xyz {
+            Some(xyz) => {
+                xyz.velocities = true;
+                Ok(self)
+            }
+            None => Err(trajectory_error(
+                &self.path,
+                "velocities are written only to an extended XYZ trajectory (.xyz)".into(),
+            )),
+        }
     }
 
     pub fn path(&self) -> &Path {
@@ -117,8 +159,20 @@ impl TrajectoryWriter {
 
     /// Append one frame of positions `q` (`n × dim`; missing coordinates are 0).
     pub fn write(&mut self, q: &[f64], step: u64, time: f64) -> Result<()> {
+        self.write_state(q, None, step, time)
+    }
+
+    /// Append one frame of positions, with the velocities of `momenta` when the writer
+    /// was asked for them ([`TrajectoryWriter::with_velocities`]).
+    pub fn write_state(
+        &mut self,
+        q: &[f64],
+        momenta: Option<Momenta>,
+        step: u64,
+        time: f64,
+    ) -> Result<()> {
         if let Some(xyz) = &mut self.xyz {
-            xyz.format(q, self.dim, time);
+            xyz.format(q, momenta, self.dim, time);
             append(&self.path, xyz.text.as_bytes())?;
             self.frames += 1;
             return Ok(());

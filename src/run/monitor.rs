@@ -12,6 +12,9 @@ pub struct EnergyMonitor {
     pub reference: f64,
     /// `|E − E₀|` beyond `blowup × reference` counts as a blow-up.
     pub blowup: f64,
+    /// What `E₀` was made of, for a checkpoint (a continued run monitors against it).
+    pub initial_kinetic: f64,
+    pub initial_potentials: Vec<f64>,
 }
 
 impl EnergyMonitor {
@@ -32,6 +35,8 @@ impl EnergyMonitor {
             max_abs_error: 0.0,
             reference,
             blowup,
+            initial_kinetic: kinetic,
+            initial_potentials: potentials.to_vec(),
         }
     }
 

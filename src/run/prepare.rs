@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 use crate::forces::Precision;
 use crate::integrators::{self, Integrator};
 
+use crate::io::checkpoint::{Fingerprint, RequestParts, Restart};
 use crate::io::number::Num;
 use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::io::summary::RunSummary;
@@ -36,6 +37,8 @@ pub struct RunRequest<'a> {
     pub precision: Option<&'a str>,
     /// A topology's coordinates, `--coulomb`, the PME flags, … ([`SceneFlags`]).
     pub flags: SceneFlags,
+    /// Continue from this checkpoint (`run --restart`).
+    pub restart: Option<&'a Path>,
 }
 
 impl<'a> RunRequest<'a> {
@@ -49,6 +52,7 @@ impl<'a> RunRequest<'a> {
             start: None,
             precision: None,
             flags: SceneFlags::default(),
+            restart: None,
         }
     }
 }
@@ -65,6 +69,11 @@ pub struct PreparedRun {
     pub degrees_of_freedom: Option<DegreesOfFreedom>,
     /// What the user should know before the run.
     pub notices: Vec<String>,
+    /// What a checkpoint of this run must match to be continued from.
+    pub fingerprint: Fingerprint,
+    /// The checkpoint this run continues from (`run --restart`), its positions, momenta
+    /// and time already in the system.
+    pub restart: Option<Restart>,
 }
 
 /// The scene `request` names, with its flags and `--set` values, at the `--start`
@@ -91,13 +100,23 @@ pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
     scene.apply_molecular_settings(&settings, &mut notices)?;
     let integrator =
         integrators::build(&settings, &mut notices).map_err(|e| blame_run_table(&scene, e))?;
-    let start = start_velocities(&mut scene, &settings, &mut notices)?;
+    let mut start = start_velocities(&mut scene, &settings, &mut notices)?;
     let degrees_of_freedom = match &start {
         Some(start) => Some(start.degrees_of_freedom),
         None if scene.units == Units::Real => Some(DegreesOfFreedom::of(&scene.system)),
         None => None,
     };
     notices.extend(integrator.notices(&scene.system));
+    let parts = RequestParts {
+        set: request.set,
+        flags: format!("{:?}", request.flags),
+        precision: request.precision,
+    };
+    let fingerprint = Fingerprint::of(&scene, &settings, parts)?;
+    let restart = match request.restart {
+        Some(path) => Some(restart_from(&mut scene, path, &fingerprint, &mut start)?),
+        None => None,
+    };
     Ok(PreparedRun {
         scene,
         settings,
@@ -105,7 +124,45 @@ pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
         start,
         degrees_of_freedom,
         notices,
+        fingerprint,
+        restart,
     })
+}
+
+/// Read the checkpoint at `path`, check that it belongs to this run, and put its time,
+/// positions and momenta into the scene's system; the start report says where the run
+/// starts from instead of how velocities were drawn.
+fn restart_from(
+    scene: &mut Scene,
+    path: &Path,
+    fingerprint: &Fingerprint,
+    start: &mut Option<StartReport>,
+) -> Result<Restart> {
+    let restart = Restart::read(path)?;
+    restart.check_matches(fingerprint)?;
+    let checkpoint = &restart.checkpoint;
+    let state = &mut scene.system.state;
+    state.q.copy_from_slice(&checkpoint.q);
+    state.p.copy_from_slice(&checkpoint.p);
+    state.t = checkpoint.t;
+    let line = format!(
+        "start      checkpoint {}: step {}, t = {} (the run began at t0 = {}); its positions, \
+         momenta and the method's state",
+        path.display(),
+        checkpoint.step,
+        crate::io::summary::format_time(checkpoint.t, scene.units),
+        crate::io::summary::format_time(checkpoint.t0, scene.units),
+    );
+    match start {
+        Some(report) => report.lines = vec![line],
+        None => {
+            *start = Some(StartReport {
+                degrees_of_freedom: DegreesOfFreedom::of(&scene.system),
+                lines: vec![line],
+            })
+        }
+    }
+    Ok(restart)
 }
 
 /// Check that `settings` make a run before any time is spent on runs: the integrator
@@ -251,6 +308,19 @@ pub fn start_positions(scene: &mut Scene, path: &Path, flag: &str) -> Result<()>
         }
         let dim = system.dim;
         system.state.q[i * dim..(i + 1) * dim].copy_from_slice(&atom.position[..dim]);
+    }
+    if let Some(velocities) = &structure.velocities {
+        // p = M v: the file's velocities (a trajectory written with
+        // --trajectory-velocities) replace the scene's momenta.
+        let dim = system.dim;
+        for (i, v) in velocities.iter().enumerate() {
+            for (a, va) in v.iter().take(dim).enumerate() {
+                let k = i * dim + a;
+                let w = system.inverse_mass[k];
+                system.state.p[k] = if w > 0.0 { va / w } else { 0.0 };
+            }
+        }
+        scene.velocities_file = Some(path.to_path_buf());
     }
     Ok(())
 }

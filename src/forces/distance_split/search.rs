@@ -52,6 +52,11 @@ impl PairSearch {
         }
     }
 
+    /// Build again at the next check, wherever the points are.
+    pub fn invalidate(&mut self) {
+        self.built = false;
+    }
+
     pub fn builds(&self) -> u64 {
         self.builds
     }

@@ -352,6 +352,14 @@ fn skipped_notice(skipped: &selection::Skipped) -> Option<String> {
 }
 
 impl SlowMollifier for EquilibriumMolly {
+    /// The projection's warm start and statistics are not saved yet: refused.
+    fn check_checkpoint(&self) -> Result<()> {
+        Err(Error::input(
+            "equilibrium-molly cannot write checkpoints yet (its projection's warm start is \
+             part of its state); run it without --checkpoint-every",
+        ))
+    }
+
     fn name(&self) -> &'static str {
         "equilibrium-molly"
     }

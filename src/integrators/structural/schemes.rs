@@ -194,6 +194,15 @@ impl Structural {
 }
 
 impl Integrator for Structural {
+    /// The block state (nodes handed out, the block's derivatives) are not saved yet: a checkpoint is refused rather than continued from a
+    /// state that would not give the same steps.
+    fn save_state(&self) -> Result<serde_json::Value> {
+        Err(Error::input(format!(
+            "{} cannot write checkpoints yet (its block of nodes is part of its state); run it without --checkpoint-every",
+            self.name()
+        )))
+    }
+
     fn name(&self) -> &'static str {
         self.kind_name()
     }

@@ -1,0 +1,528 @@
+//! Checkpoint and restart (issue 30 item 7): a run continued from a checkpoint writes the
+//! same energy.csv rows, as text, as the uninterrupted run from the checkpoint's time on,
+//! at 1 and 2 threads; bad checkpoints are refused with the file named and nothing written.
+//!
+//! The comparison is exact (byte for byte): the continued run restores the positions,
+//! momenta, time, step count and the method's hidden state (random-number generator,
+//! thermostat variables, staggered momenta), and the run that wrote the checkpoint did at
+//! that step what the restart does (pair lists rebuilt, cached forces recomputed), so no
+//! tolerance is needed and none is allowed.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{longstep, scratch_dir};
+
+/// Run longstep with `args` on `threads` rayon threads: exit code and stderr.
+fn run(args: &[&str], threads: usize) -> (i32, String) {
+    let output = longstep()
+        .args(args)
+        .env("RAYON_NUM_THREADS", threads.to_string())
+        .output()
+        .expect("longstep runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+fn run_ok(args: &[&str], threads: usize) {
+    let (code, stderr) = run(args, threads);
+    assert_eq!(code, 0, "longstep {args:?} failed:\n{stderr}");
+}
+
+fn run_strings(args: &[String], threads: usize) {
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run_ok(&args, threads);
+}
+
+fn lines(path: &Path) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(str::to_string)
+        .collect()
+}
+
+/// A scene with its run arguments, and the whole run's end and the checkpoint's time.
+struct Case<'a> {
+    name: &'a str,
+    scene: &'a str,
+    args: &'a [&'a str],
+    t_end: &'a str,
+    half: &'a str,
+}
+
+/// The uninterrupted run (with the checkpoint taken at `half`), the run to `half`, and the
+/// run continued from its checkpoint to `t_end`: the continued run's energy.csv must be
+/// the uninterrupted run's from the checkpoint's row on, byte for byte.
+fn continued_rows_match(case: &Case, threads: usize) {
+    let dir = scratch_dir(&format!("restart-{}-{threads}", case.name));
+    let out = |name: &str| -> PathBuf { dir.join(name) };
+    let whole = out("whole");
+    let first = out("first");
+    let second = out("second");
+    let checkpoint = first.join("checkpoint.json");
+    let common = |t_end: &str, out: &Path| -> Vec<String> {
+        let mut args: Vec<String> = vec!["run".into(), case.scene.into()];
+        args.extend(case.args.iter().map(|s| s.to_string()));
+        args.extend(
+            [
+                "--t-end",
+                t_end,
+                "--checkpoint-every",
+                case.half,
+                "--energy-every",
+                "1",
+                "--quiet",
+                "--out",
+            ]
+            .map(String::from),
+        );
+        args.push(out.display().to_string());
+        args
+    };
+    let whole_args = common(case.t_end, &whole);
+    run_strings(&whole_args, threads);
+    let first_args = common(case.half, &first);
+    run_strings(&first_args, threads);
+    assert!(checkpoint.is_file(), "{}: no checkpoint written", case.name);
+    let mut second_args = common(case.t_end, &second);
+    second_args.push("--restart".into());
+    second_args.push(checkpoint.display().to_string());
+    run_strings(&second_args, threads);
+
+    let whole_rows = lines(&whole.join("energy.csv"));
+    let first_rows = lines(&first.join("energy.csv"));
+    let second_rows = lines(&second.join("energy.csv"));
+    assert_eq!(
+        second_rows[0], whole_rows[0],
+        "{}: headers differ",
+        case.name
+    );
+    // The first run is the whole run's beginning (it took its checkpoint at the same step).
+    assert_eq!(
+        &whole_rows[..first_rows.len()],
+        &first_rows[..],
+        "{}: the first run is not the whole run's beginning",
+        case.name
+    );
+    // With a row every step, the checkpoint's step is its row (after the header).
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&checkpoint).unwrap()).unwrap();
+    let at = saved["step"].as_u64().unwrap() as usize + 1;
+    assert!(
+        second_rows.len() > 2,
+        "{}: the continued run took no steps",
+        case.name
+    );
+    assert_eq!(
+        second_rows.len() - 1 + at,
+        whole_rows.len(),
+        "{}: row counts differ",
+        case.name
+    );
+    for (k, (continued, uninterrupted)) in
+        second_rows[1..].iter().zip(&whole_rows[at..]).enumerate()
+    {
+        assert_eq!(
+            continued, uninterrupted,
+            "{} at {threads} threads: row {k} from the checkpoint on differs",
+            case.name
+        );
+    }
+}
+
+fn both_thread_counts(case: Case) {
+    for threads in [1, 2] {
+        continued_rows_match(&case, threads);
+    }
+}
+
+#[test]
+fn verlet_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "verlet",
+        scene: "systems/chain/scene.toml",
+        args: &["--method", "verlet", "--h", "0.01"],
+        t_end: "0.6",
+        half: "0.3",
+    });
+}
+
+#[test]
+fn impulse_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "impulse",
+        scene: "systems/chain/scene.toml",
+        args: &["--method", "impulse", "--h", "0.04", "--inner", "4"],
+        t_end: "1.2",
+        half: "0.6",
+    });
+}
+
+/// BAOAB inner steps: the generator's state must come back, else the noise differs.
+#[test]
+fn langevin_respa_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "langevin-respa",
+        scene: "systems/chain/scene.toml",
+        args: &[
+            "--method",
+            "langevin-respa",
+            "--h",
+            "0.04",
+            "--inner",
+            "4",
+            "--temperature",
+            "0.5",
+            "--friction",
+            "1",
+            "--seed",
+            "7",
+        ],
+        t_end: "1.2",
+        half: "0.6",
+    });
+}
+
+/// SIN(R): the generator and the thermostat variables v1, v2.
+#[test]
+fn sinr_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "sinr",
+        scene: "systems/chain/scene.toml",
+        args: &[
+            "--method",
+            "sinr",
+            "--h",
+            "0.04",
+            "--inner",
+            "4",
+            "--temperature",
+            "0.5",
+            "--tau",
+            "0.5",
+            "--seed",
+            "11",
+        ],
+        t_end: "1.2",
+        half: "0.6",
+    });
+}
+
+/// MEMM18 (6): the staggered momenta p^{n∓½}.
+#[test]
+fn pseudo_energy_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "pseudo-energy",
+        scene: "systems/chain/scene.toml",
+        args: &["--method", "pseudo-energy", "--h", "0.01"],
+        t_end: "0.4",
+        half: "0.2",
+    });
+}
+
+/// Adaptive Verlet: ρ_{n−½} and a time that is not a multiple of a step.
+#[test]
+fn adaptive_verlet_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "adaptive-verlet",
+        scene: "systems/kepler.toml",
+        args: &["--method", "adaptive-verlet", "--h", "0.05"],
+        t_end: "4",
+        half: "2",
+    });
+}
+
+/// Constrained bonds (RATTLE) with Langevin inner steps on a topology.
+#[test]
+fn constrained_topology_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "ala2-constrained",
+        scene: "systems/alanine-dipeptide-amber/ala2.toml",
+        args: &[
+            "--method",
+            "langevin-respa",
+            "--h",
+            "2fs",
+            "--inner",
+            "2",
+            "--constraints",
+            "h-bonds",
+            "--temperature",
+            "300K",
+        ],
+        t_end: "80fs",
+        half: "40fs",
+    });
+}
+
+/// A periodic water box with cluster pair lists: the checkpoint rebuilds them, so the
+/// continued run sums over the same lists.
+#[test]
+fn water_box_with_pair_lists_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "water-box",
+        scene: "systems/water-box/scene.toml",
+        args: &["--method", "impulse", "--h", "4fs", "--inner", "4"],
+        t_end: "200fs",
+        half: "100fs",
+    });
+}
+
+/// A checkpoint of the chain under verlet, to spoil in the refusal tests.
+fn chain_checkpoint(dir: &Path) -> PathBuf {
+    let out = dir.join("origin");
+    let out_text = out.display().to_string();
+    run_ok(
+        &[
+            "run",
+            "systems/chain/scene.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.1",
+            "--checkpoint-every",
+            "0.05",
+            "--quiet",
+            "--out",
+            &out_text,
+        ],
+        1,
+    );
+    out.join("checkpoint.json")
+}
+
+/// Restart the chain from `checkpoint` with `extra` arguments: the refusal must exit 1,
+/// say `error:`, name the checkpoint and `what`, and leave no energy.csv.
+fn refused(dir: &Path, checkpoint: &Path, scene: &str, extra: &[&str], what: &str) {
+    let out = dir.join(format!("refused-{}", what.replace(' ', "-")));
+    let out_text = out.display().to_string();
+    let checkpoint_text = checkpoint.display().to_string();
+    let mut args = vec![
+        "run",
+        scene,
+        "--t-end",
+        "0.2",
+        "--quiet",
+        "--out",
+        &out_text,
+        "--restart",
+        &checkpoint_text,
+    ];
+    args.extend(extra);
+    let (code, stderr) = run(&args, 1);
+    assert_eq!(code, 1, "{what}: exit {code}\n{stderr}");
+    assert!(stderr.contains("error:"), "{what}: {stderr}");
+    assert!(
+        stderr.contains(&checkpoint_text),
+        "{what}: the message does not name the checkpoint:\n{stderr}"
+    );
+    assert!(stderr.contains(what), "{what}: not said:\n{stderr}");
+    assert!(
+        !out.join("energy.csv").exists(),
+        "{what}: energy.csv written"
+    );
+}
+
+#[test]
+fn bad_checkpoints_are_refused_naming_the_file() {
+    let dir = scratch_dir("restart-refusals");
+    let checkpoint = chain_checkpoint(&dir);
+    let text = std::fs::read_to_string(&checkpoint).unwrap();
+    let chain = "systems/chain/scene.toml";
+    let verlet = ["--method", "verlet", "--h", "0.01"];
+
+    let truncated = dir.join("truncated.json");
+    std::fs::write(&truncated, &text[..text.len() / 2]).unwrap();
+    refused(&dir, &truncated, chain, &verlet, "truncated or corrupted");
+
+    let version = dir.join("version.json");
+    std::fs::write(
+        &version,
+        text.replacen("\"version\":1", "\"version\":99", 1),
+    )
+    .unwrap();
+    assert_ne!(std::fs::read_to_string(&version).unwrap(), text);
+    refused(&dir, &version, chain, &verlet, "format version 99");
+
+    let short = dir.join("short.json");
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut spoiled = value.clone();
+    spoiled["q"].as_array_mut().unwrap().pop();
+    std::fs::write(&short, spoiled.to_string()).unwrap();
+    refused(&dir, &short, chain, &verlet, "positions");
+
+    // Another method, another step, another scene: each named.
+    refused(
+        &dir,
+        &checkpoint,
+        chain,
+        &["--method", "impulse", "--h", "0.01", "--inner", "2"],
+        "method",
+    );
+    refused(
+        &dir,
+        &checkpoint,
+        chain,
+        &["--method", "verlet", "--h", "0.02"],
+        "h:",
+    );
+    refused(
+        &dir,
+        &checkpoint,
+        "systems/two-spring.toml",
+        &["--method", "verlet", "--h", "0.01"],
+        "scene",
+    );
+    // A time before the checkpoint is no continuation.
+    let out = dir.join("early");
+    let (code, stderr) = run(
+        &[
+            "run",
+            chain,
+            "--method",
+            "verlet",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.03",
+            "--quiet",
+            "--out",
+            &out.display().to_string(),
+            "--restart",
+            &checkpoint.display().to_string(),
+        ],
+        1,
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("must lie after the checkpoint"), "{stderr}");
+}
+
+/// A method whose state cannot be saved yet is refused before its run starts.
+#[test]
+fn methods_without_saved_state_refuse_checkpoints() {
+    let dir = scratch_dir("restart-unsupported");
+    let out = dir.join("out");
+    let (code, stderr) = run(
+        &[
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "structural-zd",
+            "--h",
+            "0.1",
+            "--t-end",
+            "1",
+            "--checkpoint-every",
+            "0.5",
+            "--quiet",
+            "--out",
+            &out.display().to_string(),
+        ],
+        1,
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("cannot write checkpoints yet"), "{stderr}");
+}
+
+/// The manifest lists the checkpoint, and the summary says the run is a continuation.
+#[test]
+fn manifest_lists_the_checkpoint_and_summary_says_continued() {
+    let dir = scratch_dir("restart-manifest");
+    let checkpoint = chain_checkpoint(&dir);
+    let manifest = std::fs::read_to_string(dir.join("origin/manifest.json")).unwrap();
+    assert!(manifest.contains("checkpoint.json"), "{manifest}");
+    let out = dir.join("continued");
+    let output = longstep()
+        .args([
+            "run",
+            "systems/chain/scene.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.01",
+            "--t-end",
+            "0.2",
+            "--quiet",
+            "--out",
+            &out.display().to_string(),
+            "--restart",
+            &checkpoint.display().to_string(),
+        ])
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}");
+    assert!(stdout.contains("continued  from"), "{stdout}");
+    // 10 steps were taken before the checkpoint, 10 after it.
+    assert!(stdout.contains("steps      10 to t = 0.2"), "{stdout}");
+}
+
+/// A trajectory written with --trajectory-velocities carries the velocities, and its last
+/// frame given to --start restarts with them: the kinetic energy at the start is the first
+/// run's final one. Not bit for bit (v = p/m goes through a decimal and chemfiles' parser,
+/// and p = m v rounds again): a few ulps per component, so a relative 1e-12 is ample, while
+/// a start that lost the velocities would be off by O(1).
+#[test]
+fn trajectory_velocities_are_a_start() {
+    let dir = scratch_dir("restart-trajectory-velocities");
+    let first = dir.join("first");
+    run_ok(
+        &[
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.1",
+            "--t-end",
+            "1",
+            "--trajectory-every",
+            "5",
+            "--trajectory-velocities",
+            "--quiet",
+            "--out",
+            &first.display().to_string(),
+        ],
+        1,
+    );
+    let frames = lines(&first.join("trajectory.xyz"));
+    let n: usize = frames[0].parse().unwrap();
+    let last = &frames[frames.len() - (n + 2)..];
+    assert!(last[1].contains("velo:R:3"), "{}", last[1]);
+    assert_eq!(last[2].split_whitespace().count(), 7, "{}", last[2]);
+    let frame = dir.join("last.xyz");
+    std::fs::write(&frame, last.join("\n") + "\n").unwrap();
+    let second = dir.join("second");
+    run_ok(
+        &[
+            "run",
+            "systems/two-spring.toml",
+            "--method",
+            "verlet",
+            "--h",
+            "0.1",
+            "--t-end",
+            "0.1",
+            "--start",
+            &frame.display().to_string(),
+            "--quiet",
+            "--out",
+            &second.display().to_string(),
+        ],
+        1,
+    );
+    let kinetic = |row: &str| -> f64 { row.split(',').nth(1).unwrap().parse().unwrap() };
+    let end = kinetic(lines(&first.join("energy.csv")).last().unwrap());
+    let start = kinetic(&lines(&second.join("energy.csv"))[1]);
+    assert!(
+        (start - end).abs() <= 1e-12 * end.abs(),
+        "kinetic energy {start} at the start, {end} at the frame"
+    );
+}
