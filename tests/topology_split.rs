@@ -163,8 +163,9 @@ fn check_reports_the_split_and_its_levels() {
     for expected in [
         "nonbonded split: short-range part on level 0 switched off between r_in = 5 and \
          r_out = 6 by atom pair, computed as cluster pairs; remainder (full − short) on level 1",
-        // With PME the short part takes the bare Coulomb by default (LAMMPS's rRESPA).
-        "nonbonded split: the short part's Coulomb is bare 1/r (short_coulomb = \"bare\")",
+        // By atom pair the short part keeps the screened erfc(αr)/r by default.
+        "nonbonded split: the short part's Coulomb is the term's own form \
+         (short_coulomb = \"model\")",
         "0 (fast) = ",
         "1 (slow) = ",
     ] {

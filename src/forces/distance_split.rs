@@ -178,9 +178,9 @@ pub enum ShortCoulomb {
     Model,
     /// Bare `1/r`, as LAMMPS's rRESPA inner and middle levels take it with `coul/long`: with
     /// PME the near-field Coulomb force is on the short level in full, and the remainder
-    /// (real space − switched bare Coulomb) with the reciprocal sum is smooth. With
-    /// `erfc(αr)/r` in the short part the reciprocal sum's `erf(αr)/r` near field stays on
-    /// the slow level.
+    /// (real space − switched bare Coulomb) with the reciprocal sum is smooth when whole
+    /// neutral molecules are switched together. With `erfc(αr)/r` in the short part the
+    /// reciprocal sum's `erf(αr)/r` near field stays on the slow level.
     Bare,
 }
 
