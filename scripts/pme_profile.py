@@ -36,9 +36,9 @@ ROOT = os.path.abspath(os.path.join(HERE, ".."))
 PARTS = [
     ("splines", r"PmeReciprocal::place$"),
     ("spread", r"PmeReciprocal::spread$"),
-    ("FFT planes", r"Fft3::forward_planes$"),
-    ("FFT x+theta", r"Fft3::x_lines$"),
-    ("FFT inverse", r"Fft3::inverse_planes$"),
+    ("FFT planes", r"Fft3(<\w+>)?::forward_planes$"),
+    ("FFT x+theta", r"Fft3(<\w+>)?::x_lines$"),
+    ("FFT inverse", r"Fft3(<\w+>)?::inverse_planes$"),
     ("gather", r"PmeReciprocal::gather$"),
     ("exclusions", r"PmeReciprocal::exclusion_derivative$"),
     ("real space", r"<longstep::forces::nonbonded::Nonbonded as longstep::forces::ForceTerm>"

@@ -3,10 +3,12 @@
 //! longrange-nonbonded`), on two threads, so that the splines, spreading slabs, the FFT's
 //! line passes, the gathering and the excluded pairs' two phases all run over rayon. A
 //! global counter (this file holds one test, so nothing else runs meanwhile) counts
-//! allocations on every thread, rayon's workers included.
+//! allocations on every thread, rayon's workers included. In double precision, then in
+//! mixed (the f32 mesh).
 
 use std::path::Path;
 
+use longstep::forces::Precision;
 use longstep::io::forcefield::ElectrostaticsOverrides;
 use longstep::io::scene::SceneFlags;
 
@@ -53,6 +55,21 @@ fn parallel_pme_steps_allocate_nothing() {
         assert_eq!(
             during, 0,
             "{during} allocations in 10 PME steps on two threads"
+        );
+        // Mixed precision: the f32 mesh (and the f32 real-space kernel) is built when the
+        // precision changes, and its steps allocate nothing either.
+        assert!(scene.system.forces.set_precision(Precision::Mixed) >= 2);
+        for _ in 0..10 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        let before = counting::allocations();
+        for _ in 0..10 {
+            integrator.step(&mut scene.system).unwrap();
+        }
+        let during = counting::allocations() - before;
+        assert_eq!(
+            during, 0,
+            "{during} allocations in 10 mixed-precision PME steps on two threads"
         );
     });
 }

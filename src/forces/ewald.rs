@@ -24,6 +24,7 @@
 
 pub mod direct;
 mod fft;
+mod float;
 pub mod reciprocal;
 mod spline;
 

@@ -15,6 +15,11 @@
 //! **Cost.** `K_x K_y K_z` points: the FFTs are `O(K³ log K)`; the gathers into the two
 //! layouts two more passes over the half spectrum. Plans, layouts and per-task scratch are
 //! made once; a convolution allocates nothing.
+//!
+//! **Precision.** Generic over the mesh's float `T` ([`MeshFloat`]): `f64`, or `f32` for
+//! mixed precision, with the energy's line sums in `f64` either way. The FFT crates choose
+//! their SIMD code (AVX, SSE or scalar) by the processor at run time, so the bits of either
+//! precision are the same at any thread count but may differ between machines.
 
 use std::sync::Arc;
 
@@ -23,33 +28,33 @@ use realfft::num_complex::Complex;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
 
-pub type C64 = Complex<f64>;
+use super::float::MeshFloat;
 
-pub struct Fft3 {
+pub struct Fft3<T> {
     pub dims: [usize; 3],
     /// `nz/2 + 1`.
     pub half: usize,
-    r2c: Arc<dyn RealToComplex<f64>>,
-    c2r: Arc<dyn ComplexToReal<f64>>,
+    r2c: Arc<dyn RealToComplex<T>>,
+    c2r: Arc<dyn ComplexToReal<T>>,
     /// Forward and inverse along x and y.
-    x: [Arc<dyn Fft<f64>>; 2],
-    y: [Arc<dyn Fft<f64>>; 2],
+    x: [Arc<dyn Fft<T>>; 2],
+    y: [Arc<dyn Fft<T>>; 2],
 }
 
 /// One task's buffers: the FFT scratch and one z-row of the half spectrum.
-struct Lines {
-    scratch: Vec<C64>,
-    row: Vec<C64>,
+struct Lines<T> {
+    scratch: Vec<Complex<T>>,
+    row: Vec<Complex<T>>,
 }
 
 /// Buffers a convolution works in.
-pub struct FftScratch {
+pub struct FftScratch<T> {
     /// `[x][z][y]`: the plane pass's layout.
-    planes: Vec<C64>,
+    planes: Vec<Complex<T>>,
     /// `[y][z][x]`: the spectrum, in the layout of [`Fft3::spectrum_index`].
-    spectrum: Vec<C64>,
+    spectrum: Vec<Complex<T>>,
     /// One per plane or per y (`max(nx, ny)`).
-    tasks: Vec<Lines>,
+    tasks: Vec<Lines<T>>,
     /// Per y: `Σ_{z, x} weight θ |F|²` of its lines.
     partial: Vec<f64>,
 }
@@ -63,10 +68,10 @@ pub enum Output {
     Potential,
 }
 
-impl Fft3 {
+impl<T: MeshFloat> Fft3<T> {
     pub fn new(dims: [usize; 3]) -> Self {
-        let mut real = RealFftPlanner::<f64>::new();
-        let mut complex = FftPlanner::<f64>::new();
+        let mut real = RealFftPlanner::<T>::new();
+        let mut complex = FftPlanner::<T>::new();
         let [nx, ny, nz] = dims;
         Fft3 {
             dims,
@@ -91,7 +96,7 @@ impl Fft3 {
         (ky * self.half + kz) * self.dims[0] + kx
     }
 
-    pub fn scratch(&self) -> FftScratch {
+    pub fn scratch(&self) -> FftScratch<T> {
         let len = [
             self.r2c.get_scratch_len(),
             self.c2r.get_scratch_len(),
@@ -106,13 +111,13 @@ impl Fft3 {
         let [nx, ny, _] = self.dims;
         let tasks = (0..nx.max(ny))
             .map(|_| Lines {
-                scratch: vec![C64::default(); len],
-                row: vec![C64::default(); self.half],
+                scratch: vec![Complex::default(); len],
+                row: vec![Complex::default(); self.half],
             })
             .collect();
         FftScratch {
-            planes: vec![C64::default(); self.spectrum_len()],
-            spectrum: vec![C64::default(); self.spectrum_len()],
+            planes: vec![Complex::default(); self.spectrum_len()],
+            spectrum: vec![Complex::default(); self.spectrum_len()],
             tasks,
             partial: vec![0.0; ny],
         }
@@ -123,11 +128,11 @@ impl Fft3 {
     /// be `None` to write it back into `grid`). Over rayon when `parallel`.
     pub fn convolve(
         &self,
-        grid: &mut [f64],
-        influence: &[f64],
+        grid: &mut [T],
+        influence: &[T],
         output: Output,
-        out: Option<&mut [f64]>,
-        work: &mut FftScratch,
+        out: Option<&mut [T]>,
+        work: &mut FftScratch<T>,
         parallel: bool,
     ) -> f64 {
         self.forward_planes(grid, work, parallel);
@@ -141,10 +146,10 @@ impl Fft3 {
 
     /// Pass (1): per x-plane, real FFTs of the rows, then the y-lines, into `planes`.
     #[inline(never)]
-    fn forward_planes(&self, grid: &mut [f64], work: &mut FftScratch, parallel: bool) {
+    fn forward_planes(&self, grid: &mut [T], work: &mut FftScratch<T>, parallel: bool) {
         let [_, ny, nz] = self.dims;
         let h = self.half;
-        let plane = |input: &mut [f64], planes: &mut [C64], lines: &mut Lines| {
+        let plane = |input: &mut [T], planes: &mut [Complex<T>], lines: &mut Lines<T>| {
             for (y, row) in input.chunks_exact_mut(nz).enumerate() {
                 // Lengths are right by construction: no error can come back.
                 let _ = self
@@ -177,9 +182,9 @@ impl Fft3 {
     #[inline(never)]
     fn x_lines(
         &self,
-        influence: &[f64],
+        influence: &[T],
         output: Output,
-        work: &mut FftScratch,
+        work: &mut FftScratch<T>,
         parallel: bool,
     ) -> f64 {
         let [nx, ny, nz] = self.dims;
@@ -191,7 +196,7 @@ impl Fft3 {
             partial,
         } = work;
         let planes = &*planes;
-        let one = |y: usize, lines: &mut [C64], task: &mut Lines, sum: &mut f64| {
+        let one = |y: usize, lines: &mut [Complex<T>], task: &mut Lines<T>, sum: &mut f64| {
             for z in 0..h {
                 for x in 0..nx {
                     lines[z * nx + x] = planes[(x * h + z) * ny + y];
@@ -210,15 +215,16 @@ impl Fft3 {
                         } else {
                             2.0
                         };
+                        // Each term in T, the sum in f64.
                         let mut line = 0.0;
                         for (value, t) in lines[range.clone()].iter().zip(&theta[range]) {
-                            line += t * value.norm_sqr();
+                            line += (*t * value.norm_sqr()).wide();
                         }
                         *sum += weight * line;
                     }
                     Output::Potential => {
                         for (value, t) in lines[range.clone()].iter_mut().zip(&theta[range]) {
-                            *value *= *t;
+                            *value = value.scale(*t);
                         }
                     }
                 }
@@ -246,7 +252,7 @@ impl Fft3 {
     /// Pass (3): per x-plane, the spectrum back into `planes`, the inverse y-lines and the
     /// inverse real FFT of each row into `grid`.
     #[inline(never)]
-    fn inverse_planes(&self, grid: &mut [f64], work: &mut FftScratch, parallel: bool) {
+    fn inverse_planes(&self, grid: &mut [T], work: &mut FftScratch<T>, parallel: bool) {
         let [nx, ny, nz] = self.dims;
         let h = self.half;
         let FftScratch {
@@ -256,7 +262,7 @@ impl Fft3 {
             ..
         } = work;
         let spectrum = &*spectrum;
-        let plane = |x: usize, output: &mut [f64], lines: &mut [C64], task: &mut Lines| {
+        let plane = |x: usize, output: &mut [T], lines: &mut [Complex<T>], task: &mut Lines<T>| {
             for y in 0..ny {
                 for z in 0..h {
                     lines[z * ny + y] = spectrum[(y * h + z) * nx + x];
@@ -269,9 +275,9 @@ impl Fft3 {
                 }
                 // The zero and Nyquist bins of a real signal are real; the complex passes
                 // leave round-off in their imaginary parts, which c2r must not see.
-                task.row[0].im = 0.0;
+                task.row[0].im = T::zero();
                 if nz.is_multiple_of(2) {
-                    task.row[h - 1].im = 0.0;
+                    task.row[h - 1].im = T::zero();
                 }
                 let _ = self
                     .c2r
@@ -316,7 +322,7 @@ mod tests {
     fn convolution_with_unit_influence_is_parseval_and_the_identity() {
         // Odd and even sizes on every axis, x ≠ y so that a swapped layout would fail.
         for dims in [[6, 10, 7], [5, 4, 8], [8, 8, 8]] {
-            let fft = Fft3::new(dims);
+            let fft = Fft3::<f64>::new(dims);
             let n = fft.real_len();
             let original = grid(n);
             let ones = vec![1.0; fft.spectrum_len()];

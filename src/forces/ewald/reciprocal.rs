@@ -28,34 +28,77 @@
 //! that each take their part of every atom in atom order (the same additions in the same
 //! order as the serial pass); the FFT as independent line transforms with the energy summed
 //! per line block in a fixed order ([`super::fft`]). The workspace is sized at
-//! construction: an evaluation allocates nothing.
+//! construction (and again when the precision changes): an evaluation allocates nothing.
+//!
+//! **Precision.** In [`Precision::Mixed`] the mesh computes in `f32` as GROMACS's mixed
+//! build does: B-spline weights, spreading, the real-to-complex FFT, the influence-function
+//! multiply and the gathering; positions are reduced to grid coordinates in `f64`, each
+//! atom's gathered sums are widened to `f64` before they meet its charge and the gradient,
+//! and the energy's sums over the spectrum are in `f64`. One generic body
+//! ([`MeshFloat`]) serves both precisions; the excluded pairs and the self and background
+//! terms stay in `f64`.
 
 use std::sync::Mutex;
 
 use rayon::prelude::*;
 
 use super::fft::{Fft3, FftScratch, Output};
+use super::float::MeshFloat;
 use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
 use crate::forces::scratch::{Scratch, parallel};
-use crate::forces::{ForceTerm, TermClass};
+use crate::forces::{ForceTerm, Precision, TermClass};
 
 /// Parallel spreading tasks per thread (slabs of x-planes).
 const SLABS_PER_THREAD: usize = 2;
 
 /// One atom's splines on the three axes: grid indices and weights.
 #[derive(Clone, Copy, Debug, Default)]
-struct Stencil {
+struct Stencil<T> {
     index: [[u32; MAX_ORDER]; 3],
-    weights: [Weights; 3],
+    weights: [Weights<T>; 3],
 }
 
-struct Workspace {
-    stencils: Vec<Stencil>,
-    grid: Vec<f64>,
+/// The mesh in one float type: the FFT plans, `θ(m)` over the half spectrum (zero at
+/// `m = 0`) and the buffers an evaluation works in.
+struct Mesh<T> {
+    fft: Fft3<T>,
+    influence: Vec<T>,
+    stencils: Vec<Stencil<T>>,
+    grid: Vec<T>,
     /// `φ`, the derivative of the energy on the grid.
-    potential: Vec<f64>,
-    fft: FftScratch,
+    potential: Vec<T>,
+    scratch: FftScratch<T>,
+}
+
+impl<T: MeshFloat> Mesh<T> {
+    fn new(params: &EwaldParameters, lengths: [f64; 3], ke: f64, atoms: usize) -> Self {
+        let fft = Fft3::new(params.grid);
+        Mesh {
+            influence: influence(params, lengths, ke, &fft),
+            stencils: vec![Stencil::default(); atoms],
+            grid: vec![T::zero(); fft.real_len()],
+            potential: vec![T::zero(); fft.real_len()],
+            scratch: fft.scratch(),
+            fft,
+        }
+    }
+}
+
+/// The mesh of the term's current precision.
+enum Workspace {
+    Double(Mesh<f64>),
+    Mixed(Mesh<f32>),
+}
+
+/// Run `$body` with `$mesh` bound to the workspace's mesh, of either float type.
+macro_rules! with_mesh {
+    ($workspace:expr, $mesh:ident => $body:expr) => {
+        match $workspace {
+            Workspace::Double($mesh) => $body,
+            Workspace::Mixed($mesh) => $body,
+        }
+    };
 }
 
 pub struct PmeReciprocal {
@@ -66,11 +109,8 @@ pub struct PmeReciprocal {
     excluded: Vec<(u32, u32)>,
     /// Per excluded pair, its change in a parallel gradient.
     exclusion_scratch: Scratch<[f64; 3]>,
-    /// `θ(m)` over the half spectrum; zero at `m = 0`.
-    influence: Vec<f64>,
     self_energy: f64,
     background: f64,
-    fft: Fft3,
     workspace: Mutex<Workspace>,
 }
 
@@ -98,16 +138,9 @@ impl PmeReciprocal {
             .collect();
         pairs.sort_unstable();
         pairs.dedup();
-        let fft = Fft3::new(params.grid);
         let volume: f64 = lengths.iter().product();
-        let workspace = Workspace {
-            stencils: vec![Stencil::default(); n],
-            grid: vec![0.0; fft.real_len()],
-            potential: vec![0.0; fft.real_len()],
-            fft: fft.scratch(),
-        };
+        let workspace = Workspace::Double(Mesh::new(&params, lengths, coulomb_constant, n));
         Ok(PmeReciprocal {
-            influence: influence(&params, lengths, coulomb_constant, &fft),
             self_energy: self_energy(params.alpha, coulomb_constant, &charges),
             background: background_energy(params.alpha, coulomb_constant, &charges, volume),
             params,
@@ -116,7 +149,6 @@ impl PmeReciprocal {
             charges,
             exclusion_scratch: Scratch::with_len(pairs.len()),
             excluded: pairs,
-            fft,
             workspace: Mutex::new(workspace),
         })
     }
@@ -125,9 +157,22 @@ impl PmeReciprocal {
         self.params
     }
 
+    /// The charges `q_i`.
+    pub fn charges(&self) -> &[f64] {
+        &self.charges
+    }
+
     /// The net charge `Σ q_i`.
     pub fn net_charge(&self) -> f64 {
         self.charges.iter().sum()
+    }
+
+    /// The precision the mesh computes in.
+    pub fn precision(&self) -> Precision {
+        match *self.lock() {
+            Workspace::Double(_) => Precision::Double,
+            Workspace::Mixed(_) => Precision::Mixed,
+        }
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, Workspace> {
@@ -147,16 +192,16 @@ impl PmeReciprocal {
 
     /// Every atom's stencil at `q` (with the splines' second derivatives for `second`).
     #[inline(never)]
-    fn place(&self, q: &[f64], stencils: &mut [Stencil], second: bool) {
+    fn place<T: MeshFloat>(&self, q: &[f64], stencils: &mut [Stencil<T>], second: bool) {
         let order = self.params.order;
-        let place_one = |i: usize, stencil: &mut Stencil| {
+        let place_one = |i: usize, stencil: &mut Stencil<T>| {
             for a in 0..3 {
                 let size = self.params.grid[a];
                 let s = q[3 * i + a] / self.lengths[a];
                 let u = (s - floor(s)) * size as f64;
                 // u may round up to `size` for s just below 1 (u ≥ 0: truncation floors).
                 let base = (u as usize).min(size - 1);
-                stencil.weights[a] = spline::weights(order, u - base as f64, second);
+                stencil.weights[a] = spline::weights(order, T::of(u - base as f64), second);
                 for k in 0..order {
                     stencil.index[a][k] = ((base + size - k) % size) as u32;
                 }
@@ -181,7 +226,7 @@ impl PmeReciprocal {
     /// same terms in the same order as in the serial pass (an atom touches a point once, as
     /// `K ≥ 2n`), so the same bits at any thread count and any slab size.
     #[inline(never)]
-    fn spread(&self, stencils: &[Stencil], v: Option<&[f64]>, grid: &mut [f64]) {
+    fn spread<T: MeshFloat>(&self, stencils: &[Stencil<T>], v: Option<&[f64]>, grid: &mut [T]) {
         let [nx, ny, nz] = self.params.grid;
         let slabs = SLABS_PER_THREAD * rayon::current_num_threads();
         let slab = nx.div_ceil(slabs);
@@ -199,32 +244,32 @@ impl PmeReciprocal {
 
     /// [`Self::spread`] into the x-planes `planes` only, held by `grid` (from plane
     /// `planes.start`).
-    fn spread_planes(
+    fn spread_planes<T: MeshFloat>(
         &self,
-        stencils: &[Stencil],
+        stencils: &[Stencil<T>],
         v: Option<&[f64]>,
-        grid: &mut [f64],
+        grid: &mut [T],
         planes: std::ops::Range<usize>,
     ) {
-        grid.fill(0.0);
+        grid.fill(T::zero());
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
         let scale = self.scale();
         for (i, st) in stencils.iter().enumerate() {
-            let q = self.charges[i];
-            if q == 0.0 {
+            if self.charges[i] == 0.0 {
                 continue;
             }
+            let q = T::of(self.charges[i]);
             let [wx, wy, wz] = &st.weights;
-            let d: [f64; 3] = match v {
-                Some(v) => std::array::from_fn(|a| scale[a] * v[3 * i + a]),
-                None => [0.0; 3],
+            let d: [T; 3] = match v {
+                Some(v) => std::array::from_fn(|a| T::of(scale[a] * v[3 * i + a])),
+                None => [T::zero(); 3],
             };
             if v.is_none() {
                 match order {
-                    4 => spread_charge::<4>(q, st, grid, &planes, ny, nz),
-                    5 => spread_charge::<5>(q, st, grid, &planes, ny, nz),
-                    _ => spread_charge::<6>(q, st, grid, &planes, ny, nz),
+                    4 => spread_charge::<T, 4>(q, st, grid, &planes, ny, nz),
+                    5 => spread_charge::<T, 5>(q, st, grid, &planes, ny, nz),
+                    _ => spread_charge::<T, 6>(q, st, grid, &planes, ny, nz),
                 }
                 continue;
             }
@@ -252,11 +297,18 @@ impl PmeReciprocal {
 
     /// The mesh energy of the grid in `ws.grid` and, for [`Output::Potential`], `θ * grid`
     /// into the potential (`out_is_potential`) or back into the grid (the grid is consumed).
-    fn convolve(&self, ws: &mut Workspace, output: Output, out_is_potential: bool) -> f64 {
-        let Workspace {
+    fn convolve<T: MeshFloat>(
+        &self,
+        ws: &mut Mesh<T>,
+        output: Output,
+        out_is_potential: bool,
+    ) -> f64 {
+        let Mesh {
+            fft,
+            influence,
             grid,
             potential,
-            fft,
+            scratch,
             ..
         } = ws;
         let out = if out_is_potential {
@@ -265,37 +317,36 @@ impl PmeReciprocal {
             None
         };
         // The full-spectrum sum is Σ_m θ|F|², the energy half of it.
-        let sum = self
-            .fft
-            .convolve(grid, &self.influence, output, out, fft, self.parallel());
+        let sum = fft.convolve(grid, influence, output, out, scratch, self.parallel());
         0.5 * sum
     }
 
     /// The mesh energy at `q`.
     fn mesh_energy(&self, q: &[f64]) -> f64 {
-        let mut guard = self.lock();
-        let ws = &mut *guard;
-        self.place(q, &mut ws.stencils, false);
-        self.spread(&ws.stencils, None, &mut ws.grid);
-        self.convolve(ws, Output::Energy, false)
+        with_mesh!(&mut *self.lock(), ws => {
+            self.place(q, &mut ws.stencils, false);
+            self.spread(&ws.stencils, None, &mut ws.grid);
+            self.convolve(ws, Output::Energy, false)
+        })
     }
 
     /// `φ` at `q` into `ws.potential` (stencils placed, with second derivatives for
     /// `second`).
-    fn potential(&self, q: &[f64], ws: &mut Workspace, second: bool) {
+    fn potential<T: MeshFloat>(&self, q: &[f64], ws: &mut Mesh<T>, second: bool) {
         self.place(q, &mut ws.stencils, second);
         self.spread(&ws.stencils, None, &mut ws.grid);
         self.convolve(ws, Output::Potential, true);
     }
 
     /// Per atom `i`: `out_i += q_i Σ_k g(k) ∇_i W_i(k)` and, with `v`, `+ q_i Σ_k h(k)
-    /// ∇_i∇_iᵀ W_i(k) v_i` (`h` is the second grid).
+    /// ∇_i∇_iᵀ W_i(k) v_i` (`h` is the second grid). The sums over the stencil in `T`,
+    /// widened to `f64` before the charge and the scale multiply them.
     #[inline(never)]
-    fn gather(
+    fn gather<T: MeshFloat>(
         &self,
-        stencils: &[Stencil],
-        g: &[f64],
-        hv: Option<(&[f64], &[f64])>,
+        stencils: &[Stencil<T>],
+        g: &[T],
+        hv: Option<(&[T], &[f64])>,
         out: &mut [f64],
     ) {
         let scale = self.scale();
@@ -305,19 +356,20 @@ impl PmeReciprocal {
                 return;
             }
             let [_, ny, nz] = self.params.grid;
+            let zero = [[T::zero(); 3]; 3];
             let (first, second) = match hv {
                 None => match self.params.order {
-                    4 => (gather_first::<4>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
-                    5 => (gather_first::<5>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
-                    _ => (gather_first::<6>(&stencils[i], g, ny, nz), [[0.0; 3]; 3]),
+                    4 => (gather_first::<T, 4>(&stencils[i], g, ny, nz), zero),
+                    5 => (gather_first::<T, 5>(&stencils[i], g, ny, nz), zero),
+                    _ => (gather_first::<T, 6>(&stencils[i], g, ny, nz), zero),
                 },
                 Some((h, _)) => self.gather_one(&stencils[i], g, h),
             };
             for a in 0..3 {
-                let mut value = scale[a] * first[a];
+                let mut value = scale[a] * first[a].wide();
                 if let Some((_, v)) = hv {
                     for b in 0..3 {
-                        value += scale[a] * scale[b] * second[a][b] * v[3 * i + b];
+                        value += scale[a] * scale[b] * second[a][b].wide() * v[3 * i + b];
                     }
                 }
                 out[a] += q * value;
@@ -335,12 +387,12 @@ impl PmeReciprocal {
     }
 
     /// `Σ_k g(k) ∂_a W(k)` (in `u`) and `Σ_k h(k) ∂_a∂_b W(k)`.
-    fn gather_one(&self, st: &Stencil, g: &[f64], h: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
+    fn gather_one<T: MeshFloat>(&self, st: &Stencil<T>, g: &[T], h: &[T]) -> ([T; 3], [[T; 3]; 3]) {
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
         let [wx, wy, wz] = &st.weights;
-        let mut first = [0.0; 3];
-        let mut second = [[0.0; 3]; 3];
+        let mut first = [T::zero(); 3];
+        let mut second = [[T::zero(); 3]; 3];
         for kx in 0..order {
             let gx = st.index[0][kx] as usize * ny;
             for ky in 0..order {
@@ -461,8 +513,13 @@ impl PmeReciprocal {
 
 /// `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))` over the half spectrum (in the FFT's layout), with
 /// `m_a = k_a` for `k_a < (K_a + 1)/2`, else `k_a − K_a`, and `m² = Σ (m_a/L_a)²`; zero at
-/// `m = 0` (the background term stands for it).
-fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, fft: &Fft3) -> Vec<f64> {
+/// `m = 0` (the background term stands for it). Computed in `f64`, stored in `T`.
+fn influence<T: MeshFloat>(
+    params: &EwaldParameters,
+    lengths: [f64; 3],
+    ke: f64,
+    fft: &Fft3<T>,
+) -> Vec<T> {
     let [nx, ny, nz] = params.grid;
     let half = fft.half;
     let moduli: [Vec<f64>; 3] =
@@ -477,7 +534,7 @@ fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, fft: &Fft3) -
             k as f64 - size as f64
         }
     };
-    let mut out = vec![0.0; nx * ny * half];
+    let mut out = vec![T::zero(); nx * ny * half];
     for kx in 0..nx {
         let mx = signed(kx, nx) / lengths[0];
         for ky in 0..ny {
@@ -489,7 +546,8 @@ fn influence(params: &EwaldParameters, lengths: [f64; 3], ke: f64, fft: &Fft3) -
                 let mz = signed(kz, nz) / lengths[2];
                 let m2 = mx * mx + my * my + mz * mz;
                 let denominator = pi * volume * m2 * moduli[0][kx] * moduli[1][ky] * moduli[2][kz];
-                out[fft.spectrum_index(kx, ky, kz)] = ke * (-factor * m2).exp() / denominator;
+                out[fft.spectrum_index(kx, ky, kz)] =
+                    T::of(ke * (-factor * m2).exp() / denominator);
             }
         }
     }
@@ -510,31 +568,27 @@ impl ForceTerm for PmeReciprocal {
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        {
-            let mut guard = self.lock();
-            let ws = &mut *guard;
+        with_mesh!(&mut *self.lock(), ws => {
             self.potential(q, ws, false);
             self.gather(&ws.stencils, &ws.potential, None, gradient);
-        }
+        });
         self.exclusion_derivative(q, None, gradient);
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        {
-            let mut guard = self.lock();
-            let ws = &mut *guard;
+        with_mesh!(&mut *self.lock(), ws => {
             self.potential(q, ws, true);
             self.spread(&ws.stencils, Some(v), &mut ws.grid);
             // ψ = Θ (J v) into the grid itself.
             self.convolve(ws, Output::Potential, false);
-            let Workspace {
+            let Mesh {
                 stencils,
                 grid,
                 potential,
                 ..
             } = ws;
             self.gather(stencils, grid, Some((potential, v)), out);
-        }
+        });
         self.exclusion_derivative(q, Some(v), out);
     }
 
@@ -565,6 +619,20 @@ impl ForceTerm for PmeReciprocal {
         ]
     }
 
+    /// Mixed: the mesh in `f32` (the module's doc); the mesh is rebuilt in the new float
+    /// type when the precision changes.
+    fn set_precision(&self, precision: Precision) -> bool {
+        if self.precision() != precision {
+            let n = self.charges.len();
+            let (p, l, ke) = (&self.params, self.lengths, self.coulomb_constant);
+            *self.lock() = match precision {
+                Precision::Double => Workspace::Double(Mesh::new(p, l, ke, n)),
+                Precision::Mixed => Workspace::Mixed(Mesh::new(p, l, ke, n)),
+            };
+        }
+        true
+    }
+
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         Some(self)
     }
@@ -580,10 +648,10 @@ fn floor(x: f64) -> f64 {
 /// The charge of one atom onto the planes `planes` of `grid` (from plane `planes.start`),
 /// for B-splines of order `N`: `Q(k) += q M_x M_y M_z`.
 #[inline(always)]
-fn spread_charge<const N: usize>(
-    q: f64,
-    st: &Stencil,
-    grid: &mut [f64],
+fn spread_charge<T: MeshFloat, const N: usize>(
+    q: T,
+    st: &Stencil<T>,
+    grid: &mut [T],
     planes: &std::ops::Range<usize>,
     ny: usize,
     nz: usize,
@@ -609,14 +677,19 @@ fn spread_charge<const N: usize>(
 /// `Σ_k g(k) ∂_a W(k)` (in `u`) for B-splines of order `N`: per x-y pair of the stencil the
 /// two sums along z, then the x and y weights.
 #[inline(always)]
-fn gather_first<const N: usize>(st: &Stencil, g: &[f64], ny: usize, nz: usize) -> [f64; 3] {
+fn gather_first<T: MeshFloat, const N: usize>(
+    st: &Stencil<T>,
+    g: &[T],
+    ny: usize,
+    nz: usize,
+) -> [T; 3] {
     let [wx, wy, wz] = &st.weights;
-    let mut first = [0.0; 3];
+    let mut first = [T::zero(); 3];
     for kx in 0..N {
         let gx = st.index[0][kx] as usize * ny;
         for ky in 0..N {
             let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
-            let (mut value, mut slope) = (0.0, 0.0);
+            let (mut value, mut slope) = (T::zero(), T::zero());
             for kz in 0..N {
                 let p = row[st.index[2][kz] as usize];
                 value += p * wz.value[kz];

@@ -9,37 +9,39 @@
 //! A particle at scaled coordinate `u = K s` (`s` fractional) with `u = i₀ + w`, `0 ≤ w < 1`,
 //! touches the grid points `i₀ − k`, `k = 0 … n−1`, with weight `M_n(w + k)`.
 
+use super::float::MeshFloat;
+
 /// The largest order the arrays hold.
 pub const MAX_ORDER: usize = 6;
 
 /// Weights `M_n(w + k)`, `M_n′(w + k)` and `M_n″(w + k)` for `k < order`.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Weights {
-    pub value: [f64; MAX_ORDER],
-    pub first: [f64; MAX_ORDER],
-    pub second: [f64; MAX_ORDER],
+pub struct Weights<T> {
+    pub value: [T; MAX_ORDER],
+    pub first: [T; MAX_ORDER],
+    pub second: [T; MAX_ORDER],
 }
 
 /// `M_p(w + k)` for `k < p` from `M_{p−1}(w + k)` (zero from `p − 1` on): eq. (4.1) with
 /// the two ends, where one of the two terms vanishes, apart.
 #[inline(always)]
-fn raise(previous: &[f64; MAX_ORDER], p: usize, w: f64) -> [f64; MAX_ORDER] {
-    let mut next = [0.0; MAX_ORDER];
-    let scale = 1.0 / (p - 1) as f64;
-    let top = p as f64;
+fn raise<T: MeshFloat>(previous: &[T; MAX_ORDER], p: usize, w: T) -> [T; MAX_ORDER] {
+    let mut next = [T::zero(); MAX_ORDER];
+    let scale = T::of(1.0 / (p - 1) as f64);
+    let top = T::of(p as f64);
     next[0] = scale * w * previous[0];
     for k in 1..p - 1 {
-        let x = w + k as f64;
+        let x = w + T::of(k as f64);
         next[k] = scale * (x * previous[k] + (top - x) * previous[k - 1]);
     }
-    next[p - 1] = scale * (top - (w + (p - 1) as f64)) * previous[p - 2];
+    next[p - 1] = scale * (top - (w + T::of((p - 1) as f64))) * previous[p - 2];
     next
 }
 
 /// `a(k) − a(k − 1)` for `k < order` (`a(−1) = 0`; `a` is zero past its order).
 #[inline(always)]
-fn difference(a: &[f64; MAX_ORDER], order: usize) -> [f64; MAX_ORDER] {
-    let mut out = [0.0; MAX_ORDER];
+fn difference<T: MeshFloat>(a: &[T; MAX_ORDER], order: usize) -> [T; MAX_ORDER] {
+    let mut out = [T::zero(); MAX_ORDER];
     out[0] = a[0];
     for k in 1..order {
         out[k] = a[k] - a[k - 1];
@@ -49,25 +51,26 @@ fn difference(a: &[f64; MAX_ORDER], order: usize) -> [f64; MAX_ORDER] {
 
 /// The weights of order `order` (3 ≤ order ≤ [`MAX_ORDER`]) at offset `w ∈ [0, 1)`; the
 /// second derivatives only with `second` (else zero): only Hessian-vector products use them.
-pub fn weights(order: usize, w: f64, second: bool) -> Weights {
+/// In `T`'s arithmetic throughout.
+pub fn weights<T: MeshFloat>(order: usize, w: T, second: bool) -> Weights<T> {
     match order {
-        3 => weights_of::<3>(w, second),
-        4 => weights_of::<4>(w, second),
-        5 => weights_of::<5>(w, second),
-        _ => weights_of::<6>(w, second),
+        3 => weights_of::<T, 3>(w, second),
+        4 => weights_of::<T, 4>(w, second),
+        5 => weights_of::<T, 5>(w, second),
+        _ => weights_of::<T, 6>(w, second),
     }
 }
 
 /// [`weights`] for a fixed order (its loops unrolled).
 #[inline(always)]
-fn weights_of<const ORDER: usize>(w: f64, second: bool) -> Weights {
+fn weights_of<T: MeshFloat, const ORDER: usize>(w: T, second: bool) -> Weights<T> {
     let order = ORDER;
     // M_1 is the box on [0, 1): M_1(w) = 1; M_2(w) = w, M_2(w + 1) = 1 − w.
-    let mut lower2 = [0.0; MAX_ORDER];
-    lower2[0] = 1.0;
-    let mut lower1 = [0.0; MAX_ORDER];
+    let mut lower2 = [T::zero(); MAX_ORDER];
+    lower2[0] = T::one();
+    let mut lower1 = [T::zero(); MAX_ORDER];
     lower1[0] = w;
-    lower1[1] = 1.0 - w;
+    lower1[1] = T::one() - w;
     let mut m = raise(&lower1, 3, w);
     for p in 4..=order {
         lower2 = lower1;
@@ -83,7 +86,7 @@ fn weights_of<const ORDER: usize>(w: f64, second: bool) -> Weights {
             let d = difference(&lower2, order - 1);
             difference(&d, order)
         } else {
-            [0.0; MAX_ORDER]
+            [T::zero(); MAX_ORDER]
         },
     }
 }
@@ -93,7 +96,7 @@ fn weights_of<const ORDER: usize>(w: f64, second: bool) -> Weights {
 /// is replaced by the mean of its neighbours, as OpenMM's and GROMACS's PME do (the
 /// influence function stays finite, and the results match theirs).
 pub fn moduli(order: usize, size: usize) -> Vec<f64> {
-    let at_integers = weights(order, 0.0, false).value;
+    let at_integers = weights(order, 0.0f64, false).value;
     // M_n(k + 1) for k = 0 … n−2 is value[k + 1].
     let mut out: Vec<f64> = (0..size)
         .map(|m| {
@@ -144,7 +147,7 @@ mod tests {
             // Off the knots (w = 0), where a central second difference of the cubic
             // spline's M″ (a kink) is only O(h).
             for w in [0.13, 0.5, 0.77, 0.999] {
-                let got = weights(order, w, true);
+                let got = weights::<f64>(order, w, true);
                 let total: f64 = got.value[..order].iter().sum();
                 // Partition of unity, to round-off.
                 assert!((total - 1.0).abs() < 1e-14);
