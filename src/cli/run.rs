@@ -82,8 +82,8 @@ pub struct RunArgs {
     /// How the energy drift is judged at the end of the run.
     #[command(flatten)]
     pub drift: DriftArgs,
-    /// Arithmetic of the non-bonded pair forces: double (default) or mixed (f32 pair
-    /// arithmetic, f64 accumulation and integration).
+    /// Arithmetic of the non-bonded forces: double (default) or mixed (f32 pair arithmetic
+    /// and PME mesh, f64 accumulation and integration).
     #[arg(long, value_parser = ["double", "mixed"])]
     pub precision: Option<String>,
     #[command(flatten)]

@@ -155,8 +155,9 @@ pub struct ScanStepsArgs {
     pub start: Option<PathBuf>,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
-    /// Arithmetic of the non-bonded pair forces in every point's run: double (default) or
-    /// mixed (f32 pair arithmetic, f64 accumulation and integration), as `run --precision`.
+    /// Arithmetic of the non-bonded forces in every point's run: double (default) or mixed
+    /// (f32 pair arithmetic and PME mesh, f64 accumulation and integration), as
+    /// `run --precision`.
     #[arg(long, value_parser = ["double", "mixed"])]
     pub precision: Option<String>,
 }

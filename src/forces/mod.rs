@@ -78,8 +78,8 @@ pub enum Precision {
     /// f64 throughout.
     #[default]
     Double,
-    /// f32 pair arithmetic with f64 accumulation, where a term supports it (the non-bonded
-    /// term); f64 elsewhere.
+    /// f32 arithmetic with f64 accumulation, where a term supports it (the non-bonded pair
+    /// kernel and the PME mesh); f64 elsewhere.
     Mixed,
 }
 
