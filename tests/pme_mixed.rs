@@ -199,20 +199,7 @@ fn mixed_pme_gives_the_same_bits_on_one_two_and_three_threads() {
     let excluded = [(0, 1), (2, 3), (4, 5)];
     let term = PmeReciprocal::new(params, lengths, KE, charges, &excluded).expect("PME term");
     assert!(term.set_precision(Precision::Mixed));
-    let evaluate = |threads: usize| -> (Vec<u64>, Vec<u64>, u64) {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("pool");
-        pool.install(|| {
-            let mut g = vec![0.0; q.len()];
-            term.add_gradient(&q, &mut g);
-            let mut hv = vec![0.0; q.len()];
-            term.add_hessian_vector(&q, &v, &mut hv);
-            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-            (bits(&g), bits(&hv), term.energy(&q).to_bits())
-        })
-    };
+    let evaluate = |threads: usize| common::term_bits(&term, &q, &v, threads);
     let serial = evaluate(1);
     assert!(serial == evaluate(2));
     assert!(serial == evaluate(3));

@@ -284,3 +284,25 @@ pub fn assert_forces_match(
     }
 }
 pub mod svg;
+
+/// Gradient, Hessian-vector product (along `v`) and energy of `term` at `q` as bits, computed
+/// on a rayon pool of `threads` threads: equal results at every count are the same bits.
+pub fn term_bits(
+    term: &dyn longstep::forces::ForceTerm,
+    q: &[f64],
+    v: &[f64],
+    threads: usize,
+) -> (Vec<u64>, Vec<u64>, u64) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool");
+    pool.install(|| {
+        let mut g = vec![0.0; q.len()];
+        term.add_gradient(q, &mut g);
+        let mut hv = vec![0.0; q.len()];
+        term.add_hessian_vector(q, v, &mut hv);
+        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        (bits(&g), bits(&hv), term.energy(q).to_bits())
+    })
+}
