@@ -104,6 +104,90 @@ pub fn run(
     check_applicable(scene, system, integrator)?;
     system.forces.reset_counts();
     integrator.setup(system)?;
+    resume_state(integrator, options)?;
+    let first_step = options.resume.as_ref().map_or(0, |r| r.checkpoint.step);
+    // The trajectory first: a format chemfiles cannot write fails before energy.csv exists.
+    let mut trajectory = open_trajectory(system, options, first_step)?;
+    let mut recorder = Recorder::new(system, integrator, options)?;
+    if first_step.is_multiple_of(options.energy_every as u64) {
+        recorder.record(system, integrator)?;
+    }
+    if let Some(t) = &mut trajectory {
+        t.writer
+            .write_state(&system.state.q, momenta(system), first_step, system.state.t)?;
+    }
+    let t_start = options
+        .resume
+        .as_ref()
+        .map_or(system.state.t, |r| r.checkpoint.t0);
+    let mut stepping = Stepping {
+        h: integrator.outer_step(),
+        t_start,
+        steps: first_step,
+        status: Status::Ok,
+        message: None,
+    };
+    let started = Instant::now();
+    step_loop(
+        system,
+        integrator,
+        options,
+        &mut recorder,
+        &mut trajectory,
+        &mut stepping,
+    )?;
+    let wall_seconds = started.elapsed().as_secs_f64();
+    options.progress.finish_and_clear();
+    // A run that stopped early keeps the state it stopped in, for the user to look at.
+    if let Some(t) = &mut trajectory
+        && t.written != stepping.steps
+    {
+        let (q, t_now) = (&system.state.q, system.state.t);
+        t.writer
+            .write_state(q, momenta(system), stepping.steps, t_now)?;
+    }
+    if let Some(csv) = &mut recorder.csv {
+        csv.flush()?;
+    }
+    let outcome = Outcome {
+        h: stepping.h,
+        steps: stepping.steps - first_step,
+        status: stepping.status,
+        message: stepping.message,
+        wall_seconds,
+    };
+    let mut summary = summarise(scene, system, integrator, &recorder, outcome);
+    summary.requested_t_end = Some(options.t_end);
+    summary.continued_from = options.resume.as_ref().map(|resume| Continuation {
+        checkpoint: resume.path.display().to_string(),
+        step: resume.checkpoint.step,
+        t: resume.checkpoint.t,
+        t0: resume.checkpoint.t0,
+    });
+    Ok(summary)
+}
+
+/// Where the stepping loop stands: the outer step, the time the step count counts from,
+/// the steps taken (a restart's included) and how the run ends.
+struct Stepping {
+    h: f64,
+    t_start: f64,
+    steps: u64,
+    status: Status,
+    message: Option<String>,
+}
+
+/// The trajectory being written: its writer, every how many steps a frame, and the step of
+/// the last frame written.
+struct OpenTrajectory {
+    writer: TrajectoryWriter,
+    every: u64,
+    written: u64,
+}
+
+/// A restart's saved method state into `integrator`; with checkpoints asked for, a method
+/// whose state cannot be saved says so before the run, not at its first checkpoint.
+fn resume_state(integrator: &mut dyn Integrator, options: &RunOptions) -> Result<()> {
     if let Some(resume) = &options.resume {
         check_resume_time(resume, integrator)?;
         integrator
@@ -114,56 +198,58 @@ pub fn run(
             })?;
     }
     if options.checkpoint.is_some() {
-        // A method whose state cannot be saved says so before the run, not at its first
-        // checkpoint.
         integrator.save_state()?;
     }
-    let h = integrator.outer_step();
-    let first_step = options.resume.as_ref().map_or(0, |r| r.checkpoint.step);
-    // The trajectory first: a format chemfiles cannot write fails before energy.csv exists.
-    let mut trajectory = match &options.trajectory {
-        Some(t) => {
-            let mut writer =
-                TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
-            if t.velocities {
-                if system.mass_matrix.is_some() {
-                    return Err(Error::input(
-                        "--trajectory-velocities: the velocities of a non-diagonal mass matrix \
-                         are not written; leave the flag out",
-                    ));
-                }
-                writer = writer.with_velocities()?;
-            }
-            Some((writer, t.every.max(1) as u64, first_step))
-        }
-        None => None,
-    };
-    let mut recorder = Recorder::new(system, integrator, options)?;
-    if first_step.is_multiple_of(options.energy_every as u64) {
-        recorder.record(system, integrator)?;
-    }
-    if let Some((writer, _, _)) = &mut trajectory {
-        writer.write_state(&system.state.q, momenta(system), first_step, system.state.t)?;
-    }
+    Ok(())
+}
 
-    let t_start = options
-        .resume
-        .as_ref()
-        .map_or(system.state.t, |r| r.checkpoint.t0);
-    let started = Instant::now();
-    let end_tolerance = 1e-9 * h;
-    let mut steps: u64 = first_step;
-    let mut status = Status::Ok;
-    let mut message = None;
+/// The trajectory writer of `options`, if any, its first frame due at `first_step`.
+fn open_trajectory(
+    system: &System,
+    options: &RunOptions,
+    first_step: u64,
+) -> Result<Option<OpenTrajectory>> {
+    let Some(t) = &options.trajectory else {
+        return Ok(None);
+    };
+    let mut writer = TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
+    if t.velocities {
+        if system.mass_matrix.is_some() {
+            return Err(Error::input(
+                "--trajectory-velocities: the velocities of a non-diagonal mass matrix \
+                 are not written; leave the flag out",
+            ));
+        }
+        writer = writer.with_velocities()?;
+    }
+    Ok(Some(OpenTrajectory {
+        writer,
+        every: t.every.max(1) as u64,
+        written: first_step,
+    }))
+}
+
+/// Step to `options.t_end`: checkpoints, trajectory frames and energy rows as due; a
+/// failed step or a blow-up ends the loop with its status.
+fn step_loop(
+    system: &mut System,
+    integrator: &mut dyn Integrator,
+    options: &RunOptions,
+    recorder: &mut Recorder,
+    trajectory: &mut Option<OpenTrajectory>,
+    stepping: &mut Stepping,
+) -> Result<()> {
+    let end_tolerance = 1e-9 * stepping.h;
     while system.state.t < options.t_end - end_tolerance {
         if let Err(failure) = integrator.step(system) {
-            status = Status::Failed;
-            message = Some(failure.0);
+            stepping.status = Status::Failed;
+            stepping.message = Some(failure.0);
             break;
         }
-        steps += 1;
+        stepping.steps += 1;
+        let steps = stepping.steps;
         if integrator.fixed_step() {
-            system.state.t = t_start + steps as f64 * h;
+            system.state.t = stepping.t_start + steps as f64 * stepping.h;
         }
         let last = system.state.t >= options.t_end - end_tolerance;
         // The kinetic energy is cheap: check it every step so a blow-up is caught when
@@ -176,56 +262,28 @@ pub fn run(
         {
             let at = CheckpointAt {
                 step: steps,
-                t0: t_start,
+                t0: stepping.t_start,
                 monitor: &recorder.monitor,
             };
             write_checkpoint(plan, system, integrator, at)?;
         }
-        if let Some((writer, every, written)) = &mut trajectory
-            && (last || !kinetic_finite || steps.is_multiple_of(*every))
+        if let Some(t) = trajectory
+            && (last || !kinetic_finite || steps.is_multiple_of(t.every))
         {
-            writer.write_state(&system.state.q, momenta(system), steps, system.state.t)?;
-            *written = steps;
+            t.writer
+                .write_state(&system.state.q, momenta(system), steps, system.state.t)?;
+            t.written = steps;
         }
         if last || !kinetic_finite || steps.is_multiple_of(options.energy_every as u64) {
             let total = recorder.record(system, integrator)?;
             if let Err(reason) = recorder.monitor.record(total) {
-                status = Status::Unstable;
-                message = Some(reason);
+                stepping.status = Status::Unstable;
+                stepping.message = Some(reason);
                 break;
             }
         }
     }
-    let wall_seconds = started.elapsed().as_secs_f64();
-    options.progress.finish_and_clear();
-    // A run that stopped early keeps the state it stopped in, for the user to look at.
-    if let Some((writer, _, written)) = &mut trajectory
-        && *written != steps
-    {
-        writer.write_state(&system.state.q, momenta(system), steps, system.state.t)?;
-    }
-    if let Some(csv) = &mut recorder.csv {
-        csv.flush()?;
-    }
-    let outcome = Outcome {
-        h,
-        steps: steps - first_step,
-        status,
-        message,
-        wall_seconds,
-    };
-    let mut summary = summarise(scene, system, integrator, &recorder, outcome);
-    summary.requested_t_end = Some(options.t_end);
-    if let Some(resume) = &options.resume {
-        let c = &resume.checkpoint;
-        summary.continued_from = Some(Continuation {
-            checkpoint: resume.path.display().to_string(),
-            step: c.step,
-            t: c.t,
-            t0: c.t0,
-        });
-    }
-    Ok(summary)
+    Ok(())
 }
 
 /// The momenta and inverse masses a trajectory frame's velocities come from.

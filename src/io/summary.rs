@@ -312,6 +312,22 @@ pub struct Continuation {
     pub t0: f64,
 }
 
+impl Continuation {
+    /// The summary's `continued` line.
+    fn line(&self, units: Units) -> String {
+        let time = |t: f64| format_time(t, units);
+        format!(
+            "continued  from {} at step {}, t = {} (the run began at t0 = {}): E0 is the whole \
+             run's; steps, max |dE|, the drift fit and the temperature cover t ≥ {} only",
+            self.checkpoint,
+            self.step,
+            time(self.t),
+            time(self.t0),
+            time(self.t)
+        )
+    }
+}
+
 impl RunSummary {
     /// Set the scene's units: the JSON's `units` object and `ns_per_day` in a real scene.
     pub fn set_units(&mut self, units: Units) {
@@ -376,17 +392,7 @@ impl RunSummary {
                 self.energy.max_relative_error
             ),
         ];
-        if let Some(c) = &self.continued_from {
-            lines.push(format!(
-                "continued  from {} at step {}, t = {} (the run began at t0 = {}): E0 is the \
-                 whole run's; steps, max |dE|, the drift fit and the temperature cover t ≥ {} only",
-                c.checkpoint,
-                c.step,
-                time(c.t),
-                time(c.t0),
-                time(c.t)
-            ));
-        }
+        lines.extend(self.continued_from.as_ref().map(|c| c.line(units)));
         if let Some(t) = &self.temperature {
             let unit = match units {
                 Units::None => " (k_B T)".to_string(),

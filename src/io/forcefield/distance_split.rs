@@ -188,14 +188,7 @@ pub(crate) fn split_terms(
         short.short_range().pair_loop()
     ));
     if spec_charged {
-        report.push(match short_coulomb {
-            ShortCoulomb::Bare => "nonbonded split: the short part's Coulomb is bare 1/r \
-                                   (short_coulomb = \"bare\")"
-                .into(),
-            ShortCoulomb::Model => "nonbonded split: the short part's Coulomb is the term's \
-                                    own form (short_coulomb = \"model\")"
-                .into(),
-        });
+        report.push(coulomb_line(short_coulomb).into());
     }
     let short_name = format!(
         "short-range: switched off from r_in = {} to r_out = {} {by_name}",
@@ -208,6 +201,19 @@ pub(crate) fn split_terms(
         Assignment::Level(remainder_level),
     ));
     Ok(())
+}
+
+/// The report line of the short part's Coulomb form.
+fn coulomb_line(form: ShortCoulomb) -> &'static str {
+    match form {
+        ShortCoulomb::Bare => {
+            "nonbonded split: the short part's Coulomb is bare 1/r (short_coulomb = \"bare\")"
+        }
+        ShortCoulomb::Model => {
+            "nonbonded split: the short part's Coulomb is the term's own form \
+             (short_coulomb = \"model\")"
+        }
+    }
 }
 
 /// The short part's Coulomb form: the section's `short_coulomb`, by default bare with PME
