@@ -319,26 +319,7 @@ fn configurational_temperature_of_an_exactly_sampled_harmonic_network_is_t() {
 /// A 20 fs water-box run with an energy row and a frame every step (10 steps).
 fn water_run(name: &str) -> std::path::PathBuf {
     let out = scratch_dir(name);
-    let (code, _, stderr) = run(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "20fs",
-        "--energy-every",
-        "1",
-        "--trajectory-every",
-        "1",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    common::water_run(&out, "20fs");
     out
 }
 

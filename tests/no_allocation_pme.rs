@@ -43,15 +43,19 @@ fn parallel_pme_steps_allocate_nothing() {
         let settings = longstep::settings::MethodSettings::new("impulse", 1.0).with_inner_steps(2);
         let mut integrator = longstep::integrators::build(&settings, &mut Vec::new()).unwrap();
         integrator.setup(&mut scene.system).unwrap();
-        // Warm up past the first list rebuilds (their buffers keep 25 % room).
-        for _ in 0..10 {
-            integrator.step(&mut scene.system).unwrap();
-        }
-        let before = counting::allocations();
-        for _ in 0..10 {
-            integrator.step(&mut scene.system).unwrap();
-        }
-        let during = counting::allocations() - before;
+        // Steps allocated in after a warm-up past the first list rebuilds (their buffers keep
+        // 25 % room).
+        let mut allocations_in_steps = |system: &mut longstep::system::System| {
+            for _ in 0..10 {
+                integrator.step(system).unwrap();
+            }
+            let before = counting::allocations();
+            for _ in 0..10 {
+                integrator.step(system).unwrap();
+            }
+            counting::allocations() - before
+        };
+        let during = allocations_in_steps(&mut scene.system);
         assert_eq!(
             during, 0,
             "{during} allocations in 10 PME steps on two threads"
@@ -59,14 +63,7 @@ fn parallel_pme_steps_allocate_nothing() {
         // Mixed precision: the f32 mesh (and the f32 real-space kernel) is built when the
         // precision changes, and its steps allocate nothing either.
         assert!(scene.system.forces.set_precision(Precision::Mixed) >= 2);
-        for _ in 0..10 {
-            integrator.step(&mut scene.system).unwrap();
-        }
-        let before = counting::allocations();
-        for _ in 0..10 {
-            integrator.step(&mut scene.system).unwrap();
-        }
-        let during = counting::allocations() - before;
+        let during = allocations_in_steps(&mut scene.system);
         assert_eq!(
             during, 0,
             "{during} allocations in 10 mixed-precision PME steps on two threads"

@@ -405,25 +405,7 @@ fn stability_map_title_says_what_is_coloured_and_explains_its_symbols() {
 #[test]
 fn rdf_picture_draws_the_error_band() {
     let dir = scratch_dir("rdf-band");
-    run_ok(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "20fs",
-        "--energy-every",
-        "1",
-        "--trajectory-every",
-        "1",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
+    common::water_run(&dir, "20fs");
     let svg = dir.join("gr.svg");
     run_ok(&[
         "analyze",

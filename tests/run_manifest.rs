@@ -19,29 +19,9 @@ fn springs(out: &Path, extra: &[&str]) -> (i32, String) {
     (code, stderr)
 }
 
-/// A water-box run of `t_end` into `out` with a row and a frame every step (the water_run of
-/// tests/analysis.rs, which `analyze --blocks 2` takes at 20 fs).
+/// A water-box run of `t_end` into `out` with a row and a frame every step.
 fn water(out: &Path, t_end: &str) {
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        WATER,
-        "--method",
-        "impulse",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        t_end,
-        "--energy-every",
-        "1",
-        "--trajectory-every",
-        "1",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    common::water_run(out, t_end);
 }
 
 fn manifest(dir: &Path) -> serde_json::Value {

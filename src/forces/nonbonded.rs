@@ -297,12 +297,8 @@ pub(crate) trait CoulombLanes {
 impl CoulombPair {
     /// The form for `electrostatics` with `cutoff` (`f64::INFINITY` for none).
     pub fn new(electrostatics: Electrostatics, cutoff: f64) -> Result<Self, String> {
-        // Plain Coulomb with a cutoff is the caller's choice here (the distance split
-        // multiplies it by a switch).
-        if electrostatics == Electrostatics::Plain {
-            return Ok(CoulombPair(Kernel::Plain(Plain)));
-        }
-        coulomb_kernel(electrostatics, cutoff).map(CoulombPair)
+        // The distance split multiplies these pairs by a switch: plain Coulomb inside it.
+        coulomb_kernel(electrostatics, cutoff, true).map(CoulombPair)
     }
 
     /// `(V, −V′/r)` of a pair with `k_e q_i q_j = charge_product` at `r² = s`, `1/r = inv_r`.
@@ -494,12 +490,7 @@ impl Nonbonded {
                 ));
             }
         }
-        // A switched term may take plain Coulomb inside its r_out (the bare short part of a
-        // distance split with PME); unswitched, plain Coulomb has no cutoff form.
-        let kernel = match (switch, spec.electrostatics) {
-            (Some(_), Electrostatics::Plain) => Kernel::Plain(Plain),
-            _ => coulomb_kernel(spec.electrostatics, cutoff)?,
-        };
+        let kernel = coulomb_kernel(spec.electrostatics, cutoff, switch.is_some())?;
         let root_ke = spec.coulomb_constant.sqrt();
         let scaled_charges: Vec<f64> = if spec.electrostatics == Electrostatics::None {
             vec![0.0; n]
@@ -672,11 +663,17 @@ pub struct ListCounts {
     pub inner_pairs: usize,
 }
 
-/// The Coulomb kernel of `electrostatics` at `cutoff`.
-fn coulomb_kernel(electrostatics: Electrostatics, cutoff: f64) -> Result<Kernel, String> {
+/// The Coulomb kernel of `electrostatics` at `cutoff`. Plain Coulomb has no cutoff form,
+/// except in a `switched` term, whose switch takes it to zero inside the cutoff (the bare
+/// short part of a distance split).
+fn coulomb_kernel(
+    electrostatics: Electrostatics,
+    cutoff: f64,
+    switched: bool,
+) -> Result<Kernel, String> {
     Ok(match electrostatics {
         Electrostatics::None | Electrostatics::Plain => {
-            if electrostatics == Electrostatics::Plain && cutoff.is_finite() {
+            if electrostatics == Electrostatics::Plain && cutoff.is_finite() && !switched {
                 return Err(
                     "plain Coulomb has no cutoff form: use coulomb = \"dsf\" or \
                             \"reaction-field\" with a cutoff, or no cutoff"

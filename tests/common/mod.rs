@@ -306,3 +306,29 @@ pub fn term_bits(
         (bits(&g), bits(&hv), term.energy(q).to_bits())
     })
 }
+
+/// A water-box run (`systems/water-box/scene.toml`, impulse at 2 fs with 4 inner steps) of
+/// `t_end` into `out`, with an energy row and a trajectory frame every step: the input that
+/// `analyze --blocks 2` takes at 20 fs.
+pub fn water_run(out: &std::path::Path, t_end: &str) {
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "systems/water-box/scene.toml",
+        "--method",
+        "impulse",
+        "--h",
+        "2fs",
+        "--inner",
+        "4",
+        "--t-end",
+        t_end,
+        "--energy-every",
+        "1",
+        "--trajectory-every",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+}
