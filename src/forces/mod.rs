@@ -176,6 +176,22 @@ pub trait ForceTerm: Send + Sync {
     /// over the same lists in the same order. Nothing to do for a term without lists.
     fn rebuild_lists(&self) {}
 
+    /// What a checkpoint must hold to rebuild this term's pair lists exactly as they are
+    /// now (e.g. the positions each list was last built at): `None` for a term without
+    /// lists or before its first build. A continued run hands it to
+    /// [`ForceTerm::restore_lists`], so both runs sum over the same pairs in the same
+    /// order without the run that writes the checkpoint rebuilding anything.
+    fn list_state(&self) -> Option<serde_json::Value> {
+        None
+    }
+
+    /// Rebuild this term's pair lists from [`ForceTerm::list_state`] of the same term in
+    /// the run that wrote the checkpoint, and forget cached results. A state this term
+    /// cannot use is an error naming what is wrong.
+    fn restore_lists(&self, _state: &serde_json::Value) -> crate::error::Result<()> {
+        Ok(())
+    }
+
     /// The concrete term, for term-specific settings and reports (tests, benchmarks):
     /// `term.as_any().and_then(|t| t.downcast_ref::<Nonbonded>())`. `None` by default.
     fn as_any(&self) -> Option<&dyn std::any::Any> {
