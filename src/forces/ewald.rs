@@ -23,6 +23,7 @@
 //! uses 4). An explicit `ewald_alpha` or `pme_grid` overrides the derived value.
 
 pub mod direct;
+mod exclusions;
 mod fft;
 mod float;
 pub mod reciprocal;

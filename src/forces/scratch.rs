@@ -56,6 +56,22 @@ impl<T: Copy + Default + Send> Scratch<T> {
         &self,
         n: usize,
         compute: impl Fn(usize) -> T + Sync,
+        apply: impl FnMut(usize, &T),
+    ) {
+        let compute = |first: usize, slots: &mut [T]| {
+            for (k, slot) in slots.iter_mut().enumerate() {
+                *slot = compute(first + k);
+            }
+        };
+        self.two_phase_chunks(n, compute, apply);
+    }
+
+    /// As [`Self::two_phase`], with `compute(first, slots)` filling the results of the
+    /// interactions `first … first + slots.len()` (a task's, for work done in batches).
+    pub fn two_phase_chunks(
+        &self,
+        n: usize,
+        compute: impl Fn(usize, &mut [T]) + Sync,
         mut apply: impl FnMut(usize, &T),
     ) {
         // A panic elsewhere while the lock was held leaves a buffer that is overwritten anyway.
@@ -66,11 +82,7 @@ impl<T: Copy + Default + Send> Scratch<T> {
         buffer[..n]
             .par_chunks_mut(TASK)
             .enumerate()
-            .for_each(|(task, slots)| {
-                for (k, slot) in slots.iter_mut().enumerate() {
-                    *slot = compute(task * TASK + k);
-                }
-            });
+            .for_each(|(task, slots)| compute(task * TASK, slots));
         for (k, result) in buffer[..n].iter().enumerate() {
             apply(k, result);
         }

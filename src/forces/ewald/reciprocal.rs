@@ -42,11 +42,12 @@ use std::sync::Mutex;
 
 use rayon::prelude::*;
 
+use super::exclusions::Exclusions;
 use super::fft::{Fft3, FftScratch, Output};
 use super::float::MeshFloat;
 use super::spline::{self, MAX_ORDER, Weights};
-use super::{EwaldParameters, background_energy, erf_over_r, self_energy};
-use crate::forces::scratch::{Scratch, parallel};
+use super::{EwaldParameters, background_energy, self_energy};
+use crate::forces::scratch::parallel;
 use crate::forces::{ForceTerm, Precision, TermClass};
 
 /// Parallel spreading tasks per thread (slabs of x-planes).
@@ -107,8 +108,8 @@ pub struct PmeReciprocal {
     coulomb_constant: f64,
     charges: Vec<f64>,
     excluded: Vec<(u32, u32)>,
-    /// Per excluded pair, its change in a parallel gradient.
-    exclusion_scratch: Scratch<[f64; 3]>,
+    /// The excluded pairs' correction `−Q_ij erf(αr)/r`.
+    exclusions: Exclusions,
     self_energy: f64,
     background: f64,
     workspace: Mutex<Workspace>,
@@ -139,6 +140,7 @@ impl PmeReciprocal {
         pairs.sort_unstable();
         pairs.dedup();
         let volume: f64 = lengths.iter().product();
+        let exclusions = Exclusions::new(params.alpha, lengths, coulomb_constant, &charges, &pairs);
         let workspace = Workspace::Double(Mesh::new(&params, lengths, coulomb_constant, n));
         Ok(PmeReciprocal {
             self_energy: self_energy(params.alpha, coulomb_constant, &charges),
@@ -147,7 +149,7 @@ impl PmeReciprocal {
             lengths,
             coulomb_constant,
             charges,
-            exclusion_scratch: Scratch::with_len(pairs.len()),
+            exclusions,
             excluded: pairs,
             workspace: Mutex::new(workspace),
         })
@@ -193,7 +195,20 @@ impl PmeReciprocal {
     /// Every atom's stencil at `q` (with the splines' second derivatives for `second`).
     #[inline(never)]
     fn place<T: MeshFloat>(&self, q: &[f64], stencils: &mut [Stencil<T>], second: bool) {
-        let order = self.params.order;
+        match self.params.order {
+            4 => self.place_order::<T, 4>(q, stencils, second),
+            5 => self.place_order::<T, 5>(q, stencils, second),
+            _ => self.place_order::<T, 6>(q, stencils, second),
+        }
+    }
+
+    /// [`Self::place`] for B-splines of order `N` (the spline recursion unrolled).
+    fn place_order<T: MeshFloat, const N: usize>(
+        &self,
+        q: &[f64],
+        stencils: &mut [Stencil<T>],
+        second: bool,
+    ) {
         let place_one = |i: usize, stencil: &mut Stencil<T>| {
             for a in 0..3 {
                 let size = self.params.grid[a];
@@ -201,9 +216,12 @@ impl PmeReciprocal {
                 let u = (s - floor(s)) * size as f64;
                 // u may round up to `size` for s just below 1 (u ≥ 0: truncation floors).
                 let base = (u as usize).min(size - 1);
-                stencil.weights[a] = spline::weights(order, T::of(u - base as f64), second);
-                for k in 0..order {
-                    stencil.index[a][k] = ((base + size - k) % size) as u32;
+                stencil.weights[a] = spline::weights_of::<T, N>(T::of(u - base as f64), second);
+                // (base − k) mod size, with base < size and k < N ≤ size: one wrap at most
+                // (no integer division in the per-atom loop).
+                for k in 0..N {
+                    let index = base + size - k;
+                    stencil.index[a][k] = (if index >= size { index - size } else { index }) as u32;
                 }
             }
         };
@@ -423,92 +441,6 @@ impl PmeReciprocal {
         second[2][1] = second[1][2];
         (first, second)
     }
-
-    /// Minimum-image `r_j − r_i`.
-    fn difference(&self, q: &[f64], i: usize, j: usize) -> [f64; 3] {
-        std::array::from_fn(|a| {
-            let d = q[3 * j + a] - q[3 * i + a];
-            let l = self.lengths[a];
-            d - l * (d / l).round()
-        })
-    }
-
-    /// The excluded pairs with a charge product: `(i, j, Q_ij, d = q_j − q_i, r)`, in list
-    /// order (minimum image).
-    fn charged_exclusions<'a>(
-        &'a self,
-        q: &'a [f64],
-    ) -> impl Iterator<Item = (usize, usize, f64, [f64; 3], f64)> + 'a {
-        self.excluded.iter().filter_map(move |&(i, j)| {
-            let (i, j) = (i as usize, j as usize);
-            let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
-            if qq == 0.0 {
-                return None;
-            }
-            let d = self.difference(q, i, j);
-            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            Some((i, j, qq, d, r))
-        })
-    }
-
-    /// `E_excl = −Σ Q_ij erf(αr)/r`.
-    fn exclusion_energy(&self, q: &[f64]) -> f64 {
-        let mut energy = 0.0;
-        for (_, _, qq, _, r) in self.charged_exclusions(q) {
-            energy -= qq * erf_over_r(self.params.alpha, r).0;
-        }
-        energy
-    }
-
-    /// The exclusions' gradient (`v = None`) or Hessian-vector product into `out`: per
-    /// pair its change to atom `j` (minus it to `i`), for many pairs in the two phases of
-    /// [`Scratch`] (the same additions in the same order as the serial loop).
-    #[inline(never)]
-    fn exclusion_derivative(&self, q: &[f64], v: Option<&[f64]>, out: &mut [f64]) {
-        let mut apply = |k: usize, change: &[f64; 3]| {
-            let (i, j) = self.excluded[k];
-            let (i, j) = (i as usize, j as usize);
-            for a in 0..3 {
-                out[3 * j + a] += change[a];
-                out[3 * i + a] -= change[a];
-            }
-        };
-        let n = self.excluded.len();
-        if parallel(n) {
-            let compute = |k: usize| self.exclusion_change(q, v, k);
-            self.exclusion_scratch.two_phase(n, compute, apply);
-        } else {
-            for k in 0..n {
-                apply(k, &self.exclusion_change(q, v, k));
-            }
-        }
-    }
-
-    /// Excluded pair `k`'s gradient or Hessian-vector change to its atom `j` (zero for an
-    /// uncharged pair).
-    fn exclusion_change(&self, q: &[f64], v: Option<&[f64]>, k: usize) -> [f64; 3] {
-        let (i, j) = self.excluded[k];
-        let (i, j) = (i as usize, j as usize);
-        let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
-        if qq == 0.0 {
-            return [0.0; 3];
-        }
-        let d = self.difference(q, i, j);
-        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let (_, f1, f2) = erf_over_r(self.params.alpha, r);
-        // V(r) = −Q f(r).
-        let (v1, v2) = (-qq * f1, -qq * f2);
-        match v {
-            None => std::array::from_fn(|a| v1 / r * d[a]),
-            Some(v) => {
-                // (∇²V Δv) = (V′/r) Δv + ((V″ − V′/r)/r²)(d·Δv) d.
-                let dv: [f64; 3] = std::array::from_fn(|a| v[3 * j + a] - v[3 * i + a]);
-                let along = d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2];
-                let (a1, b1) = (v1 / r, (v2 - v1 / r) / (r * r));
-                std::array::from_fn(|a| a1 * dv[a] + b1 * along * d[a])
-            }
-        }
-    }
 }
 
 /// `θ(m) = k_e exp(−π²m²/α²)/(πV m² B(m))` over the half spectrum (in the FFT's layout), with
@@ -564,7 +496,7 @@ impl ForceTerm for PmeReciprocal {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        self.mesh_energy(q) + self.exclusion_energy(q) + self.self_energy + self.background
+        self.mesh_energy(q) + self.exclusions.energy(q) + self.self_energy + self.background
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
@@ -572,7 +504,7 @@ impl ForceTerm for PmeReciprocal {
             self.potential(q, ws, false);
             self.gather(&ws.stencils, &ws.potential, None, gradient);
         });
-        self.exclusion_derivative(q, None, gradient);
+        self.exclusions.add_gradient(q, gradient);
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
@@ -589,7 +521,7 @@ impl ForceTerm for PmeReciprocal {
             } = ws;
             self.gather(stencils, grid, Some((potential, v)), out);
         });
-        self.exclusion_derivative(q, Some(v), out);
+        self.exclusions.add_hessian_vector(q, v, out);
     }
 
     /// Every charged particle with every other: one interaction of all of them.
@@ -613,7 +545,7 @@ impl ForceTerm for PmeReciprocal {
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
         vec![
             ("pme-reciprocal", self.mesh_energy(q)),
-            ("ewald-exclusions", self.exclusion_energy(q)),
+            ("ewald-exclusions", self.exclusions.energy(q)),
             ("ewald-self", self.self_energy),
             ("ewald-background", self.background),
         ]

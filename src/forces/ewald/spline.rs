@@ -63,7 +63,7 @@ pub fn weights<T: MeshFloat>(order: usize, w: T, second: bool) -> Weights<T> {
 
 /// [`weights`] for a fixed order (its loops unrolled).
 #[inline(always)]
-fn weights_of<T: MeshFloat, const ORDER: usize>(w: T, second: bool) -> Weights<T> {
+pub fn weights_of<T: MeshFloat, const ORDER: usize>(w: T, second: bool) -> Weights<T> {
     let order = ORDER;
     // M_1 is the box on [0, 1): M_1(w) = 1; M_2(w) = w, M_2(w + 1) = 1 − w.
     let mut lower2 = [T::zero(); MAX_ORDER];
