@@ -48,7 +48,11 @@ use super::float::MeshFloat;
 use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, self_energy};
 use crate::forces::scratch::parallel;
+use crate::forces::simd::Isa;
 use crate::forces::{ForceTerm, Precision, TermClass};
+
+/// Atoms per batch of spline weights ([`PmeReciprocal::place`]).
+const PLACE_BATCH: usize = 16;
 
 /// Parallel spreading tasks per thread (slabs of x-planes).
 const SLABS_PER_THREAD: usize = 2;
@@ -202,37 +206,76 @@ impl PmeReciprocal {
         }
     }
 
-    /// [`Self::place`] for B-splines of order `N` (the spline recursion unrolled).
+    /// [`Self::place`] for B-splines of order `N` (the spline recursion unrolled), in
+    /// batches of [`PLACE_BATCH`] atoms compiled for the processor's instruction set
+    /// ([`Isa::run`]): each batch's weights are computed side by side, one lane per atom,
+    /// in plain arithmetic (no fused operations), so the same bits on every set.
     fn place_order<T: MeshFloat, const N: usize>(
         &self,
         q: &[f64],
         stencils: &mut [Stencil<T>],
         second: bool,
     ) {
-        let place_one = |i: usize, stencil: &mut Stencil<T>| {
-            for a in 0..3 {
-                let size = self.params.grid[a];
-                let s = q[3 * i + a] / self.lengths[a];
-                let u = (s - floor(s)) * size as f64;
-                // u may round up to `size` for s just below 1 (u ≥ 0: truncation floors).
-                let base = (u as usize).min(size - 1);
-                stencil.weights[a] = spline::weights_of::<T, N>(T::of(u - base as f64), second);
-                // (base − k) mod size, with base < size and k < N ≤ size: one wrap at most
-                // (no integer division in the per-atom loop).
+        let isa = Isa::best();
+        let batch = |(b, stencils): (usize, &mut [Stencil<T>])| {
+            isa.run(
+                #[inline(always)]
+                || self.place_batch::<T, N>(q, b * PLACE_BATCH, stencils, second),
+            )
+        };
+        if self.parallel() {
+            stencils
+                .par_chunks_mut(PLACE_BATCH)
+                .enumerate()
+                .for_each(batch);
+        } else {
+            stencils.chunks_mut(PLACE_BATCH).enumerate().for_each(batch);
+        }
+    }
+
+    /// The stencils of atoms `first …` (at most [`PLACE_BATCH`]): per axis the grid
+    /// offsets and indices atom by atom, then the weights of all of them.
+    #[inline(always)]
+    fn place_batch<T: MeshFloat, const N: usize>(
+        &self,
+        q: &[f64],
+        first: usize,
+        stencils: &mut [Stencil<T>],
+        second: bool,
+    ) {
+        let weights = &mut spline::WeightsBatch::<T, PLACE_BATCH>::new();
+        for a in 0..3 {
+            let size = self.params.grid[a];
+            let (length, top) = (self.lengths[a], (size - 1) as f64);
+            // Lane by lane: u = K (s − ⌊s⌋) ≥ 0 and its grid point ⌊u⌋, at most K − 1 (u
+            // may round up to K for s just below 1); `floor` is exact, so these are the
+            // values of any other exact floor.
+            let mut bases = [0.0; PLACE_BATCH];
+            let mut offsets = [T::zero(); PLACE_BATCH];
+            for b in 0..stencils.len() {
+                let s = q[3 * (first + b) + a] / length;
+                let u = (s - s.floor()) * size as f64;
+                bases[b] = u.floor().min(top);
+                offsets[b] = T::of(u - bases[b]);
+            }
+            for (stencil, &base) in stencils.iter_mut().zip(&bases) {
+                // (base − k) mod K with base < K and k < N ≤ K: one wrap at most.
+                let base = base as usize;
                 for k in 0..N {
                     let index = base + size - k;
                     stencil.index[a][k] = (if index >= size { index - size } else { index }) as u32;
                 }
             }
-        };
-        if self.parallel() {
-            stencils
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(i, s)| place_one(i, s));
-        } else {
-            for (i, s) in stencils.iter_mut().enumerate() {
-                place_one(i, s);
+            spline::weights_batch::<T, N, PLACE_BATCH>(&offsets, second, weights);
+            for (b, stencil) in stencils.iter_mut().enumerate() {
+                let to = &mut stencil.weights[a];
+                for k in 0..N {
+                    to.value[k] = weights.value[k][b];
+                    to.first[k] = weights.first[k][b];
+                    if second {
+                        to.second[k] = weights.second[k][b];
+                    }
+                }
             }
         }
     }
@@ -568,13 +611,6 @@ impl ForceTerm for PmeReciprocal {
     fn as_any(&self) -> Option<&dyn std::any::Any> {
         Some(self)
     }
-}
-
-/// `⌊x⌋` by truncation (a call to libm's floor otherwise, without SSE4.1's `roundsd`):
-/// exact for `|x| < 2⁶³`, far beyond any coordinate over a box length.
-fn floor(x: f64) -> f64 {
-    let t = x as i64 as f64;
-    if t > x { t - 1.0 } else { t }
 }
 
 /// The charge of one atom onto the planes `planes` of `grid` (from plane `planes.start`),
