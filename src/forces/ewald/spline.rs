@@ -237,8 +237,8 @@ mod tests {
             let w: [T; 16] = std::array::from_fn(|b| T::of(b as f64 / 16.0 + 0.013));
             let mut batch = WeightsBatch::<T, 16>::new();
             weights_batch::<T, N, 16>(&w, true, &mut batch);
-            for b in 0..16 {
-                let one = weights_of::<T, N>(w[b], true);
+            for (b, &w) in w.iter().enumerate() {
+                let one = weights_of::<T, N>(w, true);
                 for k in 0..N {
                     assert!(
                         batch.value[k][b] == one.value[k],
