@@ -23,11 +23,16 @@ use crate::system::System;
 /// checkpoint holds of them (its keys `p_minus`, `p_plus`, `v_minus`, `v_plus`, `monitor`).
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct StaggeredMomenta {
+    /// `p^{n−1/2}`: the momentum of the step just taken.
     pub p_minus: Vec<f64>,
+    /// `p^{n+1/2}`: the momentum of the free flight (4) to come.
     pub p_plus: Vec<f64>,
-    pub v_minus: Vec<f64>,
-    pub v_plus: Vec<f64>,
+    /// `H̃^n` and `H^n` at the nodes so far.
     pub monitor: PseudoEnergyMonitor,
+    /// `M⁻¹ p^{n−1/2}`.
+    pub v_minus: Vec<f64>,
+    /// `M⁻¹ p^{n+1/2}`.
+    pub v_plus: Vec<f64>,
 }
 
 impl StaggeredMomenta {
