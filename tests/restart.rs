@@ -552,7 +552,14 @@ fn async_pseudo_energy_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "async-pseudo-energy-synchronous",
         scene: "systems/fpu.toml",
-        args: &["--method", "async-pseudo-energy", "--h", "0.01", "--ratio", "5"],
+        args: &[
+            "--method",
+            "async-pseudo-energy",
+            "--h",
+            "0.01",
+            "--ratio",
+            "5",
+        ],
         t_end: "2",
         half: "1",
     });
