@@ -526,3 +526,41 @@ fn trajectory_velocities_are_a_start() {
         "kinetic energy {start} at the start, {end} at the frame"
     );
 }
+
+/// MEMM18 (20)–(24): the staggered momenta of both grids. On the slow-fast FPU chain the
+/// scheme runs asynchronously (Gauss–Lobatto, so the end-node gradients that `setup`
+/// recomputes are reused across steps); on the FPU chain every particle feels a fast
+/// spring and it runs the synchronous scheme at `h_fast`, whose state it saves instead.
+#[test]
+fn async_pseudo_energy_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "async-pseudo-energy",
+        scene: "systems/fpu-slow-fast.toml",
+        args: &[
+            "--method",
+            "async-pseudo-energy",
+            "--h",
+            "0.01",
+            "--h-fast",
+            "0.001",
+            "--quadrature",
+            "gl3",
+        ],
+        t_end: "2",
+        half: "1",
+    });
+    both_thread_counts(Case {
+        name: "async-pseudo-energy-synchronous",
+        scene: "systems/fpu.toml",
+        args: &[
+            "--method",
+            "async-pseudo-energy",
+            "--h",
+            "0.01",
+            "--ratio",
+            "5",
+        ],
+        t_end: "2",
+        half: "1",
+    });
+}

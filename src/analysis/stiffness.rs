@@ -28,8 +28,9 @@ use serde::Serialize;
 
 use crate::analysis::modes::fast_modes;
 use crate::error::{Error, Result};
-use crate::integrators::{self, METHODS};
+use crate::integrators::METHODS;
 use crate::io::scene::{SceneFile, build_parsed_scene, parse_scene};
+use crate::run::prepare::{study_integrator, study_integrator_on};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::system::System;
 
@@ -170,7 +171,7 @@ impl StiffnessStudy {
         for method in &self.methods {
             for &h in &self.steps {
                 let settings = self.settings(method, h, first)?;
-                integrators::build(&settings, &mut Vec::new())
+                study_integrator(&settings, &mut Vec::new())
                     .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
             }
         }
@@ -277,11 +278,8 @@ impl StiffnessStudy {
         value: f64,
     ) -> Result<Vec<Vec<f64>>> {
         let mut system = self.system(value)?;
-        let mut verlet = integrators::build(
-            &MethodSettings::new("verlet", h / substeps as f64),
-            &mut Vec::new(),
-        )?;
-        verlet.setup(&mut system)?;
+        let verlet_settings = MethodSettings::new("verlet", h / substeps as f64);
+        let mut verlet = study_integrator_on(&verlet_settings, &mut system)?;
         let mut samples = Vec::with_capacity(n + 1);
         samples.push(system.state.q.clone());
         for _ in 0..n {
@@ -304,8 +302,7 @@ impl StiffnessStudy {
         for (k, method) in self.methods.iter().enumerate() {
             let settings = self.settings(method, h, value)?;
             let mut system = self.system(value)?;
-            let mut integrator = integrators::build(&settings, &mut Vec::new())?;
-            integrator.setup(&mut system)?;
+            let mut integrator = study_integrator_on(&settings, &mut system)?;
             let (mut max_error, mut error_time) = (0.0_f64, 0.0);
             let mut status = "ok";
             for (step, sample) in reference.iter().enumerate().skip(1) {

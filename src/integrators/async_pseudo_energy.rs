@@ -45,8 +45,8 @@
 
 use std::ops::Range;
 
-use super::integrator::{Integrator, StepFailure};
-use super::pseudo_energy::{PseudoEnergy, PseudoEnergyMonitor, pseudo_and_discrete_energy};
+use super::integrator::{Integrator, StepFailure, state_from_json, state_to_json};
+use super::pseudo_energy::{PseudoEnergy, PseudoEnergyMonitor, StaggeredMomenta};
 use super::quadrature::Quadrature;
 use crate::error::{Error, Result};
 use crate::settings::{MethodSettings, whole_ratio};
@@ -288,10 +288,9 @@ pub struct AsyncPseudoEnergy {
     track: bool,
     mode: Mode,
     plan: AsyncPlan,
-    p_minus: Vec<f64>,
-    p_plus: Vec<f64>,
-    v_minus: Vec<f64>,
-    v_plus: Vec<f64>,
+    /// `p^{n∓1/2}` (slow particles), `p^{n,∓1/2}` (fast and mixed), their velocities and
+    /// the pseudo-energy monitor.
+    staggered: StaggeredMomenta,
     /// On fast and mixed coordinates `Σ w ∇V` over the current fine step; on slow ones
     /// `∫ ∂V/∂q_S dt` over the coarse step (disjoint sets, so one array).
     integral: Vec<f64>,
@@ -308,7 +307,6 @@ pub struct AsyncPseudoEnergy {
     coarse_start: Vec<f64>,
     coarse_end: Vec<f64>,
     coarse_start_valid: bool,
-    monitor: PseudoEnergyMonitor,
 }
 
 impl AsyncPseudoEnergy {
@@ -330,10 +328,7 @@ impl AsyncPseudoEnergy {
             track: true,
             mode: Mode::Unset,
             plan: AsyncPlan::default(),
-            p_minus: Vec::new(),
-            p_plus: Vec::new(),
-            v_minus: Vec::new(),
-            v_plus: Vec::new(),
+            staggered: StaggeredMomenta::default(),
             integral: Vec::new(),
             fine_set: TermSet::default(),
             coarse_set: TermSet::default(),
@@ -346,7 +341,6 @@ impl AsyncPseudoEnergy {
             coarse_start: Vec::new(),
             coarse_end: Vec::new(),
             coarse_start_valid: false,
-            monitor: PseudoEnergyMonitor::default(),
         })
     }
 
@@ -414,7 +408,7 @@ impl AsyncPseudoEnergy {
     pub fn monitor(&self) -> &PseudoEnergyMonitor {
         match &self.mode {
             Mode::Synchronous(sync) => sync.monitor(),
-            _ => &self.monitor,
+            _ => &self.staggered.monitor,
         }
     }
 
@@ -424,10 +418,7 @@ impl AsyncPseudoEnergy {
         if let Mode::Synchronous(sync) = &self.mode {
             return sync.state_vector(system, z);
         }
-        let n = system.n_dofs();
-        z[..n].copy_from_slice(&system.state.q);
-        z[n..2 * n].copy_from_slice(&self.p_minus);
-        z[2 * n..3 * n].copy_from_slice(&self.p_plus);
+        self.staggered.state_vector(system, z);
     }
 
     /// Replace the state by `Z` (see [`AsyncPseudoEnergy::state_vector`]).
@@ -435,37 +426,9 @@ impl AsyncPseudoEnergy {
         if let Mode::Synchronous(sync) = &mut self.mode {
             return sync.set_state_vector(system, z);
         }
-        let n = system.n_dofs();
-        system.state.q.copy_from_slice(&z[..n]);
-        self.p_minus.copy_from_slice(&z[n..2 * n]);
-        self.p_plus.copy_from_slice(&z[2 * n..3 * n]);
-        system.velocity(&self.p_minus, &mut self.v_minus);
-        system.velocity(&self.p_plus, &mut self.v_plus);
+        self.staggered.set_state_vector(system, z);
         self.fine_start_valid = false;
         self.coarse_start_valid = false;
-        self.sync_state(system);
-    }
-
-    fn sync_state(&self, system: &mut System) {
-        for ((p, a), b) in system
-            .state
-            .p
-            .iter_mut()
-            .zip(&self.p_minus)
-            .zip(&self.p_plus)
-        {
-            *p = 0.5 * (a + b);
-        }
-    }
-
-    fn energies(&self, system: &System) -> (f64, f64) {
-        pseudo_and_discrete_energy(
-            system.forces.total_energy(&system.state.q),
-            &self.p_minus,
-            &self.p_plus,
-            &self.v_minus,
-            &self.v_plus,
-        )
     }
 
     /// The term sets and node table a step reuses (setup).
@@ -520,7 +483,7 @@ impl AsyncPseudoEnergy {
             plan,
             nodes,
             fine_set,
-            v_plus,
+            staggered,
             scratch,
             gradient,
             integral,
@@ -541,7 +504,7 @@ impl AsyncPseudoEnergy {
                 };
                 // Slow partners on their coarse flight (23), at the same time.
                 let s = [node.s_fine, (m as f64 + node.tau) * h_fast];
-                plan.fine_flights(s, q, v_plus, scratch, out);
+                plan.fine_flights(s, q, &staggered.v_plus, scratch, out);
                 forces.add_set_gradient(fine_set, scratch, out);
                 out
             };
@@ -562,7 +525,7 @@ impl AsyncPseudoEnergy {
         for node in &self.nodes {
             let reuse = node.tau == 0.0 && ends && self.coarse_start_valid;
             if !reuse {
-                let (q, v) = (&system.state.q, &self.v_plus);
+                let (q, v) = (&system.state.q, &self.staggered.v_plus);
                 flight(&self.plan.slow_runs, &mut self.scratch, q, v, node.s_coarse);
                 zero(&self.plan.slow_runs, &mut self.gradient);
                 let forces = &mut system.forces;
@@ -593,12 +556,13 @@ impl AsyncPseudoEnergy {
         } else {
             &self.plan.fine_dofs
         };
+        let staggered = &mut self.staggered;
         HalfSteps {
             q: &mut system.state.q,
-            p_minus: &mut self.p_minus,
-            p_plus: &mut self.p_plus,
-            v_minus: &mut self.v_minus,
-            v_plus: &mut self.v_plus,
+            p_minus: &mut staggered.p_minus,
+            p_plus: &mut staggered.p_plus,
+            v_minus: &mut staggered.v_minus,
+            v_plus: &mut staggered.v_plus,
             integral: &self.integral,
             inverse_mass: &system.inverse_mass,
         }
@@ -620,18 +584,39 @@ impl AsyncPseudoEnergy {
         }
         // (24a), (24b) for slow particles.
         self.advance(system, true, 2.0, h_slow);
-        self.sync_state(system);
+        self.staggered.sync_state(system);
     }
 }
 
 impl Integrator for AsyncPseudoEnergy {
-    /// The staggered momenta of both grids and the coarse step's integral are not saved yet: a checkpoint is refused rather than continued from a
-    /// state that would not give the same steps.
+    /// The staggered momenta of both grids and the pseudo-energy statistics (the
+    /// synchronous fallback's own state when it runs). Nothing else carries over a coarse
+    /// step: `integral` is zeroed where each step starts, the cached end-node gradients
+    /// are recomputed by `setup` at the same positions (the flights end on the drifts'
+    /// bits, `h_S = K h_F`).
     fn save_state(&self) -> Result<serde_json::Value> {
-        Err(Error::input(format!(
-            "{} cannot write checkpoints yet (the staggered momenta of both grids are part of its state); run it without --checkpoint-every",
-            self.name()
-        )))
+        match &self.mode {
+            Mode::Synchronous(sync) => sync.save_state(),
+            Mode::Async => state_to_json(self.name(), &self.staggered),
+            Mode::Unset => Err(Error::input(format!(
+                "{}: a checkpoint before setup",
+                self.name()
+            ))),
+        }
+    }
+
+    /// Restore what [`Integrator::save_state`] saved, after `setup` chose the same mode
+    /// (the split of the same system).
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        let name = self.name();
+        match &mut self.mode {
+            Mode::Synchronous(sync) => sync.restore_state(state),
+            Mode::Async => {
+                let saved: StaggeredMomenta = state_from_json(name, state)?;
+                self.staggered.restore(name, saved)
+            }
+            Mode::Unset => Err(Error::input(format!("{name}: a restore before setup"))),
+        }
     }
 
     fn name(&self) -> &'static str {
@@ -673,11 +658,7 @@ impl Integrator for AsyncPseudoEnergy {
         }
         self.mode = Mode::Async;
         let n = system.n_dofs();
-        self.p_minus = system.state.p.clone();
-        self.p_plus = system.state.p.clone();
-        self.v_minus = vec![0.0; n];
-        system.velocity(&self.p_minus, &mut self.v_minus);
-        self.v_plus = self.v_minus.clone();
+        self.staggered.start(system);
         self.integral = vec![0.0; n];
         self.prepare(&system.forces);
         self.gradient = vec![0.0; n];
@@ -698,10 +679,7 @@ impl Integrator for AsyncPseudoEnergy {
                 self.coarse_start_valid = true;
             }
         }
-        let (pseudo, _) = self.energies(system);
-        let potential = system.forces.total_energy(&system.state.q);
-        self.monitor =
-            PseudoEnergyMonitor::new(pseudo, (pseudo - potential).abs() + potential.abs());
+        self.staggered.start_monitor(system);
         Ok(())
     }
 
@@ -718,8 +696,7 @@ impl Integrator for AsyncPseudoEnergy {
                 self.async_step(system);
                 system.state.t += self.h_slow;
                 if self.track {
-                    let (pseudo, discrete) = self.energies(system);
-                    self.monitor.record(pseudo, discrete);
+                    self.staggered.record(system);
                 }
                 Ok(())
             }
@@ -734,7 +711,7 @@ impl Integrator for AsyncPseudoEnergy {
         match &self.mode {
             Mode::Synchronous(sync) => sync.extra_values(system, out),
             _ => {
-                let (pseudo, discrete) = self.energies(system);
+                let (pseudo, discrete) = self.staggered.energies(system);
                 out.extend([pseudo, discrete]);
             }
         }

@@ -63,17 +63,39 @@ pub trait SlowMollifier: Send {
     /// size every buffer, so that [`SlowMollifier::mollified_gradient`] allocates nothing.
     fn setup(&mut self, system: &System) -> Result<()>;
 
+    /// Compute `A(q)` at `at.q`, kept for [`SlowMollifier::mollified_positions`] and
+    /// [`SlowMollifier::pull_back`]. Fails when it cannot be computed (a projection that
+    /// does not converge).
+    fn mollify(&mut self, at: &mut MollifyAt<'_>) -> std::result::Result<(), StepFailure>;
+
+    /// `out = A_q(q)ᵀ g` for the `q` of the last [`SlowMollifier::mollify`].
+    fn pull_back(&mut self, at: &mut MollifyAt<'_>, g: &[f64], out: &mut [f64]);
+
+    /// The buffer `∇U(A(q))` is evaluated into, sized by [`SlowMollifier::setup`].
+    fn slow_gradient_buffer(&mut self) -> &mut Vec<f64>;
+
     /// `out = A_q(q)ᵀ ∇U(A(q))`, `U` the level `slow_level` of `forces`: the gradient
-    /// whose negative is the mollified impulse force. `fast_gradient_at_q` is `∇W(q)`
-    /// (level 0) when the caller has it. Fails when `A(q)` cannot be computed (a
-    /// projection that does not converge).
+    /// whose negative is the mollified impulse force (GSS98 eq. (4)). `fast_gradient_at_q`
+    /// is `∇W(q)` (level 0) when the caller has it. The one declaration of the mollified
+    /// gradient: a mollifier says how it maps and pulls back, not how the two combine.
+    /// Cost: one [`SlowMollifier::mollify`], one slow-level gradient, one
+    /// [`SlowMollifier::pull_back`]; allocates nothing.
     fn mollified_gradient(
         &mut self,
-        at: MollifyAt<'_>,
+        mut at: MollifyAt<'_>,
         out: &mut [f64],
-    ) -> std::result::Result<(), StepFailure>;
+    ) -> std::result::Result<(), StepFailure> {
+        self.mollify(&mut at)?;
+        let mut slow_gradient = std::mem::take(self.slow_gradient_buffer());
+        let positions = self.mollified_positions();
+        at.forces
+            .gradient(at.slow_level, positions, &mut slow_gradient);
+        self.pull_back(&mut at, &slow_gradient, out);
+        *self.slow_gradient_buffer() = slow_gradient;
+        Ok(())
+    }
 
-    /// `A(q)` of the last [`SlowMollifier::mollified_gradient`] call.
+    /// `A(q)` of the last [`SlowMollifier::mollify`].
     fn mollified_positions(&self) -> &[f64];
 
     /// A method-specific object for the run summary (statistics of the projection).
@@ -602,26 +624,18 @@ impl SlowMollifier for Mollifier {
         Ok(())
     }
 
-    /// `out = A_q(h; q)ᵀ ∇U(A(h; q))`, U the slow level: the gradient whose negative is
-    /// the mollified impulse force.
-    fn mollified_gradient(
-        &mut self,
-        at: MollifyAt<'_>,
-        out: &mut [f64],
-    ) -> std::result::Result<(), StepFailure> {
-        let MollifyAt {
-            forces,
-            inverse_mass,
-            q,
-            fast_gradient_at_q,
-            slow_level,
-        } = at;
-        self.compute_average(forces, inverse_mass, q, fast_gradient_at_q);
-        forces.gradient(slow_level, &self.averaged, &mut self.slow_gradient);
-        let slow_gradient = std::mem::take(&mut self.slow_gradient);
-        self.transpose_product(forces, inverse_mass, &slow_gradient, out);
-        self.slow_gradient = slow_gradient;
+    /// `A(h; q)`: the auxiliary problem integrated with the fast level.
+    fn mollify(&mut self, at: &mut MollifyAt<'_>) -> std::result::Result<(), StepFailure> {
+        self.compute_average(at.forces, at.inverse_mass, at.q, at.fast_gradient_at_q);
         Ok(())
+    }
+
+    fn pull_back(&mut self, at: &mut MollifyAt<'_>, g: &[f64], out: &mut [f64]) {
+        self.transpose_product(at.forces, at.inverse_mass, g, out);
+    }
+
+    fn slow_gradient_buffer(&mut self) -> &mut Vec<f64> {
+        &mut self.slow_gradient
     }
 
     fn mollified_positions(&self) -> &[f64] {

@@ -33,11 +33,14 @@
 //! (uncounted) energy evaluation for the pseudo-energy monitor; rejected attempts cost
 //! the same again.
 
-use super::integrator::{Integrator, StepFailure, restore_vector, state_from_json, state_to_json};
+pub mod staggered;
+
+use super::integrator::{Integrator, StepFailure, state_from_json, state_to_json};
 use super::quadrature::Quadrature;
 use crate::error::{Error, Result};
 use crate::settings::MethodSettings;
 use crate::system::System;
+pub use staggered::StaggeredMomenta;
 
 /// Running statistics of the pseudo-energy at the nodes where it is conserved.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -129,10 +132,8 @@ pub struct PseudoEnergy {
     variable: bool,
     /// Compute `H̃` at every node (one energy evaluation per step).
     track: bool,
-    p_minus: Vec<f64>,
-    p_plus: Vec<f64>,
-    v_minus: Vec<f64>,
-    v_plus: Vec<f64>,
+    /// `p^{n∓1/2}`, their velocities and the pseudo-energy monitor.
+    staggered: StaggeredMomenta,
     p_next: Vec<f64>,
     v_next: Vec<f64>,
     integral: Vec<f64>,
@@ -142,7 +143,6 @@ pub struct PseudoEnergy {
     start_gradient: Vec<f64>,
     end_gradient: Vec<f64>,
     start_valid: bool,
-    monitor: PseudoEnergyMonitor,
     last_h: f64,
     smallest_h: f64,
     largest_h: f64,
@@ -162,10 +162,7 @@ impl PseudoEnergy {
             adaptive: None,
             variable: false,
             track: true,
-            p_minus: Vec::new(),
-            p_plus: Vec::new(),
-            v_minus: Vec::new(),
-            v_plus: Vec::new(),
+            staggered: StaggeredMomenta::default(),
             p_next: Vec::new(),
             v_next: Vec::new(),
             integral: Vec::new(),
@@ -174,7 +171,6 @@ impl PseudoEnergy {
             start_gradient: Vec::new(),
             end_gradient: Vec::new(),
             start_valid: false,
-            monitor: PseudoEnergyMonitor::default(),
             last_h: h,
             smallest_h: f64::INFINITY,
             largest_h: 0.0,
@@ -233,7 +229,7 @@ impl PseudoEnergy {
     }
 
     pub fn monitor(&self) -> &PseudoEnergyMonitor {
-        &self.monitor
+        &self.staggered.monitor
     }
 
     /// The step last taken (after any halving).
@@ -243,68 +239,25 @@ impl PseudoEnergy {
 
     /// `p^{n−1/2}` and `p^{n+1/2}`.
     pub fn half_step_momenta(&self) -> (&[f64], &[f64]) {
-        (&self.p_minus, &self.p_plus)
+        (&self.staggered.p_minus, &self.staggered.p_plus)
     }
 
-    /// Reverse time (MEMM18 Prop. 4): `(q^n, p^{n−1/2}, p^{n+1/2}) → (q^n, −p^{n+1/2},
-    /// −p^{n−1/2})`. Stepping on then retraces the trajectory backwards.
+    /// Reverse time (MEMM18 Prop. 4, [`StaggeredMomenta::reverse`]). Stepping on then
+    /// retraces the trajectory backwards.
     pub fn reverse(&mut self, system: &mut System) {
-        std::mem::swap(&mut self.p_minus, &mut self.p_plus);
-        std::mem::swap(&mut self.v_minus, &mut self.v_plus);
-        for x in self
-            .p_minus
-            .iter_mut()
-            .chain(self.p_plus.iter_mut())
-            .chain(self.v_minus.iter_mut())
-            .chain(self.v_plus.iter_mut())
-        {
-            *x = -*x;
-        }
-        self.sync_state(system);
+        self.staggered.reverse(system);
     }
 
     /// The scheme's state `Z = (q, p^{n−1/2}, p^{n+1/2})` (length `3 n_dofs`), as in the
     /// proof of MEMM18 Prop. 6.
     pub fn state_vector(&self, system: &System, z: &mut [f64]) {
-        let n = system.n_dofs();
-        z[..n].copy_from_slice(&system.state.q);
-        z[n..2 * n].copy_from_slice(&self.p_minus);
-        z[2 * n..3 * n].copy_from_slice(&self.p_plus);
+        self.staggered.state_vector(system, z);
     }
 
     /// Replace the scheme's state by `Z` (see [`PseudoEnergy::state_vector`]).
     pub fn set_state_vector(&mut self, system: &mut System, z: &[f64]) {
-        let n = system.n_dofs();
-        system.state.q.copy_from_slice(&z[..n]);
-        self.p_minus.copy_from_slice(&z[n..2 * n]);
-        self.p_plus.copy_from_slice(&z[2 * n..3 * n]);
-        system.velocity(&self.p_minus, &mut self.v_minus);
-        system.velocity(&self.p_plus, &mut self.v_plus);
+        self.staggered.set_state_vector(system, z);
         self.start_valid = false;
-        self.sync_state(system);
-    }
-
-    /// `state.p = (p^{n−1/2} + p^{n+1/2})/2`.
-    fn sync_state(&self, system: &mut System) {
-        for ((p, a), b) in system
-            .state
-            .p
-            .iter_mut()
-            .zip(&self.p_minus)
-            .zip(&self.p_plus)
-        {
-            *p = 0.5 * (a + b);
-        }
-    }
-
-    fn energies(&self, system: &System) -> (f64, f64) {
-        pseudo_and_discrete_energy(
-            system.forces.total_energy(&system.state.q),
-            &self.p_minus,
-            &self.p_plus,
-            &self.v_minus,
-            &self.v_plus,
-        )
     }
 
     /// `integral = Q_n / h = Σ w_i ∇V(q^n + τ_i h v^{n+1/2})`, reusing `∇V(q^n)` for a
@@ -323,7 +276,8 @@ impl PseudoEnergy {
                 &self.start_gradient
             } else {
                 let s = tau * h;
-                for ((x, qi), vi) in self.scratch.iter_mut().zip(q).zip(&self.v_plus) {
+                let v_plus = &self.staggered.v_plus;
+                for ((x, qi), vi) in self.scratch.iter_mut().zip(q).zip(v_plus) {
                     *x = qi + s * vi;
                 }
                 system
@@ -365,11 +319,7 @@ impl Integrator for PseudoEnergy {
     /// statistics and the step-size history; `∇V(qⁿ)` is recomputed by `setup`.
     fn save_state(&self) -> Result<serde_json::Value> {
         let state = PseudoEnergyState {
-            p_minus: self.p_minus.clone(),
-            p_plus: self.p_plus.clone(),
-            v_minus: self.v_minus.clone(),
-            v_plus: self.v_plus.clone(),
-            monitor: self.monitor.clone(),
+            staggered: self.staggered.clone(),
             last_h: self.last_h,
             smallest_h: self.smallest_h.is_finite().then_some(self.smallest_h),
             largest_h: self.largest_h,
@@ -381,11 +331,7 @@ impl Integrator for PseudoEnergy {
     fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
         let name = self.name();
         let saved: PseudoEnergyState = state_from_json(name, state)?;
-        restore_vector(name, "p^{n-1/2}", &saved.p_minus, &mut self.p_minus)?;
-        restore_vector(name, "p^{n+1/2}", &saved.p_plus, &mut self.p_plus)?;
-        restore_vector(name, "v^{n-1/2}", &saved.v_minus, &mut self.v_minus)?;
-        restore_vector(name, "v^{n+1/2}", &saved.v_plus, &mut self.v_plus)?;
-        self.monitor = saved.monitor;
+        self.staggered.restore(name, saved.staggered)?;
         self.last_h = saved.last_h;
         self.smallest_h = saved.smallest_h.unwrap_or(f64::INFINITY);
         self.largest_h = saved.largest_h;
@@ -395,12 +341,7 @@ impl Integrator for PseudoEnergy {
 
     fn setup(&mut self, system: &mut System) -> Result<()> {
         let n = system.n_dofs();
-        // Initialisation (5)/(7): p^{−1/2} = p^{1/2} = p(t⁰).
-        self.p_minus = system.state.p.clone();
-        self.p_plus = system.state.p.clone();
-        self.v_minus = vec![0.0; n];
-        system.velocity(&self.p_minus, &mut self.v_minus);
-        self.v_plus = self.v_minus.clone();
+        self.staggered.start(system);
         self.p_next = vec![0.0; n];
         self.v_next = vec![0.0; n];
         self.integral = vec![0.0; n];
@@ -415,10 +356,7 @@ impl Integrator for PseudoEnergy {
                 .total_gradient(&system.state.q, &mut self.start_gradient);
             self.start_valid = true;
         }
-        let (pseudo, _) = self.energies(system);
-        let potential = system.forces.total_energy(&system.state.q);
-        self.monitor =
-            PseudoEnergyMonitor::new(pseudo, (pseudo - potential).abs() + potential.abs());
+        self.staggered.start_monitor(system);
         self.smallest_h = f64::INFINITY;
         self.largest_h = 0.0;
         self.rejected = 0;
@@ -429,11 +367,12 @@ impl Integrator for PseudoEnergy {
         let mut h = self.h;
         loop {
             self.integrate_forces(system, h);
+            let staggered = &self.staggered;
             // (6b): p^{n+3/2} = p^{n−1/2} − 2 Q_n.
             for ((next, minus), integral) in self
                 .p_next
                 .iter_mut()
-                .zip(&self.p_minus)
+                .zip(&staggered.p_minus)
                 .zip(&self.integral)
             {
                 *next = minus - 2.0 * h * integral;
@@ -443,11 +382,12 @@ impl Integrator for PseudoEnergy {
                 break;
             };
             // ⅛|M^{−1/2}[p]^{n+1}|² = ⅛ [p]·M⁻¹[p], with M⁻¹[p] = v_next − v_plus.
+            let (p_plus, v_plus) = (&staggered.p_plus, &staggered.v_plus);
             let gap: f64 = 0.125
                 * (0..self.p_next.len())
-                    .map(|i| (self.p_next[i] - self.p_plus[i]) * (self.v_next[i] - self.v_plus[i]))
+                    .map(|i| (self.p_next[i] - p_plus[i]) * (self.v_next[i] - v_plus[i]))
                     .sum::<f64>();
-            let bound = adaptive.epsilon * self.monitor.last.abs();
+            let bound = adaptive.epsilon * staggered.monitor.last.abs();
             if gap <= bound {
                 break;
             }
@@ -463,25 +403,25 @@ impl Integrator for PseudoEnergy {
             self.rejected += 1;
         }
         // (3b): q^{n+1} = q^n + h M⁻¹ p^{n+1/2}.
-        for (qi, vi) in system.state.q.iter_mut().zip(&self.v_plus) {
+        let staggered = &mut self.staggered;
+        for (qi, vi) in system.state.q.iter_mut().zip(&staggered.v_plus) {
             *qi += h * vi;
         }
-        std::mem::swap(&mut self.p_minus, &mut self.p_plus);
-        std::mem::swap(&mut self.p_plus, &mut self.p_next);
-        std::mem::swap(&mut self.v_minus, &mut self.v_plus);
-        std::mem::swap(&mut self.v_plus, &mut self.v_next);
+        std::mem::swap(&mut staggered.p_minus, &mut staggered.p_plus);
+        std::mem::swap(&mut staggered.p_plus, &mut self.p_next);
+        std::mem::swap(&mut staggered.v_minus, &mut staggered.v_plus);
+        std::mem::swap(&mut staggered.v_plus, &mut self.v_next);
         if self.quadrature.has_end_nodes() {
             std::mem::swap(&mut self.start_gradient, &mut self.end_gradient);
             self.start_valid = true;
         }
-        self.sync_state(system);
+        self.staggered.sync_state(system);
         system.state.t += h;
         self.last_h = h;
         self.smallest_h = self.smallest_h.min(h);
         self.largest_h = self.largest_h.max(h);
         if self.track || self.adaptive.is_some() {
-            let (pseudo, discrete) = self.energies(system);
-            self.monitor.record(pseudo, discrete);
+            self.staggered.record(system);
         }
         Ok(())
     }
@@ -499,7 +439,7 @@ impl Integrator for PseudoEnergy {
     }
 
     fn extra_values(&self, system: &System, out: &mut Vec<f64>) {
-        let (pseudo, discrete) = self.energies(system);
+        let (pseudo, discrete) = self.staggered.energies(system);
         out.extend([pseudo, discrete]);
         if self.adaptive.is_some() {
             out.push(self.last_h);
@@ -511,7 +451,7 @@ impl Integrator for PseudoEnergy {
     }
 
     fn report(&self) -> Option<(&'static str, serde_json::Value)> {
-        let mut map = self.monitor.to_json();
+        let mut map = self.staggered.monitor.to_json();
         map.insert("quadrature".into(), self.quadrature.name().into());
         map.insert(
             "evaluations_per_step".into(),
@@ -529,11 +469,9 @@ impl Integrator for PseudoEnergy {
 /// What a checkpoint holds of the MEMM18 (6) scheme.
 #[derive(serde::Serialize, serde::Deserialize)]
 struct PseudoEnergyState {
-    p_minus: Vec<f64>,
-    p_plus: Vec<f64>,
-    v_minus: Vec<f64>,
-    v_plus: Vec<f64>,
-    monitor: PseudoEnergyMonitor,
+    /// Its keys stand beside the others, as before the shared type.
+    #[serde(flatten)]
+    staggered: StaggeredMomenta,
     last_h: f64,
     /// `None` before the first step.
     smallest_h: Option<f64>,

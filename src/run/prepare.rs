@@ -17,6 +17,7 @@ use crate::io::scene::{Scene, SceneFlags, load_scene_with};
 use crate::io::summary::RunSummary;
 use crate::run::{RunOptions, run};
 use crate::settings::{MethodSettings, RunSpec, Value};
+use crate::system::System;
 use crate::system::velocities::{DEFAULT_SEED, DegreesOfFreedom, maxwell_boltzmann};
 use crate::units::Units;
 
@@ -170,6 +171,26 @@ fn restart_from(
 pub fn check_settings(settings: &MethodSettings) -> Result<()> {
     integrators::build(settings, &mut Vec::new())?;
     check_seed_used(settings, "--seed")
+}
+
+/// The integrator `settings` name, from the registry, its notices added to `notices`: the
+/// door of the studies that step systems of their own rather than a prepared run (`scan
+/// stiffness`, `stability-map --mode integrator`, `scan growth`).
+pub fn study_integrator(
+    settings: &MethodSettings,
+    notices: &mut Vec<String>,
+) -> Result<Box<dyn Integrator>> {
+    integrators::build(settings, notices)
+}
+
+/// [`study_integrator`] set up on `system`, ready to step (its notices dropped).
+pub fn study_integrator_on(
+    settings: &MethodSettings,
+    system: &mut System,
+) -> Result<Box<dyn Integrator>> {
+    let mut integrator = study_integrator(settings, &mut Vec::new())?;
+    integrator.setup(system)?;
+    Ok(integrator)
 }
 
 impl PreparedRun {

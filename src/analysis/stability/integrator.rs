@@ -2,7 +2,7 @@
 //!
 //! The scene (by default the three-spring system of GSS98 section 3) is built with the
 //! asked Ω1, Ω2 (`--set omega1=…, omega2=…`), its starting positions checked to be an
-//! equilibrium, and the integrator from the registry ([`crate::integrators::build`]) takes
+//! equilibrium, and the integrator from the registry ([`study_integrator`]) takes
 //! one outer step from the equilibrium displaced by `±δ` along each horizontal coordinate
 //! and momentum in turn. The central difference of the results divided by `2δ` is one
 //! column of the propagation matrix of the horizontal motion, state
@@ -23,8 +23,9 @@ use nalgebra::DMatrix;
 
 use super::{StabilityPoint, classify_matrix};
 use crate::error::{Error, Result};
-use crate::integrators::{self, Integrator};
+use crate::integrators::Integrator;
 use crate::io::scene::{SceneFile, build_parsed_scene, parse_scene};
+use crate::run::prepare::study_integrator;
 use crate::settings::MethodSettings;
 use crate::system::System;
 
@@ -119,7 +120,7 @@ impl IntegratorProbe {
     /// with the scene's own parameters.
     pub fn new(scene: ProbeScene, settings: MethodSettings) -> Result<Self> {
         let mut notices = Vec::new();
-        integrators::build(&settings, &mut notices)?;
+        study_integrator(&settings, &mut notices)?;
         let parsed = parse_scene(&scene.text, &scene.path)?;
         check_frequency_parameters(&parsed, &scene.path)?;
         build_parsed_scene(&parsed, &scene.text, &scene.path, &[])?;
@@ -131,7 +132,7 @@ impl IntegratorProbe {
         })
     }
 
-    /// What the user should know about the settings (from [`integrators::build`]).
+    /// What the user should know about the settings (from [`study_integrator`]).
     pub fn notices(&self) -> &[String] {
         &self.notices
     }
@@ -180,7 +181,7 @@ impl IntegratorProbe {
         // One integrator for the point's nine steps: `setup` sizes its buffers and
         // evaluates the forces at each new starting state, so nothing carries over.
         let mut integrator: Box<dyn Integrator> =
-            integrators::build(&self.settings, &mut Vec::new())?;
+            study_integrator(&self.settings, &mut Vec::new())?;
         let integrator = integrator.as_mut();
         self.check_equilibrium(&mut system, integrator, &q0, scale)?;
 

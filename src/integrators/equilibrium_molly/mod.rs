@@ -393,23 +393,17 @@ impl SlowMollifier for EquilibriumMolly {
         Ok(())
     }
 
-    fn mollified_gradient(
-        &mut self,
-        at: MollifyAt<'_>,
-        out: &mut [f64],
-    ) -> Result<(), StepFailure> {
-        let MollifyAt {
-            forces,
-            q,
-            slow_level,
-            ..
-        } = at;
-        self.project(q)?;
-        forces.gradient(slow_level, &self.projected, &mut self.slow_gradient);
-        let slow_gradient = std::mem::take(&mut self.slow_gradient);
-        self.transpose_product(&slow_gradient, out);
-        self.slow_gradient = slow_gradient;
-        Ok(())
+    /// The projection of `q` onto the rest geometry (IRS99).
+    fn mollify(&mut self, at: &mut MollifyAt<'_>) -> Result<(), StepFailure> {
+        self.project(at.q)
+    }
+
+    fn pull_back(&mut self, _at: &mut MollifyAt<'_>, g: &[f64], out: &mut [f64]) {
+        self.transpose_product(g, out);
+    }
+
+    fn slow_gradient_buffer(&mut self) -> &mut Vec<f64> {
+        &mut self.slow_gradient
     }
 
     fn mollified_positions(&self) -> &[f64] {
