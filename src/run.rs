@@ -343,9 +343,9 @@ struct CheckpointAt<'a> {
 /// bits, so the writing run goes on untouched (a run with checkpoints is the run without).
 /// The fallback for a term that keeps lists but cannot save them: its lists are rebuilt
 /// here, as the continued run builds them afresh, and the integrator's cached forces
-/// recomputed (`setup`, then its saved state and the other terms' lists back), as the
-/// continued run does. Allocates
-/// (the saved states, the JSON), once per checkpoint.
+/// recomputed (`setup`, then its saved state, positions, momenta and the other terms'
+/// lists back), as the continued run does. Allocates (the saved states, the JSON), once
+/// per checkpoint.
 fn write_checkpoint(
     plan: &CheckpointPlan,
     system: &mut System,
@@ -370,9 +370,12 @@ fn write_checkpoint(
         return Ok(());
     }
     let (state, lists) = (checkpoint.integrator, checkpoint.lists);
+    let (q, p) = (system.state.q.clone(), system.state.p.clone());
     integrator.setup(system)?;
     integrator.restore_state(&state)?;
     // As the continued run does after its setup (`resume_state`).
+    system.state.q.copy_from_slice(&q);
+    system.state.p.copy_from_slice(&p);
     system.forces.restore_lists(&lists)
 }
 

@@ -375,6 +375,19 @@ fn structural_zds_continues_bit_for_bit() {
     });
 }
 
+/// ZD on the water box: a checkpoint inside a block (step 3 of 4) with cluster pair lists,
+/// so the block's nodes must come back without solving it again over other lists.
+#[test]
+fn structural_zd_on_the_water_box_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "structural-zd-water",
+        scene: "systems/water-box/scene.toml",
+        args: &["--method", "structural-zd", "--h", "0.5fs"],
+        t_end: "5fs",
+        half: "1.5fs",
+    });
+}
+
 /// Equilibrium MOLLY on the water box (cluster lists, the slow force at `A(q)`): the
 /// projection is a function of `q`, recomputed by the continued run's setup.
 #[test]

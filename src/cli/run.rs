@@ -274,8 +274,8 @@ fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<
                 path: restart.path.clone(),
                 message: format!(
                     "written every {saved} outer steps, rebuilding pair lists at each, but \
-                 --checkpoint-every asks for every \
-                 {every}: give the original interval (or leave the flag out to keep it)"
+                     --checkpoint-every asks for every {every}: give the original interval \
+                     (or leave the flag out to keep it)"
                 ),
             })
         }
