@@ -104,7 +104,7 @@ pub fn run(
     check_applicable(scene, system, integrator)?;
     system.forces.reset_counts();
     integrator.setup(system)?;
-    resume_state(integrator, options)?;
+    resume_state(system, integrator, options)?;
     let first_step = options.resume.as_ref().map_or(0, |r| r.checkpoint.step);
     // The trajectory first: a format chemfiles cannot write fails before energy.csv exists.
     let mut trajectory = open_trajectory(system, options, first_step)?;
@@ -185,17 +185,35 @@ struct OpenTrajectory {
     written: u64,
 }
 
-/// A restart's saved method state into `integrator`; with checkpoints asked for, a method
-/// whose state cannot be saved says so before the run, not at its first checkpoint.
-fn resume_state(integrator: &mut dyn Integrator, options: &RunOptions) -> Result<()> {
+/// A restart's saved method state into `integrator`, its positions and momenta once more
+/// (`setup` may change them), and the pair lists once more as the
+/// checkpoint saved them: [`prepare`](crate::run::prepare) restored them before `setup`,
+/// so that the cached forces are computed over the writing run's lists, and `setup`'s
+/// evaluations may have pruned or rebuilt them since; the writing run's next step starts
+/// from the saved lists, so the continued run's does too. With checkpoints asked for, a
+/// method whose state cannot be saved says so before the run, not at its first checkpoint.
+fn resume_state(
+    system: &mut System,
+    integrator: &mut dyn Integrator,
+    options: &RunOptions,
+) -> Result<()> {
     if let Some(resume) = &options.resume {
         check_resume_time(resume, integrator)?;
+        let in_checkpoint = |e: Error| Error::Checkpoint {
+            path: resume.path.clone(),
+            message: e.to_string(),
+        };
         integrator
             .restore_state(&resume.checkpoint.integrator)
-            .map_err(|e| Error::Checkpoint {
-                path: resume.path.clone(),
-                message: e.to_string(),
-            })?;
+            .map_err(in_checkpoint)?;
+        // `setup` may have moved the state (SIN(R) scales the momenta onto its constraint
+        // with fresh thermostat variables): the writing run went on from the saved one.
+        system.state.q.copy_from_slice(&resume.checkpoint.q);
+        system.state.p.copy_from_slice(&resume.checkpoint.p);
+        system
+            .forces
+            .restore_lists(&resume.checkpoint.lists)
+            .map_err(in_checkpoint)?;
     }
     if options.checkpoint.is_some() {
         integrator.save_state()?;
@@ -319,11 +337,15 @@ struct CheckpointAt<'a> {
     monitor: &'a EnergyMonitor,
 }
 
-/// Write the checkpoint, then do what a restart from it does: rebuild every pair list
-/// and recompute the integrator's cached forces (`setup`, then its saved hidden state
-/// back). The run that wrote the checkpoint and a run continued from it then take the
-/// same steps bit for bit, whatever lists the first had built before. Allocates (the
-/// saved state, the JSON), once per checkpoint; costs one more force evaluation.
+/// Write the checkpoint: the state, the integrator's hidden state and every term's
+/// pair-list state, which a continued run restores ([`crate::run::prepare`]) before
+/// recomputing its cached forces at the same positions over the same lists: the same
+/// bits, so the writing run goes on untouched (a run with checkpoints is the run without).
+/// The fallback for a term that keeps lists but cannot save them: its lists are rebuilt
+/// here, as the continued run builds them afresh, and the integrator's cached forces
+/// recomputed (`setup`, then its saved state, positions, momenta and the other terms'
+/// lists back), as the continued run does. Allocates (the saved states, the JSON), once
+/// per checkpoint.
 fn write_checkpoint(
     plan: &CheckpointPlan,
     system: &mut System,
@@ -331,6 +353,8 @@ fn write_checkpoint(
     at: CheckpointAt,
 ) -> Result<()> {
     let state = integrator.save_state()?;
+    let lists = system.forces.list_states();
+    let rebuilt = system.forces.rebuild_lists_without_state(&lists);
     let mut checkpoint = Checkpoint::new(&plan.fingerprint, &system.state.q, &system.state.p);
     checkpoint.every = plan.every;
     checkpoint.step = at.step;
@@ -339,11 +363,20 @@ fn write_checkpoint(
     checkpoint.initial_kinetic = at.monitor.initial_kinetic;
     checkpoint.initial_potentials = at.monitor.initial_potentials.clone();
     checkpoint.integrator = state;
+    checkpoint.lists = lists;
+    checkpoint.rebuilt_lists = rebuilt;
     checkpoint.write(&plan.path)?;
-    let state = checkpoint.integrator;
-    system.forces.rebuild_lists();
+    if !rebuilt {
+        return Ok(());
+    }
+    let (state, lists) = (checkpoint.integrator, checkpoint.lists);
+    let (q, p) = (system.state.q.clone(), system.state.p.clone());
     integrator.setup(system)?;
-    integrator.restore_state(&state)
+    integrator.restore_state(&state)?;
+    // As the continued run does after its setup (`resume_state`).
+    system.state.q.copy_from_slice(&q);
+    system.state.p.copy_from_slice(&p);
+    system.forces.restore_lists(&lists)
 }
 
 /// How a run ended, for its summary.

@@ -30,6 +30,10 @@ pub enum Assignment {
     Level(usize),
 }
 
+/// The kinds of the terms that keep pair lists, which a checkpoint must save
+/// ([`ForceTerm::list_state`]) or else rebuild ([`ForceSplit::rebuild_lists_without_state`]).
+pub const LIST_KINDS: [&str; 3] = ["nonbonded", "nonbonded-short", "nonbonded-remainder"];
+
 pub struct LabelledTerm {
     pub name: String,
     pub term: Box<dyn ForceTerm>,
@@ -269,6 +273,50 @@ impl ForceSplit {
         for term in &self.terms {
             term.term.rebuild_lists();
         }
+    }
+
+    /// Every term's [`ForceTerm::list_state`], in term order: what a checkpoint holds so
+    /// that a continued run sums over the same pairs in the same order. Allocates (the
+    /// states): for checkpoints only.
+    pub fn list_states(&self) -> Vec<Option<serde_json::Value>> {
+        self.terms.iter().map(|t| t.term.list_state()).collect()
+    }
+
+    /// Give each term its state from [`ForceSplit::list_states`] of the run that wrote a
+    /// checkpoint ([`ForceTerm::restore_lists`]); a term without one (no lists, or a term
+    /// rebuilt at the checkpoint, [`ForceSplit::rebuild_lists_without_state`]) builds its
+    /// lists at its next evaluation, as a fresh term does. An error names the term.
+    pub fn restore_lists(&self, states: &[Option<serde_json::Value>]) -> Result<()> {
+        if states.len() != self.terms.len() {
+            return Err(Error::input(format!(
+                "pair-list states of {} force terms, this model has {}",
+                states.len(),
+                self.terms.len()
+            )));
+        }
+        for (k, (term, state)) in self.terms.iter().zip(states).enumerate() {
+            if let Some(state) = state {
+                term.term
+                    .restore_lists(state)
+                    .map_err(|e| Error::input(format!("force term {k} ({:?}): {e}", term.name)))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The fallback for a term that keeps pair lists but cannot save them
+    /// ([`LIST_KINDS`] with no [`ForceTerm::list_state`]): rebuild its lists, as a
+    /// continued run builds them afresh. `states` are [`ForceSplit::list_states`]. Whether
+    /// any term was rebuilt: then cached forces must be recomputed too.
+    pub fn rebuild_lists_without_state(&self, states: &[Option<serde_json::Value>]) -> bool {
+        let mut rebuilt = false;
+        for (term, state) in self.terms.iter().zip(states) {
+            if state.is_none() && LIST_KINDS.contains(&term.term.kind()) {
+                term.term.rebuild_lists();
+                rebuilt = true;
+            }
+        }
+        rebuilt
     }
 
     pub fn reset_counts(&mut self) {

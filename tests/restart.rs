@@ -3,10 +3,12 @@
 //! at 1 and 2 threads; bad checkpoints are refused with the file named and nothing written.
 //!
 //! The comparison is exact (byte for byte): the continued run restores the positions,
-//! momenta, time, step count and the method's hidden state (random-number generator,
-//! thermostat variables, staggered momenta), and the run that wrote the checkpoint did at
-//! that step what the restart does (pair lists rebuilt, cached forces recomputed), so no
-//! tolerance is needed and none is allowed.
+//! momenta, time, step count, the method's hidden state (random-number generator,
+//! thermostat variables, staggered momenta, a structural block) and every pair list as
+//! the writing run had it, and recomputes its cached forces at the same positions over the
+//! same lists, so no tolerance is needed and none is allowed. Writing a checkpoint changes
+//! nothing: a run with checkpoints writes the same energy.csv as one without (except where
+//! a term keeps lists it cannot save, which the checkpoint says: `rebuilt_lists`).
 
 mod common;
 
@@ -56,8 +58,10 @@ struct Case<'a> {
 
 /// The uninterrupted run (with the checkpoint taken at `half`), the run to `half`, and the
 /// run continued from its checkpoint to `t_end`: the continued run's energy.csv must be
-/// the uninterrupted run's from the checkpoint's row on, byte for byte.
-fn continued_rows_match(case: &Case, threads: usize) {
+/// the uninterrupted run's from the checkpoint's row on, byte for byte. And the
+/// uninterrupted run without checkpoints: its energy.csv must be the one with them, byte
+/// for byte, unless the checkpoint says it rebuilt pair lists. Returns that flag.
+fn continued_rows_match(case: &Case, threads: usize) -> bool {
     let dir = scratch_dir(&format!("restart-{}-{threads}", case.name));
     let out = |name: &str| -> PathBuf { dir.join(name) };
     let whole = out("whole");
@@ -85,6 +89,14 @@ fn continued_rows_match(case: &Case, threads: usize) {
     };
     let whole_args = common(case.t_end, &whole);
     run_strings(&whole_args, threads);
+    let plain = out("plain");
+    let mut plain_args = common(case.t_end, &plain);
+    let every = plain_args
+        .iter()
+        .position(|a| a == "--checkpoint-every")
+        .unwrap();
+    plain_args.drain(every..every + 2);
+    run_strings(&plain_args, threads);
     let first_args = common(case.half, &first);
     run_strings(&first_args, threads);
     assert!(checkpoint.is_file(), "{}: no checkpoint written", case.name);
@@ -112,6 +124,17 @@ fn continued_rows_match(case: &Case, threads: usize) {
     let saved: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&checkpoint).unwrap()).unwrap();
     let at = saved["step"].as_u64().unwrap() as usize + 1;
+    let rebuilt = saved["rebuilt_lists"]
+        .as_bool()
+        .expect("the checkpoint says whether it rebuilt lists");
+    if !rebuilt {
+        assert!(
+            std::fs::read(whole.join("energy.csv")).unwrap()
+                == std::fs::read(plain.join("energy.csv")).unwrap(),
+            "{} at {threads} threads: energy.csv with checkpoints differs from the one without",
+            case.name
+        );
+    }
     assert!(
         second_rows.len() > 2,
         "{}: the continued run took no steps",
@@ -132,11 +155,21 @@ fn continued_rows_match(case: &Case, threads: usize) {
             case.name
         );
     }
+    rebuilt
 }
 
 fn both_thread_counts(case: Case) {
     for threads in [1, 2] {
         continued_rows_match(&case, threads);
+    }
+}
+
+/// As [`both_thread_counts`], for a model whose every list-keeping term saves its lists:
+/// the checkpoint must say it rebuilt none (so the run without checkpoints was compared).
+fn both_thread_counts_nothing_rebuilt(case: Case) {
+    for threads in [1, 2] {
+        let rebuilt = continued_rows_match(&case, threads);
+        assert!(!rebuilt, "{}: the checkpoint rebuilt pair lists", case.name);
     }
 }
 
@@ -259,16 +292,119 @@ fn constrained_topology_continues_bit_for_bit() {
     });
 }
 
-/// A periodic water box with cluster pair lists: the checkpoint rebuilds them, so the
-/// continued run sums over the same lists.
+/// A periodic water box with cluster pair lists: the checkpoint saves where they were
+/// built and pruned, so the continued run sums over the same lists, and the run that wrote
+/// it goes on as if it had not.
 #[test]
 fn water_box_with_pair_lists_continues_bit_for_bit() {
-    both_thread_counts(Case {
+    both_thread_counts_nothing_rebuilt(Case {
         name: "water-box",
         scene: "systems/water-box/scene.toml",
         args: &["--method", "impulse", "--h", "4fs", "--inner", "4"],
         t_end: "200fs",
         half: "100fs",
+    });
+}
+
+/// Langevin r-RESPA on the solvated dipeptide (prmtop) with PME: the real-space term's
+/// cluster lists are saved; the reciprocal sum keeps no lists.
+#[test]
+fn langevin_respa_on_pme_dipeptide_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "ala2-pme-langevin-respa",
+        scene: "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml",
+        args: &[
+            "--method",
+            "langevin-respa",
+            "--h",
+            "2fs",
+            "--inner",
+            "4",
+            "--temperature",
+            "300K",
+            "--seed",
+            "3",
+        ],
+        t_end: "40fs",
+        half: "20fs",
+    });
+}
+
+/// Three levels with the non-bonded term split by distance: the short part's lists are the
+/// distance split's own. Ignored until the distance-split terms save their lists
+/// (`ForceTerm::list_state`): until then the checkpoint rebuilds them
+/// (`"rebuilt_lists": true`), and a rebuilt distance-split term does not give the bits of a
+/// freshly built one, so the writing run and the continued run part in the last bits from
+/// the checkpoint's row on (the same with the rebuild-every-checkpoint scheme this replaced;
+/// the continued run here matches the run without checkpoints). Once they save them,
+/// [`continued_rows_match`] also compares the run without checkpoints.
+#[test]
+#[ignore = "the distance split's terms do not save their pair lists yet (split1)"]
+fn three_level_distance_split_continues_bit_for_bit() {
+    both_thread_counts(Case {
+        name: "three-level",
+        scene: "systems/water-box/three-level.toml",
+        args: &["--method", "impulse", "--h", "2fs", "--level-steps", "2,2"],
+        t_end: "40fs",
+        half: "20fs",
+    });
+}
+
+/// ZD, block of four: checkpoints at steps 3, 6 and 9 fall inside blocks, so the solved
+/// nodes still to hand out and the block's start are part of the state.
+#[test]
+fn structural_zd_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "structural-zd",
+        scene: "systems/chain/scene.toml",
+        args: &["--method", "structural-zd", "--h", "0.01"],
+        t_end: "0.1",
+        half: "0.03",
+    });
+}
+
+/// ZDS, block of two, with second derivatives: checkpoints at odd steps, inside blocks.
+#[test]
+fn structural_zds_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "structural-zds",
+        scene: "systems/chain/scene.toml",
+        args: &["--method", "structural-zds", "--h", "0.01"],
+        t_end: "0.1",
+        half: "0.03",
+    });
+}
+
+/// ZD on the water box: a checkpoint inside a block (step 3 of 4) with cluster pair lists,
+/// so the block's nodes must come back without solving it again over other lists.
+#[test]
+fn structural_zd_on_the_water_box_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "structural-zd-water",
+        scene: "systems/water-box/scene.toml",
+        args: &["--method", "structural-zd", "--h", "0.5fs"],
+        t_end: "5fs",
+        half: "1.5fs",
+    });
+}
+
+/// Equilibrium MOLLY on the water box (cluster lists, the slow force at `A(q)`): the
+/// projection is a function of `q`, recomputed by the continued run's setup.
+#[test]
+fn equilibrium_molly_continues_bit_for_bit() {
+    both_thread_counts_nothing_rebuilt(Case {
+        name: "equilibrium-molly",
+        scene: "systems/water-box/scene.toml",
+        args: &[
+            "--method",
+            "equilibrium-molly",
+            "--h",
+            "2fs",
+            "--inner",
+            "4",
+        ],
+        t_end: "40fs",
+        half: "20fs",
     });
 }
 
@@ -342,11 +478,8 @@ fn bad_checkpoints_are_refused_naming_the_file() {
     refused(&dir, &truncated, chain, &verlet, "truncated or corrupted");
 
     let version = dir.join("version.json");
-    std::fs::write(
-        &version,
-        text.replacen("\"version\":1", "\"version\":99", 1),
-    )
-    .unwrap();
+    let current = format!("\"version\":{}", longstep::io::checkpoint::VERSION);
+    std::fs::write(&version, text.replacen(&current, "\"version\":99", 1)).unwrap();
     assert_ne!(std::fs::read_to_string(&version).unwrap(), text);
     refused(&dir, &version, chain, &verlet, "format version 99");
 
@@ -401,33 +534,6 @@ fn bad_checkpoints_are_refused_naming_the_file() {
     );
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("must lie after the checkpoint"), "{stderr}");
-}
-
-/// A method whose state cannot be saved yet is refused before its run starts.
-#[test]
-fn methods_without_saved_state_refuse_checkpoints() {
-    let dir = scratch_dir("restart-unsupported");
-    let out = dir.join("out");
-    let (code, stderr) = run(
-        &[
-            "run",
-            "systems/two-spring.toml",
-            "--method",
-            "structural-zd",
-            "--h",
-            "0.1",
-            "--t-end",
-            "1",
-            "--checkpoint-every",
-            "0.5",
-            "--quiet",
-            "--out",
-            &out.display().to_string(),
-        ],
-        1,
-    );
-    assert_eq!(code, 1, "{stderr}");
-    assert!(stderr.contains("cannot write checkpoints yet"), "{stderr}");
 }
 
 /// The manifest lists the checkpoint, and the summary says the run is a continuation.

@@ -61,8 +61,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub start: Option<PathBuf>,
     /// Write checkpoint.json in the output directory every T of simulated time (e.g. 2ps;
-    /// every round(T/h) outer steps), atomically, for --restart. Each checkpoint rebuilds
-    /// the pair lists and recomputes cached forces, as a restart from it does.
+    /// every round(T/h) outer steps), atomically, for --restart. It holds the pair lists'
+    /// state too, so writing it changes nothing: energy.csv is the same bits as without.
     #[arg(long, value_name = "T")]
     pub checkpoint_every: Option<Value>,
     /// Continue from a checkpoint written by --checkpoint-every: give the original command
@@ -240,8 +240,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
 }
 
 /// Outer steps between checkpoints: `--checkpoint-every T` as round(T/h), at least one;
-/// on a restart the checkpoint's own interval (another one is refused: checkpoints rebuild
-/// pair lists, so a continued run must take them where the original did).
+/// on a restart without the flag the checkpoint's own interval. Another interval is
+/// refused only for a checkpoint whose run rebuilt pair lists at it (a term that cannot
+/// save them): then a continued run must rebuild where the original did.
 fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<u64>> {
     let scene = &prepared.scene;
     let every = match &args.checkpoint_every {
@@ -268,14 +269,18 @@ fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<
     };
     let saved = restart.checkpoint.every;
     match every {
-        Some(every) if every != saved => Err(Error::Checkpoint {
-            path: restart.path.clone(),
-            message: format!(
-                "written every {saved} outer steps, but --checkpoint-every asks for every \
-                 {every}: give the original interval (or leave the flag out to keep it)"
-            ),
-        }),
-        _ => Ok(Some(saved)),
+        Some(every) if every != saved && restart.checkpoint.rebuilt_lists => {
+            Err(Error::Checkpoint {
+                path: restart.path.clone(),
+                message: format!(
+                    "written every {saved} outer steps, rebuilding pair lists at each, but \
+                     --checkpoint-every asks for every {every}: give the original interval \
+                     (or leave the flag out to keep it)"
+                ),
+            })
+        }
+        Some(every) => Ok(Some(every)),
+        None => Ok(Some(saved)),
     }
 }
 

@@ -172,8 +172,9 @@ pub trait ForceTerm: Send + Sync {
 
     /// Forget every pair list and cached result, so the next evaluation rebuilds its lists
     /// at the positions it is given, as a freshly built term would. A checkpoint does this
-    /// (in the run that writes it and in the run that continues from it) so that both sum
-    /// over the same lists in the same order. Nothing to do for a term without lists.
+    /// only to a term that keeps lists but has no [`ForceTerm::list_state`]
+    /// ([`crate::split::ForceSplit::rebuild_lists_without_state`]), as the continued run
+    /// builds such a term's lists afresh. Nothing to do for a term without lists.
     fn rebuild_lists(&self) {}
 
     /// What a checkpoint must hold to rebuild this term's pair lists exactly as they are

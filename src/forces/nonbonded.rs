@@ -784,6 +784,39 @@ impl ForceTerm for Nonbonded {
         workspace.reusable = false;
     }
 
+    /// The positions the cluster lists were built and pruned at
+    /// ([`ClusterList::built_at`](super::clusters::ClusterList::built_at)):
+    /// `{"built_at": [..], "pruned_at": [..]}`, `6N` numbers.
+    fn list_state(&self) -> Option<serde_json::Value> {
+        let workspace = self.lock();
+        let (at_build, at_prune) = workspace.list.built_at()?;
+        Some(serde_json::json!({ "built_at": at_build, "pruned_at": at_prune }))
+    }
+
+    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
+        let array = |key: &str| -> Result<Vec<f64>, String> {
+            let values = state
+                .get(key)
+                .and_then(|v| v.as_array())
+                .ok_or_else(|| format!("no array \"{key}\""))?;
+            values
+                .iter()
+                .enumerate()
+                .map(|(k, v)| {
+                    v.as_f64()
+                        .ok_or_else(|| format!("{key}[{k}] is not a number"))
+                })
+                .collect()
+        };
+        let restored = array("built_at").and_then(|at_build| {
+            let at_prune = array("pruned_at")?;
+            self.restore_cluster_lists(&at_build, &at_prune)
+        });
+        restored.map_err(|e| {
+            crate::error::Error::input(format!("the pair lists of the nonbonded term: {e}"))
+        })
+    }
+
     fn set_precision(&self, precision: Precision) -> bool {
         let mut workspace = self.lock();
         workspace.precision = precision;

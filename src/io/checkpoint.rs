@@ -2,7 +2,9 @@
 //! holding everything a run needs to continue as if it had never stopped — the format
 //! version, a fingerprint of the model and settings (a restart with others is refused,
 //! naming what differs), the outer step count, the time, positions, momenta and the
-//! integrator's hidden state ([`Integrator::save_state`]).
+//! integrator's hidden state ([`Integrator::save_state`]), and each force term's pair-list
+//! state ([`ForceTerm::list_state`]), so the continued run sums over the same pairs in the
+//! same order without the run that wrote the checkpoint rebuilding anything.
 //!
 //! Every `f64` is written as its shortest round-trip decimal, which `serde_json` (built
 //! with `float_roundtrip`) reads back to the same bits. A checkpoint is written to a
@@ -10,6 +12,7 @@
 //! previous checkpoint or the new one, never half a file.
 //!
 //! [`Integrator::save_state`]: crate::integrators::Integrator::save_state
+//! [`ForceTerm::list_state`]: crate::forces::ForceTerm::list_state
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -28,8 +31,9 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// What the `format` key says, so another JSON file is recognised as not a checkpoint.
 const FORMAT: &str = "longstep checkpoint";
 
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The format version this build writes and reads (2: the pair-list states; version 1
+/// had none, and its runs rebuilt the lists at every checkpoint).
+pub const VERSION: u32 = 2;
 
 /// What a checkpoint must match to be continued from: the scene file (by name and
 /// CRC-32 of its text), the `--set` values and scene flags, the atoms (count, dimension,
@@ -206,8 +210,8 @@ pub struct Checkpoint<'a> {
     pub format: String,
     pub version: u32,
     pub fingerprint: Cow<'a, Fingerprint>,
-    /// Outer steps between checkpoints (a checkpoint rebuilds pair lists and recomputes
-    /// cached forces, so the continued run must take its checkpoints at the same steps).
+    /// Outer steps between checkpoints: the continued run's interval unless it asks for
+    /// another (only where `rebuilt_lists` must it keep this one).
     pub every: u64,
     /// Outer steps since the start of the whole run.
     pub step: u64,
@@ -222,6 +226,14 @@ pub struct Checkpoint<'a> {
     pub p: Cow<'a, [f64]>,
     /// [`Integrator::save_state`](crate::integrators::Integrator::save_state).
     pub integrator: serde_json::Value,
+    /// Each force term's [`ForceSplit::list_states`](crate::split::ForceSplit::list_states),
+    /// in term order (`null` for a term without lists).
+    pub lists: Vec<Option<serde_json::Value>>,
+    /// Whether the writing run rebuilt some term's lists at this checkpoint (a term that
+    /// keeps lists but cannot save them,
+    /// [`ForceSplit::rebuild_lists_without_state`](crate::split::ForceSplit::rebuild_lists_without_state)):
+    /// then a continued run matches only with checkpoints at the same steps.
+    pub rebuilt_lists: bool,
 }
 
 impl<'a> Checkpoint<'a> {
@@ -240,6 +252,8 @@ impl<'a> Checkpoint<'a> {
             q: Cow::Borrowed(q),
             p: Cow::Borrowed(p),
             integrator: serde_json::Value::Null,
+            lists: Vec::new(),
+            rebuilt_lists: false,
         }
     }
 
@@ -293,7 +307,8 @@ impl Restart {
             Some(v) if v == u64::from(VERSION) => {}
             Some(v) => {
                 return Err(bad(format!(
-                    "checkpoint format version {v}; this longstep reads version {VERSION}"
+                    "checkpoint format version {v}; this longstep reads version {VERSION} \
+                     only (rerun from the start to write a checkpoint of this version)"
                 )));
             }
             None => return Err(bad("no format version".to_string())),

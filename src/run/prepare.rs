@@ -146,6 +146,14 @@ fn restart_from(
     state.q.copy_from_slice(&checkpoint.q);
     state.p.copy_from_slice(&checkpoint.p);
     state.t = checkpoint.t;
+    scene
+        .system
+        .forces
+        .restore_lists(&checkpoint.lists)
+        .map_err(|e| Error::Checkpoint {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
     let line = format!(
         "start      checkpoint {}: step {}, t = {} (the run began at t0 = {}); its positions, \
          momenta and the method's state",

@@ -409,6 +409,41 @@ impl ClusterList {
         refresh
     }
 
+    /// The positions the lists were last built and last pruned at (`None` before the first
+    /// build): all a checkpoint needs to make them again. A build is a function of its
+    /// positions alone (offsets, the grid's z sort with ties by index, the search and its
+    /// atom-pair test read nothing of the previous list), and a pruning a function of the
+    /// outer list and its own positions.
+    pub fn built_at(&self) -> Option<(&[f64], &[f64])> {
+        self.built.then_some((&self.at_build, &self.at_prune))
+    }
+
+    /// Make the lists [`ClusterList::built_at`] gave in another run: build at `at_build`,
+    /// then prune at `at_prune`, as [`ClusterList::update`] did there. The next update
+    /// then keeps, prunes or rebuilds exactly where that run's did. An error says which
+    /// array is wrong.
+    pub fn restore(&mut self, at_build: &[f64], at_prune: &[f64]) -> Result<(), String> {
+        for (name, q) in [("built_at", at_build), ("pruned_at", at_prune)] {
+            if q.len() != 3 * self.n {
+                return Err(format!(
+                    "{name} has {} coordinates, this term has {} atoms ({} expected)",
+                    q.len(),
+                    self.n,
+                    3 * self.n
+                ));
+            }
+            if let Some(k) = q.iter().position(|x| !x.is_finite()) {
+                return Err(format!("{name}[{k}] is not a finite number"));
+            }
+        }
+        self.build(at_build);
+        self.fill_positions(at_prune);
+        self.at_prune.copy_from_slice(at_prune);
+        self.prunes += 1;
+        self.prune();
+        Ok(())
+    }
+
     /// The two largest displacements summed, since the build and since the pruning
     /// (infinite for a NaN position, which then rebuilds and fails loudly in the energy).
     /// Zero without a cutoff: every pair is listed and stays so.

@@ -117,6 +117,26 @@ impl Nonbonded {
         }
     }
 
+    /// The lists as [`ClusterList::restore`] makes them from another run's
+    /// [`ClusterList::built_at`], with the per-slot parameters of that build, and no cached
+    /// result: the next evaluation computes afresh over the same pairs in the same order.
+    pub(super) fn restore_cluster_lists(
+        &self,
+        at_build: &[f64],
+        at_prune: &[f64],
+    ) -> Result<(), String> {
+        let mut guard = self.lock();
+        let workspace = &mut *guard;
+        workspace.list.restore(at_build, at_prune)?;
+        self.slot_parameters(workspace);
+        self.listed_pairs
+            .store(workspace.list.inner_pairs(), Ordering::Relaxed);
+        workspace.cached_q.clear();
+        workspace.cached = None;
+        workspace.reusable = false;
+        Ok(())
+    }
+
     /// Lennard-Jones data by slot (after a build), the tables, and buffers of the size.
     fn slot_parameters(&self, workspace: &mut Workspace) {
         let clusters = workspace.list.clusters();

@@ -351,15 +351,14 @@ fn skipped_notice(skipped: &selection::Skipped) -> Option<String> {
     (!parts.is_empty()).then(|| format!("equilibrium-molly left out {}", parts.join(", ")))
 }
 
+/// Checkpoints: the mollifier keeps no state between steps that a continued run cannot
+/// make again bit for bit. Newton starts from `A = q`, `μ = 0` at every call (no warm
+/// start), so `A(q)`, the KKT factors and the slow gradient at `A(q)` are functions of
+/// `q` (and of the pair lists, which the checkpoint restores), and the impulse method's
+/// `setup` recomputes them at the checkpoint's positions ([`SlowMollifier::check_checkpoint`]
+/// keeps its default). The Newton statistics and `slow_energy_shift_at_start` of the
+/// summary then describe the continued part, as the step count and drift fit do.
 impl SlowMollifier for EquilibriumMolly {
-    /// The projection's warm start and statistics are not saved yet: refused.
-    fn check_checkpoint(&self) -> Result<()> {
-        Err(Error::input(
-            "equilibrium-molly cannot write checkpoints yet (its projection's warm start is \
-             part of its state); run it without --checkpoint-every",
-        ))
-    }
-
     fn name(&self) -> &'static str {
         "equilibrium-molly"
     }

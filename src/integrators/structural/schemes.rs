@@ -5,7 +5,9 @@ use super::coefficients::StructuralCoefficients;
 use super::physics::PhysicalEquations;
 use super::solver::{BlockFailure, BlockSolver, Node};
 use crate::error::{Error, Result};
-use crate::integrators::integrator::{Integrator, StepFailure};
+use crate::integrators::integrator::{
+    Integrator, StepFailure, restore_vector, state_from_json, state_to_json,
+};
 use crate::system::System;
 
 /// Default relative tolerance of the fixed point: a few ulps above round-off.
@@ -185,6 +187,21 @@ impl Structural {
         }
     }
 
+    /// The block's starting node and its derivatives (`sx`, `sp` empty for ZD).
+    fn start_node(&self) -> [Vec<f64>; 6] {
+        [&self.x, &self.p, &self.dx, &self.dp, &self.sx, &self.sp].map(|v| v.to_vec())
+    }
+
+    /// The solved block while nodes of it remain to hand out (empty when a block is due).
+    fn remaining_nodes(&self) -> [Vec<f64>; 6] {
+        match &self.solver {
+            Some(s) if self.next_node < self.block => {
+                [&s.zx, &s.zp, &s.dx, &s.dp, &s.sx, &s.sp].map(|v| v.to_vec())
+            }
+            _ => Default::default(),
+        }
+    }
+
     fn kind_name(&self) -> &'static str {
         match self.kind {
             StructuralKind::Zd => "structural-zd",
@@ -194,13 +211,58 @@ impl Structural {
 }
 
 impl Integrator for Structural {
-    /// The block state (nodes handed out, the block's derivatives) are not saved yet: a checkpoint is refused rather than continued from a
-    /// state that would not give the same steps.
+    /// The block: its starting node and derivatives, the next node to hand out and, while
+    /// some remain, the solved nodes and their derivatives (solving the block again in
+    /// the continued run would evaluate forces over other pair lists than the first solve
+    /// did); and the iteration counts (the `iterations` column is the last block's).
     fn save_state(&self) -> Result<serde_json::Value> {
-        Err(Error::input(format!(
-            "{} cannot write checkpoints yet (its block of nodes is part of its state); run it without --checkpoint-every",
-            self.name()
-        )))
+        let (start, nodes) = (self.start_node(), self.remaining_nodes());
+        let state = StructuralState {
+            next_node: self.next_node,
+            start,
+            nodes,
+            last_iterations: self.last_iterations,
+            total_iterations: self.total_iterations,
+            blocks: self.blocks,
+            most_iterations: self.most_iterations,
+        };
+        state_to_json(self.name(), &state)
+    }
+
+    fn restore_state(&mut self, state: &serde_json::Value) -> Result<()> {
+        let name = self.name();
+        let state: StructuralState = state_from_json(name, state)?;
+        if state.next_node > self.block {
+            return Err(Error::input(format!(
+                "the checkpoint's next node of {name} is {}, past its block of {}",
+                state.next_node, self.block
+            )));
+        }
+        let [x, p, dx, dp, sx, sp] = &state.start;
+        restore_vector(name, "block start x", x, &mut self.x)?;
+        restore_vector(name, "block start p", p, &mut self.p)?;
+        restore_vector(name, "block start dx", dx, &mut self.dx)?;
+        restore_vector(name, "block start dp", dp, &mut self.dp)?;
+        restore_vector(name, "block start sx", sx, &mut self.sx)?;
+        restore_vector(name, "block start sp", sp, &mut self.sp)?;
+        if state.next_node < self.block {
+            let Some(solver) = self.solver.as_mut() else {
+                return Err(Error::input(format!("{name} restored before setup")));
+            };
+            let [zx, zp, dx, dp, sx, sp] = &state.nodes;
+            restore_vector(name, "block nodes x", zx, &mut solver.zx)?;
+            restore_vector(name, "block nodes p", zp, &mut solver.zp)?;
+            restore_vector(name, "block nodes dx", dx, &mut solver.dx)?;
+            restore_vector(name, "block nodes dp", dp, &mut solver.dp)?;
+            restore_vector(name, "block nodes sx", sx, &mut solver.sx)?;
+            restore_vector(name, "block nodes sp", sp, &mut solver.sp)?;
+        }
+        self.next_node = state.next_node;
+        self.last_iterations = state.last_iterations;
+        self.total_iterations = state.total_iterations;
+        self.blocks = state.blocks;
+        self.most_iterations = state.most_iterations;
+        Ok(())
     }
 
     fn name(&self) -> &'static str {
@@ -312,4 +374,18 @@ impl Integrator for Structural {
     fn handles_magnetic(&self) -> bool {
         true
     }
+}
+
+/// What a checkpoint holds of ZD / ZDS ([`Structural`]'s `save_state`).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct StructuralState {
+    next_node: usize,
+    /// `x, p, dx, dp, sx, sp` of the block's starting node.
+    start: [Vec<f64>; 6],
+    /// The solver's `zx, zp, dx, dp, sx, sp` over the block while nodes remain (else empty).
+    nodes: [Vec<f64>; 6],
+    last_iterations: u32,
+    total_iterations: u64,
+    blocks: u64,
+    most_iterations: u32,
 }
