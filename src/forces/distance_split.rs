@@ -64,6 +64,7 @@
 
 mod kernels;
 mod lanes;
+mod pairs;
 mod search;
 
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
@@ -72,7 +73,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use rayon::prelude::*;
 
 use super::clusters::Cluster;
-use super::nonbonded::{CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec};
+use super::nonbonded::{
+    CoulombPair, Electrostatics, LjPair, Nonbonded, NonbondedSpec, exclusion_lists,
+};
 use super::simd::Isa;
 use super::{ForceTerm, Precision, TermClass};
 use search::PairSearch;
@@ -553,7 +556,7 @@ impl ShortRange {
     ) -> Result<Self, String> {
         let n = spec.types.len();
         let model = Self::model(spec, q)?;
-        let (excluded_start, excluded_partners) = exclusion_table(n, &spec.excluded)?;
+        let (excluded_start, excluded_partners) = exclusion_lists(n, &spec.excluded)?;
         let molecules = molecule_table(n, split, &spec.types)?;
         let points = molecules.reference.len();
         let chunks = chunk_count(n);
@@ -708,11 +711,16 @@ impl ShortRange {
 
     /// Rebuild the molecule pair list if a reference atom has moved half the skin.
     fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
+        self.refresh_at(workspace, |k| self.point(q, k));
+    }
+
+    /// [`ShortRange::refresh`] with search point `k` at `point(k)`.
+    fn refresh_at(&self, workspace: &mut Workspace, point: impl Fn(usize) -> [f64; 3]) {
         let search = &mut workspace.search;
-        if !search.needs_rebuild(|k| self.point(q, k)) {
+        if !search.needs_rebuild(&point) {
             return;
         }
-        search.build(|k| self.point(q, k));
+        search.build(point);
         let listed = search
             .pairs
             .iter()
@@ -864,27 +872,38 @@ impl ShortRange {
         whole: Option<Whole>,
         buffer: &mut [f64],
     ) -> f64 {
-        use kernels::*;
         match (mode, by, whole) {
-            (Mode::Energy | Mode::Gradient, SwitchBy::Molecule, Some(whole)) => {
-                self.whole_molecules(mode, part, whole, buffer)
-            }
-            (Mode::Energy, SwitchBy::Molecule, None) => {
-                molecule_pairs::<false>(self, q, part, buffer)
-            }
-            (Mode::Gradient, SwitchBy::Molecule, None) => {
-                molecule_pairs::<true>(self, q, part, buffer)
-            }
-            (Mode::HessianVector(v), SwitchBy::Molecule, _) => {
-                molecule_pairs_hessian(self, q, v, part, buffer);
+            (Mode::HessianVector(v), _, _) => {
+                self.loop_pairs(q, part, by, &mut pairs::HessianVector { v }, buffer);
                 0.0
             }
-            (Mode::Energy, SwitchBy::AtomPair, _) => atom_pairs::<false>(self, q, part, buffer),
-            (Mode::Gradient, SwitchBy::AtomPair, _) => atom_pairs::<true>(self, q, part, buffer),
-            (Mode::HessianVector(v), SwitchBy::AtomPair, _) => {
-                atom_pairs_hessian(self, q, v, part, buffer);
-                0.0
+            (_, SwitchBy::Molecule, Some(whole)) => self.whole_molecules(mode, part, whole, buffer),
+            (Mode::Energy, _, _) => {
+                let mut y = pairs::Energy::<false> { energy: 0.0 };
+                self.loop_pairs(q, part, by, &mut y, buffer);
+                y.energy
             }
+            (Mode::Gradient, _, _) => {
+                let mut y = pairs::Energy::<true> { energy: 0.0 };
+                self.loop_pairs(q, part, by, &mut y, buffer);
+                y.energy
+            }
+        }
+    }
+
+    /// The pair loop of [`pairs`] over `part`, a list of molecule pairs or of atom pairs.
+    #[inline(always)]
+    fn loop_pairs<Y: pairs::Yield>(
+        &self,
+        q: &[f64],
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        y: &mut Y,
+        out: &mut [f64],
+    ) {
+        match by {
+            SwitchBy::Molecule => pairs::molecule_pairs(self, q, part, y, out),
+            SwitchBy::AtomPair => pairs::atom_pairs(self, q, part, y, out),
         }
     }
 
@@ -930,7 +949,7 @@ impl ShortRange {
     }
 
     /// `gradient += sign ∇V_short(q)`, from the cache when `q` is the last gradient's.
-    fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
+    fn add_scaled_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
         let mut guard = self.lock();
         let workspace = &mut *guard;
         if !(workspace.cached_energy.is_some() && workspace.cached_q == q) {
@@ -946,19 +965,28 @@ impl ShortRange {
     }
 
     /// `out += sign ∇²V_short(q) v`.
-    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
+    fn add_scaled_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
         let mut workspace = self.lock();
         self.run(&mut workspace, q, Mode::HessianVector(v));
         reduce(&workspace.buffers, out, sign);
     }
 
     /// The energy as (Lennard-Jones, Coulomb), for reports.
-    fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
+    fn energy_parts(&self, q: &[f64]) -> (f64, f64) {
         let mut workspace = self.lock();
         self.refresh(&mut workspace, q);
-        let listed = kernels::energy_parts(self, q, &workspace.search.pairs, true);
-        let inside = kernels::energy_parts(self, q, &self.intramolecular, false);
-        [listed[0] + inside[0], listed[1] + inside[1]]
+        let (mut listed, mut inside) = (pairs::Parts::default(), pairs::Parts::default());
+        let pairs = &workspace.search.pairs;
+        self.loop_pairs(q, pairs, SwitchBy::Molecule, &mut listed, &mut []);
+        self.loop_pairs(
+            q,
+            &self.intramolecular,
+            SwitchBy::AtomPair,
+            &mut inside,
+            &mut [],
+        );
+        let ([lj, coulomb], [lj_inside, coulomb_inside]) = (listed.parts, inside.parts);
+        (lj + lj_inside, coulomb + coulomb_inside)
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
@@ -984,6 +1012,80 @@ impl ShortRange {
     pub fn list_builds(&self) -> u64 {
         self.lock().search.builds()
     }
+
+    /// Atom pairs of the list (molecule pairs counted by their atom pairs).
+    fn interaction_count(&self) -> usize {
+        self.listed_atom_pairs.load(Ordering::Relaxed)
+    }
+
+    /// Forget the pair list and the cached gradient ([`ForceTerm::rebuild_lists`]).
+    fn rebuild_lists(&self) {
+        let mut workspace = self.lock();
+        workspace.search.invalidate();
+        workspace.cached_q.fill(f64::NAN);
+        workspace.cached_energy = None;
+    }
+
+    /// The reference atoms' positions at the molecule list's last build (`None` before
+    /// it): `{"molecule_list_built_at": [x, y, z, …]}`, three numbers per molecule.
+    fn list_state(&self) -> Option<serde_json::Value> {
+        let workspace = self.lock();
+        let built_at = workspace.search.built_at()?;
+        let flat: Vec<f64> = built_at.iter().flatten().copied().collect();
+        Some(serde_json::json!({ LIST_KEY: flat }))
+    }
+
+    /// Build the molecule list at the positions of [`ShortRange::list_state`] (the build is
+    /// a function of them alone), and forget the cached gradient.
+    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
+        let points = self.molecules.reference.len();
+        let built_at = state_points(state, points).map_err(|e| {
+            crate::error::Error::input(format!("the pair list of the nonbonded split: {e}"))
+        })?;
+        let mut workspace = self.lock();
+        workspace.search.invalidate();
+        self.refresh_at(&mut workspace, |k| built_at[k]);
+        workspace.cached_q.fill(f64::NAN);
+        workspace.cached_energy = None;
+        Ok(())
+    }
+}
+
+/// The key of the molecule list's state in a checkpoint.
+const LIST_KEY: &str = "molecule_list_built_at";
+
+/// The `points` positions of a [`ShortRange::list_state`]; an error names what is wrong.
+fn state_points(state: &serde_json::Value, points: usize) -> Result<Vec<[f64; 3]>, String> {
+    let values = state
+        .get(LIST_KEY)
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| format!("no array \"{LIST_KEY}\""))?;
+    if values.len() != 3 * points {
+        return Err(format!(
+            "\"{LIST_KEY}\" has {} numbers, this split has {points} molecules ({} expected)",
+            values.len(),
+            3 * points
+        ));
+    }
+    let number = |k: usize| {
+        values[k]
+            .as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("\"{LIST_KEY}\"[{k}] is not a finite number"))
+    };
+    (0..points)
+        .map(|m| Ok([number(3 * m)?, number(3 * m + 1)?, number(3 * m + 2)?]))
+        .collect()
+}
+
+/// The same call on either kind of short part (both have the method).
+macro_rules! either {
+    ($part:expr, $p:ident => $call:expr) => {
+        match $part {
+            ShortPart::AtomPairs($p) => $call,
+            ShortPart::Molecules($p) => $call,
+        }
+    };
 }
 
 impl ShortPart {
@@ -1011,10 +1113,7 @@ impl ShortPart {
 
     /// The instruction set of the pair loops (every set gives the same bits).
     pub fn set_isa(&self, isa: Isa) {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.set_isa(isa),
-            ShortPart::Molecules(short) => short.set_isa(isa),
-        }
+        either!(self, p => p.set_isa(isa))
     }
 
     /// How many times the pair list has been built.
@@ -1026,48 +1125,45 @@ impl ShortPart {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.energy(q),
-            ShortPart::Molecules(short) => short.energy(q),
-        }
+        either!(self, p => p.energy(q))
     }
 
     /// `gradient += sign ∇V_short(q)` (from the last evaluation at the same `q`).
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.add_scaled_gradient(q, gradient, sign),
-            ShortPart::Molecules(short) => short.add_gradient(q, gradient, sign),
-        }
+        either!(self, p => p.add_scaled_gradient(q, gradient, sign))
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.add_scaled_hessian_vector(q, v, out, sign),
-            ShortPart::Molecules(short) => short.add_hessian_vector(q, v, out, sign),
-        }
+        either!(self, p => p.add_scaled_hessian_vector(q, v, out, sign))
     }
 
     /// The energy as (Lennard-Jones, Coulomb).
     fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.energy_parts(q).into(),
-            ShortPart::Molecules(short) => short.energy_parts(q),
-        }
+        either!(self, p => p.energy_parts(q).into())
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.couplings(),
-            ShortPart::Molecules(short) => short.couplings(),
-        }
+        either!(self, p => p.couplings())
     }
 
     /// Atom pairs of the list.
     fn listed_pairs(&self) -> usize {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.interaction_count(),
-            ShortPart::Molecules(short) => short.listed_atom_pairs.load(Ordering::Relaxed),
-        }
+        either!(self, p => p.interaction_count())
+    }
+
+    /// Forget the pair list and the cached gradient ([`ForceTerm::rebuild_lists`]).
+    fn rebuild_lists(&self) {
+        either!(self, p => p.rebuild_lists())
+    }
+
+    /// The pair list's state for a checkpoint ([`ForceTerm::list_state`]): by atom pair
+    /// the cluster engine's, by molecule the molecule list's.
+    fn list_state(&self) -> Option<serde_json::Value> {
+        either!(self, p => p.list_state())
+    }
+
+    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
+        either!(self, p => p.restore_lists(state))
     }
 }
 
@@ -1086,25 +1182,6 @@ fn reduce(buffers: &[Vec<f64>], out: &mut [f64], sign: f64) {
         }
         *o += sign * sum;
     }
-}
-
-/// Excluded partners per atom (CSR).
-fn exclusion_table(n: usize, excluded: &[(usize, usize)]) -> Result<(Vec<u32>, Vec<u32>), String> {
-    let mut lists = vec![Vec::new(); n];
-    for &(i, j) in excluded {
-        if i >= n || j >= n {
-            return Err(format!("excluded pair ({i}, {j}) names a missing particle"));
-        }
-        lists[i].push(j as u32);
-        lists[j].push(i as u32);
-    }
-    let mut start = vec![0u32; n + 1];
-    for (i, list) in lists.iter_mut().enumerate() {
-        list.sort_unstable();
-        list.dedup();
-        start[i + 1] = start[i] + list.len() as u32;
-    }
-    Ok((start, lists.concat()))
 }
 
 /// Atoms per molecule (CSR) from `molecule_of`, checked against the reference atoms.
@@ -1203,27 +1280,20 @@ impl ForceTerm for NonbondedShort {
         self.short.rebuild_lists();
     }
 
+    fn list_state(&self) -> Option<serde_json::Value> {
+        self.short.list_state()
+    }
+
+    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
+        self.short.restore_lists(state)
+    }
+
     /// By atom pair (the cluster-pair kernel) in either precision; the molecule loops
     /// stay in double.
     fn set_precision(&self, precision: Precision) -> bool {
         match &*self.short {
             ShortPart::AtomPairs(pairs) => pairs.set_precision(precision),
             ShortPart::Molecules(_) => false,
-        }
-    }
-}
-
-impl ShortPart {
-    /// Forget the pair list and the cached gradient ([`ForceTerm::rebuild_lists`]).
-    fn rebuild_lists(&self) {
-        match self {
-            ShortPart::AtomPairs(pairs) => pairs.rebuild_lists(),
-            ShortPart::Molecules(molecules) => {
-                let mut workspace = molecules.lock();
-                workspace.search.invalidate();
-                workspace.cached_q.fill(f64::NAN);
-                workspace.cached_energy = None;
-            }
         }
     }
 }
@@ -1251,6 +1321,26 @@ impl ForceTerm for NonbondedRemainder {
     fn rebuild_lists(&self) {
         self.full.rebuild_lists();
         self.short.rebuild_lists();
+    }
+
+    /// The full term's lists and the short part's (which [`NonbondedShort`] saves too):
+    /// `{"full": …, "short": …}`, or `None` unless both have a state, so that a checkpoint
+    /// rebuilds both or neither ([`ForceTerm::rebuild_lists`] does both).
+    fn list_state(&self) -> Option<serde_json::Value> {
+        let (full, short) = (self.full.list_state()?, self.short.list_state()?);
+        Some(serde_json::json!({ "full": full, "short": short }))
+    }
+
+    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
+        let part = |key: &str| {
+            state.get(key).ok_or_else(|| {
+                crate::error::Error::input(format!(
+                    "the pair lists of the nonbonded remainder: no \"{key}\""
+                ))
+            })
+        };
+        self.full.restore_lists(part("full")?)?;
+        self.short.restore_lists(part("short")?)
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
