@@ -192,7 +192,11 @@ impl Molecules {
 }
 
 /// Atoms per molecule (CSR) from `molecule_of`, checked against the reference atoms.
-pub(super) fn molecule_table(n: usize, split: &SplitSpec, types: &[u32]) -> Result<Molecules, String> {
+pub(super) fn molecule_table(
+    n: usize,
+    split: &SplitSpec,
+    types: &[u32],
+) -> Result<Molecules, String> {
     if split.molecule_of.len() != n {
         return Err(format!(
             "non-bonded split: {} molecule indices for {n} atoms",
