@@ -344,9 +344,9 @@ impl ShortRange {
     }
 
     /// The pairs `part` of the list, switched `by` molecule or atom pair; `whole`: whole
-    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Compiled for
-    /// the widest instruction set there is (the same operations in the same order, so the
-    /// same bits; `round` becomes inline).
+    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Each loop is
+    /// compiled for the widest instruction set there is, on its own (the same operations in
+    /// the same order, so the same bits; `round` becomes inline).
     fn evaluate(
         &self,
         q: &[f64],
@@ -356,26 +356,40 @@ impl ShortRange {
         whole: Option<Whole>,
         buffer: &mut [f64],
     ) -> f64 {
+        match (mode, by, whole) {
+            (Mode::HessianVector(v), _, _) => {
+                self.run_loop(q, part, by, pairs::HessianVector { v }, buffer);
+                0.0
+            }
+            (_, SwitchBy::Molecule, Some(whole)) => self.isa().run(
+                #[inline(always)]
+                || self.whole_molecules(mode, part, whole, buffer),
+            ),
+            (Mode::Energy, _, _) => {
+                let y = pairs::Energy::<false> { energy: 0.0 };
+                self.run_loop(q, part, by, y, buffer).energy
+            }
+            (Mode::Gradient, _, _) => {
+                let y = pairs::Energy::<true> { energy: 0.0 };
+                self.run_loop(q, part, by, y, buffer).energy
+            }
+        }
+    }
+
+    /// [`ShortRange::loop_pairs`] compiled for the instruction set; returns what it yielded.
+    fn run_loop<Y: pairs::Yield>(
+        &self,
+        q: &[f64],
+        part: &[[u32; 2]],
+        by: SwitchBy,
+        mut y: Y,
+        out: &mut [f64],
+    ) -> Y {
         self.isa().run(
             #[inline(always)]
-            || match (mode, by, whole) {
-                (Mode::HessianVector(v), _, _) => {
-                    self.loop_pairs(q, part, by, &mut pairs::HessianVector { v }, buffer);
-                    0.0
-                }
-                (_, SwitchBy::Molecule, Some(whole)) => {
-                    self.whole_molecules(mode, part, whole, buffer)
-                }
-                (Mode::Energy, _, _) => {
-                    let mut y = pairs::Energy::<false> { energy: 0.0 };
-                    self.loop_pairs(q, part, by, &mut y, buffer);
-                    y.energy
-                }
-                (Mode::Gradient, _, _) => {
-                    let mut y = pairs::Energy::<true> { energy: 0.0 };
-                    self.loop_pairs(q, part, by, &mut y, buffer);
-                    y.energy
-                }
+            || {
+                self.loop_pairs(q, part, by, &mut y, out);
+                y
             },
         )
     }
