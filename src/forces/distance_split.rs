@@ -51,7 +51,8 @@
 //! models), each listed molecule pair inside `r_out` is one SIMD block of 4 × 4 atom pairs
 //! with one switch value ([`lanes`]); other molecules take the row loop of [`kernels`],
 //! which gathers each row's partner atoms (docs/thermostats.md has both costs); the pairs
-//! inside a molecule take the same row loop pair by pair. By molecule the short part
+//! inside a molecule, molecules a small box cannot keep whole, and every Hessian-vector
+//! product take the one pair loop of [`pairs`]. By molecule the short part
 //! has its own pair search ([`search`]): molecule pairs whose
 //! reference atoms are closer than `r_out + skin`, rebuilt
 //! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
