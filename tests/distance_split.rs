@@ -857,3 +857,45 @@ fn with_pme_the_short_part_takes_the_bare_coulomb_and_the_parts_add_up() {
         "{stderr}"
     );
 }
+
+/// A checkpoint's state of the short part's molecule list ([`ForceTerm::list_state`]: the
+/// reference atoms' positions at its build) makes the same list in a term built elsewhere
+/// ([`ForceTerm::restore_lists`]): the restored term then gives the bits of the term the
+/// state came from, and a state of the wrong size or without its array is refused by name.
+#[test]
+fn the_molecule_list_state_restores_the_same_list() {
+    let mut rng = TestRng::new(13);
+    let (q, bonds, length) = waters(4, 60, &mut rng);
+    let n = q.len() / 3;
+    let split = split_spec(SwitchBy::Molecule, 3.5, 5.0, n, &bonds);
+    let make = |at: &[f64]| {
+        let electrostatics = Electrostatics::DampedShiftedForce { alpha: 0.0 };
+        let spec = water_spec(n, 6.0, electrostatics, Some([length; 3]), true);
+        split_nonbonded(spec, &split, at).unwrap()
+    };
+    let (short, _) = make(&q);
+    let state = short.list_state().expect("the list is built with the term");
+    // Built up to 0.6 Å per axis away (more than half the 1 Å skin): another list
+    // (`couplings`: the listed molecule pairs' atoms in list order).
+    let far: Vec<f64> = q.iter().map(|x| x + rng.uniform(-0.6, 0.6)).collect();
+    let (restored, _) = make(&far);
+    assert_ne!(restored.couplings(), short.couplings());
+    restored.restore_lists(&state).unwrap();
+    assert_eq!(restored.couplings(), short.couplings());
+    assert_eq!(restored.list_state(), Some(state.clone()));
+    // Near q (within half the skin) neither term rebuilds: the same pairs in the same order.
+    let near: Vec<f64> = q.iter().map(|x| x + rng.uniform(-0.05, 0.05)).collect();
+    assert_eq!(gradient(&restored, &near), gradient(&short, &near));
+    assert_eq!(
+        restored.energy(&near).to_bits(),
+        short.energy(&near).to_bits()
+    );
+    let wrong_size = serde_json::json!({ "molecule_list_built_at": [1.0, 2.0, 3.0] });
+    for (bad, expected) in [
+        (wrong_size, "has 3 numbers, this split has 60 molecules"),
+        (serde_json::json!({}), "no array \"molecule_list_built_at\""),
+    ] {
+        let error = restored.restore_lists(&bad).unwrap_err().to_string();
+        assert!(error.contains(expected), "{error}");
+    }
+}

@@ -718,7 +718,10 @@ fn coulomb_kernel(
 }
 
 /// Excluded partners per particle, sorted (CSR: `start[i]..start[i + 1]`).
-fn exclusion_lists(n: usize, pairs: &[(usize, usize)]) -> Result<(Vec<u32>, Vec<u32>), String> {
+pub(super) fn exclusion_lists(
+    n: usize,
+    pairs: &[(usize, usize)],
+) -> Result<(Vec<u32>, Vec<u32>), String> {
     let mut excluded = vec![Vec::new(); n];
     for &(i, j) in pairs {
         if i >= n || j >= n {

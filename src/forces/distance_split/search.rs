@@ -61,6 +61,13 @@ impl PairSearch {
         self.builds
     }
 
+    /// The point positions at the last build (`None` before the first): the list is a
+    /// function of them alone, so building at them again gives the same pairs in the same
+    /// order.
+    pub fn built_at(&self) -> Option<&[[f64; 3]]> {
+        self.built.then_some(&self.reference[..])
+    }
+
     /// Minimum-image displacement `b − a`.
     #[inline(always)]
     pub fn displacement(&self, a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

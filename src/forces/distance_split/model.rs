@@ -1,0 +1,247 @@
+//! The non-bonded model of the short part pair by pair (Lennard-Jones and the Coulomb form
+//! of [`crate::forces::nonbonded`], the minimum image) and the molecules' atom table.
+
+use super::SplitSpec;
+use crate::forces::nonbonded::{CoulombPair, Electrostatics, LjPair, NonbondedSpec};
+
+/// The non-bonded model pair by pair, and the minimum image.
+pub(crate) struct Model {
+    pub cutoff_squared: f64,
+    pub(super) coulomb: CoulombPair,
+    n_types: usize,
+    types: Vec<u32>,
+    lj: Vec<LjPair>,
+    /// Whether a type has Lennard-Jones with any type.
+    has_lj: Vec<bool>,
+    /// `q_i √k_e`.
+    scaled_charges: Vec<f64>,
+    period: [f64; 3],
+    inverse: [f64; 3],
+}
+
+impl Model {
+    /// The pair model of `spec` (types, Lennard-Jones table, charges scaled by `√k_e`,
+    /// box), after checking the sizes agree with the positions `q`.
+    pub(super) fn new(spec: &NonbondedSpec, q: &[f64]) -> Result<Model, String> {
+        let n = spec.types.len();
+        if q.len() != 3 * n || spec.charges.len() != n {
+            return Err("non-bonded split: sizes of positions, types and charges differ".into());
+        }
+        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
+        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
+            return Err("non-bonded split: the Lennard-Jones table does not fit the types".into());
+        }
+        let root_ke = spec.coulomb_constant.sqrt();
+        let scaled_charges = if spec.electrostatics == Electrostatics::None {
+            vec![0.0; n]
+        } else {
+            spec.charges.iter().map(|c| c * root_ke).collect()
+        };
+        let period = spec.box_lengths.unwrap_or([0.0; 3]);
+        Ok(Model {
+            cutoff_squared: spec.cutoff * spec.cutoff,
+            coulomb: CoulombPair::new(spec.electrostatics, spec.cutoff)?,
+            n_types,
+            types: spec.types.clone(),
+            lj: spec.lj.clone(),
+            has_lj: (0..n_types)
+                .map(|a| {
+                    spec.lj[a * n_types..(a + 1) * n_types]
+                        .iter()
+                        .any(|p| p.c12 != 0.0 || p.c6 != 0.0 || p.shift != 0.0)
+                })
+                .collect(),
+            scaled_charges,
+            period,
+            inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
+        })
+    }
+
+    /// Minimum-image `x_j − x_i`.
+    #[inline(always)]
+    pub fn displacement(&self, q: &[f64], i: usize, j: usize) -> [f64; 3] {
+        std::array::from_fn(|k| {
+            let d = q[3 * j + k] - q[3 * i + k];
+            d - self.period[k] * (d * self.inverse[k]).round()
+        })
+    }
+
+    #[inline(always)]
+    pub(super) fn lj(&self, i: usize, j: usize) -> LjPair {
+        self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize]
+    }
+
+    /// `(V, −V′/r)` of pair `i, j` at `r² = s < r_c²`.
+    #[inline(always)]
+    pub fn energy_force(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        self.typed_energy_force(self.lj(i, j), qq, s)
+    }
+
+    /// The Lennard-Jones coefficients of type `a` with every type, or `None` when they are
+    /// all zero.
+    #[inline(always)]
+    pub fn lj_row(&self, a: u32) -> Option<&[LjPair]> {
+        let row = &self.lj[a as usize * self.n_types..(a as usize + 1) * self.n_types];
+        self.has_lj[a as usize].then_some(row)
+    }
+
+    /// `(V, −V′/r)` of a pair with coefficients `p` and `k_e q_i q_j = qq` at `r² = s`.
+    #[inline(always)]
+    pub fn typed_energy_force(&self, p: LjPair, qq: f64, s: f64) -> (f64, f64) {
+        let inv_r2 = 1.0 / s;
+        let (mut energy, mut force) = (0.0, 0.0);
+        if p.c12 != 0.0 || p.c6 != 0.0 {
+            let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+            energy = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+            force = inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
+        }
+        if qq != 0.0 {
+            let (e, f) = self.coulomb.energy_force(qq, s, inv_r2.sqrt());
+            energy += e;
+            force += f;
+        }
+        (energy, force)
+    }
+
+    /// `(V, −V′/r)` of the Coulomb form for a block of pairs.
+    #[inline(always)]
+    pub fn coulomb_block(
+        &self,
+        qq: &[f64],
+        s: &[f64],
+        inv_r: &[f64],
+        energy: &mut [f64],
+        force: &mut [f64],
+    ) {
+        self.coulomb.energy_force_block(qq, s, inv_r, energy, force);
+    }
+
+    /// The periodic lengths (0 along an open axis) and the shortest of them (∞ for none).
+    pub fn shortest_period(&self) -> f64 {
+        self.period
+            .iter()
+            .filter(|&&l| l > 0.0)
+            .fold(f64::INFINITY, |a, &b| a.min(b))
+    }
+
+    /// Minimum image of a displacement `d`.
+    #[inline(always)]
+    pub fn image(&self, d: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| d[k] - self.period[k] * (d[k] * self.inverse[k]).round())
+    }
+
+    /// `q_i √k_e` (0 without electrostatics).
+    #[inline(always)]
+    pub fn scaled_charge(&self, i: usize) -> f64 {
+        self.scaled_charges[i]
+    }
+
+    /// `(V_LJ, V_Coulomb)` of pair `i, j` at `r² = s < r_c²` (for reports).
+    pub fn energy_parts(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
+        let p = self.lj(i, j);
+        let inv_r6 = (1.0 / s).powi(3);
+        let lj = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        let coulomb = if qq != 0.0 {
+            self.coulomb.energy_force(qq, s, 1.0 / s.sqrt()).0
+        } else {
+            0.0
+        };
+        (lj, coulomb)
+    }
+
+    /// `(V, V′, V″)` of pair `i, j` at `r < r_c`.
+    pub fn derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
+        let p = self.lj(i, j);
+        let inv_r = 1.0 / r;
+        let inv6 = inv_r.powi(6);
+        let mut v = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
+        let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
+        let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
+        let qq = self.scaled_charges[i] * self.scaled_charges[j];
+        if qq != 0.0 {
+            let (e, a, b) = self.coulomb.derivatives(qq, r);
+            v += e;
+            d1 += a;
+            d2 += b;
+        }
+        (v, d1, d2)
+    }
+}
+
+/// Atoms of each molecule (CSR) and their reference atoms.
+pub(crate) struct Molecules {
+    pub start: Vec<u32>,
+    /// Atoms in molecule order (global indices).
+    pub atoms: Vec<u32>,
+    pub reference: Vec<u32>,
+    /// Position of each reference atom in `atoms`.
+    pub reference_slot: Vec<u32>,
+    /// Type of each atom of `atoms`.
+    pub types: Vec<u32>,
+    /// The atom count of every molecule when they all have the same, else 0.
+    pub uniform_size: usize,
+}
+
+impl Molecules {
+    #[inline(always)]
+    pub fn atoms(&self, m: usize) -> &[u32] {
+        &self.atoms[self.start[m] as usize..self.start[m + 1] as usize]
+    }
+}
+
+/// Atoms per molecule (CSR) from `molecule_of`, checked against the reference atoms.
+pub(super) fn molecule_table(
+    n: usize,
+    split: &SplitSpec,
+    types: &[u32],
+) -> Result<Molecules, String> {
+    if split.molecule_of.len() != n {
+        return Err(format!(
+            "non-bonded split: {} molecule indices for {n} atoms",
+            split.molecule_of.len()
+        ));
+    }
+    let n_molecules = split.reference_atoms.len();
+    let mut start = vec![0u32; n_molecules + 1];
+    for &m in &split.molecule_of {
+        if m as usize >= n_molecules {
+            return Err(format!(
+                "non-bonded split: molecule {m} has no reference atom"
+            ));
+        }
+        start[m as usize + 1] += 1;
+    }
+    for m in 0..n_molecules {
+        start[m + 1] += start[m];
+    }
+    let mut fill = start.clone();
+    let mut atoms = vec![0u32; n];
+    for (i, &m) in split.molecule_of.iter().enumerate() {
+        atoms[fill[m as usize] as usize] = i as u32;
+        fill[m as usize] += 1;
+    }
+    for (m, &r) in split.reference_atoms.iter().enumerate() {
+        if r >= n || split.molecule_of[r] as usize != m {
+            return Err(format!(
+                "non-bonded split: reference atom {r} is not in molecule {m}"
+            ));
+        }
+    }
+    let mut slot_of = vec![0u32; n];
+    for (k, &a) in atoms.iter().enumerate() {
+        slot_of[a as usize] = k as u32;
+    }
+    let reference_slot = split.reference_atoms.iter().map(|&r| slot_of[r]).collect();
+    let first = start.get(1).copied().unwrap_or(0);
+    let uniform = start.windows(2).all(|w| w[1] - w[0] == first);
+    Ok(Molecules {
+        uniform_size: if uniform { first as usize } else { 0 },
+        start,
+        reference: split.reference_atoms.iter().map(|&r| r as u32).collect(),
+        reference_slot,
+        types: atoms.iter().map(|&a| types[a as usize]).collect(),
+        atoms,
+    })
+}
