@@ -89,10 +89,7 @@ pub struct Parsed {
 }
 
 pub fn error(location: &str, message: impl Into<String>) -> Error {
-    Error::Topology {
-        location: location.to_string(),
-        message: message.into(),
-    }
+    Error::topology_at(location, message)
 }
 
 fn number<T: std::str::FromStr>(field: &str, what: &str, at: &str) -> Result<T> {
