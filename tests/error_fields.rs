@@ -168,3 +168,19 @@ fn a_setting_blamed_on_the_scene_keeps_its_key() {
     assert_eq!(p.location.key.as_deref(), Some("h"));
     assert_eq!(p.got.as_deref(), Some("0"));
 }
+
+#[test]
+fn a_gromacs_error_gives_file_line_and_directive() {
+    // A bond of an atom the molecule does not have, in a two-atom molecule.
+    let text = "[ defaults ]\n1 2 yes 0.5 0.8333\n[ atomtypes ]\nCT 6 12.01 0.0 A 0.34 0.45\n\
+                [ moleculetype ]\nM 3\n[ atoms ]\n1 CT 1 M C1 1 0.0 12.01\n\
+                2 CT 1 M C2 2 0.0 12.01\n[ bonds ]\n1 2 1 0.15 1000.0\n1 x 1 0.15 1000.0\n\
+                [ system ]\nm\n[ molecules ]\nM 1\n";
+    let path = scratch_dir("fields-gromacs").join("main.top");
+    std::fs::write(&path, text).unwrap();
+    let error = read_topology_file(&path, &[]).unwrap_err();
+    let p = problem(&error);
+    assert_eq!(p.location.file.as_deref(), Some(path.as_path()));
+    assert_eq!(p.location.line, Some(line_of(text, "1 x 1 0.15 1000.0")));
+    assert_eq!(p.location.key.as_deref(), Some("bonds"));
+}
