@@ -282,43 +282,56 @@ impl RunSpec {
         units: crate::units::Units,
     ) -> Result<MethodSettings> {
         let time_units = units.time_units();
-        let number = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
-            v.as_ref().map(|v| v.evaluate(parameters, what)).transpose()
-        };
-        let time = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
+        // Each setting by its `[run]` key (the error's key) and its name in messages.
+        let number = |v: &Option<Value>, (key, what): (&str, &str)| -> Result<Option<f64>> {
             v.as_ref()
-                .map(|v| v.evaluate_time(parameters, what, time_units))
+                .map(|v| v.evaluate(parameters, what).map_err(|e| e.key(key)))
                 .transpose()
         };
-        let positive_time = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
-            match time(v, what)? {
-                Some(x) if x <= 0.0 => Err(Error::input(format!(
-                    "{what} must be positive and finite, got {x}"
-                ))),
+        let time = |v: &Option<Value>, (key, what): (&str, &str)| -> Result<Option<f64>> {
+            v.as_ref()
+                .map(|v| {
+                    v.evaluate_time(parameters, what, time_units)
+                        .map_err(|e| e.key(key))
+                })
+                .transpose()
+        };
+        let must_be_positive = |x: f64, (key, what): (&str, &str)| {
+            Error::setting(key, format!("{what} must be positive and finite"))
+                .expected("a positive number")
+                .got(x.to_string())
+        };
+        let positive_time = |v: &Option<Value>, setting: (&str, &str)| -> Result<Option<f64>> {
+            match time(v, setting)? {
+                Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
                 other => Ok(other),
             }
         };
-        let positive = |v: &Option<Value>, what: &str| -> Result<Option<f64>> {
-            match number(v, what)? {
-                Some(x) if x <= 0.0 => Err(Error::input(format!(
-                    "{what} must be positive and finite, got {x}"
-                ))),
+        let positive = |v: &Option<Value>, setting: (&str, &str)| -> Result<Option<f64>> {
+            match number(v, setting)? {
+                Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
                 other => Ok(other),
             }
         };
-        let h = positive_time(&self.h, "outer step h")?.ok_or_else(|| {
-            Error::input("no outer step h: give --h or set h in the scene's [run] table")
+        let h = positive_time(&self.h, ("h", "outer step h"))?.ok_or_else(|| {
+            Error::setting(
+                "h",
+                "no outer step h: give --h or set h in the scene's [run] table",
+            )
         })?;
-        let dt = positive_time(&self.dt, "inner step dt")?;
+        let dt = positive_time(&self.dt, ("dt", "inner step dt"))?;
         let inner_steps = self.inner_steps_of(h, dt)?;
         self.check_counts()?;
         let temperature = self.temperature_of(parameters, units)?;
         // An inverse time: `1/ps` is 1/1000 per fs, the unit standing alone being its factor.
-        let friction = match time(&self.friction, "friction")? {
+        let friction = match time(&self.friction, ("friction", "friction"))? {
             Some(g) if g <= 0.0 => {
-                return Err(Error::input(format!(
-                    "friction must be positive (an inverse time, e.g. 1/ps), got {g}"
-                )));
+                return Err(Error::setting(
+                    "friction",
+                    "friction must be positive (an inverse time, e.g. 1/ps)",
+                )
+                .expected("a positive inverse time")
+                .got(g.to_string()));
             }
             other => other,
         };
@@ -326,31 +339,33 @@ impl RunSpec {
             method: self.method.clone().unwrap_or_else(|| "verlet".into()),
             h,
             inner_steps,
-            t_end: positive_time(&self.t_end, "end time t_end")?,
+            t_end: positive_time(&self.t_end, ("t_end", "end time t_end"))?,
             blowup: self.blowup.unwrap_or(10.0),
             level_steps: self.level_steps.clone(),
             jacobian: self.jacobian.clone(),
             quadrature: self.quadrature.clone(),
-            h_slow: positive_time(&self.h_slow, "h_slow")?,
-            h_fast: positive_time(&self.h_fast, "h_fast")?,
+            h_slow: positive_time(&self.h_slow, ("h_slow", "h_slow"))?,
+            h_fast: positive_time(&self.h_fast, ("h_fast", "h_fast"))?,
             ratio: self.ratio,
-            adaptive: positive(&self.adaptive, "adaptive tolerance")?,
+            adaptive: positive(&self.adaptive, ("adaptive", "adaptive tolerance"))?,
             control: self.control.clone(),
-            h_min: positive_time(&self.h_min, "h_min")?,
-            h_max: positive_time(&self.h_max, "h_max")?,
+            h_min: positive_time(&self.h_min, ("h_min", "h_min"))?,
+            h_max: positive_time(&self.h_max, ("h_max", "h_max"))?,
             block: self.block,
-            tol: positive(&self.tol, "tol")?,
+            tol: positive(&self.tol, ("tol", "tol"))?,
             max_iter: self.max_iter,
             temperature,
             seed: self.seed,
             friction,
             thermostats: self.thermostats,
-            tau: positive_time(&self.tau, "thermostat time scale tau")?,
+            tau: positive_time(&self.tau, ("tau", "thermostat time scale tau"))?,
             mollifier: self.mollifier.clone(),
             molly_constraints: self.molly_constraints.clone(),
             molly_jacobian: self.molly_jacobian.clone(),
             constraints: match &self.constraints {
-                Some(text) => ConstraintSet::parse(text).map_err(Error::input)?,
+                Some(text) => ConstraintSet::parse(text).map_err(|e| {
+                    Error::setting("constraints", e).expected(ConstraintSet::NAMES.join(", "))
+                })?,
                 None => ConstraintSet::None,
             },
             rigid_water: self.rigid_water.unwrap_or(false),
@@ -365,12 +380,15 @@ impl RunSpec {
         let Some(value) = &self.constraint_tolerance else {
             return Ok(None);
         };
-        let tolerance = value.evaluate(parameters, "constraint_tolerance")?;
+        let key = "constraint_tolerance";
+        let tolerance = value.evaluate(parameters, key).map_err(|e| e.key(key))?;
         if !(tolerance > 0.0 && tolerance < 1.0) {
-            return Err(Error::input(format!(
-                "constraint_tolerance must lie between 0 and 1 (a relative error, e.g. 1e-8), \
-                 got {tolerance}"
-            )));
+            return Err(Error::setting(
+                key,
+                "constraint_tolerance must lie between 0 and 1 (a relative error, e.g. 1e-8)",
+            )
+            .expected("a number in (0, 1)")
+            .got(tolerance.to_string()));
         }
         Ok(Some(tolerance))
     }
@@ -388,11 +406,14 @@ impl RunSpec {
             crate::units::Units::Real => &[("amu", 1.0), ("Da", 1.0)],
             crate::units::Units::None => &[],
         };
-        let mass = value.evaluate_time(parameters, "hydrogen_mass", mass_units)?;
+        let key = "hydrogen_mass";
+        let mass = value
+            .evaluate_time(parameters, key, mass_units)
+            .map_err(|e| e.key(key))?;
         if mass <= 0.0 {
-            return Err(Error::input(format!(
-                "hydrogen_mass must be positive, got {mass}"
-            )));
+            return Err(Error::setting(key, "hydrogen_mass must be positive")
+                .expected("a positive mass")
+                .got(mass.to_string()));
         }
         Ok(Some(mass))
     }
@@ -401,13 +422,20 @@ impl RunSpec {
     fn inner_steps_of(&self, h: f64, dt: Option<f64>) -> Result<Option<usize>> {
         Ok(match (self.inner_steps, dt) {
             (Some(_), Some(_)) => {
-                return Err(Error::input(
+                return Err(Error::setting(
+                    "inner_steps",
                     "give the inner step either as inner steps (--inner) or as dt (--dt), not both",
                 ));
             }
-            (Some(0), None) => return Err(Error::input("inner steps must be at least 1")),
+            (Some(0), None) => {
+                return Err(
+                    Error::setting("inner_steps", "inner steps must be at least 1").expected("≥ 1"),
+                );
+            }
             (Some(k), None) => Some(k),
-            (None, Some(dt)) => Some(whole_ratio(h, dt, "inner step dt", "outer step h")?),
+            (None, Some(dt)) => {
+                Some(whole_ratio(h, dt, "inner step dt", "outer step h").map_err(|e| e.key("dt"))?)
+            }
             (None, None) => None,
         })
     }
@@ -417,26 +445,30 @@ impl RunSpec {
         if let Some(blowup) = self.blowup
             && !(blowup.is_finite() && blowup > 0.0)
         {
-            return Err(Error::input(format!(
-                "blow-up factor must be positive, got {blowup}"
-            )));
+            return Err(Error::setting("blowup", "blow-up factor must be positive")
+                .expected("a positive number")
+                .got(blowup.to_string()));
         }
         if let Some(steps) = &self.level_steps
             && steps.contains(&0)
         {
-            return Err(Error::input("level_steps must all be at least 1"));
+            return Err(Error::setting(
+                "level_steps",
+                "level_steps must all be at least 1",
+            ));
         }
         if self.ratio == Some(0) {
-            return Err(Error::input("ratio must be at least 1"));
+            return Err(Error::setting("ratio", "ratio must be at least 1"));
         }
         if self.block == Some(0) {
-            return Err(Error::input("block size R must be at least 1"));
+            return Err(Error::setting("block", "block size R must be at least 1"));
         }
         if self.max_iter == Some(0) {
-            return Err(Error::input("max_iter must be at least 1"));
+            return Err(Error::setting("max_iter", "max_iter must be at least 1"));
         }
         if self.thermostats == Some(0) {
-            return Err(Error::input(
+            return Err(Error::setting(
+                "thermostats",
                 "thermostats (L, thermostat pairs per degree of freedom) must be at least 1",
             ));
         }
@@ -452,16 +484,19 @@ impl RunSpec {
         Ok(match &self.temperature {
             Some(v) => {
                 let kelvin = units.temperature_units();
-                let t = v.evaluate_time(parameters, "temperature", kelvin)?;
+                let key = "temperature";
+                let t = v
+                    .evaluate_time(parameters, key, kelvin)
+                    .map_err(|e| e.key(key))?;
                 if t <= 0.0 {
-                    return Err(Error::input(format!(
-                        "temperature must be positive, got {t}{}",
-                        if units == crate::units::Units::Real {
-                            " K"
-                        } else {
-                            ""
-                        }
-                    )));
+                    let unit = if units == crate::units::Units::Real {
+                        " K"
+                    } else {
+                        ""
+                    };
+                    return Err(Error::setting(key, "temperature must be positive")
+                        .expected("a positive temperature")
+                        .got(format!("{t}{unit}")));
                 }
                 Some(t)
             }

@@ -105,12 +105,13 @@ pub struct AnalyzeArgs {
 fn time_value(text: &str, flag: &str, scene: &Scene) -> Result<f64> {
     let value: Value = text
         .parse()
-        .map_err(|_| Error::input(format!("{flag}: \"{text}\" is not a time")))?;
+        .map_err(|_| Error::flag(flag, format!("{flag}: \"{text}\" is not a time")))?;
     let t = value.evaluate_time(&scene.parameters, flag, scene.units.time_units())?;
     if !(t >= 0.0 && t.is_finite()) {
-        return Err(Error::input(format!(
-            "{flag} must be a time of zero or more, got \"{text}\""
-        )));
+        return Err(
+            Error::flag(flag, format!("{flag} must be a time of zero or more"))
+                .got(format!("\"{text}\"")),
+        );
     }
     Ok(t)
 }
@@ -200,17 +201,20 @@ fn labels(args: &AnalyzeArgs) -> Result<Vec<String>> {
             .collect());
     }
     if args.labels.len() != args.runs.len() {
-        return Err(Error::input(format!(
-            "--labels gives {} labels for {} runs",
-            args.labels.len(),
-            args.runs.len()
-        )));
+        return Err(Error::flag(
+            "--labels",
+            format!(
+                "--labels gives {} labels for {} runs",
+                args.labels.len(),
+                args.runs.len()
+            ),
+        ));
     }
     if let Some(k) = args.labels.iter().position(|l| l.trim().is_empty()) {
-        return Err(Error::input(format!(
-            "--labels: label {} is empty; each run needs a name",
-            k + 1
-        )));
+        return Err(Error::flag(
+            "--labels",
+            format!("--labels: label {} is empty; each run needs a name", k + 1),
+        ));
     }
     Ok(args.labels.clone())
 }
@@ -499,7 +503,7 @@ fn chart_path(png: &Path, pair: &str, pairs: usize) -> PathBuf {
 fn draw_rdf(png: &Path, scene: &Scene, labels: &[String], results: &[RunAnalysis]) -> Result<()> {
     let pairs = results.first().map_or(0, |r| r.rdf.len());
     if pairs == 0 {
-        return Err(Error::input("--png draws g(r): give --pairs"));
+        return Err(Error::flag("--png", "--png draws g(r): give --pairs"));
     }
     let (length, ..) = units(scene);
     let length = if length == "angstrom" { "Å" } else { length };

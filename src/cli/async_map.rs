@@ -64,16 +64,16 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
     let scene = load_scene(&args.scene, &args.set)?;
     let parameter = MapParameter::parse(&args.param)?;
     let Some((from, to)) = args.range.split_once(':') else {
-        return Err(Error::input(format!(
-            "--range expects FROM:TO, got \"{}\"",
-            args.range
-        )));
+        return Err(Error::flag(
+            "--range",
+            format!("--range expects FROM:TO, got \"{}\"", args.range),
+        ));
     };
     let evaluate = |text: &str, what: &str| -> Result<f64> {
         let value: Value = text.parse().unwrap_or(Value::Number(f64::NAN));
         let x = value.evaluate(&scene.parameters, what)?;
         if x <= 0.0 {
-            return Err(Error::input(format!("{what} must be positive, got {x}")));
+            return Err(Error::flag(what, format!("{what} must be positive")).got(x.to_string()));
         }
         Ok(x)
     };
@@ -82,7 +82,7 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
         evaluate(to, "--range end")?,
     );
     if args.n == 0 {
-        return Err(Error::input("--n must be at least 1"));
+        return Err(Error::flag("--n", "--n must be at least 1"));
     }
     let values: Vec<f64> = (0..args.n)
         .map(|k| {
@@ -95,10 +95,10 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
         .collect();
     let ratios = parse_ratios(&args.ratio)?;
     if !(args.tolerance.is_finite() && args.tolerance > 0.0) {
-        return Err(Error::input(format!(
-            "--tolerance must be positive, got {}",
-            args.tolerance
-        )));
+        return Err(Error::flag(
+            "--tolerance",
+            format!("--tolerance must be positive, got {}", args.tolerance),
+        ));
     }
     let spec = MapSpec {
         parameter,
@@ -145,16 +145,20 @@ fn parse_ratios(text: &str) -> Result<Vec<usize>> {
     let parse = |t: &str| -> Result<usize> {
         match t.trim().parse::<usize>() {
             Ok(k) if k >= 1 => Ok(k),
-            _ => Err(Error::input(format!(
-                "--ratio expects whole numbers ≥ 1 (K or A:B), got \"{text}\""
-            ))),
+            _ => Err(
+                Error::flag("--ratio", "--ratio expects whole numbers ≥ 1 (K or A:B)")
+                    .got(format!("\"{text}\"")),
+            ),
         }
     };
     match text.split_once(':') {
         Some((a, b)) => {
             let (a, b) = (parse(a)?, parse(b)?);
             if b < a {
-                return Err(Error::input(format!("--ratio range {a}:{b} is empty")));
+                return Err(Error::flag(
+                    "--ratio",
+                    format!("--ratio range {a}:{b} is empty"),
+                ));
             }
             Ok((a..=b).collect())
         }

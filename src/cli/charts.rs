@@ -149,9 +149,12 @@ fn study_times(args: &WorkPrecisionArgs, scene_units: crate::units::Units) -> Re
         None => largest,
     };
     if !(t_end > 0.0 && sample > 0.0 && sample <= t_end) {
-        return Err(Error::input(format!(
-            "--t-end ({t_end}) and --sample ({sample}) must be positive, the sample no longer than the run"
-        )));
+        return Err(Error::flag(
+            "--t-end",
+            format!(
+                "--t-end ({t_end}) and --sample ({sample}) must be positive, the sample no longer than the run"
+            ),
+        ));
     }
     for &h in &steps {
         whole_ratio(sample, h, "outer step h", "sample interval")?;
@@ -195,12 +198,14 @@ fn cost_weights(
     Ok(match &args.weights {
         Some(w) => {
             if w.len() != 3 || w.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
-                return Err(Error::input(
+                return Err(Error::flag(
+                    "--weights",
                     "--weights expects three non-negative numbers F,S,H",
                 ));
             }
             if w.iter().all(|&x| x == 0.0) {
-                return Err(Error::input(
+                return Err(Error::flag(
+                    "--weights",
                     "--weights 0,0,0 makes every run free: give at least one positive cost",
                 ));
             }

@@ -92,9 +92,9 @@ impl MethodSteps {
 /// A number or expression of a flag (`10*pi`), finite.
 pub fn number(text: &str, what: &str) -> Result<f64> {
     let value = expr::evaluate(text.trim(), &BTreeMap::new())
-        .map_err(|e| Error::input(format!("{what}: {e}")))?;
+        .map_err(|e| Error::flag(what, format!("{what}: {e}")))?;
     if !value.is_finite() {
-        return Err(Error::input(format!("{what} is not finite ({value})")));
+        return Err(Error::flag(what, format!("{what} is not finite ({value})")));
     }
     Ok(value)
 }
@@ -103,35 +103,41 @@ pub fn number(text: &str, what: &str) -> Result<f64> {
 /// real units the values may carry time units (`1fs:10fs:0.25fs`).
 pub fn parse_steps(text: &str, units: Units) -> Result<Vec<f64>> {
     let value = |s: &str| -> Result<f64> {
-        let v: Value = s.parse().map_err(|_| Error::input("bad number"))?;
+        let v: Value = s
+            .parse()
+            .map_err(|_| Error::flag("--h", "bad number").got(format!("\"{s}\"")))?;
         let x = v.evaluate_time(&Default::default(), "--h", units.time_units())?;
         if x <= 0.0 {
-            return Err(Error::input(format!(
-                "--h: steps must be positive, got {x}"
-            )));
+            return Err(Error::flag("--h", "--h: steps must be positive")
+                .expected("positive steps")
+                .got(x.to_string()));
         }
         Ok(x)
     };
     if text.contains(':') {
         let parts: Vec<&str> = text.split(':').collect();
         let [lo, hi, step] = parts.as_slice() else {
-            return Err(Error::input(format!(
-                "--h expects LO:HI:STEP, got \"{text}\""
-            )));
+            return Err(Error::flag("--h", "--h expects LO:HI:STEP")
+                .expected("LO:HI:STEP")
+                .got(format!("\"{text}\"")));
         };
         let (lo, hi, step) = (value(lo)?, value(hi)?, value(step)?);
         if hi < lo {
-            return Err(Error::input(format!(
-                "--h {text}: the range is reversed (LO:HI:STEP runs from LO up to HI); did \
+            return Err(Error::flag(
+                "--h",
+                format!(
+                    "--h {text}: the range is reversed (LO:HI:STEP runs from LO up to HI); did \
                  you mean {}:{}:{}?",
-                parts[1], parts[0], parts[2]
-            )));
+                    parts[1], parts[0], parts[2]
+                ),
+            ));
         }
         let count = ((hi - lo) / step + 1e-9).floor() as usize + 1;
         if count > 100_000 {
-            return Err(Error::input(format!(
-                "--h gives {count} steps; that is too many"
-            )));
+            return Err(Error::flag(
+                "--h",
+                format!("--h gives {count} steps; that is too many"),
+            ));
         }
         // Round to 12 significant digits so 0.2 + 0.1·9 reads 1.1, not 1.1000000000000001.
         let round = |x: f64| format!("{x:.11e}").parse::<f64>().unwrap_or(x);
@@ -154,9 +160,9 @@ pub fn keep_shard<T>(points: &mut Vec<(usize, T, f64)>, shard: Option<&str>) -> 
 /// `k/n` → (k − 1, n), checked.
 pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
     let bad = || {
-        Error::input(format!(
-            "--shard expects K/N with 1 ≤ K ≤ N, got \"{text}\""
-        ))
+        Error::flag("--shard", "--shard expects K/N with 1 ≤ K ≤ N")
+            .expected("K/N with 1 ≤ K ≤ N")
+            .got(format!("\"{text}\""))
     };
     let (k, n) = text.split_once('/').ok_or_else(bad)?;
     let (k, n): (usize, usize) = (
@@ -353,7 +359,8 @@ impl SceneArgs {
 }
 
 fn grid_error(text: &str) -> Error {
-    Error::input(format!(
-        "--pme-grid takes three whole numbers NX,NY,NZ (e.g. 16,16,16), got \"{text}\""
-    ))
+    let expected = "three whole numbers NX,NY,NZ (e.g. 16,16,16)";
+    Error::flag("--pme-grid", format!("--pme-grid takes {expected}"))
+        .expected(expected)
+        .got(format!("\"{text}\""))
 }

@@ -104,7 +104,8 @@ fn report_forcefield(scene: &Scene) {
 /// `--parameters FILE`: the scene's force-field parameters as JSON.
 fn write_parameters(scene: &Scene, path: &Path) -> Result<()> {
     let Some(parameters) = &scene.forcefield_parameters else {
-        return Err(Error::input(
+        return Err(Error::flag(
+            "--parameters",
             "--parameters needs a scene with a [forcefield] section",
         ));
     };

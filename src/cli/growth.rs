@@ -75,7 +75,7 @@ struct GrowthRun {
 pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
     let (steps, t_end) = steps_and_end(args)?;
     if args.window == Some(0) {
-        return Err(Error::input("--window must be at least 1 step"));
+        return Err(Error::flag("--window", "--window must be at least 1 step"));
     }
     let fit_bounds = fit_bounds(args)?;
     for path in [&args.png, &args.svg].into_iter().flatten() {
@@ -114,13 +114,11 @@ pub fn scan_growth_command(args: &ScanGrowthArgs) -> Result<()> {
 fn steps_and_end(args: &ScanGrowthArgs) -> Result<(Vec<f64>, f64)> {
     let steps = args.study.steps()?;
     if let Some(&h) = steps.iter().find(|&&h| h <= 0.0) {
-        return Err(Error::input(format!("--h must be positive, got {h}")));
+        return Err(Error::flag("--h", "--h must be positive").got(h.to_string()));
     }
     let t_end = args.study.t_end()?;
     if t_end <= 0.0 {
-        return Err(Error::input(format!(
-            "--t-end must be positive, got {t_end}"
-        )));
+        return Err(Error::flag("--t-end", "--t-end must be positive").got(t_end.to_string()));
     }
     Ok((steps, t_end))
 }
@@ -136,9 +134,11 @@ fn fit_bounds(args: &ScanGrowthArgs) -> Result<Option<(f64, f64)>> {
             match parsed {
                 Some((lo, hi)) if lo >= 0.0 && lo < hi => Some((lo, hi)),
                 _ => {
-                    return Err(Error::input(format!(
-                        "--fit expects LO:HI with 0 ≤ LO < HI (relative energy errors), got \"{text}\""
-                    )));
+                    return Err(Error::flag(
+                        "--fit",
+                        "--fit expects LO:HI with 0 ≤ LO < HI (relative energy errors)",
+                    )
+                    .got(format!("\"{text}\"")));
                 }
             }
         }
@@ -160,20 +160,25 @@ fn growth_points(
             // Whole steps up to t_end (the last may stop short of it).
             let n = (t_end / h * (1.0 + 1e-12)).floor() as usize;
             if n == 0 {
-                return Err(Error::input(format!(
-                    "--t-end {t_end} is shorter than one outer step --h {h}"
-                )));
+                return Err(Error::flag(
+                    "--t-end",
+                    format!("--t-end {t_end} is shorter than one outer step --h {h}"),
+                ));
             }
             // Every step's error is kept (8 bytes each).
             if t_end / h > MAX_STEPS as f64 {
-                return Err(Error::input(format!(
-                    "--t-end {t_end} / --h {h} is more than the {MAX_STEPS} steps a growth run \
+                return Err(Error::flag(
+                    "--t-end",
+                    format!(
+                        "--t-end {t_end} / --h {h} is more than the {MAX_STEPS} steps a growth run \
                      records"
-                )));
+                    ),
+                ));
             }
             let settings = point_settings(scene, &base, method, h)?;
-            prepare::check_settings(&settings)
-                .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
+            prepare::check_settings(&settings).map_err(|e| {
+                Error::flag("--method", format!("--method {method} at h = {h}: {e}"))
+            })?;
             points.push((points.len(), settings, n));
         }
     }

@@ -20,7 +20,7 @@ mod studies;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
-pub use common::{EXIT_ERROR, EXIT_UNSTABLE};
+pub use common::{EXIT_ERROR, EXIT_UNSTABLE, parse_shard, parse_steps};
 
 #[derive(Parser, Debug)]
 #[command(

@@ -124,9 +124,11 @@ impl DriftArgs {
     /// The bound, checked positive.
     pub fn bound(&self) -> Result<Option<f64>> {
         match self.drift_bound {
-            Some(b) if !(b.is_finite() && b > 0.0) => Err(Error::input(format!(
-                "--drift-bound must be positive and finite, got {b}"
-            ))),
+            Some(b) if !(b.is_finite() && b > 0.0) => Err(Error::flag(
+                "--drift-bound",
+                "--drift-bound must be positive and finite",
+            )
+            .got(b.to_string())),
             other => Ok(other),
         }
     }
@@ -143,11 +145,14 @@ impl DriftArgs {
         };
         let t = value.evaluate_time(parameters, "--fit-from", units.time_units())?;
         if !(0.0..t_end).contains(&t) {
-            return Err(Error::input(format!(
-                "--fit-from {} is outside the run [0, {}): the fit needs rows after it",
-                format_time(t, units),
-                format_time(t_end, units)
-            )));
+            return Err(Error::flag(
+                "--fit-from",
+                format!(
+                    "--fit-from {} is outside the run [0, {}): the fit needs rows after it",
+                    format_time(t, units),
+                    format_time(t_end, units)
+                ),
+            ));
         }
         Ok(Some(t))
     }
@@ -254,11 +259,14 @@ fn checkpoint_interval(args: &RunArgs, prepared: &PreparedRun) -> Result<Option<
             )?;
             let steps = (t / prepared.settings.h).round();
             if !(t.is_finite() && t > 0.0 && (1.0..1e18).contains(&steps)) {
-                return Err(Error::input(format!(
-                    "--checkpoint-every must be at least one outer step (h = {}), got {}",
-                    format_time(prepared.settings.h, scene.units),
-                    format_time(t, scene.units)
-                )));
+                return Err(Error::flag(
+                    "--checkpoint-every",
+                    format!(
+                        "--checkpoint-every must be at least one outer step (h = {}), got {}",
+                        format_time(prepared.settings.h, scene.units),
+                        format_time(t, scene.units)
+                    ),
+                ));
             }
             Some(steps as u64)
         }
@@ -312,7 +320,8 @@ fn output_intervals(args: &RunArgs, scene: &Scene) -> Result<(usize, Option<usiz
     let energy_every = args.energy_every.or(scene.output.energy_every).unwrap_or(1);
     let trajectory_every = args.trajectory_every.or(scene.output.trajectory_every);
     if args.trajectory_velocities && trajectory_every.is_none() {
-        return Err(Error::input(
+        return Err(Error::flag(
+            "--trajectory-velocities",
             "--trajectory-velocities needs a trajectory: give --trajectory-every N",
         ));
     }
@@ -321,7 +330,7 @@ fn output_intervals(args: &RunArgs, scene: &Scene) -> Result<(usize, Option<usiz
         ("--trajectory-every", trajectory_every),
     ] {
         if every == Some(0) {
-            return Err(Error::input(format!("{flag} must be at least 1")));
+            return Err(Error::flag(flag, format!("{flag} must be at least 1")));
         }
     }
     Ok((energy_every, trajectory_every))

@@ -157,10 +157,10 @@ impl AsyncArgs {
 fn step(model: &ModelArgs) -> Result<f64> {
     match &model.h {
         Some(text) => number(text, "--h"),
-        None => Err(Error::input(format!(
-            "--h is required with --method {}",
-            model.method
-        ))),
+        None => Err(Error::flag(
+            "--h",
+            format!("--h is required with --method {}", model.method),
+        )),
     }
 }
 
@@ -180,7 +180,12 @@ fn asynchronous_map(args: &StabilityMapArgs) -> Result<super::async_map::AsyncMa
              over --range (see longstep async-stability-map --help)"
         )));
     }
-    let missing = |name: &str| Error::input(format!("--method async-pseudo-energy needs {name}"));
+    let missing = |name: &str| {
+        Error::flag(
+            "--method",
+            format!("--method async-pseudo-energy needs {name}"),
+        )
+    };
     use super::async_map as defaults;
     Ok(super::async_map::AsyncMapArgs {
         scene: a.linear_scene.clone().ok_or_else(|| missing("a SCENE"))?,
@@ -218,18 +223,22 @@ pub struct SpectralRadiusArgs {
 fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
     let h = step(model)?;
     if h <= 0.0 {
-        return Err(Error::input(format!("--h must be positive, got {h}")));
+        return Err(Error::flag("--h", "--h must be positive").got(h.to_string()));
     }
     match model.mode {
         Mode::Analytic => {
             if model.inner_steps.is_some() {
-                return Err(Error::input(
+                return Err(Error::flag(
+                    "--inner",
                     "--inner applies to --mode integrator; analytic mode integrates the \
                      reduced problem exactly",
                 ));
             }
             if model.scene.is_some() {
-                return Err(Error::input("--scene applies to --mode integrator"));
+                return Err(Error::flag(
+                    "--scene",
+                    "--scene applies to --mode integrator",
+                ));
             }
             let method = AnalyticMethod::from_name(&model.method)?;
             let defaults = Coupling::default();
@@ -260,7 +269,8 @@ fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
         }
         Mode::Integrator => {
             if model.alpha1.is_some() || model.alpha2.is_some() || model.beta.is_some() {
-                return Err(Error::input(
+                return Err(Error::flag(
+                    "--alpha1",
                     "--alpha1/--alpha2/--beta apply to --mode analytic; in integrator mode \
                      the scene's slow spring sets the coupling",
                 ));
@@ -272,7 +282,7 @@ fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
             let mut settings = MethodSettings::new(&model.method, h);
             if let Some(k) = model.inner_steps {
                 if k == 0 {
-                    return Err(Error::input("--inner must be at least 1"));
+                    return Err(Error::flag("--inner", "--inner must be at least 1"));
                 }
                 settings = settings.with_inner_steps(k);
             }
@@ -310,9 +320,10 @@ pub fn spectral_radius_command(args: &SpectralRadiusArgs) -> Result<()> {
     let gamma1 = number(&args.gamma1, "--gamma1")?;
     let gamma2 = number(&args.gamma2, "--gamma2")?;
     if gamma1 < 0.0 || gamma2 < 0.0 {
-        return Err(Error::input(format!(
-            "--gamma1 and --gamma2 must be non-negative, got {gamma1} and {gamma2}"
-        )));
+        return Err(Error::flag(
+            "--gamma1",
+            format!("--gamma1 and --gamma2 must be non-negative, got {gamma1} and {gamma2}"),
+        ));
     }
     let point = evaluator.point(gamma1, gamma2)?;
     if args.json {
@@ -342,14 +353,20 @@ const MAX_POINTS_PER_AXIS: usize = 100_000;
 fn check_points(args: &StabilityMapArgs) -> Result<usize> {
     let n = args.n.unwrap_or(DEFAULT_POINTS);
     if n == 0 {
-        return Err(Error::input("--n: a map needs at least one point per axis"));
+        return Err(Error::flag(
+            "--n",
+            "--n: a map needs at least one point per axis",
+        ));
     }
     if n > MAX_POINTS_PER_AXIS {
-        return Err(Error::input(format!(
-            "--n {n}: more than {MAX_POINTS_PER_AXIS} points per axis ({:.1e} points) is more \
+        return Err(Error::flag(
+            "--n",
+            format!(
+                "--n {n}: more than {MAX_POINTS_PER_AXIS} points per axis ({:.1e} points) is more \
              than a map can compute or store",
-            (n as f64).powi(2)
-        )));
+                (n as f64).powi(2)
+            ),
+        ));
     }
     Ok(n)
 }
@@ -382,7 +399,7 @@ const DEFAULT_POINTS: usize = 400;
 fn map_csv(args: &StabilityMapArgs) -> Result<&std::path::Path> {
     args.out
         .as_deref()
-        .ok_or_else(|| Error::input("--out FILE.csv is required: the map's CSV"))
+        .ok_or_else(|| Error::flag("--out", "--out FILE.csv is required: the map's CSV"))
 }
 
 pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {

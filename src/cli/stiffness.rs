@@ -72,23 +72,26 @@ const MAX_VALUES: usize = 1_000_000;
 /// `LO:HI` and a count → the evenly spaced values.
 pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
     let Some((lo, hi)) = range.split_once(':') else {
-        return Err(Error::input(format!(
-            "--range expects LO:HI, got \"{range}\""
-        )));
+        return Err(Error::flag("--range", "--range expects LO:HI").got(format!("\"{range}\"")));
     };
     let (lo, hi) = (number(lo, "--range")?, number(hi, "--range")?);
     if lo >= hi {
-        return Err(Error::input(format!("--range: {lo} is not below {hi}")));
+        return Err(Error::flag(
+            "--range",
+            format!("--range: {lo} is not below {hi}"),
+        ));
     }
     if n < 2 {
-        return Err(Error::input(format!(
-            "--n must be at least 2 (the two ends of --range), got {n}"
-        )));
+        return Err(
+            Error::flag("--n", "--n must be at least 2 (the two ends of --range)")
+                .got(n.to_string()),
+        );
     }
     if n > MAX_VALUES {
-        return Err(Error::input(format!(
-            "--n {n} is more than the {MAX_VALUES} values a study holds"
-        )));
+        return Err(Error::flag(
+            "--n",
+            format!("--n {n} is more than the {MAX_VALUES} values a study holds"),
+        ));
     }
     let step = (hi - lo) / (n - 1) as f64;
     Ok((0..n)

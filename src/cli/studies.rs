@@ -222,9 +222,7 @@ pub struct MinimizeArgs {
 fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
     let parts: Vec<&str> = text.split(':').collect();
     let [lo, hi] = parts.as_slice() else {
-        return Err(Error::input(format!(
-            "{what} expects LO:HI, got \"{text}\""
-        )));
+        return Err(Error::flag(what, format!("{what} expects LO:HI")).got(format!("\"{text}\"")));
     };
     let value = |s: &str| -> Result<f64> {
         s.parse::<Value>()
@@ -233,7 +231,7 @@ fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
     };
     let (lo, hi) = (value(lo)?, value(hi)?);
     if lo >= hi {
-        return Err(Error::input(format!("{what}: {lo} is not below {hi}")));
+        return Err(Error::flag(what, format!("{what}: {lo} is not below {hi}")));
     }
     Ok((lo, hi))
 }
@@ -426,10 +424,13 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         .ok_or_else(|| Error::input("scan steps needs each run's length: give --t-end"))?
         .evaluate_time(&scene.parameters, "--t-end", units.time_units())?;
     if t_end <= 0.0 {
-        return Err(Error::input("--t-end must be positive"));
+        return Err(Error::flag("--t-end", "--t-end must be positive"));
     }
     if args.energy_every == 0 {
-        return Err(Error::input("--energy-every must be at least 1"));
+        return Err(Error::flag(
+            "--energy-every",
+            "--energy-every must be at least 1",
+        ));
     }
     let drift_bound = args.drift.bound()?.unwrap_or(match units {
         Units::Real => crate::run::drift::DEFAULT_REAL_BOUND,
@@ -448,7 +449,10 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         ));
     }
     if args.level_dt.len() > 16 {
-        return Err(Error::input("--level-dt takes at most 16 steps"));
+        return Err(Error::flag(
+            "--level-dt",
+            "--level-dt takes at most 16 steps",
+        ));
     }
     let level_dts = args
         .level_dt
@@ -458,9 +462,10 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
             if t > 0.0 {
                 Ok(t)
             } else {
-                Err(Error::input(format!(
-                    "--level-dt steps must be positive, got {t}"
-                )))
+                Err(
+                    Error::flag("--level-dt", "--level-dt steps must be positive")
+                        .got(t.to_string()),
+                )
             }
         })
         .collect::<Result<Vec<f64>>>()?;
@@ -491,7 +496,8 @@ fn choose_criterion(args: &ScanStepsArgs, methods: &[String]) -> Result<Criterio
         (Some(Criterion::Drift) | None, Some(method)) => {
             Err(crate::analysis::scan::thermostatted_by_drift(method))
         }
-        (Some(Criterion::Sampling), _) if args.sampling.reference.is_none() => Err(Error::input(
+        (Some(Criterion::Sampling), _) if args.sampling.reference.is_none() => Err(Error::flag(
+            "--criterion",
             "--criterion sampling needs --reference DIR: a reference run (energy.csv and a \
                  trajectory; BAOAB at a small step, at the scan's temperature) to compare with",
         )),
@@ -537,11 +543,10 @@ fn sampling_criterion(
     scene: &crate::io::scene::Scene,
     t_end: f64,
 ) -> Result<SamplingCriterion> {
-    let reference = args
-        .sampling
-        .reference
-        .clone()
-        .ok_or_else(|| Error::input("--criterion sampling needs --reference DIR"))?;
+    let reference =
+        args.sampling.reference.clone().ok_or_else(|| {
+            Error::flag("--criterion", "--criterion sampling needs --reference DIR")
+        })?;
     let discard = match &args.sampling.discard {
         Some(value) => {
             value.evaluate_time(&scene.parameters, "--discard", scene.units.time_units())?
@@ -551,10 +556,13 @@ fn sampling_criterion(
     let criterion = SamplingCriterion {
         reference,
         pair: crate::analysis::run_analysis::parse_pair(&args.sampling.pair).map_err(|_| {
-            Error::input(format!(
-                "--pair: \"{}\" is not an element pair like O-O",
-                args.sampling.pair
-            ))
+            Error::flag(
+                "--pair",
+                format!(
+                    "--pair: \"{}\" is not an element pair like O-O",
+                    args.sampling.pair
+                ),
+            )
         })?,
         potential_bound: args.sampling.potential_bound,
         peak_bound: args.sampling.peak_bound,
@@ -580,7 +588,8 @@ fn reference_analysis(
     dof: Option<f64>,
 ) -> Result<RunAnalysis> {
     let temperature = temperature.ok_or_else(|| {
-        Error::input(
+        Error::flag(
+            "--criterion",
             "--criterion sampling compares at a temperature: give --temperature (or set \
              temperature in the scene's [run] table)",
         )
@@ -610,10 +619,13 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let criterion = choose_criterion(args, &methods)?;
     refuse_sampling_starts(criterion, setup.starts, None)?;
     if args.repeats > MAX_REPEATS {
-        return Err(Error::input(format!(
-            "--repeats must be at most {MAX_REPEATS}, got {}",
-            args.repeats
-        )));
+        return Err(Error::flag(
+            "--repeats",
+            format!(
+                "--repeats must be at most {MAX_REPEATS}, got {}",
+                args.repeats
+            ),
+        ));
     }
     check_points(&setup, &methods, &steps)?;
     if !args.quiet {

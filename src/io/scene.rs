@@ -126,12 +126,25 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
         || flags.cutoff.is_some()
         || flags.epsilon_rf.is_some()
     {
-        return Err(Error::input(format!(
-            "--coordinates, --velocities, --cutoff and --epsilon-rf are for a topology file \
-             (.prmtop, .top); {} is a scene, whose [topology], [structure] or [forcefield] \
-             says them",
-            path.display()
-        )));
+        let flag = ["--coordinates", "--velocities", "--cutoff", "--epsilon-rf"]
+            .into_iter()
+            .zip([
+                flags.coordinates.is_some(),
+                flags.velocities.is_some(),
+                flags.cutoff.is_some(),
+                flags.epsilon_rf.is_some(),
+            ])
+            .find_map(|(flag, given)| given.then_some(flag))
+            .unwrap_or("--coordinates");
+        return Err(Error::flag(
+            flag,
+            format!(
+                "--coordinates, --velocities, --cutoff and --epsilon-rf are for a topology file \
+                 (.prmtop, .top); {} is a scene, whose [topology], [structure] or [forcefield] \
+                 says them",
+                path.display()
+            ),
+        ));
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     if flags.electrostatics.is_empty() {
@@ -146,19 +159,16 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
             }
         }
         None => {
-            return Err(Error::Scene {
-                location: path.display().to_string(),
-                message: "--coulomb and the PME flags need a scene with a [forcefield] section \
-                          (or a topology file given in place of the scene)"
-                    .into(),
-            });
+            return Err(Error::scene(
+                path,
+                "--coulomb and the PME flags need a scene with a [forcefield] section \
+                 (or a topology file given in place of the scene)",
+            )
+            .key("--coulomb"));
         }
     }
     build_parsed_scene(&file, &text, path, overrides).map_err(|e| match e {
-        Error::Scene { location, message } => Error::Scene {
-            location,
-            message: format!("{message} (with the command line's electrostatics flags)"),
-        },
+        Error::Scene(_) => e.append(" (with the command line's electrostatics flags)"),
         other => other,
     })
 }
@@ -175,15 +185,16 @@ pub fn topology_scene_text(path: &Path, flags: &SceneFlags) -> Result<String> {
     let coordinates = match &flags.coordinates {
         Some(c) => c.clone(),
         None => default_coordinates(path).ok_or_else(|| {
-            Error::input(format!(
-                "{}: no coordinates beside it ({}); give --coordinates FILE",
-                path.display(),
-                COORDINATE_EXTENSIONS
-                    .iter()
-                    .map(|e| format!(".{e}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
+            let beside = COORDINATE_EXTENSIONS
+                .iter()
+                .map(|e| format!(".{e}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            Error::topology(
+                path,
+                format!("no coordinates beside it ({beside}); give --coordinates FILE"),
+            )
+            .key("--coordinates")
         })?,
     };
     let stem = path
@@ -236,13 +247,17 @@ pub fn build_scene(text: &str, path: &Path, overrides: &[String]) -> Result<Scen
 pub fn parse_scene(text: &str, path: &Path) -> Result<SceneFile> {
     let builder = Builder { text, path };
     toml::from_str(text).map_err(|e| {
-        let (location, key) = match e.span() {
-            Some(span) => (builder.location(span.start), key_before(text, span.start)),
-            None => (path.display().to_string(), None),
+        let (line, key) = match e.span() {
+            Some(span) => (
+                Some(builder.line_of(span.start)),
+                key_before(text, span.start).or_else(|| unknown_field(e.message())),
+            ),
+            None => (None, None),
         };
-        Error::Scene {
-            location,
-            message: plain_message(e.message(), key),
+        let error = plain_error(path, e.message(), key).maybe_line(line);
+        match key {
+            Some(key) => error.key(key),
+            None => error,
         }
     })
 }
@@ -258,9 +273,16 @@ fn key_before(text: &str, offset: usize) -> Option<&str> {
     Some(&key[start..]).filter(|k| !k.is_empty())
 }
 
+/// The key serde names in "unknown field `mas`, expected one of …".
+fn unknown_field(message: &str) -> Option<&str> {
+    let rest = message.strip_prefix("unknown field `")?;
+    rest.split_once('`').map(|(key, _)| key)
+}
+
 /// serde's wording in the user's terms: "invalid type: string \"two\", expected usize"
-/// becomes "`dim` takes a whole number, got string \"two\"".
-fn plain_message(message: &str, key: Option<&str>) -> String {
+/// becomes "`dim` takes a whole number, got string \"two\"", the expected and got values
+/// as the error's fields.
+fn plain_error(path: &Path, message: &str, key: Option<&str>) -> Error {
     let kind = |expected: &str| -> String {
         match expected.trim() {
             "usize" | "u64" | "u32" | "u16" | "u8" => "a whole number (0, 1, 2, …)".into(),
@@ -277,13 +299,16 @@ fn plain_message(message: &str, key: Option<&str>) -> String {
         .or_else(|| message.strip_prefix("invalid value: "))
         .and_then(|rest| rest.split_once(", expected "));
     match split {
+        // With the key, "`key` takes EXPECTED, got GOT" is what the fields print.
         Some((got, expected)) => {
-            let what = key.map_or("a value in the table starting here".to_string(), |k| {
-                format!("`{k}`")
-            });
-            format!("{what} takes {}, got {got}", kind(expected))
+            let expected = kind(expected);
+            let message = match key {
+                Some(_) => String::new(),
+                None => format!("a value in the table starting here takes {expected}"),
+            };
+            Error::scene(path, message).expected(expected).got(got)
         }
-        None => message.trim_end().to_string(),
+        None => Error::scene(path, message.trim_end()),
     }
 }
 
@@ -304,27 +329,23 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn location(&self, offset: usize) -> String {
-        let line = self.text[..offset.min(self.text.len())]
+    /// The line (1-based) of the byte `offset` of the scene's text.
+    fn line_of(&self, offset: usize) -> usize {
+        self.text[..offset.min(self.text.len())]
             .bytes()
             .filter(|&b| b == b'\n')
             .count()
-            + 1;
-        format!("{}:{line}", self.path.display())
+            + 1
     }
 
+    /// An error at the line of `offset`; add `.key(…)`, `.got(…)` where known.
     fn error_at(&self, offset: usize, message: impl Into<String>) -> Error {
-        Error::Scene {
-            location: self.location(offset),
-            message: message.into(),
-        }
+        self.error(message).line(self.line_of(offset))
     }
 
+    /// An error in the scene file, at no one line.
     fn error(&self, message: impl Into<String>) -> Error {
-        Error::Scene {
-            location: self.path.display().to_string(),
-            message: message.into(),
-        }
+        Error::scene(self.path, message)
     }
 
     fn build(&self, file: &SceneFile, overrides: &[String]) -> Result<Scene> {
@@ -442,18 +463,26 @@ impl Builder<'_> {
     /// a structure file.
     fn header(&self, file: &SceneFile) -> Result<(usize, Units)> {
         if file.version != SCENE_VERSION {
-            return Err(self.error(format!(
-                "scene version {} is not supported; this longstep reads version {SCENE_VERSION}",
-                file.version
-            )));
+            return Err(self
+                .error(format!(
+                    "scene version {} is not supported; this longstep reads version \
+                     {SCENE_VERSION}",
+                    file.version
+                ))
+                .key("version")
+                .expected(SCENE_VERSION.to_string()));
         }
         let dim = file.dim;
         if !(1..=3).contains(&dim) {
-            return Err(self.error(format!("dim must be 1, 2 or 3, got {dim}")));
+            return Err(self
+                .error("dim must be 1, 2 or 3")
+                .key("dim")
+                .expected("1, 2 or 3")
+                .got(dim.to_string()));
         }
         let units = match &file.units {
             Some(spanned) => Units::parse(spanned.get_ref())
-                .map_err(|e| self.error_at(spanned.span().start, e))?,
+                .map_err(|e| self.error_at(spanned.span().start, e).key("units"))?,
             None => Units::None,
         };
         if let Some(spanned) = &file.topology

@@ -114,15 +114,16 @@ fn check_text(path: &Path) -> Result<()> {
         }
         if let Err(e) = std::str::from_utf8(&line) {
             let at = e.valid_up_to();
-            return Err(Error::Scene {
-                location: format!("{}:{number}", path.display()),
-                message: format!(
+            return Err(Error::scene(
+                path,
+                format!(
                     "byte 0x{:02X} (column {}) is not UTF-8 text; a structure file must be \
                      plain text (ASCII or UTF-8)",
                     line[at],
                     at + 1
                 ),
-            });
+            )
+            .line(number));
         }
     }
     Ok(())
@@ -145,10 +146,7 @@ fn check_xyz_count(path: &Path) -> Result<()> {
     let Some(Ok(count)) = lines.first().map(|l| l.trim().parse::<usize>()) else {
         return Ok(()); // chemfiles names a count line that is no number
     };
-    let at = |line: usize, message: String| Error::Scene {
-        location: format!("{}:{line}", path.display()),
-        message,
-    };
+    let at = |line: usize, message: String| Error::scene(path, message).line(line);
     let atom_lines = lines.iter().skip(2).take(count);
     if let Some(blank) = atom_lines.clone().position(|l| l.trim().is_empty()) {
         return Err(at(

@@ -196,7 +196,8 @@ pub fn merge(tables: Vec<(String, StudyTable)>) -> Result<StudyTable> {
             return Err(Error::input(format!(
                 "the shards of {} differ in {key}: {theirs} in {name}, {ours} in {first_name}",
                 merged.study
-            )));
+            ))
+            .key(key));
         }
         if table.header != merged.header {
             return Err(Error::input(format!(

@@ -403,14 +403,7 @@ fn run_table_error(scene: &Scene, error: Error) -> Error {
             .position(|l| l.trim_start().starts_with("[run]"))
             .map(|i| i + 1)
     });
-    let location = match line {
-        Some(line) => format!("{}:{line}", scene.path.display()),
-        None => scene.path.display().to_string(),
-    };
-    Error::Scene {
-        location,
-        message: format!("in [run]: {error}"),
-    }
+    error.in_scene(&scene.path, line, "in [run]")
 }
 
 /// Whether `method` is stochastic: its registry entry uses a seed

@@ -32,7 +32,8 @@ fn in_config(study: &Path, label: &str, e: Error) -> Error {
 /// The flags a study replaces: its configurations name their methods and steps.
 fn refuse_single_flags(args: &ScanStepsArgs) -> Result<()> {
     if !args.methods.is_empty() || args.run.method.is_some() || args.run.h.is_some() {
-        return Err(Error::input(
+        return Err(Error::flag(
+            "--study",
             "--study names each configuration's method and outer steps: leave out --methods, \
              --method and --h",
         ));
@@ -252,10 +253,13 @@ fn study_timings(
 pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()> {
     refuse_single_flags(args)?;
     if args.repeats > MAX_REPEATS {
-        return Err(Error::input(format!(
-            "--repeats must be at most {MAX_REPEATS}, got {}",
-            args.repeats
-        )));
+        return Err(Error::flag(
+            "--repeats",
+            format!(
+                "--repeats must be at most {MAX_REPEATS}, got {}",
+                args.repeats
+            ),
+        ));
     }
     let study = read_study(path)?;
     // Before the configurations are built: their checks of the starts are the drift's.

@@ -18,13 +18,11 @@ impl Scene {
             return Ok(bonded.clone());
         }
         let Some(parameters) = &self.forcefield_parameters else {
-            return Err(Error::Scene {
-                location: self.path.display().to_string(),
-                message: "constraints and hydrogen_mass need a molecular scene: a \
-                          [forcefield] over the atoms of a [structure], or a [topology] (its \
-                          bonds and elements)"
-                    .into(),
-            });
+            return Err(Error::scene(
+                &self.path,
+                "constraints and hydrogen_mass need a molecular scene: a [forcefield] over the \
+                 atoms of a [structure], or a [topology] (its bonds and elements)",
+            ));
         };
         let bonds = rows(parameters, "bonds", 4)?
             .map(|r| Bond {
@@ -56,13 +54,13 @@ impl Scene {
     ) -> Result<()> {
         let required = self.bonded.as_ref().is_some_and(|b| b.rigid_water_required);
         if required && !settings.rigid_water {
-            return Err(Error::Scene {
-                location: self.path.display().to_string(),
-                message: "the topology's water is [ settles ] (rigid, no bonded terms): it \
-                          runs with rigid water; leave rigid_water on, or give the FLEXIBLE \
-                          define for a flexible water"
-                    .into(),
-            });
+            return Err(Error::scene(
+                &self.path,
+                "the topology's water is [ settles ] (rigid, no bonded terms): it runs with \
+                 rigid water; leave rigid_water on, or give the FLEXIBLE define for a flexible \
+                 water",
+            )
+            .key("rigid_water"));
         }
         if settings.hydrogen_mass.is_none() && !settings.constrained() {
             return Ok(());

@@ -70,21 +70,24 @@ impl Builder<'_> {
             Some(v) => {
                 let x = self.evaluate(v, parameters, "particle count", offset)?;
                 if x < 1.0 || x.fract() != 0.0 {
-                    return Err(self.error_at(
-                        offset,
-                        format!("particle count must be a whole number ≥ 1, got {x}"),
-                    ));
+                    return Err(self
+                        .error_at(offset, "particle count must be a whole number ≥ 1")
+                        .key("count")
+                        .expected("a whole number ≥ 1")
+                        .got(x.to_string()));
                 }
                 // Every particle holds a name, a mass and 2·dim numbers before any force
                 // term sizes its buffers: refuse what memory cannot hold before allocating.
                 if x + start.masses.len() as f64 > MAX_PARTICLES as f64 {
-                    return Err(self.error_at(
-                        offset,
-                        format!(
-                            "particle count {x} would make more than the {MAX_PARTICLES} \
-                             particles a scene may hold"
-                        ),
-                    ));
+                    return Err(self
+                        .error_at(
+                            offset,
+                            format!(
+                                "particle count {x} would make more than the {MAX_PARTICLES} \
+                                 particles a scene may hold"
+                            ),
+                        )
+                        .key("count"));
                 }
                 x as usize
             }
@@ -121,12 +124,15 @@ impl Builder<'_> {
         label: &str,
         offset: usize,
     ) -> Result<(f64, Vec<f64>, Vec<f64>)> {
-        let mass = self.evaluate(&spec.mass, local, &format!("mass of {label}"), offset)?;
+        let mass = self
+            .evaluate(&spec.mass, local, &format!("mass of {label}"), offset)
+            .map_err(|e| e.key("mass"))?;
         if mass <= 0.0 {
-            return Err(self.error_at(
-                offset,
-                format!("mass of {label} must be positive, got {mass}"),
-            ));
+            return Err(self
+                .error_at(offset, format!("mass of {label} must be positive"))
+                .key("mass")
+                .expected("a positive number")
+                .got(mass.to_string()));
         }
         let vector = |values: &[_], what: &str| {
             self.vector(values, dim, local, &format!("{what} of {label}"), offset)
@@ -196,13 +202,15 @@ impl Builder<'_> {
         let spec = spanned.get_ref();
         let structure_path = self.beside_scene(&spec.file);
         if !structure_path.is_file() {
-            return Err(self.error_at(
-                offset,
-                format!(
-                    "[structure] file {}: no such file",
-                    structure_path.display()
-                ),
-            ));
+            return Err(self
+                .error_at(
+                    offset,
+                    format!(
+                        "[structure] file {}: no such file",
+                        structure_path.display()
+                    ),
+                )
+                .key("file"));
         }
         let guess = spec.guess_bonds.unwrap_or(with_forcefield);
         let structure = read_structure_with(&structure_path, guess)?;
@@ -238,12 +246,15 @@ impl Builder<'_> {
     ) -> Result<Option<f64>> {
         match &spec.mass {
             Some(mass) => {
-                let mass = self.evaluate(mass, parameters, "structure mass", offset)?;
+                let mass = self
+                    .evaluate(mass, parameters, "structure mass", offset)
+                    .map_err(|e| e.key("mass"))?;
                 if mass <= 0.0 {
-                    return Err(self.error_at(
-                        offset,
-                        format!("structure mass must be positive, got {mass}"),
-                    ));
+                    return Err(self
+                        .error_at(offset, "structure mass must be positive")
+                        .key("mass")
+                        .expected("a positive number")
+                        .got(mass.to_string()));
                 }
                 Ok(Some(mass))
             }

@@ -93,12 +93,17 @@ impl TermBuilder<'_> {
         let what = format!("{}: {key}", self.what);
         self.builder
             .evaluate(v, self.scene.parameters, &what, self.offset)
+            .map_err(|e| e.key(key))
     }
 
     pub fn non_negative(&self, v: &Value, key: &str) -> Result<f64> {
         let x = self.number(v, key)?;
         if x < 0.0 {
-            return Err(self.error(format!("{}: {key} must be ≥ 0, got {x}", self.what)));
+            return Err(self
+                .error(format!("{}: {key} must be ≥ 0", self.what))
+                .key(key)
+                .expected("≥ 0")
+                .got(x.to_string()));
         }
         Ok(x)
     }
@@ -106,7 +111,11 @@ impl TermBuilder<'_> {
     pub fn positive(&self, v: &Value, key: &str) -> Result<f64> {
         let x = self.number(v, key)?;
         if x <= 0.0 {
-            return Err(self.error(format!("{}: {key} must be positive, got {x}", self.what)));
+            return Err(self
+                .error(format!("{}: {key} must be positive", self.what))
+                .key(key)
+                .expected("a positive number")
+                .got(x.to_string()));
         }
         Ok(x)
     }

@@ -216,49 +216,44 @@ const GROMACS_FORMAT: &str = "GROMACS top";
 /// A topology file by its extension (`defines`: a GROMACS topology's `-D` names).
 pub fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
     if !path.is_file() {
-        return Err(Error::Topology {
-            location: path.display().to_string(),
-            message: "no such file".into(),
-        });
+        return Err(Error::topology(path, "no such file"));
     }
     if extension_in(path, GROMACS_EXTENSIONS) {
         read_gromacs_top(path, defines)
     } else if extension_in(path, PRMTOP_EXTENSIONS) {
         read_prmtop(path)
     } else {
-        Err(Error::Topology {
-            location: path.display().to_string(),
-            message: format!(
+        Err(Error::topology(
+            path,
+            format!(
                 "not a topology format longstep reads (AMBER prmtop: {}; GROMACS: {})",
                 PRMTOP_EXTENSIONS.join(", "),
                 GROMACS_EXTENSIONS.join(", ")
             ),
-        })
+        ))
     }
 }
 
 /// The coordinates, with as many atoms as the topology.
 fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
     if !path.is_file() {
-        return Err(Error::Topology {
-            location: path.display().to_string(),
-            message: "no such coordinate file".into(),
-        });
+        return Err(Error::topology(path, "no such coordinate file"));
     }
     if extension_in(path, &["gro"]) {
         return read_gro_for(path, topology);
     }
     let coordinates = read_inpcrd(path)?;
     if coordinates.n_atoms() != topology.atoms.len() {
-        return Err(Error::Topology {
-            location: format!("{}:2", path.display()),
-            message: format!(
+        return Err(Error::topology(
+            path,
+            format!(
                 "has {} atoms, the topology {} has {}",
                 coordinates.n_atoms(),
                 topology.source.display(),
                 topology.atoms.len()
             ),
-        });
+        )
+        .line(2));
     }
     Ok(coordinates)
 }
@@ -266,14 +261,13 @@ fn read_coordinates(path: &Path, topology: &Topology) -> Result<Coordinates> {
 /// The velocities of the coordinate file `path` (`[topology] velocities`, `--velocities`),
 /// which must have them, for the atoms of `topology`.
 fn read_velocities(path: &Path, topology: &Topology) -> Result<Vec<f64>> {
-    read_coordinates(path, topology)?
-        .velocities
-        .ok_or_else(|| Error::Topology {
-            location: path.display().to_string(),
-            message: "has no velocities (a restart .rst7/.inpcrd with a velocity block, or a \
-                      .gro with velocity columns, gives them)"
-                .into(),
-        })
+    read_coordinates(path, topology)?.velocities.ok_or_else(|| {
+        Error::topology(
+            path,
+            "has no velocities (a restart .rst7/.inpcrd with a velocity block, or a .gro \
+             with velocity columns, gives them)",
+        )
+    })
 }
 
 /// A periodic topology takes the coordinates' box when they give one (a restart's current
@@ -287,12 +281,10 @@ fn box_from_coordinates(
     if let Some(angles) = coordinates.box_angles
         && angles.iter().any(|a| (a - 90.0).abs() > 1e-6)
     {
-        return Err(Error::Topology {
-            location: path.display().to_string(),
-            message: format!(
-                "box angles {angles:?}: a non-orthogonal box, longstep does not model it"
-            ),
-        });
+        return Err(Error::topology(
+            path,
+            format!("box angles {angles:?}: a non-orthogonal box, longstep does not model it"),
+        ));
     }
     let takes_box = topology.periodic_box.is_some() || topology.format == GROMACS_FORMAT;
     if takes_box && let Some(lengths) = coordinates.box_lengths {

@@ -22,22 +22,25 @@ impl Builder<'_> {
         let mut raw = raw.clone();
         for setting in overrides {
             let Some((name, text)) = setting.split_once('=') else {
-                return Err(Error::input(format!(
-                    "--set expects name=value, got \"{setting}\""
-                )));
+                return Err(Error::flag("--set", "--set expects name=value")
+                    .expected("name=value")
+                    .got(format!("\"{setting}\"")));
             };
             let name = name.trim();
             if !raw.contains_key(name) {
                 let known: Vec<&str> = raw.keys().map(String::as_str).collect();
-                return Err(Error::input(format!(
-                    "--set {name}: the scene {} has no parameter \"{name}\" (it has: {})",
-                    self.path.display(),
-                    if known.is_empty() {
-                        "none".to_string()
-                    } else {
-                        known.join(", ")
-                    }
-                )));
+                return Err(Error::flag(
+                    "--set",
+                    format!(
+                        "--set {name}: the scene {} has no parameter \"{name}\" (it has: {})",
+                        self.path.display(),
+                        if known.is_empty() {
+                            "none".to_string()
+                        } else {
+                            known.join(", ")
+                        }
+                    ),
+                ));
             }
             let text = text.trim();
             let value = match text.parse::<f64>() {
@@ -82,7 +85,7 @@ impl Builder<'_> {
             Value::Expression(text) => {
                 stack.push(name.to_string());
                 let dependencies = expr::referenced_names(text)
-                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")))?;
+                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")).key(name))?;
                 for dependency in dependencies {
                     if raw.contains_key(&dependency) {
                         self.resolve_parameter(&dependency, raw, resolved, stack)?;
@@ -90,11 +93,13 @@ impl Builder<'_> {
                 }
                 stack.pop();
                 expr::evaluate(text, resolved)
-                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")))?
+                    .map_err(|e| self.error(format!("parameter \"{name}\": {e}")).key(name))?
             }
         };
         if !value.is_finite() {
-            return Err(self.error(format!("parameter \"{name}\" is not finite ({value})")));
+            return Err(self
+                .error(format!("parameter \"{name}\" is not finite ({value})"))
+                .key(name));
         }
         resolved.insert(name.to_string(), value);
         Ok(value)
@@ -127,13 +132,15 @@ impl Builder<'_> {
         offset: usize,
     ) -> Result<Vec<f64>> {
         if values.len() != dim {
-            return Err(self.error_at(
-                offset,
-                format!(
-                    "{what} has {} components, but the scene has dim = {dim}",
-                    values.len()
-                ),
-            ));
+            return Err(self
+                .error_at(
+                    offset,
+                    format!(
+                        "{what} has {} components, but the scene has dim = {dim}",
+                        values.len()
+                    ),
+                )
+                .expected(format!("{dim} components")));
         }
         values
             .iter()

@@ -15,10 +15,7 @@ use crate::error::{Error, Result};
 const VELOCITY: f64 = 10.0 / 1000.0;
 
 fn error(path: &Path, line: usize, message: impl Into<String>) -> Error {
-    Error::Topology {
-        location: format!("{}:{line}", path.display()),
-        message: message.into(),
-    }
+    Error::topology(path, message).line(line)
 }
 
 /// A `.gro` file: its coordinates and atom names.

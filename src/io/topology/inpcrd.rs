@@ -36,10 +36,7 @@ impl Coordinates {
 }
 
 fn error_at(path: &Path, line: usize, message: impl Into<String>) -> Error {
-    Error::Topology {
-        location: format!("{}:{line}", path.display()),
-        message: message.into(),
-    }
+    Error::topology(path, message).line(line)
 }
 
 pub fn read_inpcrd(path: &Path) -> Result<Coordinates> {

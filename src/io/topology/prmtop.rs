@@ -55,10 +55,13 @@ struct Sections<'a> {
 }
 
 fn error_at(path: &Path, line: usize, message: impl Into<String>) -> Error {
-    Error::Topology {
-        location: format!("{}:{line}", path.display()),
-        message: message.into(),
-    }
+    Error::topology(path, message).line(line)
+}
+
+/// An error in the section `%FLAG flag`, at `line`: `%FLAG flag: message`, the flag as
+/// the key.
+fn flag_error(path: &Path, line: usize, flag: &str, message: impl std::fmt::Display) -> Error {
+    error_at(path, line, format!("%FLAG {flag}: {message}")).key(flag)
 }
 
 impl<'a> Sections<'a> {
@@ -97,7 +100,7 @@ impl<'a> Sections<'a> {
                     return Err(error_at(path, number, "%FORMAT before any %FLAG"));
                 };
                 section.format = fortran::parse_format(rest)
-                    .map_err(|e| error_at(path, number, format!("%FLAG {}: {e}", section.name)))?;
+                    .map_err(|e| flag_error(path, number, section.name, e))?;
                 awaiting_format = false;
             } else if line.starts_with("%VERSION") || line.starts_with("%COMMENT") {
                 continue;
@@ -113,7 +116,8 @@ impl<'a> Sections<'a> {
                         path,
                         section.line,
                         format!("%FLAG {} has no %FORMAT line", section.name),
-                    ));
+                    )
+                    .key(section.name));
                 }
                 section.lines.push((number, line));
             } else if !line.trim().is_empty() {
@@ -134,7 +138,8 @@ impl<'a> Sections<'a> {
                         "%FLAG {} has no %FORMAT line (file truncated?)",
                         section.name
                     ),
-                ));
+                )
+                .key(section.name));
             }
             insert(&mut map, section, path)?;
         }
@@ -159,15 +164,12 @@ impl<'a> Sections<'a> {
                 self.last_line,
                 format!("no %FLAG {name} section (a required section; file truncated?)"),
             )
+            .key(name)
         })
     }
 
-    fn error(&self, section: &Section, message: impl Into<String>) -> Error {
-        error_at(
-            self.path,
-            section.line,
-            format!("%FLAG {}: {}", section.name, message.into()),
-        )
+    fn error(&self, section: &Section, message: impl std::fmt::Display) -> Error {
+        flag_error(self.path, section.line, section.name, message)
     }
 
     /// The fields of a section of `kind`, exactly `expected` of them when given.
@@ -190,7 +192,7 @@ impl<'a> Sections<'a> {
         let mut out = Vec::new();
         for &(number, line) in &section.lines {
             let fields = fortran::fields(line, &section.format)
-                .map_err(|e| error_at(self.path, number, format!("%FLAG {name}: {e}")))?;
+                .map_err(|e| flag_error(self.path, number, name, e))?;
             out.extend(fields.into_iter().map(|f| (number, f)));
         }
         if let Some(expected) = expected
@@ -211,8 +213,7 @@ impl<'a> Sections<'a> {
         self.fields(name, FieldKind::Integer, expected)?
             .into_iter()
             .map(|(number, f)| {
-                fortran::integer(f)
-                    .map_err(|e| error_at(self.path, number, format!("%FLAG {name}: {e}")))
+                fortran::integer(f).map_err(|e| flag_error(self.path, number, name, e))
             })
             .collect()
     }
@@ -220,10 +221,7 @@ impl<'a> Sections<'a> {
     fn reals(&self, name: &str, expected: Option<usize>) -> Result<Vec<f64>> {
         self.fields(name, FieldKind::Real, expected)?
             .into_iter()
-            .map(|(number, f)| {
-                fortran::real(f)
-                    .map_err(|e| error_at(self.path, number, format!("%FLAG {name}: {e}")))
-            })
+            .map(|(number, f)| fortran::real(f).map_err(|e| flag_error(self.path, number, name, e)))
             .collect()
     }
 
@@ -274,7 +272,8 @@ fn insert<'a>(
                 "%FLAG {} appears twice (first at line {})",
                 section.name, first.line
             ),
-        ));
+        )
+        .key(section.name));
     }
     map.insert(section.name, section);
     Ok(())

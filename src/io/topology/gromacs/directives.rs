@@ -89,10 +89,7 @@ pub struct Parsed {
 }
 
 pub fn error(location: &str, message: impl Into<String>) -> Error {
-    Error::Topology {
-        location: location.to_string(),
-        message: message.into(),
-    }
+    Error::topology_at(location, message)
 }
 
 fn number<T: std::str::FromStr>(field: &str, what: &str, at: &str) -> Result<T> {
@@ -114,12 +111,13 @@ pub fn parse(source: &Source) -> Result<Parsed> {
         let joined = line.fields.join(" ");
         if let Some(name) = joined.strip_prefix('[') {
             let name = name.trim_end_matches(']').trim().to_ascii_lowercase();
-            directive = open(&mut parsed, &name, &at)?;
+            directive = open(&mut parsed, &name, &at).map_err(|e| e.key(name))?;
             continue;
         }
         parsed.lines.push(at.clone());
         let index = parsed.lines.len() - 1;
-        data_line(&mut parsed, &directive, line, index, &at)?;
+        // The directive a data line is in is the key of its errors.
+        data_line(&mut parsed, &directive, line, index, &at).map_err(|e| e.key(&directive))?;
     }
     Ok(parsed)
 }

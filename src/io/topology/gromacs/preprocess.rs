@@ -73,10 +73,10 @@ pub fn preprocess(path: &Path, defines: &[String]) -> Result<Source> {
     };
     pre.file(path, 0)?;
     if !pre.conditions.is_empty() {
-        return Err(Error::Topology {
-            location: path.display().to_string(),
-            message: "an #ifdef/#ifndef is not closed by #endif".into(),
-        });
+        return Err(Error::topology(
+            path,
+            "an #ifdef/#ifndef is not closed by #endif",
+        ));
     }
     Ok(pre.source)
 }
@@ -143,10 +143,7 @@ impl Preprocessor {
         depth: usize,
         at: &dyn Fn() -> String,
     ) -> Result<()> {
-        let error = |message: String| Error::Topology {
-            location: at(),
-            message,
-        };
+        let error = |message: String| Error::topology_at(&at(), message);
         let (keyword, rest) = directive
             .split_once(char::is_whitespace)
             .map_or((directive, ""), |(k, r)| (k, r.trim()));
