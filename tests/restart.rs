@@ -339,7 +339,6 @@ fn langevin_respa_on_pme_dipeptide_continues_bit_for_bit() {
 /// the continued run here matches the run without checkpoints). Once they save them,
 /// [`continued_rows_match`] also compares the run without checkpoints.
 #[test]
-#[ignore = "the distance split's terms do not save their pair lists yet (split1)"]
 fn three_level_distance_split_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "three-level",
