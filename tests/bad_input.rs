@@ -347,6 +347,8 @@ fn negative_values_are_refused_by_their_flag() {
             !stderr.contains("unexpected argument"),
             "{args:?}: {stderr}"
         );
+        // A count says what it takes, not Rust's "invalid digit found in string".
+        assert!(!stderr.contains("invalid digit"), "{args:?}: {stderr}");
     }
 }
 

@@ -105,6 +105,33 @@ fn negative_values(mut command: clap::Command) -> clap::Command {
     command
 }
 
+/// A negative value given to a count (`--inner -3`, `--energy-every -1`) is refused by clap
+/// with Rust's "invalid digit found in string": say what the flag takes instead.
+fn explain_negative_count(e: clap::Error) -> clap::Error {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    use std::error::Error as _;
+    let from_integer = e
+        .source()
+        .is_some_and(|s| s.downcast_ref::<std::num::ParseIntError>().is_some());
+    if e.kind() != ErrorKind::ValueValidation || !from_integer {
+        return e;
+    }
+    match (
+        e.get(ContextKind::InvalidArg),
+        e.get(ContextKind::InvalidValue),
+    ) {
+        (Some(ContextValue::String(flag)), Some(ContextValue::String(value)))
+            if value.starts_with('-') =>
+        {
+            clap::Error::raw(
+                ErrorKind::ValueValidation,
+                format!("{flag} takes a count (a whole number, zero or more), got {value}\n"),
+            )
+        }
+        _ => e,
+    }
+}
+
 /// Run the command line; returns the process exit code.
 pub fn main() -> i32 {
     let parsed = negative_values(Cli::command())
@@ -113,6 +140,7 @@ pub fn main() -> i32 {
     let cli = match parsed {
         Ok(cli) => cli,
         Err(e) => {
+            let e = explain_negative_count(e);
             let code = e.exit_code();
             let _ = e.print();
             return code;
