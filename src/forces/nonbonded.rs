@@ -451,6 +451,26 @@ pub struct NonbondedSpec {
     pub excluded: Vec<(usize, usize)>,
 }
 
+impl NonbondedSpec {
+    /// The number of atom types, after checking that the positions `q`, the types, the
+    /// charges and the Lennard-Jones table agree in size (`what` names the term).
+    pub(crate) fn type_count(&self, q: &[f64], what: &str) -> Result<usize, String> {
+        let n = self.types.len();
+        if q.len() != 3 * n || self.charges.len() != n {
+            return Err(format!(
+                "{what}: sizes of positions, types and charges differ"
+            ));
+        }
+        let n_types = (self.lj.len() as f64).sqrt().round() as usize;
+        if n_types * n_types != self.lj.len() || self.types.iter().any(|&t| t as usize >= n_types) {
+            return Err(format!(
+                "{what}: the Lennard-Jones table does not fit the types"
+            ));
+        }
+        Ok(n_types)
+    }
+}
+
 impl Nonbonded {
     /// Build the term and its first list at positions `q`.
     pub fn new(spec: NonbondedSpec, q: &[f64]) -> Result<Self, String> {
@@ -473,13 +493,7 @@ impl Nonbonded {
 
     fn build(spec: NonbondedSpec, switch: Option<Switch>, q: &[f64]) -> Result<Self, String> {
         let n = spec.types.len();
-        if q.len() != 3 * n || spec.charges.len() != n {
-            return Err("non-bonded term: sizes of positions, types and charges differ".into());
-        }
-        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
-        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
-            return Err("non-bonded term: the Lennard-Jones table does not fit the types".into());
-        }
+        let n_types = spec.type_count(q, "non-bonded term")?;
         let cutoff = spec.cutoff;
         if let Some(lengths) = spec.box_lengths {
             let shortest = lengths.iter().cloned().fold(f64::INFINITY, f64::min);

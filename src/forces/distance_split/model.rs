@@ -24,13 +24,7 @@ impl Model {
     /// box), after checking the sizes agree with the positions `q`.
     pub(super) fn new(spec: &NonbondedSpec, q: &[f64]) -> Result<Model, String> {
         let n = spec.types.len();
-        if q.len() != 3 * n || spec.charges.len() != n {
-            return Err("non-bonded split: sizes of positions, types and charges differ".into());
-        }
-        let n_types = (spec.lj.len() as f64).sqrt().round() as usize;
-        if n_types * n_types != spec.lj.len() || spec.types.iter().any(|&t| t as usize >= n_types) {
-            return Err("non-bonded split: the Lennard-Jones table does not fit the types".into());
-        }
+        let n_types = spec.type_count(q, "non-bonded split")?;
         let root_ke = spec.coulomb_constant.sqrt();
         let scaled_charges = if spec.electrostatics == Electrostatics::None {
             vec![0.0; n]
