@@ -104,6 +104,16 @@ pub struct LjPair {
 }
 
 impl LjPair {
+    /// `(V, V′, V″)` at `r` (shifted by [`LjPair::shift`]).
+    pub fn derivatives(&self, r: f64) -> (f64, f64, f64) {
+        let inv_r = 1.0 / r;
+        let inv6 = inv_r.powi(6);
+        let v = inv6 * (self.c12 * inv6 - self.c6) - self.shift;
+        let d1 = inv_r * inv6 * (-12.0 * self.c12 * inv6 + 6.0 * self.c6);
+        let d2 = inv_r * inv_r * inv6 * (156.0 * self.c12 * inv6 - 42.0 * self.c6);
+        (v, d1, d2)
+    }
+
     /// From ε, σ, for a cutoff (infinite for none) and whether the energy is shifted.
     pub fn new(epsilon: f64, sigma: f64, cutoff: f64, shift: bool) -> Self {
         let s6 = sigma.powi(6);
@@ -643,11 +653,7 @@ impl Nonbonded {
     /// `(V, V′, V″)` of the pair `i, j` at distance `r < r_c`, unswitched.
     fn pair_values(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
         let p = self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize];
-        let inv_r = 1.0 / r;
-        let inv6 = inv_r.powi(6);
-        let mut v = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
-        let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
-        let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
+        let (mut v, mut d1, mut d2) = p.derivatives(r);
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
         if qq != 0.0 {
             let (e, a, b) = match self.kernel {

@@ -147,12 +147,7 @@ impl Model {
 
     /// `(V, V′, V″)` of pair `i, j` at `r < r_c`.
     pub fn derivatives(&self, i: usize, j: usize, r: f64) -> (f64, f64, f64) {
-        let p = self.lj(i, j);
-        let inv_r = 1.0 / r;
-        let inv6 = inv_r.powi(6);
-        let mut v = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
-        let mut d1 = inv_r * inv6 * (-12.0 * p.c12 * inv6 + 6.0 * p.c6);
-        let mut d2 = inv_r * inv_r * inv6 * (156.0 * p.c12 * inv6 - 42.0 * p.c6);
+        let (mut v, mut d1, mut d2) = self.lj(i, j).derivatives(r);
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
         if qq != 0.0 {
             let (e, a, b) = self.coulomb.derivatives(qq, r);
