@@ -128,18 +128,35 @@ const FOOTER: &str = "
   unstable there (above).
 ";
 
+const ALPHAS: [f64; 3] = [0.0, 0.8, 0.99];
+const AMPLITUDES: [f64; 3] = [0.01, 0.1, 0.3];
+const RULES: [&str; 5] = ["midpoint", "gl3", "gl5", "gauss3", "gauss5"];
+
+/// (α, A, rule) → (abs error, relative error, evaluations, steps).
+type StringRow = (f64, f64, u64, u64);
+
+/// The string runs of every (α, A, rule), and the initial pseudo-energy of every (α, A).
+struct StringRuns {
+    table: BTreeMap<(usize, usize, usize), StringRow>,
+    initial: BTreeMap<(usize, usize), f64>,
+}
+
 fn string_table(doc: &mut String, data: &Path) -> Result<()> {
-    let alphas = [0.0, 0.8, 0.99];
-    let amplitudes = [0.01, 0.1, 0.3];
-    let rules = ["midpoint", "gl3", "gl5", "gauss3", "gauss5"];
+    let runs = string_runs(data)?;
+    string_header(doc, &runs);
+    string_rows(doc, &runs);
+    string_reading(doc, &runs);
+    Ok(())
+}
+
+/// Runs the nonlinear string at every (α, A, rule) and writes `string-quadratures.csv`.
+fn string_runs(data: &Path) -> Result<StringRuns> {
     let mut rows = Vec::new();
-    // (α, A, rule) → (abs error, relative error, evaluations, steps).
-    type Row = (f64, f64, u64, u64);
-    let mut table: BTreeMap<(usize, usize, usize), Row> = BTreeMap::new();
+    let mut table = BTreeMap::new();
     let mut initial = BTreeMap::new();
-    for (ia, alpha) in alphas.iter().enumerate() {
-        for (iu, amplitude) in amplitudes.iter().enumerate() {
-            for (ir, rule) in rules.iter().enumerate() {
+    for (ia, alpha) in ALPHAS.iter().enumerate() {
+        for (iu, amplitude) in AMPLITUDES.iter().enumerate() {
+            for (ir, rule) in RULES.iter().enumerate() {
                 let mut string = scene(
                     "string-nonlinear.toml",
                     &[format!("alpha={alpha}"), format!("amplitude={amplitude}")],
@@ -164,8 +181,18 @@ fn string_table(doc: &mut String, data: &Path) -> Result<()> {
         "alpha,amplitude,quadrature,initial_pseudo_energy,max_abs_error,max_relative_error,gradient_evaluations",
         &rows,
     )?;
-    let steps = table.values().next().map(|v| v.3).unwrap_or(0);
-    let me = round_off(steps);
+    Ok(StringRuns { table, initial })
+}
+
+/// The round-off level of the string runs (they all take the same steps).
+fn string_round_off(runs: &StringRuns) -> f64 {
+    let steps = runs.table.values().next().map(|v| v.3).unwrap_or(0);
+    round_off(steps)
+}
+
+fn string_header(doc: &mut String, runs: &StringRuns) {
+    let steps = runs.table.values().next().map(|v| v.3).unwrap_or(0);
+    let me = string_round_off(runs);
     let _ = write!(
         doc,
         "## Quadratures on the nonlinear string (MEMM18 3.3, Table 1's question)
@@ -183,8 +210,8 @@ Gradient evaluations per run in the last column (Lobatto rules reuse the end nod
 
 | quadrature |",
     );
-    for alpha in alphas {
-        for amplitude in amplitudes {
+    for alpha in ALPHAS {
+        for amplitude in AMPLITUDES {
             let _ = write!(doc, " α={alpha}, A={amplitude} |");
         }
     }
@@ -193,12 +220,17 @@ Gradient evaluations per run in the last column (Lobatto rules reuse the end nod
         doc.push_str("---|");
     }
     doc.push_str("---|\n");
-    for (ir, rule) in rules.iter().enumerate() {
+}
+
+/// One row per rule (its relative errors, **me** at round-off), then the row of H̃⁰.
+fn string_rows(doc: &mut String, runs: &StringRuns) {
+    let me = string_round_off(runs);
+    for (ir, rule) in RULES.iter().enumerate() {
         let _ = write!(doc, "| {rule} |");
         let mut evaluations = 0;
         for ia in 0..3 {
             for iu in 0..3 {
-                let (_, rel, ev, _) = table[&(ia, iu, ir)];
+                let (_, rel, ev, _) = runs.table[&(ia, iu, ir)];
                 evaluations = ev;
                 if rel < me {
                     let _ = write!(doc, " me ({}) |", sci(rel));
@@ -212,14 +244,17 @@ Gradient evaluations per run in the last column (Lobatto rules reuse the end nod
     doc.push_str("| H̃⁰ |");
     for ia in 0..3 {
         for iu in 0..3 {
-            let _ = write!(doc, " {} |", sci(initial[&(ia, iu)]));
+            let _ = write!(doc, " {} |", sci(runs.initial[&(ia, iu)]));
         }
     }
     doc.push_str(" |\n\n");
+}
+
+fn string_reading(doc: &mut String, runs: &StringRuns) {
     let (mp, g3, g5) = (
-        table[&(2, 2, 0)].1,
-        table[&(2, 2, 3)].1,
-        table[&(2, 2, 4)].1,
+        runs.table[&(2, 2, 0)].1,
+        runs.table[&(2, 2, 3)].1,
+        runs.table[&(2, 2, 4)].1,
     );
     let _ = write!(
         doc,
@@ -235,7 +270,6 @@ has the same ordering: MP 1.1e-4, 3-point Gauss 1.8e-13, 5-point Gauss machine e
         sci(g3),
         sci(g5)
     );
-    Ok(())
 }
 
 fn adaptive(doc: &mut String, data: &Path) -> Result<()> {
@@ -313,6 +347,14 @@ sequence is written to `energy.csv` (column `h`) by `longstep run --adaptive EPS
 }
 
 fn fpu(doc: &mut String) -> Result<()> {
+    fpu_chain(doc)?;
+    slow_fast_counts(doc)?;
+    bench_wall_time(doc);
+    Ok(())
+}
+
+/// MEMM18 3.2: the FPU chain's pseudo-energy error per quadrature.
+fn fpu_chain(doc: &mut String) -> Result<()> {
     doc.push_str(
         "## FPU chain (MEMM18 3.2) and slow-fast FPU (4.3.1)
 
@@ -334,6 +376,12 @@ MEMM18 3.2, h = 1e-3, t ∈ [0, 200] (200 000 steps): maximal relative pseudo-en
             sci(round_off(summary.steps))
         );
     }
+    Ok(())
+}
+
+/// MEMM18 4.3.1: term evaluations of the synchronous and asynchronous schemes on the
+/// slow-fast chain against the paper's formulas.
+fn slow_fast_counts(doc: &mut String) -> Result<()> {
     doc.push_str(
         "
 Midpoint is second order in the pseudo-energy here, not exact (ERRATA.md): the soft
@@ -387,24 +435,30 @@ N_a/N_s = {:.4} (MEMM18: 0.58). The paper's absolute numbers, 1.015e8 and 1.75e8
 ",
         counts[1] / counts[0]
     );
-    // Wall time from the last `cargo bench --bench pseudo_energy`, if there is one.
-    let estimate = |group: &str, name: &str| -> Option<f64> {
-        let path = root()
-            .join("target/criterion")
-            .join(group)
-            .join(name)
-            .join("new/estimates.json");
-        let text = std::fs::read_to_string(path).ok()?;
-        let json: serde_json::Value = serde_json::from_str(&text).ok()?;
-        json["median"]["point_estimate"].as_f64()
-    };
+    Ok(())
+}
+
+/// The median of a benchmark in the last `cargo bench --bench pseudo_energy`, if there is one.
+fn criterion_median(group: &str, name: &str) -> Option<f64> {
+    let path = root()
+        .join("target/criterion")
+        .join(group)
+        .join(name)
+        .join("new/estimates.json");
+    let text = std::fs::read_to_string(path).ok()?;
+    let json: serde_json::Value = serde_json::from_str(&text).ok()?;
+    json["median"]["point_estimate"].as_f64()
+}
+
+/// Wall time of both schemes from the last `cargo bench --bench pseudo_energy`.
+fn bench_wall_time(doc: &mut String) {
     let fpu = (
-        estimate("slow-fast FPU, T = 1", "synchronous h = 2e-4"),
-        estimate("slow-fast FPU, T = 1", "asynchronous h_S = 0.01, K = 50"),
+        criterion_median("slow-fast FPU, T = 1", "synchronous h = 2e-4"),
+        criterion_median("slow-fast FPU, T = 1", "asynchronous h_S = 0.01, K = 50"),
     );
     let wave = (
-        estimate("wave n = 2000, T = 0.05", "synchronous h = 0.1 dx"),
-        estimate(
+        criterion_median("wave n = 2000, T = 0.05", "synchronous h = 0.1 dx"),
+        criterion_median(
             "wave n = 2000, T = 0.05",
             "asynchronous h_F = 0.1 dx, K = 5",
         ),
@@ -441,12 +495,20 @@ between runs.
             "Wall time: run `cargo bench --bench pseudo_energy` and regenerate this page.\n\n",
         ),
     }
-    Ok(())
 }
 
 /// MEMM18's own asynchronous setting (h_F = 0.1Δx, K = 10) per resolution: (n, unstable,
 /// what the run did).
 type PaperSetting = Vec<(usize, bool, String)>;
+
+/// The power method's settings for n = 2000 scans (fewer iterations with `--quick`).
+fn power_options(quick: bool) -> RadiusOptions {
+    RadiusOptions {
+        max_dense: 0,
+        power_iterations: if quick { 4000 } else { 20_000 },
+        ..RadiusOptions::default()
+    }
+}
 
 fn wave(doc: &mut String, data: &Path, quick: bool) -> Result<PaperSetting> {
     let cells: &[usize] = if quick {
@@ -454,14 +516,25 @@ fn wave(doc: &mut String, data: &Path, quick: bool) -> Result<PaperSetting> {
     } else {
         &[250, 500, 1000, 2000, 4000]
     };
-    let ratios = [2usize, 5, 10];
-    let options = RadiusOptions {
-        max_dense: 0,
-        power_iterations: if quick { 4000 } else { 20_000 },
-        ..RadiusOptions::default()
-    };
+    let options = power_options(quick);
     let mut rows = Vec::new();
     let mut paper: PaperSetting = Vec::new();
+    wave_header(doc, &options);
+    for &n in cells {
+        for configuration in wave_configurations(n) {
+            wave_row(doc, n, configuration, &options, &mut rows, &mut paper)?;
+        }
+    }
+    write_csv(
+        &data.join("wave-error-vs-evaluations.csv"),
+        "n,scheme,term_evaluations,max_error_t0.5,run,spectral_radius",
+        &rows,
+    )?;
+    wave_reading(doc, &paper);
+    Ok(paper)
+}
+
+fn wave_header(doc: &mut String, options: &RadiusOptions) {
     let _ = write!(
         doc,
         "## Inhomogeneous wave: error against force evaluations (MEMM18 4.3.2, Fig. 16)
@@ -479,72 +552,92 @@ unstable above ρ = {:.6}, a growth of the largest state norm by 4 over the seco
         options.power_iterations,
         options.power_threshold()
     );
-    for &n in cells {
-        let dx = 1.0 / n as f64;
-        let set = [format!("n={n}")];
-        let mut configurations: Vec<(String, MethodSettings, Option<usize>)> = vec![(
-            "sync".into(),
-            MethodSettings::new("pseudo-energy", 0.1 * dx),
-            None,
-        )];
-        for k in ratios {
-            let mut settings = MethodSettings::new("async-pseudo-energy", k as f64 * 0.1 * dx);
-            settings.ratio = Some(k);
-            configurations.push((format!("async K = {k}"), settings, Some(k)));
-        }
-        for (name, settings, ratio) in configurations {
-            let mut wave = scene("wave-inhomogeneous.toml", &set)?;
-            let summary = run_scene(&mut wave, &settings, 0.5)?;
-            let error = match &wave.exact {
-                Some(exact) => position_error(exact.as_ref(), &wave.system.state)?.max_abs,
-                None => f64::NAN,
-            };
-            let status = match summary.status {
-                Status::Ok => "ok".to_string(),
-                _ => format!("blew up at t = {:.3}", summary.t_end),
-            };
-            let radius = match ratio {
-                Some(k) => {
-                    let spec = MapSpec {
-                        parameter: MapParameter::HFast,
-                        values: vec![0.1 * dx],
-                        ratios: vec![k],
-                        quadrature: Quadrature::midpoint(),
-                        dx: Some(dx),
-                        tolerance: 1e-8,
-                        options: options.clone(),
-                    };
-                    let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
-                    let point = async_stability_map(&make, &spec)?.remove(0);
-                    let mark = if point.unstable { " unstable" } else { "" };
-                    if k == 10 {
-                        paper.push((n, point.unstable, status.clone()));
-                    }
-                    format!("{:.6}{mark}", point.spectral_radius)
-                }
-                None => "—".into(),
-            };
-            let error_text = if summary.status == Status::Ok {
-                sci(error)
-            } else {
-                "—".into()
-            };
-            let _ = writeln!(
-                doc,
-                "| {n} | {name} | {} | {error_text} | {status} | {radius} |",
-                summary.force_evaluations.terms
-            );
-            rows.push(format!(
-                "{n},{name},{},{error},{status},{radius}",
-                summary.force_evaluations.terms
-            ));
-        }
+}
+
+/// The synchronous scheme at h = 0.1Δx and the asynchronous one at K = 2, 5, 10: (name,
+/// settings, K).
+fn wave_configurations(n: usize) -> Vec<(String, MethodSettings, Option<usize>)> {
+    let dx = 1.0 / n as f64;
+    let mut configurations: Vec<(String, MethodSettings, Option<usize>)> = vec![(
+        "sync".into(),
+        MethodSettings::new("pseudo-energy", 0.1 * dx),
+        None,
+    )];
+    for k in [2usize, 5, 10] {
+        let mut settings = MethodSettings::new("async-pseudo-energy", k as f64 * 0.1 * dx);
+        settings.ratio = Some(k);
+        configurations.push((format!("async K = {k}"), settings, Some(k)));
     }
-    write_csv(
-        &data.join("wave-error-vs-evaluations.csv"),
-        "n,scheme,term_evaluations,max_error_t0.5,run,spectral_radius",
-        &rows,
-    )?;
+    configurations
+}
+
+/// Runs one configuration on n cells, writes its row of the table and of the CSV, and
+/// records MEMM18's own setting (K = 10) in `paper`.
+fn wave_row(
+    doc: &mut String,
+    n: usize,
+    (name, settings, ratio): (String, MethodSettings, Option<usize>),
+    options: &RadiusOptions,
+    rows: &mut Vec<String>,
+    paper: &mut PaperSetting,
+) -> Result<()> {
+    let set = [format!("n={n}")];
+    let mut wave = scene("wave-inhomogeneous.toml", &set)?;
+    let summary = run_scene(&mut wave, &settings, 0.5)?;
+    let error = match &wave.exact {
+        Some(exact) => position_error(exact.as_ref(), &wave.system.state)?.max_abs,
+        None => f64::NAN,
+    };
+    let status = match summary.status {
+        Status::Ok => "ok".to_string(),
+        _ => format!("blew up at t = {:.3}", summary.t_end),
+    };
+    let radius = match ratio {
+        Some(k) => {
+            let point = wave_radius(n, k, options)?;
+            let mark = if point.unstable { " unstable" } else { "" };
+            if k == 10 {
+                paper.push((n, point.unstable, status.clone()));
+            }
+            format!("{:.6}{mark}", point.spectral_radius)
+        }
+        None => "—".into(),
+    };
+    let error_text = if summary.status == Status::Ok {
+        sci(error)
+    } else {
+        "—".into()
+    };
+    let _ = writeln!(
+        doc,
+        "| {n} | {name} | {} | {error_text} | {status} | {radius} |",
+        summary.force_evaluations.terms
+    );
+    rows.push(format!(
+        "{n},{name},{},{error},{status},{radius}",
+        summary.force_evaluations.terms
+    ));
+    Ok(())
+}
+
+/// The spectral radius of the asynchronous coarse step at h_F = 0.1Δx and ratio K.
+fn wave_radius(n: usize, k: usize, options: &RadiusOptions) -> Result<MapPoint> {
+    let dx = 1.0 / n as f64;
+    let set = [format!("n={n}")];
+    let spec = MapSpec {
+        parameter: MapParameter::HFast,
+        values: vec![0.1 * dx],
+        ratios: vec![k],
+        quadrature: Quadrature::midpoint(),
+        dx: Some(dx),
+        tolerance: 1e-8,
+        options: options.clone(),
+    };
+    let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
+    Ok(async_stability_map(&make, &spec)?.remove(0))
+}
+
+fn wave_reading(doc: &mut String, paper: &PaperSetting) {
     let unstable: Vec<String> = paper
         .iter()
         .filter(|p| p.1)
@@ -572,7 +665,6 @@ round-off by t = 0.5; it would on a longer run. MEMM18 reports no instability.
             unstable.join(", ")
         }
     );
-    Ok(paper)
 }
 
 fn band_text(points: &[MapPoint], parameter: MapParameter, dx: f64) -> String {
@@ -595,6 +687,19 @@ fn band_text(points: &[MapPoint], parameter: MapParameter, dx: f64) -> String {
 }
 
 fn stability(doc: &mut String, data: &Path, quick: bool, paper: &PaperSetting) -> Result<()> {
+    stability_intro(doc);
+    doc.push_str(
+        "| n | K | points | unstable | bands of h_S/Δx (largest ρ) |\n|---|---|---|---|---|\n",
+    );
+    dense_scans(doc, data, quick)?;
+    let options = power_options(quick);
+    power_scan(doc, data, quick, &options)?;
+    let (small_k_unstable, below_resolution) = ratio_scan(doc, data, quick, &options)?;
+    stability_reading(doc, &options, paper, &small_k_unstable, &below_resolution);
+    Ok(())
+}
+
+fn stability_intro(doc: &mut String) {
     let _ = write!(
         doc,
         "## Where the asynchronous scheme is unstable
@@ -611,15 +716,36 @@ synchronous scheme stays neutral. Both CFL limits of (16) on this chain are
 
 "
     );
-    // Dense scans on coarse grids, h_S/Δx over (0, 1] at several K.
+}
+
+/// A map of h_S over `values` at ratio K on n cells.
+fn slow_step_map(
+    n: usize,
+    k: usize,
+    values: Vec<f64>,
+    options: RadiusOptions,
+) -> Result<Vec<MapPoint>> {
+    let spec = MapSpec {
+        parameter: MapParameter::HSlow,
+        values,
+        ratios: vec![k],
+        quadrature: Quadrature::midpoint(),
+        dx: Some(1.0 / n as f64),
+        tolerance: 1e-8,
+        options,
+    };
+    let set = vec![format!("n={n}")];
+    let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
+    async_stability_map(&make, &spec)
+}
+
+/// Dense scans on coarse grids, h_S/Δx over (0, 1] at several K.
+fn dense_scans(doc: &mut String, data: &Path, quick: bool) -> Result<()> {
     let scans: Vec<(usize, usize, usize)> = if quick {
         vec![(50, 10, 50)]
     } else {
         vec![(50, 5, 250), (50, 10, 496), (50, 20, 496), (100, 10, 199)]
     };
-    doc.push_str(
-        "| n | K | points | unstable | bands of h_S/Δx (largest ρ) |\n|---|---|---|---|---|\n",
-    );
     for (n, k, points) in scans {
         let dx = 1.0 / n as f64;
         let top = (k as f64 / 10.0).min(1.0);
@@ -627,18 +753,7 @@ synchronous scheme stays neutral. Both CFL limits of (16) on this chain are
         let values: Vec<f64> = (0..points)
             .map(|i| (from + (top - from) * i as f64 / (points - 1) as f64) * dx)
             .collect();
-        let spec = MapSpec {
-            parameter: MapParameter::HSlow,
-            values,
-            ratios: vec![k],
-            quadrature: Quadrature::midpoint(),
-            dx: Some(dx),
-            tolerance: 1e-8,
-            options: RadiusOptions::default(),
-        };
-        let set = vec![format!("n={n}")];
-        let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
-        let map = async_stability_map(&make, &spec)?;
+        let map = slow_step_map(n, k, values, RadiusOptions::default())?;
         write_map_csv(
             &data.join(format!("async-map-n{n}-K{k}.csv")),
             &map,
@@ -653,30 +768,18 @@ synchronous scheme stays neutral. Both CFL limits of (16) on this chain are
         );
         eprintln!("map n = {n}, K = {k}: {unstable} unstable");
     }
-    // MEMM18's resolution, power method.
+    Ok(())
+}
+
+/// MEMM18's resolution (n = 2000, K = 10), power method.
+fn power_scan(doc: &mut String, data: &Path, quick: bool, options: &RadiusOptions) -> Result<()> {
     let n = 2000;
     let dx = 1.0 / n as f64;
     let points = if quick { 8 } else { 96 };
     let values: Vec<f64> = (0..points)
         .map(|i| (0.05 + 0.95 * i as f64 / (points - 1) as f64) * dx)
         .collect();
-    let options = RadiusOptions {
-        max_dense: 0,
-        power_iterations: if quick { 4000 } else { 20_000 },
-        ..RadiusOptions::default()
-    };
-    let spec = MapSpec {
-        parameter: MapParameter::HSlow,
-        values,
-        ratios: vec![10],
-        quadrature: Quadrature::midpoint(),
-        dx: Some(dx),
-        tolerance: 1e-8,
-        options: options.clone(),
-    };
-    let set = vec![format!("n={n}")];
-    let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
-    let map = async_stability_map(&make, &spec)?;
+    let map = slow_step_map(n, 10, values, options.clone())?;
     write_map_csv(&data.join("async-map-n2000-K10.csv"), &map, Some(dx))?;
     let unstable = map.iter().filter(|p| p.unstable).count();
     let _ = writeln!(
@@ -686,8 +789,17 @@ synchronous scheme stays neutral. Both CFL limits of (16) on this chain are
         band_text(&map, MapParameter::HSlow, dx)
     );
     eprintln!("map n = 2000, K = 10: {unstable} unstable");
+    Ok(())
+}
 
-    // K at fixed h_F = 0.1 Δx (MEMM18's fine step), power method.
+/// K at fixed h_F = 0.1 Δx (MEMM18's fine step), power method: the table of ρ per K, and
+/// the unstable small ratios and the points below the method's resolution it found.
+fn ratio_scan(
+    doc: &mut String,
+    data: &Path,
+    quick: bool,
+    options: &RadiusOptions,
+) -> Result<(Vec<String>, Vec<String>)> {
     let cells: &[usize] = if quick {
         &[250]
     } else {
@@ -711,20 +823,7 @@ Fixed h_F = 0.1Δx (MEMM18's fine step), h_S = K h_F, power method: ρ per K.
     let mut small_k_unstable = Vec::new();
     let mut below_resolution = Vec::new();
     for &n in cells {
-        let dx = 1.0 / n as f64;
-        let spec = MapSpec {
-            parameter: MapParameter::HFast,
-            values: vec![0.1 * dx],
-            ratios: (2..=10).collect(),
-            quadrature: Quadrature::midpoint(),
-            dx: Some(dx),
-            tolerance: 1e-8,
-            options: options.clone(),
-        };
-        let set = vec![format!("n={n}")];
-        let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
-        let mut map = async_stability_map(&make, &spec)?;
-        map.sort_by_key(|p| p.ratio);
+        let map = ratio_map(n, options)?;
         let _ = write!(doc, "| {n} |");
         for p in &map {
             let mark = if p.unstable { " **unstable**" } else { "" };
@@ -738,16 +837,7 @@ Fixed h_F = 0.1Δx (MEMM18's fine step), h_S = K h_F, power method: ρ per K.
                     p.ratio, p.spectral_radius
                 ));
             }
-            rows.push(format!(
-                "{n},{},{},{},{}",
-                p.ratio,
-                p.spectral_radius,
-                u8::from(p.unstable),
-                match p.method {
-                    RadiusMethod::Dense => "dense",
-                    RadiusMethod::Power => "power",
-                }
-            ));
+            rows.push(ratio_csv_row(n, p));
         }
         doc.push('\n');
     }
@@ -756,6 +846,48 @@ Fixed h_F = 0.1Δx (MEMM18's fine step), h_S = K h_F, power method: ρ per K.
         "n,ratio,spectral_radius,unstable,method",
         &rows,
     )?;
+    Ok((small_k_unstable, below_resolution))
+}
+
+/// ρ at h_F = 0.1Δx for K = 2..=10 on n cells, in order of K.
+fn ratio_map(n: usize, options: &RadiusOptions) -> Result<Vec<MapPoint>> {
+    let dx = 1.0 / n as f64;
+    let spec = MapSpec {
+        parameter: MapParameter::HFast,
+        values: vec![0.1 * dx],
+        ratios: (2..=10).collect(),
+        quadrature: Quadrature::midpoint(),
+        dx: Some(dx),
+        tolerance: 1e-8,
+        options: options.clone(),
+    };
+    let set = vec![format!("n={n}")];
+    let make = || scene("wave-inhomogeneous.toml", &set).map(|s| s.system);
+    let mut map = async_stability_map(&make, &spec)?;
+    map.sort_by_key(|p| p.ratio);
+    Ok(map)
+}
+
+fn ratio_csv_row(n: usize, p: &MapPoint) -> String {
+    format!(
+        "{n},{},{},{},{}",
+        p.ratio,
+        p.spectral_radius,
+        u8::from(p.unstable),
+        match p.method {
+            RadiusMethod::Dense => "dense",
+            RadiusMethod::Power => "power",
+        }
+    )
+}
+
+fn stability_reading(
+    doc: &mut String,
+    options: &RadiusOptions,
+    paper: &PaperSetting,
+    small_k_unstable: &[String],
+    below_resolution: &[String],
+) {
     let paper_runs: Vec<String> = paper
         .iter()
         .map(|(n, unstable, status)| {
@@ -796,5 +928,4 @@ method handles n = 2000 in seconds per point).
             small_k_unstable.join(", ")
         }
     );
-    Ok(())
 }
