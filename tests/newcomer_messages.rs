@@ -37,17 +37,26 @@ fn sinr_default_tau_is_the_documented_one_with_units() {
     ]);
     assert_eq!(code, 0, "{stderr}");
     let line = method_line(&stdout);
-    // docs/thermostats.md: τ = 5 fs with L = 4 is the configuration shown sampling the
-    // water box inside the bound (the Done-when command); 10 fs samples it 0.33 kcal/mol high.
+    // docs/thermostats.md: τ = 3 fs with L = 1 is the configuration shown sampling the
+    // 15 Å water box correctly (PE and peak pass at 48 and 96 fs); 10 fs samples the 9 Å
+    // box 0.33 kcal/mol high.
     let docs = std::fs::read_to_string("docs/thermostats.md").unwrap();
     assert!(
-        docs.contains("| `--tau` | 5 fs (real scenes)"),
-        "docs/thermostats.md's settings table must state the default τ"
+        docs.contains("| `--tau` | 3 fs (real scenes)")
+            && docs.contains("| `--thermostats L` | 1 |"),
+        "docs/thermostats.md's settings table must state the default τ and L"
     );
-    assert!(line.contains("tau = 5 fs"), "{line}");
-    // friction defaults to 1/τ; kT = k_B · 300 K in kcal/mol (k_B = 0.0019872 kcal/mol/K),
-    // printed to 6 significant digits.
-    assert!(line.contains("friction = 0.2 1/fs"), "{line}");
+    assert!(line.contains("tau = 3 fs") && line.contains("L = 1,"), "{line}");
+    // friction defaults to 1/τ, printed in full (shortest round-trip decimal); kT = k_B ·
+    // 300 K in kcal/mol (k_B = 0.0019872 kcal/mol/K), printed to 6 significant digits.
+    let friction: f64 = line
+        .split("friction = ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|number| number.parse().ok())
+        .unwrap_or_else(|| panic!("no friction in {line}"));
+    assert_eq!(friction, 1.0 / 3.0, "{line}");
+    assert!(line.contains("1/fs (on v2)"), "{line}");
     assert!(line.contains("kT = 0.596161 kcal/mol"), "{line}");
     let report = stdout
         .lines()
