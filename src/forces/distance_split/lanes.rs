@@ -267,18 +267,7 @@ fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
         if GRADIENT {
             let atoms = &block.molecules.atoms[lanes.size * b..lanes.size * b + lanes.size];
             add_slots(buffer, atoms, &gj);
-            let slope = sc.partner_s1[p];
-            if slope != 0.0 {
-                let scale = pair_energy * slope / sc.partner_r[p];
-                let (ra, rb) = (
-                    block.molecules.reference[a] as usize,
-                    block.molecules.reference[b] as usize,
-                );
-                for c in 0..3 {
-                    buffer[3 * rb + c] += scale * d[c];
-                    buffer[3 * ra + c] -= scale * d[c];
-                }
-            }
+            sc.add_switch_force(&block.molecules.reference, a, p, pair_energy, buffer);
         }
     }
     if GRADIENT && partners > 0 {
