@@ -223,17 +223,12 @@ pub fn reference_atoms(
     let mut chosen: Vec<Option<usize>> = vec![None; n_molecules];
     for (i, &m) in molecule_of.iter().enumerate() {
         let slot = &mut chosen[m as usize];
-        match eligible {
-            Some(eligible) => {
-                if slot.is_none() && eligible(i) {
-                    *slot = Some(i);
-                }
-            }
-            None => {
-                if slot.is_none_or(|k| masses[i] > masses[k]) {
-                    *slot = Some(i);
-                }
-            }
+        let better = match eligible {
+            Some(eligible) => slot.is_none() && eligible(i),
+            None => slot.is_none_or(|k| masses[i] > masses[k]),
+        };
+        if better {
+            *slot = Some(i);
         }
     }
     chosen

@@ -55,13 +55,9 @@ impl Scratch {
             self.partner.resize(n, 0);
             self.partner_start.resize(n + 1, 0);
             self.partner_d.resize(n, [0.0; 3]);
-            for v in [
-                &mut self.partner_r,
-                &mut self.partner_s,
-                &mut self.partner_s1,
-            ] {
-                v.resize(n, 0.0);
-            }
+            self.partner_r.resize(n, 0.0);
+            self.partner_s.resize(n, 0.0);
+            self.partner_s1.resize(n, 0.0);
         }
         if self.charge.len() < atoms {
             let n = grow(atoms);

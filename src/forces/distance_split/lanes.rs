@@ -8,11 +8,9 @@
 //! Lennard-Jones coefficients and charge products lane by lane, so a block reads only the
 //! partner's twelve coordinates. The formulas are the parent module's; `1/r` is the
 //! engine's Newton iteration, sums go in the engine's fixed lane order, so every instruction
-//! set gives the same bits, and chunks make them independent of the thread count.
-//!
-//! Where the time went before (docs/thermostats.md): the row loop of [`super::kernels`]
-//! gathers each row's partner atoms into scratch arrays and runs a dozen passes over them;
-//! here a block stays in registers.
+//! set gives the same bits, and chunks make them independent of the thread count. Unlike
+//! the row loop of [`super::kernels`] (partner atoms gathered into scratch arrays, a dozen
+//! passes over them), a block stays in registers.
 
 use super::kernels::{Scratch, keep_partners, list_rows};
 use super::{Model, Molecules, Switch};

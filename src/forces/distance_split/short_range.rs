@@ -268,7 +268,7 @@ impl ShortRange {
         let pairs: &[[u32; 2]] = &search.pairs;
         let packed = whole.then_some(&packed[..]);
         let chunks = self.chunks;
-        let work = |(((c, buffer), scratch), energy): (Chunk, &mut f64)| {
+        let work = |((c, buffer), scratch): Chunk| {
             let part = &pairs[c * pairs.len() / chunks..(c + 1) * pairs.len() / chunks];
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
@@ -278,7 +278,7 @@ impl ShortRange {
                 clusters,
                 scratch,
             });
-            *energy = self.evaluate(q, mode, part, SwitchBy::Molecule, whole, buffer);
+            self.evaluate(q, mode, part, SwitchBy::Molecule, whole, buffer)
         };
         if chunks > 1 {
             buffers
@@ -286,14 +286,9 @@ impl ShortRange {
                 .enumerate()
                 .zip(scratch.par_iter_mut())
                 .zip(energies.par_iter_mut())
-                .for_each(work);
+                .for_each(|(chunk, energy)| *energy = work(chunk));
         } else {
-            buffers
-                .iter_mut()
-                .enumerate()
-                .zip(scratch.iter_mut())
-                .zip(energies.iter_mut())
-                .for_each(work);
+            energies[0] = work(((0, &mut buffers[0]), &mut scratch[0]));
         }
         // Pairs inside molecules after the chunks, into the first buffer (same order always).
         energies[0] += self.evaluate(
