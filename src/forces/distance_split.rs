@@ -41,27 +41,16 @@
 //! radial: `W′ = S′V + SV′`, `W″ = S″V + 2S′V′ + SV″`, and the radial Hessian of
 //! [`super::nonbonded`] applies.
 //!
-//! **Cost.** By atom pair the short part is the cluster-pair kernel of
-//! [`super::nonbonded`] with its list cut at `r_out` and the switch applied in the lanes
-//! ([`Nonbonded::switched`]: the pair energy is computed for the force too, `S` and `S′`
-//! by the quintic in add, multiply and fused multiply-add, the same bits on every
-//! instruction set), in either precision; on the solvated Trp-cage (`r_out` = 6 Å, 9 Å
-//! cutoff) one evaluation costs about half the full term's. By molecule in a box of one
-//! kind of molecule of at most four atoms (water
-//! models), each listed molecule pair inside `r_out` is one SIMD block of 4 × 4 atom pairs
-//! with one switch value ([`lanes`]); other molecules take the row loop of [`kernels`],
-//! which gathers each row's partner atoms (docs/thermostats.md has both costs); the pairs
-//! inside a molecule, molecules a small box cannot keep whole, and every Hessian-vector
-//! product take the one pair loop of [`pairs`]. By molecule the short part
-//! has its own pair search ([`search`]): molecule pairs whose
-//! reference atoms are closer than `r_out + skin`, rebuilt
-//! when a point has moved half the skin. Its evaluation runs over fixed chunks of that list
-//! (a number that depends only on the atom count), in parallel for large systems, each into
-//! its own buffer, summed in chunk order: the same bits at any thread count. Nothing is
-//! allocated once the list has reached its size. The short part keeps its last gradient with
-//! a copy of the positions: r-RESPA evaluates the middle level and then the outer one at the
-//! same positions, so the remainder `∇V − ∇V_short` costs one full non-bonded evaluation,
-//! not two.
+//! **Cost.** By atom pair the short part is the cluster-pair kernel of [`super::nonbonded`]
+//! with its list cut at `r_out` and the switch applied in the lanes ([`Nonbonded::switched`]),
+//! in either precision: on the solvated Trp-cage (`r_out` = 6 Å, 9 Å cutoff) about half the
+//! full term's cost. By molecule ([`ShortRange`]) one pass over its own list of molecule
+//! pairs ([`search`]), one switch value per listed pair inside `r_out` for all its atom
+//! pairs: SIMD blocks of 4 × 4 atom pairs ([`lanes`]) for one kind of small molecule, the
+//! row loop of [`kernels`] for other whole molecules, the pair loop of [`pairs`] for the
+//! rest (docs/thermostats.md has the costs). The remainder reads the short part's cached
+//! gradient (r-RESPA evaluates both levels at the same positions), so it costs one full
+//! non-bonded evaluation, not two.
 
 mod kernels;
 mod lanes;
@@ -159,15 +148,6 @@ pub enum SwitchBy {
     AtomPair,
 }
 
-impl SwitchBy {
-    pub fn name(&self) -> &'static str {
-        match self {
-            SwitchBy::Molecule => "molecule",
-            SwitchBy::AtomPair => "atom",
-        }
-    }
-}
-
 /// The Coulomb form of the short-range part.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ShortCoulomb {
@@ -243,17 +223,12 @@ pub fn reference_atoms(
     let mut chosen: Vec<Option<usize>> = vec![None; n_molecules];
     for (i, &m) in molecule_of.iter().enumerate() {
         let slot = &mut chosen[m as usize];
-        match eligible {
-            Some(eligible) => {
-                if slot.is_none() && eligible(i) {
-                    *slot = Some(i);
-                }
-            }
-            None => {
-                if slot.is_none_or(|k| masses[i] > masses[k]) {
-                    *slot = Some(i);
-                }
-            }
+        let better = match eligible {
+            Some(eligible) => slot.is_none() && eligible(i),
+            None => slot.is_none_or(|k| masses[i] > masses[k]),
+        };
+        if better {
+            *slot = Some(i);
         }
     }
     chosen
@@ -327,10 +302,11 @@ pub fn split_nonbonded(
     ))
 }
 
-/// The same call on either kind of short part (both have the method).
+/// The same call on either kind of short part `$part: Arc<ShortPart>` (both have the
+/// method).
 macro_rules! either {
     ($part:expr, $p:ident => $call:expr) => {
-        match $part {
+        match &*$part {
             ShortPart::AtomPairs($p) => $call,
             ShortPart::Molecules($p) => $call,
         }
@@ -362,57 +338,10 @@ impl ShortPart {
 
     /// The instruction set of the pair loops (every set gives the same bits).
     pub fn set_isa(&self, isa: Isa) {
-        either!(self, p => p.set_isa(isa))
-    }
-
-    /// How many times the pair list has been built.
-    pub fn list_builds(&self) -> u64 {
         match self {
-            ShortPart::AtomPairs(pairs) => pairs.list_counts().builds,
-            ShortPart::Molecules(short) => short.list_builds(),
+            ShortPart::AtomPairs(p) => p.set_isa(isa),
+            ShortPart::Molecules(p) => p.set_isa(isa),
         }
-    }
-
-    fn energy(&self, q: &[f64]) -> f64 {
-        either!(self, p => p.energy(q))
-    }
-
-    /// `gradient += sign ∇V_short(q)` (from the last evaluation at the same `q`).
-    fn add_gradient(&self, q: &[f64], gradient: &mut [f64], sign: f64) {
-        either!(self, p => p.add_scaled_gradient(q, gradient, sign))
-    }
-
-    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64], sign: f64) {
-        either!(self, p => p.add_scaled_hessian_vector(q, v, out, sign))
-    }
-
-    /// The energy as (Lennard-Jones, Coulomb).
-    fn energy_parts(&self, q: &[f64]) -> [f64; 2] {
-        either!(self, p => p.energy_parts(q).into())
-    }
-
-    fn couplings(&self) -> Vec<Vec<usize>> {
-        either!(self, p => p.couplings())
-    }
-
-    /// Atom pairs of the list.
-    fn listed_pairs(&self) -> usize {
-        either!(self, p => p.interaction_count())
-    }
-
-    /// Forget the pair list and the cached gradient ([`ForceTerm::rebuild_lists`]).
-    fn rebuild_lists(&self) {
-        either!(self, p => p.rebuild_lists())
-    }
-
-    /// The pair list's state for a checkpoint ([`ForceTerm::list_state`]): by atom pair
-    /// the cluster engine's, by molecule the molecule list's.
-    fn list_state(&self) -> Option<serde_json::Value> {
-        either!(self, p => p.list_state())
-    }
-
-    fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
-        either!(self, p => p.restore_lists(state))
     }
 }
 
@@ -433,40 +362,40 @@ impl ForceTerm for NonbondedShort {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        self.short.energy(q)
+        either!(self.short, p => p.energy(q))
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        self.short.add_gradient(q, gradient, 1.0);
+        either!(self.short, p => p.add_scaled_gradient(q, gradient, 1.0));
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        self.short.add_hessian_vector(q, v, out, 1.0);
+        either!(self.short, p => p.add_scaled_hessian_vector(q, v, out, 1.0));
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
-        self.short.couplings()
+        either!(self.short, p => p.couplings())
     }
 
     fn interaction_count(&self) -> usize {
-        self.short.listed_pairs()
+        either!(self.short, p => p.interaction_count())
     }
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
-        let [lj, coulomb] = self.short.energy_parts(q);
+        let (lj, coulomb) = either!(self.short, p => p.energy_parts(q));
         vec![("lennard-jones", lj), ("coulomb", coulomb)]
     }
 
     fn rebuild_lists(&self) {
-        self.short.rebuild_lists();
+        either!(self.short, p => p.rebuild_lists());
     }
 
     fn list_state(&self) -> Option<serde_json::Value> {
-        self.short.list_state()
+        either!(self.short, p => p.list_state())
     }
 
     fn restore_lists(&self, state: &serde_json::Value) -> crate::error::Result<()> {
-        self.short.restore_lists(state)
+        either!(self.short, p => p.restore_lists(state))
     }
 
     /// By atom pair (the cluster-pair kernel) in either precision; the molecule loops
@@ -476,13 +405,6 @@ impl ForceTerm for NonbondedShort {
             ShortPart::AtomPairs(pairs) => pairs.set_precision(precision),
             ShortPart::Molecules(_) => false,
         }
-    }
-}
-
-impl NonbondedRemainder {
-    /// The full term the remainder is taken from.
-    pub fn full(&self) -> &Nonbonded {
-        &self.full
     }
 }
 
@@ -496,19 +418,22 @@ impl ForceTerm for NonbondedRemainder {
     }
 
     fn energy(&self, q: &[f64]) -> f64 {
-        self.full.energy(q) - self.short.energy(q)
+        self.full.energy(q) - either!(self.short, p => p.energy(q))
     }
 
     fn rebuild_lists(&self) {
         self.full.rebuild_lists();
-        self.short.rebuild_lists();
+        either!(self.short, p => p.rebuild_lists());
     }
 
     /// The full term's lists and the short part's (which [`NonbondedShort`] saves too):
     /// `{"full": …, "short": …}`, or `None` unless both have a state, so that a checkpoint
     /// rebuilds both or neither ([`ForceTerm::rebuild_lists`] does both).
     fn list_state(&self) -> Option<serde_json::Value> {
-        let (full, short) = (self.full.list_state()?, self.short.list_state()?);
+        let (full, short) = (
+            self.full.list_state()?,
+            either!(self.short, p => p.list_state())?,
+        );
         Some(serde_json::json!({ "full": full, "short": short }))
     }
 
@@ -521,17 +446,17 @@ impl ForceTerm for NonbondedRemainder {
             })
         };
         self.full.restore_lists(part("full")?)?;
-        self.short.restore_lists(part("short")?)
+        either!(self.short, p => p.restore_lists(part("short")?))
     }
 
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
         self.full.add_gradient(q, gradient);
-        self.short.add_gradient(q, gradient, -1.0);
+        either!(self.short, p => p.add_scaled_gradient(q, gradient, -1.0));
     }
 
     fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
         self.full.add_hessian_vector(q, v, out);
-        self.short.add_hessian_vector(q, v, out, -1.0);
+        either!(self.short, p => p.add_scaled_hessian_vector(q, v, out, -1.0));
     }
 
     fn couplings(&self) -> Vec<Vec<usize>> {
@@ -551,7 +476,7 @@ impl ForceTerm for NonbondedRemainder {
 
     fn energy_components(&self, q: &[f64]) -> Vec<(&'static str, f64)> {
         let full = self.full.energy_components(q);
-        let [lj, coulomb] = self.short.energy_parts(q);
+        let (lj, coulomb) = either!(self.short, p => p.energy_parts(q));
         let component = |name: &str| full.iter().find(|(n, _)| *n == name).map_or(0.0, |c| c.1);
         vec![
             ("lennard-jones", component("lennard-jones") - lj),

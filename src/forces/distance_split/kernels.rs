@@ -55,13 +55,9 @@ impl Scratch {
             self.partner.resize(n, 0);
             self.partner_start.resize(n + 1, 0);
             self.partner_d.resize(n, [0.0; 3]);
-            for v in [
-                &mut self.partner_r,
-                &mut self.partner_s,
-                &mut self.partner_s1,
-            ] {
-                v.resize(n, 0.0);
-            }
+            self.partner_r.resize(n, 0.0);
+            self.partner_s.resize(n, 0.0);
+            self.partner_s1.resize(n, 0.0);
         }
         if self.charge.len() < atoms {
             let n = grow(atoms);
@@ -95,6 +91,29 @@ impl Scratch {
             }
         }
     }
+
+    /// The switch's force `E_IJ S′ ∇R` (module doc's chain rule) between row molecule `a`
+    /// and its kept partner `p`, with pair energy `e`, on their reference atoms.
+    #[inline(always)]
+    pub(super) fn add_switch_force(
+        &self,
+        reference: &[u32],
+        a: usize,
+        p: usize,
+        e: f64,
+        out: &mut [f64],
+    ) {
+        if self.partner_s1[p] != 0.0 {
+            let k = e * self.partner_s1[p] / self.partner_r[p];
+            let (ra, rb) = (reference[a], reference[self.partner[p] as usize]);
+            add_pair(
+                out,
+                ra as usize,
+                rb as usize,
+                self.partner_d[p].map(|x| k * x),
+            );
+        }
+    }
 }
 
 /// Molecule pairs over whole molecules (`packed`: `[x, y, z, q√k_e]` in molecule order,
@@ -108,28 +127,16 @@ pub(super) fn whole_molecule_rows<const GRADIENT: bool>(
     short: &ShortRange,
     packed: &[[f64; 4]],
     pairs: &[[u32; 2]],
-    scratch: &mut Scratch,
-    buffer: &mut [f64],
-) -> f64 {
-    match short.molecules.uniform_size {
-        3 => rows_of::<GRADIENT, 3>(short, packed, pairs, scratch, buffer),
-        4 => rows_of::<GRADIENT, 4>(short, packed, pairs, scratch, buffer),
-        _ => rows_of::<GRADIENT, 0>(short, packed, pairs, scratch, buffer),
-    }
-}
-
-/// [`whole_molecule_rows`] for molecules of `M` atoms each (`M = 0`: any sizes).
-#[inline(always)]
-fn rows_of<const GRADIENT: bool, const M: usize>(
-    short: &ShortRange,
-    packed: &[[f64; 4]],
-    pairs: &[[u32; 2]],
-    scratch: &mut Scratch,
-    buffer: &mut [f64],
+    sc: &mut Scratch,
+    out: &mut [f64],
 ) -> f64 {
     let mut energy = 0.0;
     for (a, group) in list_rows(pairs) {
-        energy += whole_molecule_row::<GRADIENT, M>(short, packed, a, group, scratch, buffer);
+        energy += match short.molecules.uniform_size {
+            3 => whole_molecule_row::<GRADIENT, 3>(short, packed, a, group, sc, out),
+            4 => whole_molecule_row::<GRADIENT, 4>(short, packed, a, group, sc, out),
+            _ => whole_molecule_row::<GRADIENT, 0>(short, packed, a, group, sc, out),
+        };
     }
     energy
 }
@@ -236,7 +243,6 @@ fn partner_sums<const GRADIENT: bool, const M: usize>(
 ) -> f64 {
     let molecules = &short.molecules;
     let mut energy = 0.0;
-    let reference_a = molecules.reference[a] as usize;
     for p in 0..sc.partner_count {
         let slots = slots::<M>(&sc.partner_start, p);
         let pair_energy: f64 = sc.energy_sum[slots.clone()].iter().sum();
@@ -254,15 +260,8 @@ fn partner_sums<const GRADIENT: bool, const M: usize>(
             }
         }
         energy += sc.partner_s[p] * pair_energy;
-        if GRADIENT && sc.partner_s1[p] != 0.0 {
-            let k = pair_energy * sc.partner_s1[p] / sc.partner_r[p];
-            let reference_b = molecules.reference[sc.partner[p] as usize] as usize;
-            add_pair(
-                buffer,
-                reference_a,
-                reference_b,
-                sc.partner_d[p].map(|x| k * x),
-            );
+        if GRADIENT {
+            sc.add_switch_force(&molecules.reference, a, p, pair_energy, buffer);
         }
     }
     energy
@@ -417,7 +416,7 @@ fn pair_block<const LJ: bool>(model: &Model, xi: [f64; 4], n: usize, sc: &mut Sc
         qq[t] = xi[3] * charge[t];
     }
     let (e_q, f_q) = (&mut sc.coulomb_energy[..n], &mut sc.coulomb_force[..n]);
-    model.coulomb_block(qq, r2, inv_r, e_q, f_q);
+    model.coulomb.energy_force_block(qq, r2, inv_r, e_q, f_q);
     let (c12, c6, lj_shift) = (&sc.c12[..n], &sc.c6[..n], &sc.lj_shift[..n]);
     let (weight, energy, force) = (&sc.weight[..n], &mut sc.energy[..n], &mut sc.force[..n]);
     for t in 0..n {

@@ -8,11 +8,9 @@
 //! Lennard-Jones coefficients and charge products lane by lane, so a block reads only the
 //! partner's twelve coordinates. The formulas are the parent module's; `1/r` is the
 //! engine's Newton iteration, sums go in the engine's fixed lane order, so every instruction
-//! set gives the same bits, and chunks make them independent of the thread count.
-//!
-//! Where the time went before (docs/thermostats.md): the row loop of [`super::kernels`]
-//! gathers each row's partner atoms into scratch arrays and runs a dozen passes over them;
-//! here a block stays in registers.
+//! set gives the same bits, and chunks make them independent of the thread count. Unlike
+//! the row loop of [`super::kernels`] (partner atoms gathered into scratch arrays, a dozen
+//! passes over them), a block stays in registers.
 
 use super::kernels::{Scratch, keep_partners, list_rows};
 use super::{Model, Molecules, Switch};
@@ -267,18 +265,7 @@ fn row<S: Simd<R = f64>, C: Coulomb, const GRADIENT: bool>(
         if GRADIENT {
             let atoms = &block.molecules.atoms[lanes.size * b..lanes.size * b + lanes.size];
             add_slots(buffer, atoms, &gj);
-            let slope = sc.partner_s1[p];
-            if slope != 0.0 {
-                let scale = pair_energy * slope / sc.partner_r[p];
-                let (ra, rb) = (
-                    block.molecules.reference[a] as usize,
-                    block.molecules.reference[b] as usize,
-                );
-                for c in 0..3 {
-                    buffer[3 * rb + c] += scale * d[c];
-                    buffer[3 * ra + c] -= scale * d[c];
-                }
-            }
+            sc.add_switch_force(&block.molecules.reference, a, p, pair_energy, buffer);
         }
     }
     if GRADIENT && partners > 0 {

@@ -15,8 +15,29 @@ pub(crate) struct Model {
     has_lj: Vec<bool>,
     /// `q_i √k_e`.
     scaled_charges: Vec<f64>,
-    period: [f64; 3],
-    inverse: [f64; 3],
+    pub periodic: MinimumImage,
+}
+
+/// The minimum image in a box periodic along some axes: `d − L round(d/L)` per axis,
+/// `L = 0` along an open axis (`d − 0·round(d·0) = d`).
+#[derive(Clone, Copy)]
+pub(crate) struct MinimumImage {
+    pub period: [f64; 3],
+    pub inverse: [f64; 3],
+}
+
+impl MinimumImage {
+    pub fn new(lengths: Option<[f64; 3]>) -> Self {
+        let period = lengths.unwrap_or([0.0; 3]);
+        let inverse = period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 });
+        MinimumImage { period, inverse }
+    }
+
+    /// Minimum image of a displacement `d`.
+    #[inline(always)]
+    pub fn of(&self, d: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| d[k] - self.period[k] * (d[k] * self.inverse[k]).round())
+    }
 }
 
 impl Model {
@@ -31,7 +52,6 @@ impl Model {
         } else {
             spec.charges.iter().map(|c| c * root_ke).collect()
         };
-        let period = spec.box_lengths.unwrap_or([0.0; 3]);
         Ok(Model {
             cutoff_squared: spec.cutoff * spec.cutoff,
             coulomb: CoulombPair::new(spec.electrostatics, spec.cutoff)?,
@@ -46,18 +66,14 @@ impl Model {
                 })
                 .collect(),
             scaled_charges,
-            period,
-            inverse: period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 }),
+            periodic: MinimumImage::new(spec.box_lengths),
         })
     }
 
     /// Minimum-image `x_j − x_i`.
     #[inline(always)]
     pub fn displacement(&self, q: &[f64], i: usize, j: usize) -> [f64; 3] {
-        std::array::from_fn(|k| {
-            let d = q[3 * j + k] - q[3 * i + k];
-            d - self.period[k] * (d * self.inverse[k]).round()
-        })
+        self.image(std::array::from_fn(|k| q[3 * j + k] - q[3 * i + k]))
     }
 
     #[inline(always)]
@@ -68,21 +84,10 @@ impl Model {
     /// `(V, −V′/r)` of pair `i, j` at `r² = s < r_c²`.
     #[inline(always)]
     pub fn energy_force(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
-        let qq = self.scaled_charges[i] * self.scaled_charges[j];
-        self.typed_energy_force(self.lj(i, j), qq, s)
-    }
-
-    /// The Lennard-Jones coefficients of type `a` with every type, or `None` when they are
-    /// all zero.
-    #[inline(always)]
-    pub fn lj_row(&self, a: u32) -> Option<&[LjPair]> {
-        let row = &self.lj[a as usize * self.n_types..(a as usize + 1) * self.n_types];
-        self.has_lj[a as usize].then_some(row)
-    }
-
-    /// `(V, −V′/r)` of a pair with coefficients `p` and `k_e q_i q_j = qq` at `r² = s`.
-    #[inline(always)]
-    pub fn typed_energy_force(&self, p: LjPair, qq: f64, s: f64) -> (f64, f64) {
+        let (p, qq) = (
+            self.lj(i, j),
+            self.scaled_charges[i] * self.scaled_charges[j],
+        );
         let inv_r2 = 1.0 / s;
         let (mut energy, mut force) = (0.0, 0.0);
         if p.c12 != 0.0 || p.c6 != 0.0 {
@@ -98,31 +103,24 @@ impl Model {
         (energy, force)
     }
 
-    /// `(V, −V′/r)` of the Coulomb form for a block of pairs.
+    /// The Lennard-Jones coefficients of type `a` with every type, or `None` when they are
+    /// all zero.
     #[inline(always)]
-    pub fn coulomb_block(
-        &self,
-        qq: &[f64],
-        s: &[f64],
-        inv_r: &[f64],
-        energy: &mut [f64],
-        force: &mut [f64],
-    ) {
-        self.coulomb.energy_force_block(qq, s, inv_r, energy, force);
+    pub fn lj_row(&self, a: u32) -> Option<&[LjPair]> {
+        let row = &self.lj[a as usize * self.n_types..(a as usize + 1) * self.n_types];
+        self.has_lj[a as usize].then_some(row)
     }
 
-    /// The periodic lengths (0 along an open axis) and the shortest of them (∞ for none).
+    /// The shortest periodic length (∞ for none).
     pub fn shortest_period(&self) -> f64 {
-        self.period
-            .iter()
-            .filter(|&&l| l > 0.0)
-            .fold(f64::INFINITY, |a, &b| a.min(b))
+        let periods = self.periodic.period.into_iter().filter(|&l| l > 0.0);
+        periods.fold(f64::INFINITY, f64::min)
     }
 
     /// Minimum image of a displacement `d`.
     #[inline(always)]
     pub fn image(&self, d: [f64; 3]) -> [f64; 3] {
-        std::array::from_fn(|k| d[k] - self.period[k] * (d[k] * self.inverse[k]).round())
+        self.periodic.of(d)
     }
 
     /// `q_i √k_e` (0 without electrostatics).

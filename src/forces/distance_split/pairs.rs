@@ -188,12 +188,10 @@ pub(super) struct HessianVector<'a> {
     pub v: &'a [f64],
 }
 
-/// A molecule pair's switch for the product: `S, S′, S″`, `n̂`, `v_J − v_I` on the
+/// A molecule pair's switch for the product: `(S, S′, S″)`, `n̂`, `v_J − v_I` on the
 /// reference atoms, `∇R·v`, and `E_IJ`, `∇E·v` summed so far.
 pub(super) struct Curved {
-    s: f64,
-    s1: f64,
-    s2: f64,
+    s: (f64, f64, f64),
     n: [f64; 3],
     dv_ref: [f64; 3],
     rv: f64,
@@ -206,15 +204,12 @@ impl Yield for HessianVector<'_> {
 
     #[inline(always)]
     fn molecule(&mut self, switch: Switch, pair: &MoleculePair) -> Curved {
-        let (s, s1, s2) = switch.derivatives(pair.big_r);
         let n = pair.d.map(|x| x / pair.big_r);
         let dv_ref = difference(self.v, pair.ra, pair.rb);
-        let rv = dot(&n, &dv_ref);
-        let (energy, ev) = (0.0, 0.0);
+        let (rv, energy, ev) = (dot(&n, &dv_ref), 0.0, 0.0);
+        let s = switch.derivatives(pair.big_r);
         Curved {
             s,
-            s1,
-            s2,
             n,
             dv_ref,
             rv,
@@ -233,18 +228,20 @@ impl Yield for HessianVector<'_> {
         let along = (d2 - alpha) / p.r2 * dot(&p.d, &dv);
         m.ev += alpha * dot(&p.d, &dv);
         // S ∇²E v + S′(∇R·v)∇E, pair by pair (∇_j V = α d).
-        let kick = m.s1 * m.rv * alpha;
+        let (s, s1, _) = m.s;
+        let kick = s1 * m.rv * alpha;
         let h: [f64; 3] =
-            std::array::from_fn(|k| m.s * (alpha * dv[k] + along * p.d[k]) + kick * p.d[k]);
+            std::array::from_fn(|k| s * (alpha * dv[k] + along * p.d[k]) + kick * p.d[k]);
         add_pair(out, p.i, p.j, h);
     }
 
     #[inline(always)]
     fn end_molecule(&mut self, m: Curved, pair: &MoleculePair, out: &mut [f64]) {
-        if m.s1 != 0.0 || m.s2 != 0.0 {
+        let (_, s1, s2) = m.s;
+        if s1 != 0.0 || s2 != 0.0 {
             // S′(∇E·v)∇R + E S″(∇R·v)∇R + E S′∇²R v on the reference atoms.
-            let c = m.s1 * m.ev + m.energy * m.s2 * m.rv;
-            let t = m.energy * m.s1 / pair.big_r;
+            let c = s1 * m.ev + m.energy * s2 * m.rv;
+            let t = m.energy * s1 / pair.big_r;
             let h: [f64; 3] =
                 std::array::from_fn(|k| c * m.n[k] + t * (m.dv_ref[k] - m.n[k] * m.rv));
             add_pair(out, pair.ra, pair.rb, h);

@@ -13,16 +13,23 @@
 /// grid: larger cells, more candidates per cell, the same pairs).
 const MAX_CELLS_PER_AXIS: usize = 64;
 
+use super::model::MinimumImage;
+
+/// Cells per axis, the grid's origin and the cells' sides.
+#[derive(Default)]
+struct Grid {
+    counts: [usize; 3],
+    origin: [f64; 3],
+    side: [f64; 3],
+}
+
 pub(super) struct PairSearch {
     reach: f64,
     skin: f64,
-    /// Box lengths, 0 along a non-periodic axis (`d − 0·round(d·0) = d`).
-    period: [f64; 3],
-    inverse: [f64; 3],
+    image: MinimumImage,
     /// Point positions at the last build.
     reference: Vec<[f64; 3]>,
     built: bool,
-    builds: u64,
     /// Listed pairs `a < b`.
     pub pairs: Vec<[u32; 2]>,
     // Cell-list scratch.
@@ -34,16 +41,12 @@ pub(super) struct PairSearch {
 
 impl PairSearch {
     pub fn new(points: usize, reach: f64, skin: f64, lengths: Option<[f64; 3]>) -> Self {
-        let period = lengths.unwrap_or([0.0; 3]);
-        let inverse = period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 });
         PairSearch {
             reach,
             skin,
-            period,
-            inverse,
+            image: MinimumImage::new(lengths),
             reference: vec![[0.0; 3]; points],
             built: false,
-            builds: 0,
             pairs: Vec::new(),
             cell_of: vec![0; points],
             cell_start: Vec::new(),
@@ -57,24 +60,11 @@ impl PairSearch {
         self.built = false;
     }
 
-    pub fn builds(&self) -> u64 {
-        self.builds
-    }
-
     /// The point positions at the last build (`None` before the first): the list is a
     /// function of them alone, so building at them again gives the same pairs in the same
     /// order.
     pub fn built_at(&self) -> Option<&[[f64; 3]]> {
         self.built.then_some(&self.reference[..])
-    }
-
-    /// Minimum-image displacement `b − a`.
-    #[inline(always)]
-    pub fn displacement(&self, a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        std::array::from_fn(|k| {
-            let d = b[k] - a[k];
-            d - self.period[k] * (d * self.inverse[k]).round()
-        })
     }
 
     /// Whether some point has moved more than `skin / 2` since the last build.
@@ -96,12 +86,13 @@ impl PairSearch {
         for k in 0..n {
             self.reference[k] = point(k);
         }
-        let counts = self.grid();
+        let grid = self.grid();
+        let counts = grid.counts;
         let reach2 = self.reach * self.reach;
         self.pairs.clear();
         // A periodic axis with fewer than 3 cells would visit a cell twice: all pairs then.
         let all_pairs = counts.iter().product::<usize>() == 1
-            || (0..3).any(|a| self.period[a] > 0.0 && counts[a] == 1);
+            || (0..3).any(|a| self.image.period[a] > 0.0 && counts[a] == 1);
         if all_pairs {
             for a in 0..n {
                 for b in a + 1..n {
@@ -109,91 +100,68 @@ impl PairSearch {
                 }
             }
         } else {
-            self.bin(counts);
+            self.bin(&grid);
             self.scan_cells(counts, reach2);
         }
         let room = self.pairs.len() + self.pairs.len() / 4;
         self.pairs.reserve(room.saturating_sub(self.pairs.len()));
         self.built = true;
-        self.builds += 1;
     }
 
     #[inline(always)]
     fn consider(&mut self, a: usize, b: usize, reach2: f64) {
-        let d = self.displacement(self.reference[a], self.reference[b]);
+        let (x, y) = (self.reference[a], self.reference[b]);
+        let d = self.image.of(std::array::from_fn(|k| y[k] - x[k]));
         if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < reach2 {
             self.pairs.push([a as u32, b as u32]);
         }
     }
 
-    /// Cells per axis: a periodic axis needs at least 3 cells of side ≥ `reach` (else one
-    /// cell: all pairs, minimum image), an open axis spans the points' extent.
-    fn grid(&self) -> [usize; 3] {
-        std::array::from_fn(|axis| {
-            let extent = if self.period[axis] > 0.0 {
-                self.period[axis]
+    /// The cell grid: per axis the count, origin and side. A periodic axis spans the box
+    /// and needs at least 3 cells of side ≥ `reach` (else one cell: all pairs, minimum
+    /// image); an open axis spans the points' extent.
+    fn grid(&self) -> Grid {
+        let mut grid = Grid::default();
+        for axis in 0..3 {
+            let period = self.image.period[axis];
+            let (lo, hi) = if period > 0.0 {
+                (0.0, period)
             } else {
-                let (lo, hi) = self
-                    .reference
-                    .iter()
-                    .fold((f64::MAX, f64::MIN), |(lo, hi), x| {
-                        (lo.min(x[axis]), hi.max(x[axis]))
-                    });
-                (hi - lo).max(0.0)
+                let along = self.reference.iter().map(|x| x[axis]);
+                along.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)))
             };
+            let extent = (hi - lo).max(0.0);
             let cells = (extent / self.reach).floor();
             let cells = if cells.is_finite() { cells as usize } else { 1 };
             let cells = cells.clamp(1, MAX_CELLS_PER_AXIS);
-            if self.period[axis] > 0.0 && cells < 3 {
-                1
-            } else {
-                cells
-            }
-        })
+            grid.counts[axis] = if period > 0.0 && cells < 3 { 1 } else { cells };
+            grid.origin[axis] = lo;
+            grid.side[axis] = (extent / grid.counts[axis] as f64).max(f64::MIN_POSITIVE);
+        }
+        grid
     }
 
     /// Cell index along `axis` of coordinate `x`.
-    fn cell_index(&self, axis: usize, x: f64, origin: f64, side: f64, count: usize) -> usize {
-        let c = if self.period[axis] > 0.0 {
-            let wrapped = x - self.period[axis] * (x * self.inverse[axis]).floor();
-            (wrapped / side).floor()
+    fn cell_index(&self, grid: &Grid, axis: usize, x: f64) -> usize {
+        let (period, inverse) = (self.image.period[axis], self.image.inverse[axis]);
+        let c = if period > 0.0 {
+            let wrapped = x - period * (x * inverse).floor();
+            (wrapped / grid.side[axis]).floor()
         } else {
-            ((x - origin) / side).floor()
+            ((x - grid.origin[axis]) / grid.side[axis]).floor()
         };
-        (c.max(0.0) as usize).min(count - 1)
+        (c.max(0.0) as usize).min(grid.counts[axis] - 1)
     }
 
     /// Counting sort of the points into cells (`cell_start`, `cell_points`).
-    fn bin(&mut self, counts: [usize; 3]) {
-        let n = self.reference.len();
-        let origin: [f64; 3] = std::array::from_fn(|axis| {
-            if self.period[axis] > 0.0 {
-                0.0
-            } else {
-                self.reference
-                    .iter()
-                    .fold(f64::MAX, |lo, x| lo.min(x[axis]))
-            }
-        });
-        let side: [f64; 3] = std::array::from_fn(|axis| {
-            let extent = if self.period[axis] > 0.0 {
-                self.period[axis]
-            } else {
-                let hi = self
-                    .reference
-                    .iter()
-                    .fold(f64::MIN, |hi, x| hi.max(x[axis]));
-                hi - origin[axis]
-            };
-            (extent / counts[axis] as f64).max(f64::MIN_POSITIVE)
-        });
+    fn bin(&mut self, grid: &Grid) {
+        let (n, counts) = (self.reference.len(), grid.counts);
         let total = counts.iter().product::<usize>();
         self.cell_start.clear();
         self.cell_start.resize(total + 1, 0);
         for k in 0..n {
             let x = self.reference[k];
-            let c: [usize; 3] =
-                std::array::from_fn(|a| self.cell_index(a, x[a], origin[a], side[a], counts[a]));
+            let c: [usize; 3] = std::array::from_fn(|a| self.cell_index(grid, a, x[a]));
             let cell = (c[0] * counts[1] + c[1]) * counts[2] + c[2];
             self.cell_of[k] = cell as u32;
             self.cell_start[cell + 1] += 1;
@@ -215,7 +183,7 @@ impl PairSearch {
     /// a periodic axis has ≥ 3 cells), keeping partners `b > a`: each pair once.
     fn scan_cells(&mut self, counts: [usize; 3], reach2: f64) {
         let n = self.reference.len();
-        let periodic: [bool; 3] = std::array::from_fn(|a| self.period[a] > 0.0);
+        let periodic: [bool; 3] = std::array::from_fn(|a| self.image.period[a] > 0.0);
         let neighbour = |c: usize, offset: isize, axis: usize| -> Option<usize> {
             let m = counts[axis] as isize;
             let x = c as isize + offset;

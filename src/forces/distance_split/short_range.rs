@@ -1,9 +1,10 @@
-//! The short-range part by molecule ([`ShortRange`]): its molecule list ([`super::search`]), the
-//! pairs inside molecules, the chunks it evaluates (in parallel for large systems, summed
-//! in chunk order), the gradient cache the remainder reads, and the list's state for
-//! checkpoints. Which loop runs: the SIMD blocks of [`lanes`] or the row loop of
-//! [`kernels`] for energies and gradients over whole molecules, else the pair loop of
-//! [`pairs`].
+//! The short-range part by molecule ([`ShortRange`]): its molecule list ([`super::search`]),
+//! the pairs inside molecules, the fixed chunks it evaluates (a number that depends only on
+//! the atom count; in parallel for large systems, each into its own buffer, summed in chunk
+//! order: the same bits at any thread count), the gradient cache the remainder reads, and
+//! the list's state for checkpoints. Nothing is allocated once the list has its size. Which
+//! loop runs: the SIMD blocks of [`lanes`] or the row loop of [`kernels`] for energies and
+//! gradients over whole molecules, else the pair loop of [`pairs`].
 
 use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard};
@@ -27,6 +28,9 @@ struct Whole<'a> {
     clusters: &'a [Cluster<f64>],
     scratch: &'a mut kernels::Scratch,
 }
+
+/// One chunk's index, gradient buffer and scratch.
+type Chunk<'a> = ((usize, &'a mut Vec<f64>), &'a mut kernels::Scratch);
 
 /// What one evaluation computes.
 #[derive(Clone, Copy)]
@@ -203,16 +207,12 @@ impl ShortRange {
         Ok(pairs)
     }
 
-    /// The position of search point `k`, molecule `k`'s reference atom.
-    #[inline(always)]
-    fn point(&self, q: &[f64], k: usize) -> [f64; 3] {
-        let i = self.molecules.reference[k] as usize;
-        [q[3 * i], q[3 * i + 1], q[3 * i + 2]]
-    }
-
-    /// Rebuild the molecule pair list if a reference atom has moved half the skin.
+    /// Rebuild the molecule pair list if a reference atom (search point) has moved half the
+    /// skin.
     fn refresh(&self, workspace: &mut Workspace, q: &[f64]) {
-        self.refresh_at(workspace, |k| self.point(q, k));
+        let reference = &self.molecules.reference;
+        let point = |k: usize| std::array::from_fn(|c| q[3 * reference[k] as usize + c]);
+        self.refresh_at(workspace, point);
     }
 
     /// [`ShortRange::refresh`] with search point `k` at `point(k)`.
@@ -268,7 +268,7 @@ impl ShortRange {
         let pairs: &[[u32; 2]] = &search.pairs;
         let packed = whole.then_some(&packed[..]);
         let chunks = self.chunks;
-        let work = |((c, buffer), scratch): ((usize, &mut Vec<f64>), &mut kernels::Scratch)| {
+        let work = |((c, buffer), scratch): Chunk| {
             let part = &pairs[c * pairs.len() / chunks..(c + 1) * pairs.len() / chunks];
             if !matches!(mode, Mode::Energy) {
                 buffer.fill(0.0);
@@ -288,14 +288,7 @@ impl ShortRange {
                 .zip(energies.par_iter_mut())
                 .for_each(|(chunk, energy)| *energy = work(chunk));
         } else {
-            for (chunk, energy) in buffers
-                .iter_mut()
-                .enumerate()
-                .zip(scratch.iter_mut())
-                .zip(energies.iter_mut())
-            {
-                *energy = work(chunk);
-            }
+            energies[0] = work(((0, &mut buffers[0]), &mut scratch[0]));
         }
         // Pairs inside molecules after the chunks, into the first buffer (same order always).
         energies[0] += self.evaluate(
@@ -344,7 +337,7 @@ impl ShortRange {
     }
 
     /// The pairs `part` of the list, switched `by` molecule or atom pair; `whole`: whole
-    /// molecules (packed) and the chunk's scratch for the fast molecule loop. Each loop is
+    /// molecules (packed) and the chunk's scratch for the fast molecule loops. Each loop is
     /// compiled for the widest instruction set there is, on its own (the same operations in
     /// the same order, so the same bits; `round` becomes inline).
     fn evaluate(
@@ -356,27 +349,29 @@ impl ShortRange {
         whole: Option<Whole>,
         buffer: &mut [f64],
     ) -> f64 {
-        match (mode, by, whole) {
-            (Mode::HessianVector(v), _, _) => {
+        let gradient = matches!(mode, Mode::Gradient);
+        match (mode, whole) {
+            (Mode::HessianVector(v), _) => {
                 self.run_loop(q, part, by, pairs::HessianVector { v }, buffer);
                 0.0
             }
-            (_, SwitchBy::Molecule, Some(whole)) => self.isa().run(
+            (_, Some(whole)) => self.isa().run(
                 #[inline(always)]
-                || self.whole_molecules(mode, part, whole, buffer),
+                || self.whole_molecules(gradient, part, whole, buffer),
             ),
-            (Mode::Energy, _, _) => {
-                let y = pairs::Energy::<false> { energy: 0.0 };
+            (_, None) if gradient => {
+                let y = pairs::Energy::<true> { energy: 0.0 };
                 self.run_loop(q, part, by, y, buffer).energy
             }
-            (Mode::Gradient, _, _) => {
-                let y = pairs::Energy::<true> { energy: 0.0 };
+            (_, None) => {
+                let y = pairs::Energy::<false> { energy: 0.0 };
                 self.run_loop(q, part, by, y, buffer).energy
             }
         }
     }
 
-    /// [`ShortRange::loop_pairs`] compiled for the instruction set; returns what it yielded.
+    /// The pair loop of [`pairs`] over `part`, a list of molecule pairs or of atom pairs,
+    /// compiled for the instruction set; returns what it yielded.
     fn run_loop<Y: pairs::Yield>(
         &self,
         q: &[f64],
@@ -388,41 +383,24 @@ impl ShortRange {
         self.isa().run(
             #[inline(always)]
             || {
-                self.loop_pairs(q, part, by, &mut y, out);
+                match by {
+                    SwitchBy::Molecule => pairs::molecule_pairs(self, q, part, &mut y, out),
+                    SwitchBy::AtomPair => pairs::atom_pairs(self, q, part, &mut y, out),
+                }
                 y
             },
         )
     }
 
-    /// The pair loop of [`pairs`] over `part`, a list of molecule pairs or of atom pairs.
-    #[inline(always)]
-    fn loop_pairs<Y: pairs::Yield>(
-        &self,
-        q: &[f64],
-        part: &[[u32; 2]],
-        by: SwitchBy,
-        y: &mut Y,
-        out: &mut [f64],
-    ) {
-        match by {
-            SwitchBy::Molecule => pairs::molecule_pairs(self, q, part, y, out),
-            SwitchBy::AtomPair => pairs::atom_pairs(self, q, part, y, out),
-        }
-    }
-
     /// Energy or gradient over whole molecules: the SIMD blocks for one molecule kind, else
     /// the row loop.
     #[inline(always)]
-    fn whole_molecules(&self, mode: Mode, part: &[[u32; 2]], w: Whole, buffer: &mut [f64]) -> f64 {
-        let isa = self.isa();
-        let gradient = matches!(mode, Mode::Gradient);
+    fn whole_molecules(&self, gradient: bool, part: &[[u32; 2]], w: Whole, out: &mut [f64]) -> f64 {
         let Some(lanes) = &self.lanes else {
             return match gradient {
-                true => {
-                    kernels::whole_molecule_rows::<true>(self, w.packed, part, w.scratch, buffer)
-                }
+                true => kernels::whole_molecule_rows::<true>(self, w.packed, part, w.scratch, out),
                 false => {
-                    kernels::whole_molecule_rows::<false>(self, w.packed, part, w.scratch, buffer)
+                    kernels::whole_molecule_rows::<false>(self, w.packed, part, w.scratch, out)
                 }
             };
         };
@@ -436,8 +414,8 @@ impl ShortRange {
             pairs: part,
         };
         match gradient {
-            true => lanes::evaluate::<true>(isa, &block, w.scratch, buffer),
-            false => lanes::evaluate::<false>(isa, &block, w.scratch, buffer),
+            true => lanes::evaluate::<true>(self.isa(), &block, w.scratch, out),
+            false => lanes::evaluate::<false>(self.isa(), &block, w.scratch, out),
         }
     }
 
@@ -484,17 +462,10 @@ impl ShortRange {
     pub(super) fn energy_parts(&self, q: &[f64]) -> (f64, f64) {
         let mut workspace = self.lock();
         self.refresh(&mut workspace, q);
-        let (mut listed, mut inside) = (pairs::Parts::default(), pairs::Parts::default());
-        let pairs = &workspace.search.pairs;
-        self.loop_pairs(q, pairs, SwitchBy::Molecule, &mut listed, &mut []);
-        self.loop_pairs(
-            q,
-            &self.intramolecular,
-            SwitchBy::AtomPair,
-            &mut inside,
-            &mut [],
-        );
-        let ([lj, coulomb], [lj_inside, coulomb_inside]) = (listed.parts, inside.parts);
+        let parts =
+            |list: &[[u32; 2]], by| self.run_loop(q, list, by, pairs::Parts::default(), &mut []);
+        let [lj, coulomb] = parts(&workspace.search.pairs, SwitchBy::Molecule).parts;
+        let [lj_inside, coulomb_inside] = parts(&self.intramolecular, SwitchBy::AtomPair).parts;
         (lj + lj_inside, coulomb + coulomb_inside)
     }
 
@@ -515,11 +486,6 @@ impl ShortRange {
                 .map(|&[a, b]| vec![a as usize, b as usize]),
         );
         couplings
-    }
-
-    /// How many times the molecule pair list has been built.
-    pub fn list_builds(&self) -> u64 {
-        self.lock().search.builds()
     }
 
     /// Atom pairs of the list (molecule pairs counted by their atom pairs).
