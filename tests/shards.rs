@@ -121,23 +121,24 @@ fn scan_shards_merge_into_the_single_run() {
     same_files(&single, &merged, &["scan.csv", "scan.png", "scan.svg"]);
 }
 
+/// `longstep` with the words of `line`, then `--out out` and `--shard k/n` when given.
+fn run_shard(line: &str, out: &str, shard: Option<&str>) {
+    let mut args = words(line);
+    args.extend(["--out", out]);
+    if let Some(s) = shard {
+        args.extend(["--shard", s]);
+    }
+    run(&args);
+}
+
 #[test]
 fn stiffness_scan_shards_merge_into_the_single_run_table() {
     let dir = scratch_dir("stiffness-shards");
     let out = |name: &str| dir.join(name).display().to_string();
     let scan = |file: &str, shard: Option<&str>| {
-        let mut args = words(
-            "scan stiffness systems/two-spring.toml --method impulse --param omega1 \
-             --range 0:32 --n 6 --h 0.5 --t-end 4 --quiet",
-        )
-        .into_iter()
-        .map(String::from)
-        .collect::<Vec<_>>();
-        args.extend(["--out".into(), out(file)]);
-        if let Some(s) = shard {
-            args.extend(["--shard".into(), s.into()]);
-        }
-        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let line = "scan stiffness systems/two-spring.toml --method impulse --param omega1 \
+                    --range 0:32 --n 6 --h 0.5 --t-end 4 --quiet";
+        run_shard(line, &out(file), shard);
     };
     scan("single.csv", None);
     scan("a.csv", Some("1/2"));
@@ -159,18 +160,9 @@ fn stability_map_shards_merge_into_the_single_run_map() {
     let dir = scratch_dir("map-shards");
     let out = |name: &str| dir.join(name).display().to_string();
     let map = |file: &str, shard: Option<&str>| {
-        let mut args: Vec<String> = words(
-            "stability-map --method impulse --h 0.5 --gamma1 0:2*pi --gamma2 0:2*pi --n 25 \
-             --quiet",
-        )
-        .into_iter()
-        .map(String::from)
-        .collect::<Vec<_>>();
-        args.extend(["--out".into(), out(file)]);
-        if let Some(s) = shard {
-            args.extend(["--shard".into(), s.into()]);
-        }
-        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let line = "stability-map --method impulse --h 0.5 --gamma1 0:2*pi --gamma2 0:2*pi \
+                    --n 25 --quiet";
+        run_shard(line, &out(file), shard);
     };
     map("single.csv", None);
     for k in 1..=4 {
