@@ -34,6 +34,10 @@ ROOT = os.path.abspath(os.path.join(HERE, ".."))
 BIN = os.path.join(ROOT, "target", "release", "longstep")
 KIT = os.path.abspath(os.path.join(ROOT, "..", "shared", "anchors", "md"))
 
+# XYZ files are read as the peers' kit reads them (scripts/peers/mdsys.py): (elements, n × 3).
+sys.path.insert(0, os.path.join(HERE, "peers"))
+from mdsys import read_xyz  # noqa: E402
+
 KCAL = 4.184  # kJ per kcal
 A2NM = 0.1
 GROUPS = ["bonds", "angles", "torsions", "lennard_jones", "coulomb"]
@@ -50,18 +54,6 @@ SCENES = [
     "systems/water-box/reaction-field.toml",
     "systems/polymer-melt/scene.toml",
 ]
-
-
-def read_xyz(path):
-    with open(path) as f:
-        lines = f.read().splitlines()
-    n = int(lines[0].split()[0])
-    elements, x = [], np.zeros((n, 3))
-    for i in range(n):
-        parts = lines[2 + i].split()
-        elements.append(parts[0])
-        x[i] = [float(v) for v in parts[1:4]]
-    return elements, x
 
 
 def write_xyz(path, elements, x, comment):

@@ -159,6 +159,21 @@ class Projector:
 CONVERSION = 4.184e-4
 
 
+def records(integrator, context, args, keep_at_skip):
+    """Steps `integrator` `args.every` steps at a time to `args.t_end` and yields (time in fs,
+    potential, kinetic) after each batch that ends past `args.skip` (or at it, when
+    `keep_at_skip`)."""
+    steps = round(args.t_end * 1000.0 / args.h)
+    skip = round(args.skip * 1000.0 / args.h)
+    for step in range(0, steps, args.every):
+        integrator.step(args.every)
+        end = step + args.every
+        if end < skip or (end == skip and not keep_at_skip):
+            continue
+        pe, ke = energies(context)
+        yield end * args.h, pe, ke
+
+
 def langevin(args):
     system, inpcrd = build(args.hmr)
     dt = args.h * unit.femtoseconds
@@ -167,15 +182,9 @@ def langevin(args):
     integrator.setRandomNumberSeed(args.seed)
     context = start(system, inpcrd, integrator, args)
     projector = Projector(system)
-    steps = round(args.t_end * 1000.0 / args.h)
-    skip = round(args.skip * 1000.0 / args.h)
     potential, kinetic, norms = [], [], []
     clock = time.time()
-    for step in range(0, steps, args.every):
-        integrator.step(args.every)
-        if step + args.every <= skip:
-            continue
-        pe, ke = energies(context)
+    for _, pe, ke in records(integrator, context, args, keep_at_skip=False):
         potential.append(pe)
         kinetic.append(ke)
         if len(potential) % args.bias_every == 0:
@@ -221,16 +230,10 @@ def nve(args):
     system, inpcrd = build(args.hmr)
     integrator = openmm.VerletIntegrator(args.h * unit.femtoseconds)
     context = start(system, inpcrd, integrator, args)
-    steps = round(args.t_end * 1000.0 / args.h)
-    skip = round(args.skip * 1000.0 / args.h)
     times, total, kinetic = [], [], []
     clock = time.time()
-    for step in range(0, steps, args.every):
-        integrator.step(args.every)
-        if step + args.every < skip:
-            continue
-        pe, ke = energies(context)
-        times.append((step + args.every) * args.h)
+    for t, pe, ke in records(integrator, context, args, keep_at_skip=True):
+        times.append(t)
         total.append(pe + ke)
         kinetic.append(ke)
     wall = time.time() - clock

@@ -4,8 +4,8 @@
 
 mod common;
 use common::run_cli as run;
+use common::{TestRng, argv, scratch_dir};
 
-use common::{TestRng, scratch_dir};
 use longstep::analysis::block_average::{
     Estimate, blocks_long_enough, flyvbjerg_petersen, from_block_means, ratio_of_means,
 };
@@ -326,16 +326,10 @@ fn water_run(name: &str) -> std::path::PathBuf {
 #[test]
 fn analyze_reports_the_energy_table_means_and_writes_its_tables() {
     let dir = water_run("analyze-water");
-    let (code, stdout, stderr) = run(&[
-        "analyze",
-        "systems/water-box/scene.toml",
-        dir.to_str().unwrap(),
-        "--pairs",
-        "O-O,O-H",
-        "--blocks",
-        "2",
-        "--json",
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "analyze systems/water-box/scene.toml {} --pairs O-O,O-H --blocks 2 --json",
+        &[dir.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let run = &summary[0];
@@ -421,32 +415,16 @@ fn analyze_rejects_missing_elements_files_and_mismatched_scenes() {
 fn analyze_in_vacuum_skips_the_default_pair_distribution() {
     let out = scratch_dir("analyze-vacuum");
     let out_arg = out.to_str().unwrap();
-    let (code, _, stderr) = run(&[
-        "run",
-        "systems/molecules/butane.toml",
-        "--method",
-        "verlet",
-        "--h",
-        "0.5fs",
-        "--t-end",
-        "50fs",
-        "--energy-every",
-        "1",
-        "--trajectory-every",
-        "1",
-        "--quiet",
-        "--out",
-        out_arg,
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run systems/molecules/butane.toml --method verlet --h 0.5fs --t-end 50fs \
+         --energy-every 1 --trajectory-every 1 --quiet --out {}",
+        &[out_arg],
+    ));
     assert_eq!(code, 0, "{stderr}");
-    let (code, stdout, stderr) = run(&[
-        "analyze",
-        "systems/molecules/butane.toml",
-        out_arg,
-        "--blocks",
-        "4",
-        "--json",
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "analyze systems/molecules/butane.toml {} --blocks 4 --json",
+        &[out_arg],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
     let runs = json.as_array().map_or(&json, |a| &a[0]);
@@ -456,13 +434,10 @@ fn analyze_in_vacuum_skips_the_default_pair_distribution() {
         "no g(r) without a box: {rdf}"
     );
     // Asked for explicitly, it is an error naming the missing box.
-    let (code, _, stderr) = run(&[
-        "analyze",
-        "systems/molecules/butane.toml",
-        out_arg,
-        "--pairs",
-        "C-C",
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "analyze systems/molecules/butane.toml {} --pairs C-C",
+        &[out_arg],
+    ));
     assert_ne!(code, 0, "g(r) without a box must be refused");
     assert!(stderr.contains("box"), "{stderr}");
 }

@@ -3,10 +3,9 @@
 
 mod common;
 use common::run_cli as run;
+use common::{argv, scratch_dir, words};
 
 use std::path::Path;
-
-use common::scratch_dir;
 
 #[test]
 fn every_bad_scene_fails_with_its_message() {
@@ -32,16 +31,10 @@ fn every_bad_scene_fails_with_its_message() {
             "bad-{}",
             path.file_stem().unwrap().to_string_lossy()
         ));
-        let (code, _, stderr) = run(&[
-            "run",
-            path.to_str().unwrap(),
-            "--h",
-            "0.01",
-            "--t-end",
-            "0.1",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let (code, _, stderr) = run(&argv(
+            "run {} --h 0.01 --t-end 0.1 --out {}",
+            &[path.to_str().unwrap(), out.to_str().unwrap()],
+        ));
         assert_eq!(
             code,
             1,
@@ -161,17 +154,10 @@ fn bad_command_line_values_are_refused() {
 fn a_blow_up_says_when_and_which_method_and_keeps_the_output() {
     // hΩ2 = 7 is far beyond Verlet's stability limit hω < 2.
     let out = scratch_dir("blow-up");
-    let (code, stdout, stderr) = run(&[
-        "run",
-        "systems/three-spring.toml",
-        "--h",
-        "0.5",
-        "--t-end",
-        "1000",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "run systems/three-spring.toml --h 0.5 --t-end 1000 --json --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 3, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(summary["status"], "unstable");
@@ -279,14 +265,10 @@ fn check_validates_the_run_table_with_file_and_line() {
     let dir = scratch_dir("run-table-cli");
     let path = dir.join("scene.toml");
     std::fs::write(&path, format!("{base}t_end = 1\n")).unwrap();
-    let (code, _, stderr) = run(&[
-        "run",
-        path.to_str().unwrap(),
-        "--h",
-        "0",
-        "--out",
-        dir.join("out").to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run {} --h 0 --out {}",
+        &[path.to_str().unwrap(), dir.join("out").to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         !stderr.contains("[run]") && stderr.contains("outer step h must be positive"),
@@ -294,14 +276,10 @@ fn check_validates_the_run_table_with_file_and_line() {
     );
     // The table's bad value with the command line silent is blamed on the table.
     std::fs::write(&path, format!("{base}t_end = -1\n")).unwrap();
-    let (code, _, stderr) = run(&[
-        "run",
-        path.to_str().unwrap(),
-        "--h",
-        "0.1",
-        "--out",
-        dir.join("out").to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run {} --h 0.1 --out {}",
+        &[path.to_str().unwrap(), dir.join("out").to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         stderr.contains("scene.toml:14: in [run]: end time t_end"),
@@ -314,29 +292,9 @@ fn check_validates_the_run_table_with_file_and_line() {
 #[test]
 fn negative_values_are_refused_by_their_flag() {
     let cases: [&[&str]; 3] = [
-        &[
-            "run",
-            "systems/three-spring.toml",
-            "--h",
-            "0.1",
-            "--inner",
-            "-3",
-        ],
-        &[
-            "run",
-            "systems/three-spring.toml",
-            "--h",
-            "0.1",
-            "--energy-every",
-            "-1",
-        ],
-        &[
-            "analyze",
-            "systems/water-box/scene.toml",
-            "out/none",
-            "--skip",
-            "-1ps",
-        ],
+        &words("run systems/three-spring.toml --h 0.1 --inner -3"),
+        &words("run systems/three-spring.toml --h 0.1 --energy-every -1"),
+        &words("analyze systems/water-box/scene.toml out/none --skip -1ps"),
     ];
     for args in cases {
         let (code, _, stderr) = common::run_cli(args);
@@ -399,44 +357,27 @@ fn charges_with_coulomb_none_get_a_notice() {
 
 #[test]
 fn forces_at_another_molecules_positions_are_refused() {
-    let (code, _, stderr) = run(&[
-        "forces",
-        "systems/alanine-dipeptide-amber/ala2.prmtop",
-        "--positions",
-        "systems/molecules/butane.xyz",
-    ]);
+    let (code, _, stderr) = run(&words(
+        "forces systems/alanine-dipeptide-amber/ala2.prmtop \
+         --positions systems/molecules/butane.xyz",
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--positions: has 14 atoms"), "{stderr}");
 }
 
 #[test]
 fn zero_weights_and_empty_labels_are_refused() {
-    let (code, _, stderr) = run(&[
-        "chart",
-        "work-precision",
-        "systems/three-spring.toml",
-        "--methods",
-        "impulse",
-        "--h-list",
-        "0.1",
-        "--t-end",
-        "1",
-        "--inner",
-        "4",
-        "--weights",
-        "0,0,0",
-        "--out",
-        &scratch_dir("bad-input-weights").display().to_string(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "chart work-precision systems/three-spring.toml --methods impulse --h-list 0.1 \
+         --t-end 1 --inner 4 --weights 0,0,0 --out {}",
+        &[&scratch_dir("bad-input-weights").display().to_string()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--weights 0,0,0"), "{stderr}");
-    let (code, _, stderr) = run(&[
-        "analyze",
-        "systems/water-box/scene.toml",
-        "out/none",
-        "--labels",
-        "",
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "analyze systems/water-box/scene.toml out/none --labels {}",
+        &[""],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--labels"), "{stderr}");
 }
@@ -446,21 +387,11 @@ fn zero_weights_and_empty_labels_are_refused() {
 #[test]
 fn a_reversed_range_and_a_bad_trajectory_format_are_said_before_any_run() {
     let out = scratch_dir("bad-input-reversed");
-    let (code, _, stderr) = run(&[
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--methods",
-        "impulse",
-        "--h",
-        "0.7:0.1:0.01",
-        "--inner",
-        "4",
-        "--t-end",
-        "1",
-        "--out",
-        &out.display().to_string(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "scan steps systems/three-spring.toml --methods impulse --h 0.7:0.1:0.01 \
+         --inner 4 --t-end 1 --out {}",
+        &[&out.display().to_string()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         stderr.contains("reversed") && stderr.contains("0.1:0.7:0.01"),
@@ -472,20 +403,13 @@ fn a_reversed_range_and_a_bad_trajectory_format_are_said_before_any_run() {
         + "\n[output]\ntrajectory = \"t.abc\"\n";
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
     let out = dir.join("out");
-    let (code, _, stderr) = run(&[
-        "run",
-        &dir.join("scene.toml").display().to_string(),
-        "--method",
-        "verlet",
-        "--h",
-        "0.1",
-        "--t-end",
-        "1",
-        "--trajectory-every",
-        "1",
-        "--out",
-        &out.display().to_string(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run {} --method verlet --h 0.1 --t-end 1 --trajectory-every 1 --out {}",
+        &[
+            &dir.join("scene.toml").display().to_string(),
+            &out.display().to_string(),
+        ],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("t.abc"), "{stderr}");
     assert!(
@@ -498,15 +422,9 @@ fn a_reversed_range_and_a_bad_trajectory_format_are_said_before_any_run() {
 /// value now that option values may start with `-`.
 #[test]
 fn a_flag_with_an_optional_value_leaves_the_next_flag_alone() {
-    let (code, stdout, stderr) = run(&[
-        "check",
-        "systems/water-box/scene.toml",
-        "--rigid-water",
-        "--method",
-        "verlet",
-        "--h",
-        "2fs",
-    ]);
+    let (code, stdout, stderr) = run(&words(
+        "check systems/water-box/scene.toml --rigid-water --method verlet --h 2fs",
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!((stdout + &stderr).contains("SETTLE"), "{stderr}");
 }
@@ -515,18 +433,10 @@ fn a_flag_with_an_optional_value_leaves_the_next_flag_alone() {
 /// silently).
 #[test]
 fn the_size_guard_counts_innermost_steps() {
-    let (code, _, stderr) = run(&[
-        "run",
-        "systems/three-spring.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--inner",
-        "1000000000",
-        "--t-end",
-        "100",
-    ]);
+    let (code, _, stderr) = run(&words(
+        "run systems/three-spring.toml --method impulse --h 0.5 --inner 1000000000 \
+         --t-end 100",
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("innermost steps"), "{stderr}");
 }

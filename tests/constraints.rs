@@ -6,8 +6,9 @@
 //! step, the constrained degrees of freedom and start, and HMR's mass bookkeeping.
 
 mod common;
+use common::run_cli_threads as longstep_run;
+use common::{TestRng, argv, scene_file, words};
 
-use common::{TestRng, scene_file};
 use longstep::io::scene::Scene;
 use longstep::system::constraints::{ConstraintSet, Constraints, DistanceConstraint, RigidWater};
 use longstep::system::velocities::{DegreesOfFreedom, maxwell_boltzmann_constrained};
@@ -136,37 +137,58 @@ fn rms_velocity(p: &[f64], inverse_mass: &[f64]) -> f64 {
     (sum / p.len() as f64).sqrt()
 }
 
-/// One velocity-Verlet step with constraints (RATTLE, And83): half kick and velocity
-/// projection, drift and position constraint, new force, half kick and projection.
-fn constrained_verlet_step(
-    q: &mut [f64],
-    p: &mut [f64],
-    inverse_mass: &[f64],
-    constraints: &mut Constraints,
-    gradient: &mut [f64],
-    force: &mut dyn FnMut(&[f64], &mut [f64]),
+/// Velocity-Verlet steps with constraints (RATTLE, And83) of step `h`: the inverse masses,
+/// the constraints, the force (writes the gradient at `q`) and the gradient at the current
+/// positions.
+struct Rattle<'a, F: FnMut(&[f64], &mut [f64])> {
+    inverse_mass: &'a [f64],
+    constraints: &'a mut Constraints,
+    force: F,
+    gradient: Vec<f64>,
     h: f64,
-) {
-    for (pk, g) in p.iter_mut().zip(gradient.iter()) {
-        *pk -= 0.5 * h * g;
+}
+
+impl<'a, F: FnMut(&[f64], &mut [f64])> Rattle<'a, F> {
+    /// Starts at `q` (its gradient evaluated once).
+    fn new(
+        q: &[f64],
+        inverse_mass: &'a [f64],
+        constraints: &'a mut Constraints,
+        force: F,
+        h: f64,
+    ) -> Self {
+        let mut rattle = Rattle {
+            inverse_mass,
+            constraints,
+            force,
+            gradient: vec![0.0; q.len()],
+            h,
+        };
+        (rattle.force)(q, &mut rattle.gradient);
+        rattle
     }
-    constraints
-        .constrain_velocities(q, p, inverse_mass)
-        .unwrap();
-    let q_old = q.to_vec();
-    for ((qk, pk), w) in q.iter_mut().zip(p.iter()).zip(inverse_mass) {
-        *qk += h * w * pk;
+
+    /// One step: half kick and velocity projection, drift and position constraint, new
+    /// force, half kick and projection.
+    fn step(&mut self, q: &mut [f64], p: &mut [f64]) {
+        let (h, w) = (self.h, self.inverse_mass);
+        for (pk, g) in p.iter_mut().zip(self.gradient.iter()) {
+            *pk -= 0.5 * h * g;
+        }
+        self.constraints.constrain_velocities(q, p, w).unwrap();
+        let q_old = q.to_vec();
+        for ((qk, pk), w) in q.iter_mut().zip(p.iter()).zip(w) {
+            *qk += h * w * pk;
+        }
+        self.constraints
+            .constrain_positions(&q_old, q, p, w, h)
+            .unwrap();
+        (self.force)(q, &mut self.gradient);
+        for (pk, g) in p.iter_mut().zip(self.gradient.iter()) {
+            *pk -= 0.5 * h * g;
+        }
+        self.constraints.constrain_velocities(q, p, w).unwrap();
     }
-    constraints
-        .constrain_positions(&q_old, q, p, inverse_mass, h)
-        .unwrap();
-    force(q, gradient);
-    for (pk, g) in p.iter_mut().zip(gradient.iter()) {
-        *pk -= 0.5 * h * g;
-    }
-    constraints
-        .constrain_velocities(q, p, inverse_mass)
-        .unwrap();
 }
 
 #[test]
@@ -182,22 +204,14 @@ fn rattle_keeps_every_bond_within_tolerance_and_velocities_tangent() {
     let system = &mut scene.system;
     let w = system.inverse_mass.clone();
     let (mut q, mut p) = (system.state.q.clone(), system.state.p.clone());
-    let mut gradient = vec![0.0; q.len()];
-    system.forces.total_gradient(&q, &mut gradient);
     let forces = &mut system.forces;
-    let mut force = |q: &[f64], g: &mut [f64]| forces.total_gradient(q, g);
+    let force = |q: &[f64], g: &mut [f64]| forces.total_gradient(q, g);
+    let mut rattle = Rattle::new(&q, &w, &mut constraints, force, 2.0);
     let (mut worst, mut worst_velocity): (f64, f64) = (0.0, 0.0);
     // 200 steps of 2 fs: 0.4 ps, many periods of the heavy-atom bends.
     for _ in 0..200 {
-        constrained_verlet_step(
-            &mut q,
-            &mut p,
-            &w,
-            &mut constraints,
-            &mut gradient,
-            &mut force,
-            2.0,
-        );
+        rattle.step(&mut q, &mut p);
+        let constraints = &rattle.constraints;
         worst = worst.max(constraints.max_violation(&q));
         let v_rms = rms_velocity(&p, &w);
         worst_velocity = worst_velocity.max(constraints.max_velocity_violation(&q, &p, &w) / v_rms);
@@ -270,24 +284,15 @@ fn a_constrained_chain_oscillates_at_its_analytic_frequency() {
             }
         }
         let mut p = vec![0.0; q.len()];
-        let mut gradient = vec![0.0; q.len()];
-        let mut force = |q: &[f64], g: &mut [f64]| spring_gradient(&springs, k, q, g);
-        force(&q, &mut gradient);
+        let force = |q: &[f64], g: &mut [f64]| spring_gradient(&springs, k, q, g);
+        let mut rattle = Rattle::new(&q, &w, &mut constraints, force, h);
         // Count upward zero crossings of the first body's displacement over many periods.
         let displacement = |q: &[f64]| q[0] - q0[0];
         let steps = 200_000;
         let (mut crossings, mut first, mut last) = (0, 0.0, 0.0);
         let mut previous = displacement(&q);
         for n in 1..=steps {
-            constrained_verlet_step(
-                &mut q,
-                &mut p,
-                &w,
-                &mut constraints,
-                &mut gradient,
-                &mut force,
-                h,
-            );
+            rattle.step(&mut q, &mut p);
             let now = displacement(&q);
             if previous < 0.0 && now >= 0.0 {
                 // Linear interpolation of the crossing time.
@@ -327,34 +332,17 @@ fn the_constrained_verlet_step_is_time_reversible() {
     let w = system.inverse_mass.clone();
     let (q0, p0) = (system.state.q.clone(), system.state.p.clone());
     let (mut q, mut p) = (q0.clone(), p0.clone());
-    let mut gradient = vec![0.0; q.len()];
     let forces = &mut system.forces;
-    let mut force = |q: &[f64], g: &mut [f64]| forces.total_gradient(q, g);
-    force(&q, &mut gradient);
+    let force = |q: &[f64], g: &mut [f64]| forces.total_gradient(q, g);
+    let mut rattle = Rattle::new(&q, &w, &mut constraints, force, 2.0);
     let steps = 20;
     for _ in 0..steps {
-        constrained_verlet_step(
-            &mut q,
-            &mut p,
-            &w,
-            &mut constraints,
-            &mut gradient,
-            &mut force,
-            2.0,
-        );
+        rattle.step(&mut q, &mut p);
     }
     let moved = common::max_abs_difference(&q, &q0);
     p.iter_mut().for_each(|x| *x = -*x);
     for _ in 0..steps {
-        constrained_verlet_step(
-            &mut q,
-            &mut p,
-            &w,
-            &mut constraints,
-            &mut gradient,
-            &mut force,
-            2.0,
-        );
+        rattle.step(&mut q, &mut p);
     }
     p.iter_mut().for_each(|x| *x = -*x);
     let q_error = common::max_abs_difference(&q, &q0);
@@ -505,21 +493,6 @@ fn bad_constraint_input_is_refused() {
     assert!(e.to_string().contains("molecular scene"), "{e}");
 }
 
-/// `longstep ARGS` with `threads` rayon threads: (exit code, stdout, stderr).
-fn longstep_run(args: &[&str], threads: Option<usize>) -> (i32, String, String) {
-    let mut command = common::longstep();
-    command.args(args);
-    if let Some(n) = threads {
-        command.env("RAYON_NUM_THREADS", n.to_string());
-    }
-    let output = command.output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
-
 #[test]
 fn a_constrained_verlet_run_keeps_every_water_rigid_at_every_step() {
     use longstep::run::prepare::{RunRequest, prepare};
@@ -562,20 +535,11 @@ fn a_rigid_water_box_at_two_femtoseconds_conserves_energy() {
     // kT/ns/dof over the same 4 ps, its energy fluctuating 4.6 kcal/mol rms against 0.11:
     // the O–H stretch, period ≈ 9 fs, is barely resolved).
     let out = common::scratch_dir("constraints-nve");
-    let args = [
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "verlet",
-        "--h",
-        "2fs",
-        "--rigid-water",
-        "--t-end",
-        "4ps",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let args = argv(
+        "run systems/water-box/scene.toml --method verlet --h 2fs --rigid-water \
+         --t-end 4ps --json --out {}",
+        &[out.to_str().unwrap()],
+    );
     let (code, stdout, stderr) = longstep_run(&args, None);
     assert_eq!(code, 0, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
@@ -590,23 +554,11 @@ fn a_rigid_water_box_at_two_femtoseconds_conserves_energy() {
 fn constrained_runs_are_the_same_bits_on_one_and_two_threads() {
     let energy = |threads: usize, method: &str| {
         let out = common::scratch_dir(&format!("constraints-threads-{method}-{threads}"));
-        let args = [
-            "run",
-            "systems/water-box/scene.toml",
-            "--method",
-            method,
-            "--h",
-            "4fs",
-            "--inner",
-            "2",
-            "--rigid-water",
-            "--temperature",
-            "300K",
-            "--t-end",
-            "0.2ps",
-            "--out",
-            out.to_str().unwrap(),
-        ];
+        let args = argv(
+            "run systems/water-box/scene.toml --method {} --h 4fs --inner 2 --rigid-water \
+             --temperature 300K --t-end 0.2ps --out {}",
+            &[method, out.to_str().unwrap()],
+        );
         let (code, _, stderr) = longstep_run(&args, Some(threads));
         assert_eq!(code, 0, "{stderr}");
         std::fs::read(out.join("energy.csv")).unwrap()
@@ -621,15 +573,10 @@ fn methods_and_scenes_that_cannot_take_constraints_refuse_them() {
     let water = "systems/water-box/scene.toml";
     let cases: [(&[&str], &str); 5] = [
         (
-            &[
-                "run",
-                water,
-                "--method",
-                "sinr",
-                "--rigid-water",
-                "--temperature",
-                "300K",
-            ],
+            &argv(
+                "run {} --method sinr --rigid-water --temperature 300K",
+                &[water],
+            ),
             "sinr does not run with constraints (rigid_water)",
         ),
         (
@@ -645,14 +592,7 @@ fn methods_and_scenes_that_cannot_take_constraints_refuse_them() {
             "constraints must be one of none, h-bonds, all-bonds",
         ),
         (
-            &[
-                "run",
-                "systems/two-masses.toml",
-                "--constraints",
-                "h-bonds",
-                "--t-end",
-                "1",
-            ],
+            &words("run systems/two-masses.toml --constraints h-bonds --t-end 1"),
             "need a molecular scene",
         ),
     ];
@@ -682,18 +622,11 @@ fn every_method_but_the_constrained_three_refuses_constraints_with_exit_1() {
             (&["--rigid-water"][..], "rigid_water"),
             (&["--constraints", "h-bonds"][..], "constraints = h-bonds"),
         ] {
-            let mut args = vec![
-                "run",
-                "systems/water-box/scene.toml",
-                "--method",
-                method,
-                "--temperature",
-                "300K",
-                "--t-end",
-                "4fs",
-                "--out",
-                out.to_str().unwrap(),
-            ];
+            let mut args = argv(
+                "run systems/water-box/scene.toml --method {} --temperature 300K --t-end 4fs \
+                 --out {}",
+                &[method, out.to_str().unwrap()],
+            );
             args.extend_from_slice(flags);
             let (code, _, stderr) = longstep_run(&args, None);
             assert_eq!(code, 1, "{args:?}: {stderr}");
@@ -759,14 +692,7 @@ fn constrained_verlet_agrees_with_openmm_on_the_rigid_water_box() {
     // same 50 steps with the constrained `verlet`.
     let text = std::fs::read_to_string("tests/data/openmm-constrained-water.json").unwrap();
     let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let flat = |key: &str| -> Vec<f64> {
-        reference[key]
-            .as_array()
-            .unwrap()
-            .iter()
-            .flat_map(|row| row.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
-            .collect()
-    };
+    let flat = |key: &str| common::flat(&reference[key]);
     let mut scene = scene_file("systems/water-box/scene.toml", &[]);
     let system = &mut scene.system;
     system.state.q = flat("positions_start");
@@ -874,23 +800,11 @@ fn hydrogen_mass_repartitioning_makes_four_femtoseconds_conserve_energy() {
     // a bound loose enough for both.
     let run = |hmr: bool| {
         let out = common::scratch_dir(&format!("constraints-hmr-{hmr}"));
-        let mut args = vec![
-            "run",
-            "systems/molecules/alanine-dipeptide.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "4fs",
-            "--constraints",
-            "h-bonds",
-            "--temperature",
-            "300K",
-            "--t-end",
-            "200ps",
-            "--json",
-            "--out",
-            out.to_str().unwrap(),
-        ];
+        let mut args = argv(
+            "run systems/molecules/alanine-dipeptide.toml --method verlet --h 4fs \
+             --constraints h-bonds --temperature 300K --t-end 200ps --json --out {}",
+            &[out.to_str().unwrap()],
+        );
         if hmr {
             args.extend(["--hydrogen-mass", "3amu"]);
         }

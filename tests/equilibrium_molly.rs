@@ -2,8 +2,8 @@
 //! fast bonds (and angles), its exact Jacobian, and the method built on them.
 
 mod common;
+use common::{TestRng, argv, integrate, longstep, scene, scene_file, scratch_dir};
 
-use common::{TestRng, integrate, longstep, scene, scene_file, scratch_dir};
 use longstep::integrators::equilibrium_molly::{ConstraintSet, EquilibriumMolly, MollyJacobian};
 use longstep::integrators::{self, Integrator};
 use longstep::io::scene::Scene;
@@ -400,34 +400,7 @@ fn a_step_is_time_reversible() {
 /// Two particles on springs to walls (fast, rest length 1, so each is held on a circle),
 /// with an optional slow spring between them (mts_exactness's three-spring system).
 fn three_spring(slow: bool) -> String {
-    let mut text = String::from(
-        r#"
-version = 1
-name = "three-spring"
-dim = 2
-[anchors]
-left = [0.0, 0.0]
-right = [3.0, 0.0]
-[[particles]]
-mass = 1.0
-position = [1.05, 0.08]
-momentum = [0.5, 0.1]
-[[particles]]
-mass = 1.0
-position = [1.97, -0.05]
-momentum = [-0.5, 0.2]
-[[terms]]
-type = "spring"
-pairs = [["left", 0], [1, "right"]]
-stiffness = 100.0
-rest_length = 1.0
-group = "fast"
-"#,
-    );
-    if slow {
-        text += "[[terms]]\ntype = \"spring\"\nbetween = [0, 1]\nstiffness = 0.5\nrest_length = 1.0\ngroup = \"slow\"\n";
-    }
-    text
+    common::three_spring(if slow { common::SLOW_MIDDLE } else { "" }, "fast")
 }
 
 #[test]
@@ -450,43 +423,7 @@ fn without_slow_forces_it_is_the_reduced_verlet_trajectory_bit_for_bit() {
 /// `max |Jᵀ Ω J − Ω|` of the one-step map, J by fourth-order central differences.
 fn symplecticity_defect(jacobian: &str) -> f64 {
     let text = three_spring(true);
-    let base = scene(&text);
-    let z0: Vec<f64> = base
-        .system
-        .state
-        .q
-        .iter()
-        .chain(&base.system.state.p)
-        .copied()
-        .collect();
-    let n = z0.len();
-    let step = |z: &[f64]| -> Vec<f64> {
-        let mut s = scene(&text);
-        s.system.state.q.copy_from_slice(&z[..n / 2]);
-        s.system.state.p.copy_from_slice(&z[n / 2..]);
-        let (q, p) = integrate(&mut s, molly_method(0.3, 12, jacobian).as_mut(), 1);
-        q.into_iter().chain(p).collect()
-    };
-    let epsilon = 1e-3;
-    let mut j = DMatrix::zeros(n, n);
-    for c in 0..n {
-        let shifted = |k: f64| {
-            let mut z = z0.clone();
-            z[c] += k * epsilon;
-            step(&z)
-        };
-        let (m2, m1, p1, p2) = (shifted(-2.0), shifted(-1.0), shifted(1.0), shifted(2.0));
-        for r in 0..n {
-            j[(r, c)] = (m2[r] - 8.0 * m1[r] + 8.0 * p1[r] - p2[r]) / (12.0 * epsilon);
-        }
-    }
-    let half = n / 2;
-    let mut omega = DMatrix::zeros(n, n);
-    for i in 0..half {
-        omega[(i, half + i)] = 1.0;
-        omega[(half + i, i)] = -1.0;
-    }
-    (j.transpose() * &omega * &j - &omega).amax()
+    common::symplecticity_defect(&text, &|| molly_method(0.3, 12, jacobian)).0
 }
 
 #[test]
@@ -517,42 +454,21 @@ fn bad_input_is_refused_clearly() {
     let out = scratch_dir("molly-bad");
     let out = out.to_str().unwrap();
     // No fast bonds: the LJ chain of three-body? A Kepler orbit has none.
-    let (code, stderr) = run_cli(&[
-        "run",
-        "systems/kepler.toml",
-        "--method",
-        "equilibrium-molly",
-        "--h",
-        "0.01",
-        "--inner",
-        "2",
-        "--t-end",
-        "0.1",
-        "--out",
-        out,
-    ]);
+    let (code, stderr) = run_cli(&argv(
+        "run systems/kepler.toml --method equilibrium-molly --h 0.01 --inner 2 --t-end 0.1 \
+         --out {}",
+        &[out],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("fast level has none"), "{stderr}");
     for (flag, value, known) in [
         ("--molly-constraints", "angles", "bonds or bonds-angles"),
         ("--molly-jacobian", "adjoint", "exact or projection"),
     ] {
-        let (code, stderr) = run_cli(&[
-            "run",
-            WATER,
-            "--method",
-            "equilibrium-molly",
-            "--h",
-            "2fs",
-            "--inner",
-            "4",
-            "--t-end",
-            "4fs",
-            flag,
-            value,
-            "--out",
-            out,
-        ]);
+        let (code, stderr) = run_cli(&argv(
+            "run {} --method equilibrium-molly --h 2fs --inner 4 --t-end 4fs {} {} --out {}",
+            &[WATER, flag, value, out],
+        ));
         assert_eq!(code, 1, "{stderr}");
         assert!(stderr.contains(value) && stderr.contains(known), "{stderr}");
     }
@@ -595,21 +511,11 @@ sigma = 0.5
     .unwrap();
     let out = dir.join("out");
     let output = longstep()
-        .args([
-            "run",
-            scene_path.to_str().unwrap(),
-            "--method",
-            "equilibrium-molly",
-            "--h",
-            "0.01",
-            "--inner",
-            "4",
-            "--t-end",
-            "0.1",
-            "--out",
-            out.to_str().unwrap(),
-            "--json",
-        ])
+        .args(argv(
+            "run {} --method equilibrium-molly --h 0.01 --inner 4 --t-end 0.1 --out {} \
+             --json",
+            &[scene_path.to_str().unwrap(), out.to_str().unwrap()],
+        ))
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);

@@ -15,10 +15,10 @@
 //!   numbers `scripts/openmm_pme_reference.py` wrote into `tests/data/openmm-pme-water.json`.
 
 mod common;
+use common::{TestRng, argv, max_abs, max_abs_difference, words};
 
 use std::path::Path;
 
-use common::{TestRng, max_abs, max_abs_difference};
 use longstep::forces::ForceTerm;
 use longstep::forces::ewald::direct::{DirectEwald, EwaldParts};
 use longstep::forces::ewald::{
@@ -509,14 +509,9 @@ fn the_water_box_matches_openmm_pme() {
     let output = common::longstep()
         .arg("forces")
         .arg(root.join("systems/water-box/scene.toml"))
-        .args([
-            "--coulomb",
-            "pme",
-            "--ewald-alpha",
-            "0.347",
-            "--pme-grid",
-            "16,16,16",
-        ])
+        .args(words(
+            "--coulomb pme --ewald-alpha 0.347 --pme-grid 16,16,16",
+        ))
         .args(["--pme-order", "5", "--json", "--quiet", "--out"])
         .arg(&csv)
         .output()
@@ -610,18 +605,11 @@ fn pme_gives_the_same_bits_on_one_two_and_three_threads() {
 /// The drift verdict of a 0.5 ps NVE run of the PME water box with `flags`.
 fn pme_water_drift(name: &str, flags: &[&str]) -> serde_json::Value {
     let out = common::scratch_dir(name);
-    let mut args = vec![
-        "run",
-        "systems/water-box/scene.toml",
-        "--coulomb",
-        "pme",
-        "--t-end",
-        "0.5ps",
-        "--json",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = argv(
+        "run systems/water-box/scene.toml --coulomb pme --t-end 0.5ps --json --quiet \
+         --out {}",
+        &[out.to_str().unwrap()],
+    );
     args.extend_from_slice(flags);
     let (code, stdout, stderr) = common::run_cli(&args);
     assert_eq!(code, 0, "{flags:?}: {stderr}");
@@ -638,18 +626,7 @@ fn pme_water_drift(name: &str, flags: &[&str]) -> serde_json::Value {
 fn reciprocal_sum_every_two_inner_steps_keeps_the_energy_as_verlet_does() {
     let mts = pme_water_drift(
         "pme-mts",
-        &[
-            "--nonbonded-level",
-            "0",
-            "--pme-level",
-            "1",
-            "--method",
-            "impulse",
-            "--h",
-            "1fs",
-            "--inner",
-            "2",
-        ],
+        &words("--nonbonded-level 0 --pme-level 1 --method impulse --h 1fs --inner 2"),
     );
     let verlet = pme_water_drift("pme-verlet", &["--method", "verlet", "--h", "0.5fs"]);
     for (label, drift) in [("impulse 1 fs / 2", &mts), ("verlet 0.5 fs", &verlet)] {

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{TestRng, max_abs, max_abs_difference};
+use common::{FdCheck, TestRng};
 use longstep::forces::angle::{AngleBend, HarmonicAngles};
 use longstep::forces::gravity::{CentralMass, gravity};
 use longstep::forces::lennard_jones::{LennardJones, lennard_jones_pairs};
@@ -23,36 +23,12 @@ const EPSILON: f64 = 1e-5;
 
 /// Checks gradient and Hessian-vector product at `q` along several random directions.
 fn check(term: &dyn ForceTerm, q: &[f64], rng: &mut TestRng, label: &str) {
-    let mut gradient = vec![0.0; q.len()];
-    term.add_gradient(q, &mut gradient);
-    let fd = common::finite_difference_gradient(term, q, EPSILON);
-    let error = max_abs_difference(&gradient, &fd);
-    let scale = max_abs(&gradient).max(1.0);
-    assert!(
-        error <= 1e-6 * scale,
-        "{label}: gradient differs from finite differences by {error:e} (scale {scale:e})"
-    );
-    assert!(
-        max_abs(&gradient) > 1e-8,
-        "{label}: gradient is zero, the check is empty"
-    );
-
-    for _ in 0..3 {
-        let v = rng.vector(q.len(), -1.0, 1.0);
-        let mut hv = vec![0.0; q.len()];
-        term.add_hessian_vector(q, &v, &mut hv);
-        let fd = common::finite_difference_hessian_vector(term, q, &v, EPSILON);
-        let error = max_abs_difference(&hv, &fd);
-        let scale = max_abs(&hv).max(1.0);
-        assert!(
-            error <= 1e-6 * scale,
-            "{label}: Hessian-vector product differs from finite differences by {error:e}"
-        );
-        assert!(
-            max_abs(&hv) > 1e-8,
-            "{label}: Hessian-vector product is zero"
-        );
-    }
+    let fd = FdCheck {
+        epsilon: EPSILON,
+        tolerance: 1e-6,
+        floor: 1e-8,
+    };
+    fd.check(term, q, rng, label);
 }
 
 /// `n` particles near a line with spacing ~1.2 and random offsets, in `dim` dimensions.

@@ -5,11 +5,10 @@
 //! "error:" (or clap's usage message). The same seed gives the same cases on every run.
 
 mod common;
+use common::{TestRng, argv_owned, scratch_dir, words};
 
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-use common::{TestRng, scratch_dir};
 
 /// Longest a single case may take before it counts as a hang (generous: the machine is
 /// shared; every case is a check or a run of at most a few thousand steps of 3 particles).
@@ -217,21 +216,11 @@ fn mutated_command_lines_never_panic() {
     let mut failures_seen = 0;
     for case in 0..200 {
         let out = dir.join(format!("out-{case}"));
-        let mut args: Vec<String> = [
-            "run",
-            "systems/two-spring.toml",
-            "--h",
-            "0.1",
-            "--t-end",
-            "5",
-            "--method",
-            "impulse",
-            "--inner",
-            "4",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+        let mut args: Vec<String> =
+            words("run systems/two-spring.toml --h 0.1 --t-end 5 --method impulse --inner 4")
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
         for _ in 0..1 + rng.next_u64() % 3 {
             match pick(&mut rng, 3) {
                 0 => {
@@ -319,28 +308,11 @@ fn mutated_checkpoints_never_panic() {
     let dir = scratch_dir("fuzz-checkpoints");
     let origin = dir.join("origin");
     let base = |t_end: &str, out: &std::path::Path| -> Vec<String> {
-        [
-            "run",
-            "systems/two-spring.toml",
-            "--method",
-            "langevin-respa",
-            "--h",
-            "0.1",
-            "--inner",
-            "4",
-            "--temperature",
-            "0.1",
-            "--friction",
-            "1",
-            "--t-end",
-            t_end,
-            "--quiet",
-            "--out",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .chain([out.display().to_string()])
-        .collect()
+        argv_owned(
+            "run systems/two-spring.toml --method langevin-respa --h 0.1 --inner 4 \
+             --temperature 0.1 --friction 1 --t-end {} --quiet --out {}",
+            &[t_end, &out.display().to_string()],
+        )
     };
     let mut first = base("1", &origin);
     first.extend(["--checkpoint-every".to_string(), "1".to_string()]);

@@ -2,8 +2,7 @@
 //! and the `drift` object in the JSON; a run within its bound does not.
 
 mod common;
-
-use common::{longstep, scratch_dir};
+use common::{argv, longstep, scratch_dir};
 
 fn run_json(args: &[&str]) -> serde_json::Value {
     let output = longstep().args(args).output().expect("longstep runs");
@@ -16,26 +15,11 @@ fn run_json(args: &[&str]) -> serde_json::Value {
 fn butane(h: u32, extra: &[&str]) -> serde_json::Value {
     let out = scratch_dir(&format!("heating-butane-{h}"));
     let (h_text, inner) = (format!("{h}fs"), (2 * h).to_string());
-    let mut args = vec![
-        "run",
-        "systems/molecules/butane.toml",
-        "--method",
-        "impulse",
-        "--h",
-        &h_text,
-        "--inner",
-        &inner,
-        "--t-end",
-        "10ps",
-        "--temperature",
-        "300K",
-        "--seed",
-        "7",
-        "--json",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = argv(
+        "run systems/molecules/butane.toml --method impulse --h {} --inner {} \
+         --t-end 10ps --temperature 300K --seed 7 --json --quiet --out {}",
+        &[&h_text, &inner, out.to_str().unwrap()],
+    );
     args.extend_from_slice(extra);
     run_json(&args)
 }
@@ -43,22 +27,11 @@ fn butane(h: u32, extra: &[&str]) -> serde_json::Value {
 /// The water box from the kit's velocities with impulse at outer step `h`, dt = 0.5 fs.
 fn water(name: &str, h: &str, t_end: &str, extra: &[&str]) -> serde_json::Value {
     let out = scratch_dir(name);
-    let mut args = vec![
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        h,
-        "--dt",
-        "0.5fs",
-        "--t-end",
-        t_end,
-        "--json",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = argv(
+        "run systems/water-box/scene.toml --method impulse --h {} --dt 0.5fs --t-end {} \
+         --json --quiet --out {}",
+        &[h, t_end, out.to_str().unwrap()],
+    );
     args.extend_from_slice(extra);
     run_json(&args)
 }
@@ -141,22 +114,11 @@ fn a_drift_within_the_energys_fluctuation_is_not_called_heating() {
 #[test]
 fn a_mollified_method_is_judged_by_its_conserved_energy() {
     let out = scratch_dir("heating-long-average");
-    let summary = run_json(&[
-        "run",
-        "systems/three-spring.toml",
-        "--method",
-        "long-average",
-        "--h",
-        "0.5",
-        "--inner",
-        "50",
-        "--t-end",
-        "200",
-        "--json",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let summary = run_json(&argv(
+        "run systems/three-spring.toml --method long-average --h 0.5 --inner 50 \
+         --t-end 200 --json --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
     let drift = &summary["drift"];
     assert_eq!(drift["energy"], "mollified_total", "{drift}");
     assert_eq!(drift["unit"], "relative");
@@ -186,16 +148,10 @@ fn a_fit_window_skips_the_start_and_a_bad_one_is_refused() {
         ),
         (["--drift-bound", "0"], "--drift-bound must be positive"),
     ] {
-        let mut args = vec![
-            "run",
-            "systems/molecules/butane.toml",
-            "--h",
-            "1fs",
-            "--t-end",
-            "10fs",
-            "--out",
-            out.to_str().unwrap(),
-        ];
+        let mut args = argv(
+            "run systems/molecules/butane.toml --h 1fs --t-end 10fs --out {}",
+            &[out.to_str().unwrap()],
+        );
         args.extend(extra);
         let output = longstep().args(&args).output().unwrap();
         assert_eq!(output.status.code(), Some(1));

@@ -4,11 +4,10 @@
 //! units, trajectories that stay valid when a run blows up).
 
 mod common;
-use common::run_cli;
+use common::{argv, run_cli, scratch_dir, words};
 
 use std::path::Path;
 
-use common::scratch_dir;
 use longstep::io::scene::load_scene;
 use longstep::io::structure::read_structure;
 
@@ -43,14 +42,7 @@ fn butane_matches_the_stored_openmm_reference() {
     let mut scene = load_scene(Path::new("systems/molecules/butane.toml"), &[]).unwrap();
     let structure = read_structure(Path::new("tests/data/openmm-butane.xyz")).unwrap();
     let q: Vec<f64> = structure.atoms.iter().flat_map(|a| a.position).collect();
-    let flat = |key: &str| -> Vec<f64> {
-        reference[key]
-            .as_array()
-            .unwrap()
-            .iter()
-            .flat_map(|row| row.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
-            .collect()
-    };
+    let flat = |key: &str| common::flat(&reference[key]);
     let levels = level_forces(&mut scene, &q);
     let total: Vec<f64> = (0..q.len()).map(|k| levels[0][k] + levels[1][k]).collect();
     for (ours, key) in [
@@ -170,23 +162,11 @@ fn frames(path: &Path) -> usize {
 #[test]
 fn water_box_runs_with_time_units_and_writes_a_trajectory() {
     let out = scratch_dir("water-box-run");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "4fs",
-        "--inner",
-        "8",
-        "--t-end",
-        "0.2ps",
-        "--trajectory-every",
-        "10",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "run systems/water-box/scene.toml --method impulse --h 4fs --inner 8 \
+         --t-end 0.2ps --trajectory-every 10 --json --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(summary["steps"], 50);
@@ -220,22 +200,11 @@ fn water_box_runs_with_time_units_and_writes_a_trajectory() {
 #[test]
 fn the_text_summary_gives_times_and_energies_with_units() {
     let out = scratch_dir("water-box-text");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "1.2ps",
-        "--quiet",
-        "--plot",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "run systems/water-box/scene.toml --method impulse --h 2fs --inner 4 \
+         --t-end 1.2ps --quiet --plot --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     for fragment in [
         "(h = 2 fs, inner_steps = 4, dt = 0.5 fs)",
@@ -256,23 +225,11 @@ fn a_blown_up_molecule_run_keeps_whole_trajectory_frames() {
     // Impulse at h = 12 fs is far past the O–H resonance (half period ≈ 4.5 fs): the peers
     // blow up within 0.4 ps at 8 fs. The trajectory holds whole frames up to the stop.
     let out = scratch_dir("water-box-blowup");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "12fs",
-        "--inner",
-        "24",
-        "--t-end",
-        "20ps",
-        "--trajectory-every",
-        "1",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "run systems/water-box/scene.toml --method impulse --h 12fs --inner 24 \
+         --t-end 20ps --trajectory-every 1 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 3, "{stdout}\n{stderr}");
     assert!(stdout.contains("UNSTABLE at t = "), "{stdout}");
     let steps: usize = stdout
@@ -288,28 +245,17 @@ fn a_blown_up_molecule_run_keeps_whole_trajectory_frames() {
 fn forces_command_prints_groups_and_writes_forces() {
     let out = scratch_dir("forces-command");
     let csv = out.join("forces.csv");
-    let (code, stdout, stderr) = run_cli(&[
-        "forces",
-        "systems/water-box/scene.toml",
-        "--json",
-        "--quiet",
-        "--out",
-        csv.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "forces systems/water-box/scene.toml --json --quiet --out {}",
+        &[csv.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let energy = &report["energy"];
-    let sum: f64 = [
-        "bonds",
-        "angles",
-        "torsions",
-        "lennard_jones",
-        "coulomb",
-        "other",
-    ]
-    .iter()
-    .map(|g| energy[g].as_f64().unwrap())
-    .sum();
+    let sum: f64 = words("bonds angles torsions lennard_jones coulomb other")
+        .iter()
+        .map(|g| energy[g].as_f64().unwrap())
+        .sum();
     let total = energy["total"].as_f64().unwrap();
     assert!((sum - total).abs() <= 1e-9 * total.abs());
     assert!((energy["fast"].as_f64().unwrap() - 321.727813).abs() <= 1e-6);
@@ -335,16 +281,10 @@ fn forces_command_prints_groups_and_writes_forces() {
 
 #[test]
 fn time_units_need_a_real_scene() {
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        "systems/three-spring.toml",
-        "--h",
-        "4fs",
-        "--t-end",
-        "1",
-        "--out",
-        scratch_dir("units-dimensionless").to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "run systems/three-spring.toml --h 4fs --t-end 1 --out {}",
+        &[scratch_dir("units-dimensionless").to_str().unwrap()],
+    ));
     assert_eq!(code, 1);
     assert!(
         stderr.contains("needs a scene with units = \"real\""),
@@ -356,20 +296,11 @@ fn time_units_need_a_real_scene() {
 fn the_issue_command_runs_ten_picoseconds() {
     // The command of issue 6, as given: 2500 outer steps of 648 atoms (≈ 3 s).
     let out = scratch_dir("water-box-10ps");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "4fs",
-        "--inner",
-        "8",
-        "--t-end",
-        "10ps",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "run systems/water-box/scene.toml --method impulse --h 4fs --inner 8 \
+         --t-end 10ps --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stdout}\n{stderr}");
     assert_eq!(frames(&out.join("trajectory.xyz")), 26);
 }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{longstep, scratch_dir};
+use common::{longstep, run_cli, scratch_dir, words};
 
 fn run_json(args: &[&str]) -> serde_json::Value {
     let out = scratch_dir(&format!(
@@ -29,18 +29,10 @@ fn three_spring_runs_report_energies_and_force_counts() {
     let (h, inner, t_end) = (0.5, 50u64, 1000.0);
     let steps = (t_end / h) as u64;
     for method in ["impulse", "short-average", "long-average", "linear-average"] {
-        let summary = run_json(&[
-            "run",
-            "systems/three-spring.toml",
-            "--method",
-            method,
-            "--h",
-            "0.5",
-            "--inner",
-            "50",
-            "--t-end",
-            "1000",
-        ]);
+        let line = format!(
+            "run systems/three-spring.toml --method {method} --h 0.5 --inner 50 --t-end 1000"
+        );
+        let summary = run_json(&words(&line));
         assert_eq!(summary["status"], "ok", "{method}: {summary}");
         assert_eq!(summary["steps"], steps);
         let counts = &summary["force_evaluations"];
@@ -81,20 +73,10 @@ fn three_spring_runs_report_energies_and_force_counts() {
 
 #[test]
 fn adjoint_jacobian_counts_one_hessian_vector_product_per_auxiliary_step() {
-    let summary = run_json(&[
-        "run",
-        "systems/three-spring.toml",
-        "--method",
-        "long-average",
-        "--h",
-        "0.5",
-        "--inner",
-        "20",
-        "--t-end",
-        "10",
-        "--jacobian",
-        "adjoint",
-    ]);
+    let summary = run_json(&words(
+        "run systems/three-spring.toml --method long-average --h 0.5 --inner 20 --t-end 10 \
+         --jacobian adjoint",
+    ));
     let hv = summary["force_evaluations"]["hessian_vector"]
         .as_u64()
         .unwrap();
@@ -109,72 +91,34 @@ fn adjoint_jacobian_counts_one_hessian_vector_product_per_auxiliary_step() {
 
 #[test]
 fn dt_gives_the_inner_step_and_must_divide_h() {
-    let summary = run_json(&[
-        "run",
-        "systems/three-spring.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--dt",
-        "0.01",
-        "--t-end",
-        "1",
-    ]);
+    let summary = run_json(&words(
+        "run systems/three-spring.toml --method impulse --h 0.5 --dt 0.01 --t-end 1",
+    ));
     assert!(
         summary["parameters"]
             .as_str()
             .unwrap()
             .contains("inner_steps = 50")
     );
-    let output = longstep()
-        .args([
-            "run",
-            "systems/three-spring.toml",
-            "--method",
-            "impulse",
-            "--h",
-            "0.5",
-        ])
-        .args(["--dt", "0.03", "--t-end", "1"])
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let (code, _, stderr) = run_cli(&words(
+        "run systems/three-spring.toml --method impulse --h 0.5 --dt 0.03 --t-end 1",
+    ));
+    assert_eq!(code, 1);
     assert!(
         stderr.contains("does not divide the outer step h = 0.5"),
         "{stderr}"
     );
-    let output = longstep()
-        .args([
-            "run",
-            "systems/three-spring.toml",
-            "--method",
-            "long-average",
-            "--h",
-            "0.5",
-        ])
-        .args(["--t-end", "1"])
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let (code, _, stderr) = run_cli(&words(
+        "run systems/three-spring.toml --method long-average --h 0.5 --t-end 1",
+    ));
+    assert_eq!(code, 1);
     assert!(
         stderr.contains("long-average needs the inner step"),
         "{stderr}"
     );
-    let output = longstep()
-        .args([
-            "run",
-            "systems/three-spring.toml",
-            "--method",
-            "long-average",
-            "--h",
-            "0.5",
-        ])
-        .args(["--inner", "10", "--t-end", "1", "--jacobian", "reverse"])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let (_, _, stderr) = run_cli(&words(
+        "run systems/three-spring.toml --method long-average --h 0.5 --inner 10 --t-end 1 \
+         --jacobian reverse",
+    ));
     assert!(stderr.contains("unknown jacobian \"reverse\""), "{stderr}");
 }

@@ -3,45 +3,7 @@
 
 mod common;
 
-use common::{MTS_METHODS, integrate, method, scene};
-
-/// The three-spring system with the middle (slow) spring given as `middle`.
-fn three_spring(middle: &str, stiff_group: &str) -> String {
-    format!(
-        r#"
-version = 1
-name = "three-spring"
-dim = 2
-[anchors]
-left = [0.0, 0.0]
-right = [3.0, 0.0]
-[[particles]]
-mass = 1.0
-position = [1.05, 0.08]
-momentum = [0.5, 0.1]
-[[particles]]
-mass = 1.0
-position = [1.97, -0.05]
-momentum = [-0.5, 0.2]
-[[terms]]
-type = "spring"
-pairs = [["left", 0], [1, "right"]]
-stiffness = 100.0
-rest_length = 1.0
-group = "{stiff_group}"
-{middle}
-"#
-    )
-}
-
-const SLOW_MIDDLE: &str = r#"
-[[terms]]
-type = "spring"
-between = [0, 1]
-stiffness = 0.5
-rest_length = 1.0
-group = "slow"
-"#;
+use common::{MTS_METHODS, SLOW_MIDDLE, integrate, method, scene, three_spring};
 
 #[test]
 fn without_slow_forces_every_method_is_the_reduced_verlet_trajectory() {
@@ -117,45 +79,7 @@ fn recursive_r_respa_with_unit_level_steps_is_verlet() {
 /// `Jᵀ Ω J − Ω` for the one-step map of `name`, J by a fourth-order central difference.
 fn symplecticity_defect(name: &str, h: f64, inner: usize) -> (f64, f64) {
     let text = three_spring(SLOW_MIDDLE, "fast");
-    let base = scene(&text);
-    let z0: Vec<f64> = base
-        .system
-        .state
-        .q
-        .iter()
-        .chain(&base.system.state.p)
-        .copied()
-        .collect();
-    let n = z0.len();
-    let step = |z: &[f64]| -> Vec<f64> {
-        let mut s = scene(&text);
-        s.system.state.q.copy_from_slice(&z[..n / 2]);
-        s.system.state.p.copy_from_slice(&z[n / 2..]);
-        let (q, p) = integrate(&mut s, method(name, h, Some(inner)).as_mut(), 1);
-        q.into_iter().chain(p).collect()
-    };
-    // (f(−2ε) − 8f(−ε) + 8f(ε) − f(2ε)) / 12ε: truncation ε⁴|f⁽⁵⁾|/30, round-off ≈ 1.5u|f|/ε.
-    let epsilon = 1e-3;
-    let mut jacobian = nalgebra::DMatrix::zeros(n, n);
-    for j in 0..n {
-        let shifted = |s: f64| {
-            let mut z = z0.clone();
-            z[j] += s * epsilon;
-            step(&z)
-        };
-        let (m2, m1, p1, p2) = (shifted(-2.0), shifted(-1.0), shifted(1.0), shifted(2.0));
-        for i in 0..n {
-            jacobian[(i, j)] = (m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]) / (12.0 * epsilon);
-        }
-    }
-    let half = n / 2;
-    let mut omega = nalgebra::DMatrix::zeros(n, n);
-    for i in 0..half {
-        omega[(i, half + i)] = 1.0;
-        omega[(half + i, i)] = -1.0;
-    }
-    let defect = (jacobian.transpose() * &omega * &jacobian - &omega).amax();
-    (defect, jacobian.amax())
+    common::symplecticity_defect(&text, &|| method(name, h, Some(inner)))
 }
 
 #[test]

@@ -5,8 +5,7 @@
 
 mod common;
 use common::run_cli as run;
-
-use common::scratch_dir;
+use common::{argv, scratch_dir, words};
 
 #[test]
 fn a_run_too_long_or_too_large_is_refused_before_it_writes() {
@@ -36,18 +35,10 @@ fn a_run_too_long_or_too_large_is_refused_before_it_writes() {
 fn a_map_too_large_to_write_is_refused_before_it_writes() {
     let dir = scratch_dir("huge-map");
     let out = dir.join("map.csv");
-    let (code, _, stderr) = run(&[
-        "stability-map",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--n",
-        "20000",
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "stability-map --method impulse --h 0.5 --n 20000 --out {} --quiet",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         stderr.contains("400000000 rows") && stderr.contains("--allow-large"),
@@ -59,16 +50,10 @@ fn a_map_too_large_to_write_is_refused_before_it_writes() {
 #[test]
 fn tiny_and_huge_numbers_print_in_exponent_form() {
     let out = scratch_dir("tiny-step");
-    let (code, stdout, stderr) = run(&[
-        "run",
-        "systems/two-spring.toml",
-        "--h",
-        "1e-300",
-        "--t-end",
-        "1e-298",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "run systems/two-spring.toml --h 1e-300 --t-end 1e-298 --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(stdout.contains("h = 1e-300"), "{stdout}");
     assert!(
@@ -94,19 +79,11 @@ fn tiny_and_huge_numbers_print_in_exponent_form() {
 #[test]
 fn the_trajectory_keeps_the_state_that_blew_up() {
     let out = scratch_dir("blow-up-frame");
-    let (code, stdout, stderr) = run(&[
-        "run",
-        "systems/three-spring.toml",
-        "--h",
-        "0.5",
-        "--t-end",
-        "1000",
-        "--trajectory-every",
-        "1000",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "run systems/three-spring.toml --h 0.5 --t-end 1000 --trajectory-every 1000 \
+         --json --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 3, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let at = summary["unstable_at"].as_f64().unwrap();
@@ -220,17 +197,10 @@ fn minimize_saves_and_run_starts_from_it() {
         .and_then(|rest| rest.split_whitespace().next())
         .and_then(|e| e.parse().ok())
         .expect("the minimised energy in the report");
-    let (code, stdout, stderr) = run(&[
-        "run",
-        "systems/molecules/butane.toml",
-        "--start",
-        saved.to_str().unwrap(),
-        "--t-end",
-        "10fs",
-        "--json",
-        "--out",
-        dir.join("run").to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "run systems/molecules/butane.toml --start {} --t-end 10fs --json --out {}",
+        &[saved.to_str().unwrap(), dir.join("run").to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     let e0 = summary["energy"]["initial"].as_f64().unwrap();
@@ -240,16 +210,10 @@ fn minimize_saves_and_run_starts_from_it() {
         (e0 - after).abs() < 1e-6,
         "E0 {e0} against the minimum {after}"
     );
-    let (code, _, stderr) = run(&[
-        "run",
-        "systems/molecules/hexane.toml",
-        "--start",
-        saved.to_str().unwrap(),
-        "--t-end",
-        "10fs",
-        "--out",
-        dir.join("other").to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run systems/molecules/hexane.toml --start {} --t-end 10fs --out {}",
+        &[saved.to_str().unwrap(), dir.join("other").to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("has 14 atoms, the scene 20"), "{stderr}");
 }
@@ -261,21 +225,11 @@ fn minimize_saves_and_run_starts_from_it() {
 #[test]
 fn a_long_runs_picture_stays_inside_its_axes() {
     let out = scratch_dir("long-plot");
-    let (code, _, stderr) = run(&[
-        "run",
-        "systems/three-spring.toml",
-        "--method",
-        "impulse",
-        "--h",
-        "0.05",
-        "--inner",
-        "10",
-        "--t-end",
-        "100",
-        "--plot",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "run systems/three-spring.toml --method impulse --h 0.05 --inner 10 --t-end 100 \
+         --plot --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let decoder = png::Decoder::new(std::fs::File::open(out.join("energy.png")).unwrap());
     let mut reader = decoder.read_info().unwrap();
@@ -312,24 +266,11 @@ fn a_long_runs_picture_stays_inside_its_axes() {
 #[test]
 fn unstable_points_carry_their_method() {
     let out = scratch_dir("scan-unstable-method");
-    let (code, _, stderr) = run(&[
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--methods",
-        "verlet,impulse",
-        "--h",
-        "0.1,0.5",
-        "--inner",
-        "10",
-        "--t-end",
-        "20",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "scan steps systems/three-spring.toml --methods verlet,impulse --h 0.1,0.5 \
+         --inner 10 --t-end 20 --repeats 0 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let svg = std::fs::read_to_string(out.join("scan.svg")).unwrap();
     assert!(svg.contains("verlet unstable"), "no verlet legend entry");
@@ -376,19 +317,10 @@ fn minimize_options_all_have_help() {
 fn map_axes_do_not_repeat_units_of_pi() {
     let dir = scratch_dir("map-pi-axes");
     let svg = dir.join("map.svg");
-    let (code, _, stderr) = run(&[
-        "stability-map",
-        "--method",
-        "impulse",
-        "--h",
-        "1",
-        "--n",
-        "8",
-        "--out",
-        dir.join("map.csv").to_str().unwrap(),
-        "--svg",
-        svg.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "stability-map --method impulse --h 1 --n 8 --out {} --svg {}",
+        &[dir.join("map.csv").to_str().unwrap(), svg.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let text = std::fs::read_to_string(&svg).unwrap();
     assert!(text.contains('π'), "no π ticks");
@@ -536,14 +468,9 @@ fn check_prints_energies_and_box_with_units_and_ten_digits() {
 /// in cm⁻¹ and the resonant steps in fs (it printed bare numbers).
 #[test]
 fn modes_of_a_real_scene_carry_their_units() {
-    let (code, stdout, stderr) = common::run_cli(&[
-        "modes",
-        "systems/water-box/scene.toml",
-        "--h-range",
-        "4fs:10fs",
-        "--top",
-        "1",
-    ]);
+    let (code, stdout, stderr) = common::run_cli(&words(
+        "modes systems/water-box/scene.toml --h-range 4fs:10fs --top 1",
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(
         stdout.contains("omega (rad/fs)") && stdout.contains("period (fs)"),

@@ -4,7 +4,7 @@
 
 mod common;
 use common::run_cli as run;
-use common::scratch_dir;
+use common::{argv, scratch_dir};
 
 const WATER: &str = "systems/water-box/scene.toml";
 const BUTANE: &str = "systems/molecules/butane.toml";
@@ -21,20 +21,10 @@ fn method_line(stdout: &str) -> &str {
 fn sinr_default_tau_is_the_documented_one_with_units() {
     let out = scratch_dir("messages-sinr-tau");
     // Two outer steps: the run's header reports the settings it used.
-    let (code, stdout, stderr) = run(&[
-        "run",
-        WATER,
-        "--method",
-        "sinr",
-        "--h",
-        "2fs",
-        "--temperature",
-        "300K",
-        "--t-end",
-        "4fs",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = run(&argv(
+        "run {} --method sinr --h 2fs --temperature 300K --t-end 4fs --out {}",
+        &[WATER, out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let line = method_line(&stdout);
     // docs/thermostats.md: τ = 3 fs with L = 1 is the configuration shown sampling the
@@ -130,19 +120,10 @@ fn minimize_prints_energies_with_units_and_ten_digits() {
 #[test]
 fn integrator_map_on_a_scene_without_frequencies_names_the_scene() {
     let out = scratch_dir("messages-map");
-    let (code, _, stderr) = run(&[
-        "stability-map",
-        "--mode",
-        "integrator",
-        "--scene",
-        BUTANE,
-        "--method",
-        "verlet",
-        "--h",
-        "1",
-        "--out",
-        out.join("map.csv").to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "stability-map --mode integrator --scene {} --method verlet --h 1 --out {}",
+        &[BUTANE, out.join("map.csv").to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     // The user typed --scene, never --set omega1.
     assert!(!stderr.contains("--set"), "{stderr}");
@@ -180,22 +161,11 @@ fn an_xyz_count_line_that_disagrees_with_the_atom_lines_is_named() {
 
 /// A step scan of butane with verlet at 1 and 2 fs, `--shard k/2` when given.
 fn scan(out: &std::path::Path, shard: Option<&str>) -> (i32, String, String) {
-    let mut args = vec![
-        "scan",
-        "steps",
-        BUTANE,
-        "--methods",
-        "verlet",
-        "--h",
-        "1fs,2fs",
-        "--t-end",
-        "100fs",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = argv(
+        "scan steps {} --methods verlet --h 1fs,2fs --t-end 100fs --repeats 0 --quiet \
+         --out {}",
+        &[BUTANE, out.to_str().unwrap()],
+    );
     if let Some(s) = shard {
         args.extend(["--shard", s]);
     }
@@ -256,22 +226,11 @@ fn merge_prints_the_safe_step_table_and_scan_headers_carry_units() {
 #[test]
 fn work_precision_headers_carry_units_in_a_real_scene() {
     let out = scratch_dir("messages-work-precision");
-    let (code, _, stderr) = run(&[
-        "chart",
-        "work-precision",
-        BUTANE,
-        "--methods",
-        "impulse",
-        "--h-list",
-        "2fs",
-        "--inner",
-        "2",
-        "--t-end",
-        "20fs",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run(&argv(
+        "chart work-precision {} --methods impulse --h-list 2fs --inner 2 --t-end 20fs \
+         --quiet --out {}",
+        &[BUTANE, out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let csv = std::fs::read_to_string(out.join("work-precision.csv")).unwrap();
     let header = csv.lines().nth(1).unwrap();

@@ -16,13 +16,7 @@ static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn constrained_steps_allocate_nothing() {
-    let before = counting::allocations();
-    let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(counting::allocations() > before && probe.len() == 16);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let pool = counting::checked_pool(2);
     let cases = [
         ("systems/water-box/scene.toml", "verlet", "none", true),
         (
@@ -52,15 +46,7 @@ fn constrained_steps_allocate_nothing() {
             let mut run = prepare(&RunRequest::new(Path::new(scene), &[], &overrides)).unwrap();
             let system = &mut run.scene.system;
             run.integrator.setup(system).unwrap();
-            // Warm up past the first neighbour-list rebuilds.
-            for _ in 0..40 {
-                run.integrator.step(system).unwrap();
-            }
-            let before = counting::allocations();
-            for _ in 0..40 {
-                run.integrator.step(system).unwrap();
-            }
-            let during = counting::allocations() - before;
+            let during = counting::allocations_in_steps(run.integrator.as_mut(), system, 40, 40);
             assert_eq!(
                 during, 0,
                 "{scene} {method}: {during} allocations in 40 steps"

@@ -15,13 +15,7 @@ static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn molecule_steps_allocate_nothing() {
-    let before = counting::allocations();
-    let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(counting::allocations() > before && probe.len() == 16);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let pool = counting::checked_pool(2);
     let molly = "equilibrium-molly";
     use longstep::forces::Precision::{Double, Mixed};
     for (scene, method, h, inner, molly_settings, precision) in [

@@ -20,13 +20,7 @@ static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn parallel_pme_steps_allocate_nothing() {
-    let before = counting::allocations();
-    let probe = std::hint::black_box(vec![1.0f64; 16]);
-    assert!(counting::allocations() > before && probe.len() == 16);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let pool = counting::checked_pool(2);
     let flags = SceneFlags {
         electrostatics: ElectrostaticsOverrides {
             coulomb: Some("pme".into()),
@@ -46,14 +40,7 @@ fn parallel_pme_steps_allocate_nothing() {
         // Steps allocated in after a warm-up past the first list rebuilds (their buffers keep
         // 25 % room).
         let mut allocations_in_steps = |system: &mut longstep::system::System| {
-            for _ in 0..10 {
-                integrator.step(system).unwrap();
-            }
-            let before = counting::allocations();
-            for _ in 0..10 {
-                integrator.step(system).unwrap();
-            }
-            counting::allocations() - before
+            counting::allocations_in_steps(integrator.as_mut(), system, 10, 10)
         };
         let during = allocations_in_steps(&mut scene.system);
         assert_eq!(

@@ -4,9 +4,9 @@
 //! SVG files, whose `<text>` elements carry position, size and content.
 
 mod common;
+use common::{argv, longstep, scratch_dir};
 
 use common::svg::{SvgText, overlap, svg_texts, text_box};
-use common::{longstep, scratch_dir};
 
 fn run_ok(args: &[&str]) {
     let output = longstep().args(args).output().expect("longstep runs");
@@ -23,24 +23,11 @@ fn run_ok(args: &[&str]) {
 #[test]
 fn butane_resonance_labels_do_not_overlap() {
     let out = scratch_dir("butane-guides");
-    run_ok(&[
-        "scan",
-        "steps",
-        "systems/molecules/butane.toml",
-        "--methods",
-        "impulse",
-        "--h",
-        "1fs:8fs:1fs",
-        "--dt",
-        "0.25fs",
-        "--t-end",
-        "0.1ps",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "scan steps systems/molecules/butane.toml --methods impulse --h 1fs:8fs:1fs \
+         --dt 0.25fs --t-end 0.1ps --repeats 0 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
     let svg = std::fs::read_to_string(out.join("scan.svg")).unwrap();
     let labels: Vec<SvgText> = svg_texts(&svg)
         .into_iter()
@@ -69,24 +56,11 @@ fn butane_resonance_labels_do_not_overlap() {
 #[test]
 fn work_precision_points_are_labelled_with_h() {
     let out = scratch_dir("work-precision-h-labels");
-    run_ok(&[
-        "chart",
-        "work-precision",
-        "systems/two-spring.toml",
-        "--methods",
-        "impulse,long-average",
-        "--h-list",
-        "0.4,0.2,0.1",
-        "--inner",
-        "10",
-        "--t-end",
-        "8",
-        "--weights",
-        "1,1,1",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "chart work-precision systems/two-spring.toml --methods impulse,long-average \
+         --h-list 0.4,0.2,0.1 --inner 10 --t-end 8 --weights 1,1,1 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
     let svg = std::fs::read_to_string(out.join("error-vs-slow-evaluations.svg")).unwrap();
     let texts = svg_texts(&svg);
     for h in ["0.4", "0.2", "0.1"] {
@@ -122,26 +96,15 @@ fn colour_bar_ticks(svg: &str, right_of: f64) -> Vec<(f64, String)> {
 fn radius_map(method: &str, name: &str) -> (String, String) {
     let dir = scratch_dir(name);
     let svg = dir.join("map.svg");
-    run_ok(&[
-        "stability-map",
-        "--method",
-        method,
-        "--h",
-        "0.5",
-        "--gamma1",
-        "0:6.5",
-        "--gamma2",
-        "0:6.5",
-        "--n",
-        "150",
-        "--colour",
-        "radius",
-        "--quiet",
-        "--out",
-        dir.join("map.csv").to_str().unwrap(),
-        "--svg",
-        svg.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "stability-map --method {} --h 0.5 --gamma1 0:6.5 --gamma2 0:6.5 --n 150 \
+         --colour radius --quiet --out {} --svg {}",
+        &[
+            method,
+            dir.join("map.csv").to_str().unwrap(),
+            svg.to_str().unwrap(),
+        ],
+    ));
     (
         std::fs::read_to_string(&svg).unwrap(),
         std::fs::read_to_string(dir.join("map.csv")).unwrap(),

@@ -5,12 +5,12 @@
 //! (`common::svg`), whose elements carry positions, colours and content.
 
 mod common;
+use common::{argv, longstep, scratch_dir};
 
 use common::svg::{
     SvgText, attribute, number, overlap, plot_frame, polyline_points, svg_tags, svg_texts,
     text_box, tick_labels,
 };
-use common::{longstep, scratch_dir};
 
 const BUTANE: &str = "systems/molecules/butane.toml";
 
@@ -104,20 +104,10 @@ fn ns_per_day_axes_are_numbered_and_threads_are_whole() {
 #[test]
 fn run_plot_draws_the_conserved_energy_on_its_own_panel() {
     let out = scratch_dir("run-plot-panels");
-    run_ok(&[
-        "run",
-        BUTANE,
-        "--method",
-        "long-average",
-        "--h",
-        "2fs",
-        "--t-end",
-        "0.2ps",
-        "--plot",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "run {} --method long-average --h 2fs --t-end 0.2ps --plot --quiet --out {}",
+        &[BUTANE, out.to_str().unwrap()],
+    ));
     let svg = read(&out.join("energy.svg"));
     let height = svg_tags(&svg, "svg")
         .first()
@@ -169,24 +159,11 @@ fn run_plot_draws_the_conserved_energy_on_its_own_panel() {
 #[test]
 fn scan_chart_shows_signed_drift_bound_and_crosses_on_the_top_edge() {
     let out = scratch_dir("scan-chart-readable");
-    run_ok(&[
-        "scan",
-        "steps",
-        BUTANE,
-        "--methods",
-        "impulse,verlet",
-        "--h",
-        "1fs:8fs:1fs",
-        "--dt",
-        "0.25fs",
-        "--t-end",
-        "0.1ps",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "scan steps {} --methods impulse,verlet --h 1fs:8fs:1fs --dt 0.25fs \
+         --t-end 0.1ps --repeats 0 --quiet --out {}",
+        &[BUTANE, out.to_str().unwrap()],
+    ));
     let rows = csv_rows(&read(&out.join("scan.csv")));
     let stable: Vec<f64> = rows
         .iter()
@@ -269,22 +246,11 @@ fn scan_chart_shows_signed_drift_bound_and_crosses_on_the_top_edge() {
 #[test]
 fn work_precision_axes_carry_units_ticks_and_unstable_steps() {
     let out = scratch_dir("work-precision-readable");
-    run_ok(&[
-        "chart",
-        "work-precision",
-        BUTANE,
-        "--methods",
-        "impulse,verlet",
-        "--h-list",
-        "1fs,2fs,4fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "0.1ps",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "chart work-precision {} --methods impulse,verlet --h-list 1fs,2fs,4fs \
+         --inner 4 --t-end 0.1ps --quiet --out {}",
+        &[BUTANE, out.to_str().unwrap()],
+    ));
     let rows = csv_rows(&read(&out.join("work-precision.csv")));
     assert!(
         rows.iter()
@@ -328,23 +294,14 @@ fn work_precision_axes_carry_units_ticks_and_unstable_steps() {
 fn growth_envelope_legend_is_beside_the_plot_with_three_ticks() {
     let dir = scratch_dir("growth-readable");
     let svg = dir.join("growth.svg");
-    run_ok(&[
-        "scan",
-        "growth",
-        "systems/three-spring.toml",
-        "--method",
-        "impulse,long-average",
-        "--h",
-        "0.5",
-        "--inner",
-        "10",
-        "--t-end",
-        "50",
-        "--out",
-        dir.join("growth.csv").to_str().unwrap(),
-        "--svg",
-        svg.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "scan growth systems/three-spring.toml --method impulse,long-average --h 0.5 \
+         --inner 10 --t-end 50 --out {} --svg {}",
+        &[
+            dir.join("growth.csv").to_str().unwrap(),
+            svg.to_str().unwrap(),
+        ],
+    ));
     let svg = read(&svg);
     let legend = legend_texts(&svg);
     for method in ["impulse", "long-average"] {
@@ -367,26 +324,15 @@ fn stability_map_title_says_what_is_coloured_and_explains_its_symbols() {
         ("radius", "Spectral radius:"),
     ] {
         let svg = dir.join(format!("{colour}.svg"));
-        run_ok(&[
-            "stability-map",
-            "--method",
-            "impulse",
-            "--h",
-            "0.5",
-            "--gamma1",
-            "0:6.5",
-            "--gamma2",
-            "0:6.5",
-            "--n",
-            "20",
-            "--colour",
-            colour,
-            "--quiet",
-            "--out",
-            dir.join(format!("{colour}.csv")).to_str().unwrap(),
-            "--svg",
-            svg.to_str().unwrap(),
-        ]);
+        run_ok(&argv(
+            "stability-map --method impulse --h 0.5 --gamma1 0:6.5 --gamma2 0:6.5 --n 20 \
+             --colour {} --quiet --out {} --svg {}",
+            &[
+                colour,
+                dir.join(format!("{colour}.csv")).to_str().unwrap(),
+                svg.to_str().unwrap(),
+            ],
+        ));
         let texts = svg_texts(&read(&svg));
         assert!(
             texts.iter().any(|t| t.content.starts_with(title)),
@@ -407,17 +353,10 @@ fn rdf_picture_draws_the_error_band() {
     let dir = scratch_dir("rdf-band");
     common::water_run(&dir, "20fs");
     let svg = dir.join("gr.svg");
-    run_ok(&[
-        "analyze",
-        "systems/water-box/scene.toml",
-        dir.to_str().unwrap(),
-        "--pairs",
-        "O-O",
-        "--blocks",
-        "2",
-        "--png",
-        svg.to_str().unwrap(),
-    ]);
+    run_ok(&argv(
+        "analyze systems/water-box/scene.toml {} --pairs O-O --blocks 2 --png {}",
+        &[dir.to_str().unwrap(), svg.to_str().unwrap()],
+    ));
     let svg = read(&svg);
     let polygons = svg_tags(&svg, "polygon");
     assert_eq!(polygons.len(), 1, "one band expected");

@@ -2,6 +2,9 @@
 //! asynchronous scheme is unstable (the spectral radius of its amplification matrix
 //! predicts the growth a run shows; MEMM18's own setting blows up).
 
+mod common;
+use common::{argv, words};
+
 use std::path::{Path, PathBuf};
 
 use longstep::analysis::async_stability::{
@@ -158,14 +161,10 @@ fn memm18_setting_blows_up_asynchronously_but_not_synchronously() {
 fn the_command_line_reports_the_exact_error() {
     let out = std::env::temp_dir().join(format!("longstep-pe-wave-{}", std::process::id()));
     let output = std::process::Command::new(env!("CARGO_BIN_EXE_longstep"))
-        .args([
-            "run",
-            wave_path().to_str().unwrap(),
-            "--set",
-            "n=1000",
-            "--t-end",
-            "0.02",
-        ])
+        .args(argv(
+            "run {} --set n=1000 --t-end 0.02",
+            &[wave_path().to_str().unwrap()],
+        ))
         .args(["--json", "--quiet", "--out", out.to_str().unwrap()])
         .output()
         .unwrap();
@@ -191,16 +190,9 @@ fn the_command_line_reports_the_exact_error() {
             "--set",
             "n=20",
         ])
-        .args([
-            "--param",
-            "h-slow",
-            "--range",
-            "0.5*dx:0.7*dx",
-            "--n",
-            "3",
-            "--ratio",
-            "10",
-        ])
+        .args(words(
+            "--param h-slow --range 0.5*dx:0.7*dx --n 3 --ratio 10",
+        ))
         .args(["--out", map.to_str().unwrap()])
         .output()
         .unwrap();

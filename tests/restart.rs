@@ -11,10 +11,9 @@
 //! a term keeps lists it cannot save, which the checkpoint says: `rebuilt_lists`).
 
 mod common;
+use common::{argv, longstep, scratch_dir, words};
 
 use std::path::{Path, PathBuf};
-
-use common::{longstep, scratch_dir};
 
 /// Run longstep with `args` on `threads` rayon threads: exit code and stderr.
 fn run(args: &[&str], threads: usize) -> (i32, String) {
@@ -201,20 +200,10 @@ fn langevin_respa_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "langevin-respa",
         scene: "systems/chain/scene.toml",
-        args: &[
-            "--method",
-            "langevin-respa",
-            "--h",
-            "0.04",
-            "--inner",
-            "4",
-            "--temperature",
-            "0.5",
-            "--friction",
-            "1",
-            "--seed",
-            "7",
-        ],
+        args: &words(
+            "--method langevin-respa --h 0.04 --inner 4 --temperature 0.5 --friction 1 \
+             --seed 7",
+        ),
         t_end: "1.2",
         half: "0.6",
     });
@@ -226,20 +215,7 @@ fn sinr_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "sinr",
         scene: "systems/chain/scene.toml",
-        args: &[
-            "--method",
-            "sinr",
-            "--h",
-            "0.04",
-            "--inner",
-            "4",
-            "--temperature",
-            "0.5",
-            "--tau",
-            "0.5",
-            "--seed",
-            "11",
-        ],
+        args: &words("--method sinr --h 0.04 --inner 4 --temperature 0.5 --tau 0.5 --seed 11"),
         t_end: "1.2",
         half: "0.6",
     });
@@ -275,18 +251,10 @@ fn constrained_topology_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "ala2-constrained",
         scene: "systems/alanine-dipeptide-amber/ala2.toml",
-        args: &[
-            "--method",
-            "langevin-respa",
-            "--h",
-            "2fs",
-            "--inner",
-            "2",
-            "--constraints",
-            "h-bonds",
-            "--temperature",
-            "300K",
-        ],
+        args: &words(
+            "--method langevin-respa --h 2fs --inner 2 --constraints h-bonds \
+             --temperature 300K",
+        ),
         t_end: "80fs",
         half: "40fs",
     });
@@ -313,18 +281,7 @@ fn langevin_respa_on_pme_dipeptide_continues_bit_for_bit() {
     both_thread_counts_nothing_rebuilt(Case {
         name: "ala2-pme-langevin-respa",
         scene: "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml",
-        args: &[
-            "--method",
-            "langevin-respa",
-            "--h",
-            "2fs",
-            "--inner",
-            "4",
-            "--temperature",
-            "300K",
-            "--seed",
-            "3",
-        ],
+        args: &words("--method langevin-respa --h 2fs --inner 4 --temperature 300K --seed 3"),
         t_end: "40fs",
         half: "20fs",
     });
@@ -394,14 +351,7 @@ fn equilibrium_molly_continues_bit_for_bit() {
     both_thread_counts_nothing_rebuilt(Case {
         name: "equilibrium-molly",
         scene: "systems/water-box/scene.toml",
-        args: &[
-            "--method",
-            "equilibrium-molly",
-            "--h",
-            "2fs",
-            "--inner",
-            "4",
-        ],
+        args: &words("--method equilibrium-molly --h 2fs --inner 4"),
         t_end: "40fs",
         half: "20fs",
     });
@@ -412,21 +362,11 @@ fn chain_checkpoint(dir: &Path) -> PathBuf {
     let out = dir.join("origin");
     let out_text = out.display().to_string();
     run_ok(
-        &[
-            "run",
-            "systems/chain/scene.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "0.01",
-            "--t-end",
-            "0.1",
-            "--checkpoint-every",
-            "0.05",
-            "--quiet",
-            "--out",
-            &out_text,
-        ],
+        &argv(
+            "run systems/chain/scene.toml --method verlet --h 0.01 --t-end 0.1 \
+             --checkpoint-every 0.05 --quiet --out {}",
+            &[&out_text],
+        ),
         1,
     );
     out.join("checkpoint.json")
@@ -438,17 +378,10 @@ fn refused(dir: &Path, checkpoint: &Path, scene: &str, extra: &[&str], what: &st
     let out = dir.join(format!("refused-{}", what.replace(' ', "-")));
     let out_text = out.display().to_string();
     let checkpoint_text = checkpoint.display().to_string();
-    let mut args = vec![
-        "run",
-        scene,
-        "--t-end",
-        "0.2",
-        "--quiet",
-        "--out",
-        &out_text,
-        "--restart",
-        &checkpoint_text,
-    ];
+    let mut args = argv(
+        "run {} --t-end 0.2 --quiet --out {} --restart {}",
+        &[scene, &out_text, &checkpoint_text],
+    );
     args.extend(extra);
     let (code, stderr) = run(&args, 1);
     assert_eq!(code, 1, "{what}: exit {code}\n{stderr}");
@@ -514,21 +447,14 @@ fn bad_checkpoints_are_refused_naming_the_file() {
     // A time before the checkpoint is no continuation.
     let out = dir.join("early");
     let (code, stderr) = run(
-        &[
-            "run",
-            chain,
-            "--method",
-            "verlet",
-            "--h",
-            "0.01",
-            "--t-end",
-            "0.03",
-            "--quiet",
-            "--out",
-            &out.display().to_string(),
-            "--restart",
-            &checkpoint.display().to_string(),
-        ],
+        &argv(
+            "run {} --method verlet --h 0.01 --t-end 0.03 --quiet --out {} --restart {}",
+            &[
+                chain,
+                &out.display().to_string(),
+                &checkpoint.display().to_string(),
+            ],
+        ),
         1,
     );
     assert_eq!(code, 1, "{stderr}");
@@ -544,21 +470,14 @@ fn manifest_lists_the_checkpoint_and_summary_says_continued() {
     assert!(manifest.contains("checkpoint.json"), "{manifest}");
     let out = dir.join("continued");
     let output = longstep()
-        .args([
-            "run",
-            "systems/chain/scene.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "0.01",
-            "--t-end",
-            "0.2",
-            "--quiet",
-            "--out",
-            &out.display().to_string(),
-            "--restart",
-            &checkpoint.display().to_string(),
-        ])
+        .args(argv(
+            "run systems/chain/scene.toml --method verlet --h 0.01 --t-end 0.2 --quiet \
+             --out {} --restart {}",
+            &[
+                &out.display().to_string(),
+                &checkpoint.display().to_string(),
+            ],
+        ))
         .env("RAYON_NUM_THREADS", "1")
         .output()
         .unwrap();
@@ -579,22 +498,11 @@ fn trajectory_velocities_are_a_start() {
     let dir = scratch_dir("restart-trajectory-velocities");
     let first = dir.join("first");
     run_ok(
-        &[
-            "run",
-            "systems/two-spring.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "0.1",
-            "--t-end",
-            "1",
-            "--trajectory-every",
-            "5",
-            "--trajectory-velocities",
-            "--quiet",
-            "--out",
-            &first.display().to_string(),
-        ],
+        &argv(
+            "run systems/two-spring.toml --method verlet --h 0.1 --t-end 1 \
+             --trajectory-every 5 --trajectory-velocities --quiet --out {}",
+            &[&first.display().to_string()],
+        ),
         1,
     );
     let frames = lines(&first.join("trajectory.xyz"));
@@ -606,21 +514,11 @@ fn trajectory_velocities_are_a_start() {
     std::fs::write(&frame, last.join("\n") + "\n").unwrap();
     let second = dir.join("second");
     run_ok(
-        &[
-            "run",
-            "systems/two-spring.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "0.1",
-            "--t-end",
-            "0.1",
-            "--start",
-            &frame.display().to_string(),
-            "--quiet",
-            "--out",
-            &second.display().to_string(),
-        ],
+        &argv(
+            "run systems/two-spring.toml --method verlet --h 0.1 --t-end 0.1 --start {} \
+             --quiet --out {}",
+            &[&frame.display().to_string(), &second.display().to_string()],
+        ),
         1,
     );
     let kinetic = |row: &str| -> f64 { row.split(',').nth(1).unwrap().parse().unwrap() };
@@ -641,30 +539,14 @@ fn async_pseudo_energy_continues_bit_for_bit() {
     both_thread_counts(Case {
         name: "async-pseudo-energy",
         scene: "systems/fpu-slow-fast.toml",
-        args: &[
-            "--method",
-            "async-pseudo-energy",
-            "--h",
-            "0.01",
-            "--h-fast",
-            "0.001",
-            "--quadrature",
-            "gl3",
-        ],
+        args: &words("--method async-pseudo-energy --h 0.01 --h-fast 0.001 --quadrature gl3"),
         t_end: "2",
         half: "1",
     });
     both_thread_counts(Case {
         name: "async-pseudo-energy-synchronous",
         scene: "systems/fpu.toml",
-        args: &[
-            "--method",
-            "async-pseudo-energy",
-            "--h",
-            "0.01",
-            "--ratio",
-            "5",
-        ],
+        args: &words("--method async-pseudo-energy --h 0.01 --ratio 5"),
         t_end: "2",
         half: "1",
     });

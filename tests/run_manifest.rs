@@ -3,8 +3,8 @@
 //! from different runs (issue 30 item 1).
 
 mod common;
+use common::{argv, run_cli, scratch_dir};
 
-use common::{run_cli, scratch_dir};
 use std::path::Path;
 
 const SPRINGS: &str = "systems/three-spring.toml";
@@ -96,15 +96,10 @@ fn analyze_refuses_a_trajectory_and_energy_table_of_different_runs() {
     water(&b, "24fs");
     // Run B's energy table beside run A's trajectory, under B's name and under another.
     std::fs::copy(a.join("trajectory.xyz"), b.join("from-a.xyz")).unwrap();
-    let (code, _, stderr) = run_cli(&[
-        "analyze",
-        WATER,
-        b.to_str().unwrap(),
-        "--blocks",
-        "2",
-        "--trajectory",
-        "from-a.xyz",
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "analyze {} {} --blocks 2 --trajectory from-a.xyz",
+        &[WATER, b.to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         stderr.contains("energy.csv and from-a.xyz do not come from the same run"),
@@ -137,14 +132,10 @@ fn a_run_lists_its_files_and_analyze_takes_them() {
         let size = std::fs::metadata(out.join(name)).unwrap().len();
         assert_eq!(file["bytes"].as_u64(), Some(size), "{name}");
     }
-    let (code, stdout, stderr) = run_cli(&[
-        "analyze",
-        WATER,
-        out.to_str().unwrap(),
-        "--blocks",
-        "2",
-        "--no-configurational",
-    ]);
+    let (code, stdout, stderr) = run_cli(&argv(
+        "analyze {} {} --blocks 2 --no-configurational",
+        &[WATER, out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(stdout.contains("11 frames"), "{stdout}");
 }

@@ -3,43 +3,20 @@
 //! differ. `--criterion sampling` on a peptide compares its backbone basin populations.
 
 mod common;
+use common::{argv, run_cli, scratch_dir, study_table as table, words};
 
 use std::path::Path;
 
-use common::{run_cli, scratch_dir};
-
 const ALA2: &str = "systems/alanine-dipeptide-amber/ala2.toml";
-
-/// The header and rows of a study table (after its first line).
-fn table(file: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(file).unwrap();
-    let mut lines = text.lines().skip(1);
-    let split = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
-    let header = split(lines.next().unwrap());
-    (header, lines.map(split).collect())
-}
 
 /// A short scan of the dipeptide in vacuum by velocity Verlet at 0.5 and 1 fs, 300 K starts.
 fn scan(out: &Path, extra: &[&str], threads: Option<&str>) -> (Vec<String>, Vec<Vec<String>>) {
     let mut command = common::longstep();
-    command.args([
-        "scan",
-        "steps",
-        ALA2,
-        "--method",
-        "verlet",
-        "--h",
-        "0.5fs,1fs",
-        "--t-end",
-        "500fs",
-        "--temperature",
-        "300K",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    command.args(argv(
+        "scan steps {} --method verlet --h 0.5fs,1fs --t-end 500fs --temperature 300K \
+         --repeats 0 --quiet --out {}",
+        &[ALA2, out.to_str().unwrap()],
+    ));
     command.args(extra);
     if let Some(n) = threads {
         command.env("RAYON_NUM_THREADS", n);
@@ -119,30 +96,16 @@ fn starts_that_cannot_differ_are_refused() {
             "--starts 2 needs start velocities",
         ),
         (
-            &[
-                "--method",
-                "verlet",
-                "--temperature",
-                "300K",
-                "--starts",
-                "65",
-            ],
+            &words("--method verlet --temperature 300K --starts 65"),
             "--starts must be between 1 and 64",
         ),
         // The sampling criterion judges one run per point.
         (
-            &[
-                "--method",
-                "langevin-respa",
-                "--temperature",
-                "300K",
-                "--criterion",
-                "sampling",
-                "--reference",
-                out,
-                "--starts",
-                "2",
-            ],
+            &argv(
+                "--method langevin-respa --temperature 300K --criterion sampling --reference {} \
+                 --starts 2",
+                &[out],
+            ),
             "applies to the drift criterion",
         ),
     ];
@@ -168,20 +131,10 @@ fn a_study_configuration_takes_its_own_starts() {
     )
     .unwrap();
     let out = dir.join("out");
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "steps",
-        ALA2,
-        "--study",
-        study.to_str().unwrap(),
-        "--t-end",
-        "100fs",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "scan steps {} --study {} --t-end 100fs --repeats 0 --quiet --out {}",
+        &[ALA2, study.to_str().unwrap(), out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let (header, rows) = table(&out.join("scan.csv"));
     let starts: Vec<f64> = rows.iter().map(|r| number(r, &header, "starts")).collect();
@@ -197,59 +150,19 @@ fn the_sampling_criterion_compares_the_dipeptides_basins() {
     let dir = scratch_dir("scan-basins");
     let scene = "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml";
     let reference = dir.join("reference");
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        scene,
-        "--method",
-        "langevin-respa",
-        "--inner",
-        "1",
-        "--h",
-        "1fs",
-        "--friction",
-        "50/ps",
-        "--temperature",
-        "300K",
-        "--trajectory-every",
-        "20",
-        "--t-end",
-        "0.4ps",
-        "--out",
-        reference.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "run {} --method langevin-respa --inner 1 --h 1fs --friction 50/ps \
+         --temperature 300K --trajectory-every 20 --t-end 0.4ps --out {}",
+        &[scene, reference.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let out = dir.join("scan");
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "steps",
-        scene,
-        "--method",
-        "langevin-respa",
-        "--inner",
-        "1",
-        "--friction",
-        "50/ps",
-        "--h",
-        "1fs",
-        "--t-end",
-        "0.4ps",
-        "--discard",
-        "0.2ps",
-        "--temperature",
-        "300K",
-        "--criterion",
-        "sampling",
-        "--reference",
-        reference.to_str().unwrap(),
-        "--frames",
-        "20",
-        "--blocks",
-        "4",
-        "--repeats",
-        "0",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "scan steps {} --method langevin-respa --inner 1 --friction 50/ps --h 1fs \
+         --t-end 0.4ps --discard 0.2ps --temperature 300K --criterion sampling \
+         --reference {} --frames 20 --blocks 4 --repeats 0 --out {}",
+        &[scene, reference.to_str().unwrap(), out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(
         stderr.contains("notice: backbone basins: pooled over ALA2: reference C7eq/beta"),

@@ -4,10 +4,9 @@
 
 mod common;
 use common::run_cli as run;
+use common::{argv, scratch_dir, study_rows as rows, words};
 
 use std::path::Path;
-
-use common::scratch_dir;
 
 /// Run `longstep`; returns (exit code, stdout, stderr).
 fn ok(args: &[&str]) -> String {
@@ -18,16 +17,6 @@ fn ok(args: &[&str]) -> String {
 
 fn path(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// Rows of a study table (after its first line and header) as fields.
-fn rows(file: &Path) -> Vec<Vec<String>> {
-    std::fs::read_to_string(file)
-        .unwrap()
-        .lines()
-        .skip(2)
-        .map(|l| l.split(',').map(String::from).collect())
-        .collect()
 }
 
 #[test]
@@ -52,26 +41,11 @@ fn verlets_largest_safe_step_is_its_linear_stability_limit() {
         .collect::<Vec<_>>()
         .join(",");
     let dir = scratch_dir("scan-verlet-limit");
-    let stdout = ok(&[
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--method",
-        "verlet",
-        "--h",
-        &list,
-        "--t-end",
-        "100",
-        "--blowup",
-        "1e4",
-        "--drift-bound",
-        "1e9",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        path(&dir),
-    ]);
+    let stdout = ok(&argv(
+        "scan steps systems/three-spring.toml --method verlet --h {} --t-end 100 \
+         --blowup 1e4 --drift-bound 1e9 --repeats 0 --quiet --out {}",
+        &[&list, path(&dir)],
+    ));
     let statuses: Vec<String> = rows(&dir.join("scan.csv"))
         .into_iter()
         .map(|r| r[3].clone())
@@ -166,28 +140,11 @@ fn timings_live_in_their_own_file_and_the_scan_table_is_deterministic() {
 #[test]
 fn the_drift_bound_of_a_real_scene_is_run_s_in_kt_per_ns_per_dof() {
     let dir = scratch_dir("scan-real-bound");
-    ok(&[
-        "scan",
-        "steps",
-        "systems/water-box/scene.toml",
-        "--methods",
-        "impulse",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "40fs",
-        "--temperature",
-        "300K",
-        "--seed",
-        "7",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        path(&dir),
-    ]);
+    ok(&argv(
+        "scan steps systems/water-box/scene.toml --methods impulse --h 2fs --inner 4 \
+         --t-end 40fs --temperature 300K --seed 7 --repeats 0 --quiet --out {}",
+        &[path(&dir)],
+    ));
     let text = std::fs::read_to_string(dir.join("scan.csv")).unwrap();
     let first = text.lines().next().unwrap();
     for needle in [
@@ -198,28 +155,12 @@ fn the_drift_bound_of_a_real_scene_is_run_s_in_kt_per_ns_per_dof() {
     ] {
         assert!(first.contains(needle), "{needle}: {first}");
     } // The equilibrium mollifier's options reach every point, and the table records them.
-    ok(&[
-        "scan",
-        "steps",
-        "systems/water-box/scene.toml",
-        "--methods",
-        "equilibrium-molly",
-        "--molly-constraints",
-        "bonds",
-        "--molly-jacobian",
-        "projection",
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "20fs",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        path(&dir),
-    ]);
+    ok(&argv(
+        "scan steps systems/water-box/scene.toml --methods equilibrium-molly \
+         --molly-constraints bonds --molly-jacobian projection --h 2fs --inner 4 \
+         --t-end 20fs --repeats 0 --quiet --out {}",
+        &[path(&dir)],
+    ));
     let text = std::fs::read_to_string(dir.join("scan.csv")).unwrap();
     assert!(
         text.lines()
@@ -237,51 +178,23 @@ fn the_drift_bound_of_a_real_scene_is_run_s_in_kt_per_ns_per_dof() {
 }
 
 fn reference_run(dir: &Path, temperature: &str, t_end: &str) {
-    ok(&[
-        "run",
-        "systems/water-box/scene.toml",
-        "--method",
-        "langevin-respa",
-        "--inner",
-        "1",
-        "--h",
-        "0.5fs",
-        "--friction",
-        "1/ps",
-        "--temperature",
-        temperature,
-        "--t-end",
-        t_end,
-        "--energy-every",
-        "1",
-        "--trajectory-every",
-        "8",
-        "--quiet",
-        "--out",
-        path(dir),
-    ]);
+    ok(&argv(
+        "run systems/water-box/scene.toml --method langevin-respa --inner 1 --h 0.5fs \
+         --friction 1/ps --temperature {} --t-end {} --energy-every 1 \
+         --trajectory-every 8 --quiet --out {}",
+        &[temperature, t_end, path(dir)],
+    ));
 }
 
 #[test]
 fn scans_refuse_bad_input_with_a_clear_message() {
     let dir = scratch_dir("scan-bad-input");
     let out = dir.join("out");
-    let water = [
-        "scan",
-        "steps",
-        "systems/water-box/scene.toml",
-        "--h",
-        "1fs",
-        "--inner",
-        "2",
-        "--t-end",
-        "20fs",
-        "--temperature",
-        "300K",
-        "--quiet",
-        "--out",
-        path(&out),
-    ];
+    let water = argv(
+        "scan steps systems/water-box/scene.toml --h 1fs --inner 2 --t-end 20fs \
+         --temperature 300K --quiet --out {}",
+        &[path(&out)],
+    );
     let with = |extra: &[&str]| -> (i32, String) {
         let mut a: Vec<&str> = water.to_vec();
         a.extend(extra);
@@ -309,15 +222,7 @@ fn scans_refuse_bad_input_with_a_clear_message() {
     // A reference directory without energy.csv.
     let empty = dir.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
-    let sampling = [
-        "--methods",
-        "langevin-respa",
-        "--criterion",
-        "sampling",
-        "--blocks",
-        "2",
-        "--reference",
-    ];
+    let sampling = words("--methods langevin-respa --criterion sampling --blocks 2 --reference");
     let mut extra = sampling.to_vec();
     extra.push(path(&empty));
     let (code, stderr) = with(&extra);

@@ -4,10 +4,9 @@
 
 mod common;
 use common::run_cli as run;
+use common::{argv, scratch_dir, study_table as table, words};
 
 use std::path::{Path, PathBuf};
-
-use common::scratch_dir;
 
 fn path(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -18,15 +17,6 @@ fn ok(args: &[&str]) -> String {
     let (code, stdout, stderr) = run(args);
     assert_eq!(code, 0, "{args:?}: {stderr}");
     stdout
-}
-
-/// The header and rows of a study table (after its first line).
-fn table(file: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let text = std::fs::read_to_string(file).unwrap();
-    let mut lines = text.lines().skip(1);
-    let split = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
-    let header = split(lines.next().unwrap());
-    (header, lines.map(split).collect())
 }
 
 /// Two configurations of impulse on the three-spring system that differ in their inner
@@ -53,18 +43,10 @@ fn write_study(dir: &Path, text: &str) -> PathBuf {
 
 /// The shared flags of every scan here: short runs, no timings.
 fn scan_args<'a>(out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
-    let mut args = vec![
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--t-end",
-        "10",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        path(out),
-    ];
+    let mut args = argv(
+        "scan steps systems/three-spring.toml --t-end 10 --repeats 0 --quiet --out {}",
+        &[path(out)],
+    );
     args.extend_from_slice(extra);
     args
 }
@@ -270,17 +252,10 @@ pme_level = 1
     );
     let scene = "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml";
     let scan = |out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "scan",
-            "steps",
-            scene,
-            "--t-end",
-            "2fs",
-            "--repeats",
-            "0",
-            "--quiet",
-            "--out",
-        ];
+        let mut args = argv(
+            "scan steps {} --t-end 2fs --repeats 0 --quiet --out",
+            &[scene],
+        );
         args.push(path(out));
         args.extend_from_slice(extra);
         ok(&args);
@@ -289,18 +264,7 @@ pme_level = 1
     scan(&whole, &["--study", path(&study)]);
     scan(
         &single,
-        &[
-            "--method",
-            "impulse",
-            "--h",
-            "1fs",
-            "--dt",
-            "0.5fs",
-            "--nonbonded-level",
-            "0",
-            "--pme-level",
-            "1",
-        ],
+        &words("--method impulse --h 1fs --dt 0.5fs --nonbonded-level 0 --pme-level 1"),
     );
     let (header, rows) = table(&whole.join("scan.csv"));
     let (_, single_rows) = table(&single.join("scan.csv"));
@@ -329,20 +293,12 @@ fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
     // The NVE study builds and runs every point end to end (20 fs runs: a smoke test of
     // the pipeline, not a verdict): 2 + 3 + 3 + 4 + 4 + 3 + 3 + 3 points.
     let out = scratch_dir("study-ala2-nve");
-    ok(&[
-        "scan",
-        "steps",
-        "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml",
-        "--study",
-        "studies/ala2-production-nve.toml",
-        "--t-end",
-        "20fs",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--out",
-        path(&out),
-    ]);
+    ok(&argv(
+        "scan steps systems/alanine-dipeptide-amber/ala2-solvated-pme.toml \
+         --study studies/ala2-production-nve.toml --t-end 20fs --repeats 0 --quiet \
+         --out {}",
+        &[path(&out)],
+    ));
     let (_, rows) = table(&out.join("scan.csv"));
     assert_eq!(rows.len(), 25);
     let mut seen: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();

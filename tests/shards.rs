@@ -2,10 +2,9 @@
 //! a single run.
 
 mod common;
+use common::{argv, argv_owned, longstep, scratch_dir, words};
 
 use std::path::Path;
-
-use common::{longstep, scratch_dir};
 
 fn run(args: &[&str]) {
     let output = longstep().args(args).output().unwrap();
@@ -37,23 +36,10 @@ fn work_precision_shards_merge_into_the_single_run() {
         scratch_dir("wp-2"),
         scratch_dir("wp-merged"),
     );
-    let base = [
-        "chart",
-        "work-precision",
-        "systems/two-spring.toml",
-        "--methods",
-        "impulse,long-average",
-        "--h-list",
-        "0.2,0.1",
-        "--inner",
-        "5",
-        "--t-end",
-        "2",
-        "--weights",
-        "1,0.5,1.5",
-        "--quiet",
-        "--out",
-    ];
+    let base = words(
+        "chart work-precision systems/two-spring.toml --methods impulse,long-average \
+         --h-list 0.2,0.1 --inner 5 --t-end 2 --weights 1,0.5,1.5 --quiet --out",
+    );
     let with = |out: &Path, shard: Option<&str>| {
         let mut args: Vec<String> = base.iter().map(|s| s.to_string()).collect();
         args.push(out.display().to_string());
@@ -108,25 +94,11 @@ fn scan_shards_merge_into_the_single_run() {
         scratch_dir("scan-merged"),
     );
     let args = |out: &Path| -> Vec<String> {
-        [
-            "scan",
-            "steps",
-            "systems/three-spring.toml",
-            "--methods",
-            "impulse,long-average",
-            "--h",
-            "0.2:0.5:0.1",
-            "--inner",
-            "10",
-            "--t-end",
-            "20",
-            "--quiet",
-            "--out",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .chain([out.display().to_string()])
-        .collect()
+        argv_owned(
+            "scan steps systems/three-spring.toml --methods impulse,long-average \
+             --h 0.2:0.5:0.1 --inner 10 --t-end 20 --quiet --out {}",
+            &[&out.display().to_string()],
+        )
     };
     let call = |mut a: Vec<String>, shard: Option<&str>| {
         if let Some(s) = shard {
@@ -149,37 +121,24 @@ fn scan_shards_merge_into_the_single_run() {
     same_files(&single, &merged, &["scan.csv", "scan.png", "scan.svg"]);
 }
 
+/// `longstep` with the words of `line`, then `--out out` and `--shard k/n` when given.
+fn run_shard(line: &str, out: &str, shard: Option<&str>) {
+    let mut args = words(line);
+    args.extend(["--out", out]);
+    if let Some(s) = shard {
+        args.extend(["--shard", s]);
+    }
+    run(&args);
+}
+
 #[test]
 fn stiffness_scan_shards_merge_into_the_single_run_table() {
     let dir = scratch_dir("stiffness-shards");
     let out = |name: &str| dir.join(name).display().to_string();
     let scan = |file: &str, shard: Option<&str>| {
-        let mut args = vec![
-            "scan",
-            "stiffness",
-            "systems/two-spring.toml",
-            "--method",
-            "impulse",
-            "--param",
-            "omega1",
-            "--range",
-            "0:32",
-            "--n",
-            "6",
-            "--h",
-            "0.5",
-            "--t-end",
-            "4",
-            "--quiet",
-        ]
-        .into_iter()
-        .map(String::from)
-        .collect::<Vec<_>>();
-        args.extend(["--out".into(), out(file)]);
-        if let Some(s) = shard {
-            args.extend(["--shard".into(), s.into()]);
-        }
-        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let line = "scan stiffness systems/two-spring.toml --method impulse --param omega1 \
+                    --range 0:32 --n 6 --h 0.5 --t-end 4 --quiet";
+        run_shard(line, &out(file), shard);
     };
     scan("single.csv", None);
     scan("a.csv", Some("1/2"));
@@ -201,27 +160,9 @@ fn stability_map_shards_merge_into_the_single_run_map() {
     let dir = scratch_dir("map-shards");
     let out = |name: &str| dir.join(name).display().to_string();
     let map = |file: &str, shard: Option<&str>| {
-        let mut args: Vec<String> = [
-            "stability-map",
-            "--method",
-            "impulse",
-            "--h",
-            "0.5",
-            "--gamma1",
-            "0:2*pi",
-            "--gamma2",
-            "0:2*pi",
-            "--n",
-            "25",
-            "--quiet",
-        ]
-        .map(String::from)
-        .to_vec();
-        args.extend(["--out".into(), out(file)]);
-        if let Some(s) = shard {
-            args.extend(["--shard".into(), s.into()]);
-        }
-        run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        let line = "stability-map --method impulse --h 0.5 --gamma1 0:2*pi --gamma2 0:2*pi \
+                    --n 25 --quiet";
+        run_shard(line, &out(file), shard);
     };
     map("single.csv", None);
     for k in 1..=4 {
@@ -256,20 +197,10 @@ fn stability_map_merge_checks_its_shards() {
     let dir = scratch_dir("map-shard-checks");
     let out = |name: &str| dir.join(name).display().to_string();
     let map = |file: &str, method: &str, shard: &str| {
-        run(&[
-            "stability-map",
-            "--method",
-            method,
-            "--h",
-            "0.5",
-            "--n",
-            "6",
-            "--quiet",
-            "--out",
-            &out(file),
-            "--shard",
-            shard,
-        ]);
+        run(&argv(
+            "stability-map --method {} --h 0.5 --n 6 --quiet --out {} --shard {}",
+            &[method, &out(file), shard],
+        ));
     };
     map("a.csv", "impulse", "1/2");
     map("b.csv", "long-average", "2/2");
@@ -296,24 +227,11 @@ fn stability_map_merge_checks_its_shards() {
 fn merge_names_the_differing_setting_in_the_users_terms() {
     let dir = scratch_dir("scan-shard-settings");
     let scan = |name: &str, t_end: &str, shard: &str| {
-        run(&[
-            "scan",
-            "steps",
-            "systems/three-spring.toml",
-            "--methods",
-            "impulse",
-            "--h",
-            "0.2:0.3:0.1",
-            "--inner",
-            "10",
-            "--t-end",
-            t_end,
-            "--quiet",
-            "--out",
-            &dir.join(name).display().to_string(),
-            "--shard",
-            shard,
-        ]);
+        run(&argv(
+            "scan steps systems/three-spring.toml --methods impulse --h 0.2:0.3:0.1 \
+             --inner 10 --t-end {} --quiet --out {} --shard {}",
+            &[t_end, &dir.join(name).display().to_string(), shard],
+        ));
     };
     scan("a", "20", "1/2");
     scan("b", "10", "2/2");
@@ -346,28 +264,11 @@ fn stiffness_scan_merge_checks_the_method() {
     let dir = scratch_dir("stiffness-shard-settings");
     let out = |name: &str| dir.join(name).display().to_string();
     let scan = |file: &str, method: &str, shard: &str| {
-        run(&[
-            "scan",
-            "stiffness",
-            "systems/two-spring.toml",
-            "--method",
-            method,
-            "--param",
-            "omega1",
-            "--range",
-            "0:32",
-            "--n",
-            "4",
-            "--h",
-            "0.5",
-            "--t-end",
-            "2",
-            "--quiet",
-            "--out",
-            &out(file),
-            "--shard",
-            shard,
-        ]);
+        run(&argv(
+            "scan stiffness systems/two-spring.toml --method {} --param omega1 --range 0:32 \
+             --n 4 --h 0.5 --t-end 2 --quiet --out {} --shard {}",
+            &[method, &out(file), shard],
+        ));
     };
     scan("a.csv", "impulse", "1/2");
     scan("b.csv", "long-average", "2/2");
@@ -382,44 +283,19 @@ fn stiffness_scan_merge_checks_the_method() {
 fn shards_do_not_answer_alone_and_failed_merges_leave_nothing() {
     let dir = common::scratch_dir("shards-answers");
     let shard = dir.join("s1").display().to_string();
-    let (code, stdout, stderr) = common::run_cli(&[
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--methods",
-        "impulse",
-        "--h",
-        "0.1:0.3:0.1",
-        "--inner",
-        "10",
-        "--t-end",
-        "10",
-        "--repeats",
-        "0",
-        "--quiet",
-        "--shard",
-        "1/2",
-        "--out",
-        &shard,
-    ]);
+    let (code, stdout, stderr) = common::run_cli(&argv(
+        "scan steps systems/three-spring.toml --methods impulse --h 0.1:0.3:0.1 \
+         --inner 10 --t-end 10 --repeats 0 --quiet --shard 1/2 --out {}",
+        &[&shard],
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(!stdout.contains("safe up to"), "{stdout}");
     assert!(stdout.contains("longstep merge"), "{stdout}");
     let map = dir.join("map.csv").display().to_string();
-    let (code, _, stderr) = common::run_cli(&[
-        "stability-map",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--n",
-        "4",
-        "--shard",
-        "1/2",
-        "--out",
-        &map,
-        "--quiet",
-    ]);
+    let (code, _, stderr) = common::run_cli(&argv(
+        "stability-map --method impulse --h 0.5 --n 4 --shard 1/2 --out {} --quiet",
+        &[&map],
+    ));
     assert_eq!(code, 0, "{stderr}");
     let out = dir.join("merged");
     let (code, _, stderr) =

@@ -1,5 +1,8 @@
 //! `longstep stability-map` and `longstep spectral-radius` as a user runs them.
 
+mod common;
+use common::{argv, words};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -28,25 +31,15 @@ fn stability_map_writes_csv_png_and_svg() {
     let csv = scratch("map.csv");
     let png = scratch("map.png");
     let svg = scratch("map.svg");
-    let output = longstep(&[
-        "stability-map",
-        "--method",
-        "long-average",
-        "--h",
-        "0.5",
-        "--gamma1",
-        "0:2*pi",
-        "--gamma2",
-        "0:2*pi",
-        "--n",
-        "50",
-        "--out",
-        csv.to_str().expect("utf-8"),
-        "--png",
-        png.to_str().expect("utf-8"),
-        "--svg",
-        svg.to_str().expect("utf-8"),
-    ]);
+    let output = longstep(&argv(
+        "stability-map --method long-average --h 0.5 --gamma1 0:2*pi --gamma2 0:2*pi \
+         --n 50 --out {} --png {} --svg {}",
+        &[
+            csv.to_str().expect("utf-8"),
+            png.to_str().expect("utf-8"),
+            svg.to_str().expect("utf-8"),
+        ],
+    ));
     assert!(
         output.status.success(),
         "{}",
@@ -80,20 +73,10 @@ fn stability_map_writes_csv_png_and_svg() {
 #[test]
 fn shards_concatenate_to_the_whole_map() {
     let whole = scratch("whole.csv");
-    let common = [
-        "stability-map",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--gamma1",
-        "0:4*pi",
-        "--gamma2",
-        "1:3",
-        "--n",
-        "37",
-        "--quiet",
-    ];
+    let common = words(
+        "stability-map --method impulse --h 0.5 --gamma1 0:4*pi --gamma2 1:3 --n 37 \
+         --quiet",
+    );
     let mut args: Vec<&str> = common.to_vec();
     args.extend(["--out", whole.to_str().expect("utf-8")]);
     let output = longstep(&args);
@@ -124,24 +107,10 @@ fn shards_concatenate_to_the_whole_map() {
 
 #[test]
 fn spectral_radius_json_for_footnote_2() {
-    let output = longstep(&[
-        "spectral-radius",
-        "--method",
-        "impulse",
-        "--h",
-        "0.5",
-        "--gamma1",
-        "3*pi/4",
-        "--gamma2",
-        "3*pi/4",
-        "--alpha1",
-        "4",
-        "--alpha2",
-        "4",
-        "--beta",
-        "-4",
-        "--json",
-    ]);
+    let output = longstep(&words(
+        "spectral-radius --method impulse --h 0.5 --gamma1 3*pi/4 --gamma2 3*pi/4 \
+         --alpha1 4 --alpha2 4 --beta -4 --json",
+    ));
     assert!(
         output.status.success(),
         "{}",
@@ -155,20 +124,10 @@ fn spectral_radius_json_for_footnote_2() {
 
 #[test]
 fn integrator_mode_runs_verlet() {
-    let output = longstep(&[
-        "spectral-radius",
-        "--mode",
-        "integrator",
-        "--method",
-        "verlet",
-        "--h",
-        "0.5",
-        "--gamma1",
-        "3",
-        "--gamma2",
-        "1",
-        "--json",
-    ]);
+    let output = longstep(&words(
+        "spectral-radius --mode integrator --method verlet --h 0.5 --gamma1 3 \
+         --gamma2 1 --json",
+    ));
     assert!(
         output.status.success(),
         "{}",
@@ -184,139 +143,58 @@ fn bad_input_is_a_clear_error_with_exit_code_1() {
     let out = csv.to_str().expect("utf-8");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
-            vec![
-                "stability-map",
-                "--method",
-                "nope",
-                "--h",
-                "0.5",
-                "--out",
-                out,
-            ],
+            argv("stability-map --method nope --h 0.5 --out {}", &[out]),
             "analytic mode knows",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--gamma1",
-                "5:1",
-                "--out",
-                out,
-            ],
+            argv(
+                "stability-map --method impulse --h 0.5 --gamma1 5:1 --out {}",
+                &[out],
+            ),
             "--gamma1",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--shard",
-                "0/3",
-                "--out",
-                out,
-            ],
+            argv(
+                "stability-map --method impulse --h 0.5 --shard 0/3 --out {}",
+                &[out],
+            ),
             "--shard",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--inner",
-                "4",
-                "--out",
-                out,
-            ],
+            argv(
+                "stability-map --method impulse --h 0.5 --inner 4 --out {}",
+                &[out],
+            ),
             "--inner applies to --mode integrator",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "-1",
-                "--out",
-                out,
-            ],
+            argv("stability-map --method impulse --h -1 --out {}", &[out]),
             "--h must be positive",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--beta",
-                "2",
-                "--out",
-                out,
-            ],
+            argv(
+                "stability-map --method impulse --h 0.5 --beta 2 --out {}",
+                &[out],
+            ),
             "not positive semidefinite",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--png",
-                "map.jpg",
-                "--out",
-                out,
-            ],
+            argv(
+                "stability-map --method impulse --h 0.5 --png map.jpg --out {}",
+                &[out],
+            ),
             ".png or .svg",
         ),
         (
-            vec![
-                "stability-map",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--out",
-                "/nonexistent-dir/x.csv",
-            ],
+            words("stability-map --method impulse --h 0.5 --out /nonexistent-dir/x.csv"),
             "/nonexistent-dir/x.csv",
         ),
         (
-            vec![
-                "spectral-radius",
-                "--mode",
-                "integrator",
-                "--method",
-                "nope",
-                "--h",
-                "0.5",
-                "--gamma1",
-                "1",
-                "--gamma2",
-                "1",
-            ],
+            words("spectral-radius --mode integrator --method nope --h 0.5 --gamma1 1 --gamma2 1"),
             "unknown method \"nope\"",
         ),
         (
-            vec![
-                "spectral-radius",
-                "--method",
-                "impulse",
-                "--h",
-                "0.5",
-                "--gamma1",
-                "sin(",
-                "--gamma2",
-                "1",
-            ],
+            words("spectral-radius --method impulse --h 0.5 --gamma1 sin( --gamma2 1"),
             "--gamma1",
         ),
     ];

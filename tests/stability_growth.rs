@@ -17,6 +17,7 @@
 //! paper's p0 = 0.5.
 
 mod common;
+use common::argv;
 
 use std::path::Path;
 
@@ -484,32 +485,17 @@ fn scan_growth_reports_the_linear_prediction_and_the_measured_rate() {
     let dir = common::scratch_dir("scan-growth");
     let png = dir.join("growth.png");
     let output = common::longstep()
-        .args([
-            "scan",
-            "growth",
-            "systems/three-spring.toml",
-            "--method",
-            "long-average,short-average",
-            "--h",
-            "0.5",
-            "--inner",
-            "200",
-            "--t-end",
-            "2500",
-            "--set",
-            &format!("omega1={}", PROP1.0),
-            "--set",
-            &format!("omega2={}", PROP1.1),
-            "--set",
-            "p0=1e-8",
-            "--fit",
-            "1e10:1e14",
-            "--out",
-            dir.to_str().unwrap(),
-            "--png",
-            png.to_str().unwrap(),
-            "--quiet",
-        ])
+        .args(argv(
+            "scan growth systems/three-spring.toml --method long-average,short-average \
+             --h 0.5 --inner 200 --t-end 2500 --set {} --set {} --set p0=1e-8 \
+             --fit 1e10:1e14 --out {} --png {} --quiet",
+            &[
+                &format!("omega1={}", PROP1.0),
+                &format!("omega2={}", PROP1.1),
+                dir.to_str().unwrap(),
+                png.to_str().unwrap(),
+            ],
+        ))
         .output()
         .expect("runs");
     assert!(output.status.success(), "{output:?}");
@@ -565,21 +551,11 @@ fn scan_growth_rejects_bad_input_naming_the_flag() {
         (&["--set", "nope=1"], "--set nope"),
     ];
     for (extra, expected) in cases {
-        let mut args = vec![
-            "scan",
-            "growth",
-            "systems/three-spring.toml",
-            "--method",
-            "impulse",
-            "--h",
-            "0.5",
-            "--inner",
-            "10",
-            "--t-end",
-            "5",
-            "--out",
-            &out,
-        ];
+        let mut args = argv(
+            "scan growth systems/three-spring.toml --method impulse --h 0.5 --inner 10 \
+             --t-end 5 --out {}",
+            &[&out],
+        );
         // A later flag overrides an earlier one only for repeatable flags; replace instead.
         for pair in extra.chunks(2) {
             if let Some(k) = args.iter().position(|a| *a == pair[0]) {

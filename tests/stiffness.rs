@@ -7,6 +7,7 @@
 //! K = M = 320 at h = 1/2 (dt·Ω1 ≤ 0.05).
 
 mod common;
+use common::words;
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -188,21 +189,10 @@ fn scan_stiffness_writes_csv_and_pictures_and_shards_partition_it() {
     let whole = dir.join("whole.csv");
     let png = dir.join("err.png");
     let svg = dir.join("err.svg");
-    let common_args = [
-        "--method",
-        "impulse,long-average",
-        "--param",
-        "omega1",
-        "--range",
-        "0:4*pi",
-        "--n",
-        "7",
-        "--h",
-        "0.5,1/4",
-        "--t-end",
-        "4",
-        "--quiet",
-    ];
+    let common_args = words(
+        "--method impulse,long-average --param omega1 --range 0:4*pi --n 7 --h 0.5,1/4 \
+         --t-end 4 --quiet",
+    );
     let output = scan(
         &[
             &common_args[..],

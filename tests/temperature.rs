@@ -3,26 +3,13 @@
 //! around it.
 
 mod common;
+use common::run_cli_threads as run;
+use common::{argv, scene_file, scratch_dir};
 
 use std::path::Path;
 
-use common::{longstep, scene_file, scratch_dir};
 use longstep::system::velocities::{DegreesOfFreedom, maxwell_boltzmann};
 use longstep::units::BOLTZMANN_KCAL_PER_K;
-
-fn run(args: &[&str], threads: Option<usize>) -> (i32, String, String) {
-    let mut command = longstep();
-    command.args(args);
-    if let Some(n) = threads {
-        command.env("RAYON_NUM_THREADS", n.to_string());
-    }
-    let output = command.output().expect("longstep runs");
-    (
-        output.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        String::from_utf8_lossy(&output.stderr).into_owned(),
-    )
-}
 
 /// `Σ p` along each axis, and `Σ |p|` for its scale.
 fn net_momentum(p: &[f64], dim: usize) -> (Vec<f64>, f64) {
@@ -116,26 +103,11 @@ fn an_anchored_scene_keeps_its_momentum_and_counts_every_coordinate() {
 
 fn water_run(out: &Path, seed: &str, threads: usize) -> (String, String) {
     let (code, stdout, stderr) = run(
-        &[
-            "run",
-            "systems/water-box/scene.toml",
-            "--method",
-            "impulse",
-            "--h",
-            "2fs",
-            "--inner",
-            "4",
-            "--t-end",
-            "40fs",
-            "--energy-every",
-            "1",
-            "--temperature",
-            "300K",
-            "--seed",
-            seed,
-            "--out",
-            out.to_str().unwrap(),
-        ],
+        &argv(
+            "run systems/water-box/scene.toml --method impulse --h 2fs --inner 4 \
+             --t-end 40fs --energy-every 1 --temperature 300K --seed {} --out {}",
+            &[seed, out.to_str().unwrap()],
+        ),
         Some(threads),
     );
     assert_eq!(code, 0, "{stderr}");
@@ -180,18 +152,11 @@ fn a_seeded_start_gives_the_same_bits_on_one_and_two_threads() {
 fn without_a_seed_the_default_one_is_named() {
     let out = scratch_dir("temperature-default-seed");
     let (code, _, stderr) = run(
-        &[
-            "run",
-            "systems/molecules/butane.toml",
-            "--h",
-            "1fs",
-            "--t-end",
-            "10fs",
-            "--temperature",
-            "300K",
-            "--out",
-            out.to_str().unwrap(),
-        ],
+        &argv(
+            "run systems/molecules/butane.toml --h 1fs --t-end 10fs --temperature 300K \
+             --out {}",
+            &[out.to_str().unwrap()],
+        ),
         None,
     );
     assert_eq!(code, 0, "{stderr}");
@@ -204,16 +169,10 @@ fn without_a_seed_the_default_one_is_named() {
 fn a_scene_at_rest_without_a_temperature_gets_a_notice() {
     let out = scratch_dir("temperature-at-rest");
     let (code, _, stderr) = run(
-        &[
-            "run",
-            "systems/molecules/butane.toml",
-            "--h",
-            "1fs",
-            "--t-end",
-            "10fs",
-            "--out",
-            out.to_str().unwrap(),
-        ],
+        &argv(
+            "run systems/molecules/butane.toml --h 1fs --t-end 10fs --out {}",
+            &[out.to_str().unwrap()],
+        ),
         None,
     );
     assert_eq!(code, 0, "{stderr}");
@@ -266,20 +225,10 @@ fn bad_temperatures_and_unused_seeds_are_refused() {
     // A temperature given as a plain number in a dimensionless scene is k_B T: fine, and
     // the seed then has a use.
     let (code, _, stderr) = run(
-        &[
-            "run",
-            spring,
-            "--t-end",
-            "1",
-            "--h",
-            "0.05",
-            "--temperature",
-            "2",
-            "--seed",
-            "3",
-            "--out",
-            out,
-        ],
+        &argv(
+            "run {} --t-end 1 --h 0.05 --temperature 2 --seed 3 --out {}",
+            &[spring, out],
+        ),
         None,
     );
     assert_eq!(code, 0, "{stderr}");

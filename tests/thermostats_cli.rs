@@ -4,8 +4,7 @@
 //! input exits 1 with the problem named.
 
 mod common;
-
-use common::{longstep, scratch_dir};
+use common::{argv, longstep, scratch_dir, words};
 
 const WATER: &str = "systems/water-box/scene.toml";
 
@@ -25,20 +24,10 @@ fn run(args: &[&str], threads: &str) -> (i32, String, String) {
 /// A short water-box run of `method` with `extra` flags; returns (exit, summary JSON, energy.csv).
 fn water(name: &str, method: &str, extra: &[&str], threads: &str) -> (i32, String, String) {
     let out = scratch_dir(name);
-    let mut args = vec![
-        "run",
-        WATER,
-        "--method",
-        method,
-        "--temperature",
-        "300K",
-        "--energy-every",
-        "1",
-        "--json",
-        "--quiet",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = argv(
+        "run {} --method {} --temperature 300K --energy-every 1 --json --quiet --out {}",
+        &[WATER, method, out.to_str().unwrap()],
+    );
     args.extend_from_slice(extra);
     let (code, stdout, stderr) = run(&args, threads);
     let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap_or_default();
@@ -75,16 +64,7 @@ fn same_seed_same_bits_at_one_and_two_threads() {
 fn sinr_holds_its_constraint_on_the_water_box() {
     // Two levels (bonded 0.5 fs, non-bonded 2 fs), L = 2: the largest violation of
     // m v² + L/(L+1) Σ Q1 v1² = L kT over every coordinate after every step.
-    let flags = [
-        "--h",
-        "2fs",
-        "--inner",
-        "4",
-        "--t-end",
-        "0.1ps",
-        "--thermostats",
-        "2",
-    ];
+    let flags = words("--h 2fs --inner 4 --t-end 0.1ps --thermostats 2");
     let (code, json, _) = water("thermo-sinr-constraint", "sinr", &flags, "2");
     assert_eq!(code, 0);
     let summary: serde_json::Value = serde_json::from_str(&json).unwrap();
@@ -102,23 +82,11 @@ fn sinr_stops_when_a_thermostat_collapses() {
     // the time and the reason, and nothing non-finite in energy.csv.
     let out = scratch_dir("thermo-sinr-collapse");
     let (code, stdout, stderr) = run(
-        &[
-            "run",
-            WATER,
-            "--method",
-            "sinr",
-            "--temperature",
-            "300K",
-            "--h",
-            "50fs",
-            "--dt",
-            "0.5fs",
-            "--t-end",
-            "1ps",
-            "--quiet",
-            "--out",
-            out.to_str().unwrap(),
-        ],
+        &argv(
+            "run {} --method sinr --temperature 300K --h 50fs --dt 0.5fs --t-end 1ps \
+             --quiet --out {}",
+            &[WATER, out.to_str().unwrap()],
+        ),
         "2",
     );
     assert_eq!(code, 3, "{stdout}{stderr}");
@@ -143,14 +111,7 @@ fn thermostatted_runs_refuse_bad_input() {
         (&["--method", "langevin-respa"], "needs a temperature"),
         (&["--method", "sinr"], "needs a temperature"),
         (
-            &[
-                "--method",
-                "sinr",
-                "--temperature",
-                "300K",
-                "--thermostats",
-                "0",
-            ],
+            &words("--method sinr --temperature 300K --thermostats 0"),
             "thermostats",
         ),
         (
@@ -162,25 +123,11 @@ fn thermostatted_runs_refuse_bad_input() {
             "temperature must be positive",
         ),
         (
-            &[
-                "--method",
-                "langevin-respa",
-                "--temperature",
-                "300K",
-                "--friction",
-                "0",
-            ],
+            &words("--method langevin-respa --temperature 300K --friction 0"),
             "friction must be positive",
         ),
         (
-            &[
-                "--method",
-                "sinr",
-                "--temperature",
-                "300K",
-                "--friction",
-                "-1/ps",
-            ],
+            &words("--method sinr --temperature 300K --friction -1/ps"),
             "friction must be positive",
         ),
         (
@@ -206,18 +153,10 @@ fn thermostatted_runs_refuse_bad_input() {
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("k_B T with k_B = 1"), "{stderr}");
     let (code, _, stderr) = run(
-        &[
-            "run",
-            scene,
-            "--method",
-            "sinr",
-            "--inner",
-            "2",
-            "--temperature",
-            "1",
-            "--out",
-            out,
-        ],
+        &argv(
+            "run {} --method sinr --inner 2 --temperature 1 --out {}",
+            &[scene, out],
+        ),
         "1",
     );
     assert_eq!(code, 1, "{stderr}");

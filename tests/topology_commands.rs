@@ -3,6 +3,7 @@
 //! dynamics or modes take `--start`.
 
 mod common;
+use common::argv;
 
 use std::path::PathBuf;
 
@@ -40,14 +41,10 @@ fn minimize_and_modes_read_a_topology_and_modes_start_where_told() {
     let dir = common::scratch_dir("topology-commands-modes");
     let saved = dir.join("min.xyz").display().to_string();
     let prmtop = ala2("ala2.prmtop");
-    let report = ok(&[
-        "minimize",
-        &prmtop,
-        "--max-iterations",
-        "300",
-        "--save",
-        &saved,
-    ]);
+    let report = ok(&argv(
+        "minimize {} --max-iterations 300 --save {}",
+        &[&prmtop, &saved],
+    ));
     let (before, after) = energies(&report);
     assert!(after < before, "{report}");
     let at_file = ok(&["modes", &prmtop, "--json"]);
@@ -73,55 +70,25 @@ fn work_precision_and_scan_steps_run_on_a_topology_from_a_start() {
     let dir = common::scratch_dir("topology-commands-studies");
     let prmtop = ala2("ala2.prmtop");
     let saved = dir.join("min.xyz").display().to_string();
-    ok(&[
-        "minimize",
-        &prmtop,
-        "--max-iterations",
-        "100",
-        "--save",
-        &saved,
-    ]);
+    ok(&argv(
+        "minimize {} --max-iterations 100 --save {}",
+        &[&prmtop, &saved],
+    ));
     let chart = dir.join("wp").display().to_string();
-    ok(&[
-        "chart",
-        "work-precision",
-        &prmtop,
-        "--methods",
-        "verlet,impulse",
-        "--h-list",
-        "1fs,2fs",
-        "--t-end",
-        "20fs",
-        "--inner",
-        "4",
-        "--out",
-        &chart,
-        "--quiet",
-        "--start",
-        &saved,
-    ]);
+    ok(&argv(
+        "chart work-precision {} --methods verlet,impulse --h-list 1fs,2fs --t-end 20fs \
+         --inner 4 --out {} --quiet --start {}",
+        &[&prmtop, &chart, &saved],
+    ));
     let table = std::fs::read_to_string(dir.join("wp/work-precision.csv")).unwrap();
     let rows = table.lines().filter(|l| l.starts_with(char::is_numeric));
     assert_eq!(rows.count(), 4, "{table}");
     let scan = dir.join("scan").display().to_string();
-    ok(&[
-        "scan",
-        "steps",
-        &prmtop,
-        "--methods",
-        "verlet",
-        "--h",
-        "0.5fs,1fs",
-        "--t-end",
-        "50fs",
-        "--repeats",
-        "0",
-        "--out",
-        &scan,
-        "--quiet",
-        "--start",
-        &saved,
-    ]);
+    ok(&argv(
+        "scan steps {} --methods verlet --h 0.5fs,1fs --t-end 50fs --repeats 0 --out {} \
+         --quiet --start {}",
+        &[&prmtop, &scan, &saved],
+    ));
     // A start of another system is refused, naming the flag.
     let water = common::run_cli(&[
         "scan",
@@ -153,30 +120,15 @@ fn analyze_reads_the_topology_its_run_was_made_from() {
     let dir = common::scratch_dir("topology-commands-analyze");
     let prmtop = ala2("ala2.prmtop");
     let out = dir.join("run").display().to_string();
-    ok(&[
-        "run",
-        &prmtop,
-        "--method",
-        "verlet",
-        "--h",
-        "0.5fs",
-        "--t-end",
-        "100fs",
-        "--trajectory-every",
-        "10",
-        "--out",
-        &out,
-        "--quiet",
-    ]);
-    let json = ok(&[
-        "analyze",
-        &prmtop,
-        &out,
-        "--json",
-        "--no-configurational",
-        "--blocks",
-        "2",
-    ]);
+    ok(&argv(
+        "run {} --method verlet --h 0.5fs --t-end 100fs --trajectory-every 10 --out {} \
+         --quiet",
+        &[&prmtop, &out],
+    ));
+    let json = ok(&argv(
+        "analyze {} {} --json --no-configurational --blocks 2",
+        &[&prmtop, &out],
+    ));
     let value: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert!(value.as_array().is_some_and(|a| a.len() == 1), "{json}");
 }

@@ -11,7 +11,9 @@
 //! longstep's) and unit conversions exact to round-off.
 
 mod common;
-use common::{assert_forces_match, flat, group_energy, rms};
+use common::{
+    OPENMM_GROUPS as GROUPS, assert_forces_match, flat, group_energy, openmm_json as json, rms,
+};
 
 use std::path::{Path, PathBuf};
 
@@ -22,15 +24,6 @@ use longstep::io::topology::prmtop::read_prmtop;
 use longstep::io::topology::{BuiltTopology, NonbondedOptions, Topology, build_terms};
 
 const TOLERANCE: f64 = 1e-6;
-const GROUPS: [&str; 7] = [
-    "bonds",
-    "angles",
-    "torsions",
-    "lj",
-    "coulomb",
-    "lj_14",
-    "coulomb_14",
-];
 
 fn system_path(file: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -40,13 +33,6 @@ fn system_path(file: &str) -> PathBuf {
 
 fn flexible() -> Vec<String> {
     vec!["FLEXIBLE".into()]
-}
-
-fn json(name: &str) -> serde_json::Value {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("tests/data/openmm-{name}.json"));
-    let text = std::fs::read_to_string(&path).expect("reference JSON");
-    serde_json::from_str(&text).expect("valid JSON")
 }
 
 fn build(topology: &Topology, q: &[f64]) -> BuiltTopology {

@@ -20,7 +20,7 @@
 //! ≥ 1e-3.
 
 mod common;
-use common::{assert_forces_match, flat, group_energy};
+use common::{OPENMM_GROUPS, assert_forces_match, flat, group_energy};
 
 use std::path::{Path, PathBuf};
 
@@ -76,15 +76,7 @@ fn compare_with_openmm_as(name: &str, file: &str, options: &NonbondedOptions) {
     let (built, q) = load(file, options);
     let reference = reference(name);
     let mut total = 0.0;
-    for group in [
-        "bonds",
-        "angles",
-        "torsions",
-        "lj",
-        "coulomb",
-        "lj_14",
-        "coulomb_14",
-    ] {
+    for group in OPENMM_GROUPS {
         let expected = reference.energy[group].as_f64().expect("energy");
         let got = group_energy(&built, &q, group);
         total += got;

@@ -16,7 +16,7 @@
 //! stored one.
 
 mod common;
-use common::{flat, group_energy, rms};
+use common::{OPENMM_GROUPS as GROUPS, flat, group_energy, openmm_json as json, rms};
 
 use std::path::PathBuf;
 
@@ -29,27 +29,11 @@ use longstep::io::topology::prmtop::read_prmtop;
 use longstep::io::topology::{BuiltTopology, Coulomb, NonbondedOptions, Topology, build_terms};
 
 const TOLERANCE: f64 = 1e-6;
-const GROUPS: [&str; 7] = [
-    "bonds",
-    "angles",
-    "torsions",
-    "lj",
-    "coulomb",
-    "lj_14",
-    "coulomb_14",
-];
 
 fn system_path(file: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("systems/protein-amber")
         .join(file)
-}
-
-fn json(name: &str) -> serde_json::Value {
-    let path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("tests/data/openmm-{name}.json"));
-    let text = std::fs::read_to_string(&path).expect("reference JSON");
-    serde_json::from_str(&text).expect("valid JSON")
 }
 
 /// Reaction field at 9 Å (the defaults), or PME with the reference's parameters.

@@ -3,6 +3,7 @@
 //! full term minus it, the 1-4 pairs with the short part.
 
 mod common;
+use common::argv;
 
 use std::path::Path;
 
@@ -150,14 +151,10 @@ fn bad_splits_are_refused_by_name() {
 
 #[test]
 fn check_reports_the_split_and_its_levels() {
-    let (code, stdout, stderr) = common::run_cli(&[
-        "check",
-        DIPEPTIDE,
-        "--split",
-        "r_in=5,r_out=6,short_level=0,remainder_level=1",
-        "--pme-level",
-        "1",
-    ]);
+    let (code, stdout, stderr) = common::run_cli(&argv(
+        "check {} --split r_in=5,r_out=6,short_level=0,remainder_level=1 --pme-level 1",
+        &[DIPEPTIDE],
+    ));
     assert_eq!(code, 0, "{stdout}{stderr}");
     let text = stdout + &stderr;
     for expected in [

@@ -2,6 +2,7 @@
 //! basins of a short shipped alanine-dipeptide trajectory against a count by hand.
 
 mod common;
+use common::{argv, words};
 
 use std::path::Path;
 
@@ -277,15 +278,11 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
 #[test]
 fn analyze_prints_and_writes_the_basins() {
     let out = common::scratch_dir("analyze-basins");
-    let (code, stdout, stderr) = common::run_cli(&[
-        "analyze",
-        "systems/alanine-dipeptide-amber/ala2.toml",
-        "tests/data/ala2-basins",
-        "--blocks",
-        "4",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, stdout, stderr) = common::run_cli(&argv(
+        "analyze systems/alanine-dipeptide-amber/ala2.toml tests/data/ala2-basins \
+         --blocks 4 --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 0, "{stderr}");
     assert!(stdout.contains("basins ALA2"), "{stdout}");
     // The label is the run directory's name.
@@ -304,12 +301,7 @@ fn analyze_prints_and_writes_the_basins() {
 
 /// `scan.csv`'s rows (after the comment and header lines), split at commas.
 fn scan_rows(dir: &Path) -> Vec<Vec<String>> {
-    std::fs::read_to_string(dir.join("scan.csv"))
-        .unwrap()
-        .lines()
-        .skip(2)
-        .map(|l| l.split(',').map(String::from).collect())
-        .collect()
+    common::study_rows(&dir.join("scan.csv"))
 }
 
 #[test]
@@ -321,23 +313,11 @@ fn scan_steps_says_how_long_a_run_would_decide_and_runs_it_until_decided() {
     // steps), which decides it.
     let scan = |name: &str, extra: &[&str]| {
         let dir = common::scratch_dir(name);
-        let mut args = vec![
-            "scan",
-            "steps",
-            "systems/three-spring.toml",
-            "--methods",
-            "impulse",
-            "--h",
-            "0.2",
-            "--inner",
-            "10",
-            "--t-end",
-            "20",
-            "--repeats",
-            "0",
-            "--out",
-            dir.to_str().unwrap(),
-        ];
+        let mut args = argv(
+            "scan steps systems/three-spring.toml --methods impulse --h 0.2 --inner 10 \
+             --t-end 20 --repeats 0 --out {}",
+            &[dir.to_str().unwrap()],
+        );
         args.extend(extra);
         let (code, _, stderr) = common::run_cli(&args);
         assert_eq!(code, 0, "{stderr}");
@@ -387,19 +367,10 @@ fn scan_steps_says_how_long_a_run_would_decide_and_runs_it_until_decided() {
     );
     assert_eq!(n_long, 2 * n_short, "{long:?}");
     // A factor outside [1, 64] is refused.
-    let (code, _, stderr) = common::run_cli(&[
-        "scan",
-        "steps",
-        "systems/three-spring.toml",
-        "--methods",
-        "impulse",
-        "--h",
-        "0.2",
-        "--t-end",
-        "20",
-        "--until-decided",
-        "0.5",
-    ]);
+    let (code, _, stderr) = common::run_cli(&words(
+        "scan steps systems/three-spring.toml --methods impulse --h 0.2 --t-end 20 \
+         --until-decided 0.5",
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(stderr.contains("--until-decided"), "{stderr}");
 }

@@ -1,6 +1,7 @@
 //! Velocity Verlet: second order, and the size of its (bounded) energy error.
 
 mod common;
+use common::words;
 
 use std::path::Path;
 
@@ -111,18 +112,10 @@ fn verlet_energy_error_on_the_three_spring_system_is_the_predicted_oscillation()
 fn run_command_writes_energy_csv_and_json_summary() {
     let dir = common::scratch_dir("verlet-json");
     let output = common::longstep()
-        .args([
-            "run",
-            "systems/three-spring.toml",
-            "--method",
-            "verlet",
-            "--h",
-            "0.05",
-            "--t-end",
-            "100",
-            "--json",
-            "--out",
-        ])
+        .args(words(
+            "run systems/three-spring.toml --method verlet --h 0.05 --t-end 100 --json \
+             --out",
+        ))
         .arg(&dir)
         .output()
         .unwrap();

@@ -9,7 +9,7 @@
 use std::f64::consts::PI;
 
 use super::dual::{Dual, Scalar};
-use super::torsion::{difference, dihedral_gradient};
+use super::torsion::{difference, dihedral_gradient, dihedral_term_methods, scatter};
 use super::{ForceTerm, PeriodicBox, TermClass};
 
 /// One harmonic dihedral.
@@ -72,22 +72,22 @@ impl HarmonicDihedrals {
         (wrapped(xi, d.xi0), g)
     }
 
-    fn accumulate<T: Scalar>(
+    /// One dihedral's `(k/2)(ξ − ξ₀)²`.
+    fn energy_of(&self, d: &HarmonicDihedral, q: &[f64]) -> f64 {
+        let (delta, _) = self.offset::<f64>(d, q, None);
+        0.5 * d.k * delta * delta
+    }
+
+    /// `dV/dξ = k (ξ − ξ₀)` and `∂ξ/∂r` of one dihedral.
+    #[inline(always)]
+    fn derivative<T: Scalar>(
         &self,
+        d: &HarmonicDihedral,
         q: &[f64],
         direction: Option<&[f64]>,
-        out: &mut [f64],
-        part: impl Fn(T) -> f64,
-    ) {
-        for d in &self.dihedrals {
-            let (delta, g) = self.offset::<T>(d, q, direction);
-            let dv = T::constant(d.k) * delta;
-            for (atom, gradient) in d.atoms.into_iter().zip(&g) {
-                for axis in 0..3 {
-                    out[3 * atom + axis] += part(dv * gradient[axis]);
-                }
-            }
-        }
+    ) -> (T, [[T; 3]; 4]) {
+        let (delta, g) = self.offset::<T>(d, q, direction);
+        (T::constant(d.k) * delta, g)
     }
 }
 
@@ -96,35 +96,7 @@ impl ForceTerm for HarmonicDihedrals {
         "harmonic-dihedral"
     }
 
-    fn class(&self) -> TermClass {
-        TermClass::Bonded
-    }
-
-    fn energy(&self, q: &[f64]) -> f64 {
-        self.dihedrals
-            .iter()
-            .map(|d| {
-                let (delta, _) = self.offset::<f64>(d, q, None);
-                0.5 * d.k * delta * delta
-            })
-            .sum()
-    }
-
-    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        self.accumulate::<f64>(q, None, gradient, |x| x);
-    }
-
-    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        self.accumulate::<Dual>(q, Some(v), out, |x| x.derivative);
-    }
-
-    fn couplings(&self) -> Vec<Vec<usize>> {
-        self.dihedrals.iter().map(|d| d.atoms.to_vec()).collect()
-    }
-
-    fn interaction_count(&self) -> usize {
-        self.dihedrals.len()
-    }
+    dihedral_term_methods!();
 }
 
 #[cfg(test)]

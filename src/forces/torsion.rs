@@ -101,33 +101,93 @@ impl Torsions {
         phi
     }
 
-    fn accumulate<T: Scalar>(
+    /// One dihedral's `Σ_m k_m (1 + cos(n_m φ − δ_m))`.
+    fn energy_of(&self, dihedral: &Dihedral, q: &[f64]) -> f64 {
+        let phi = self.angle_of(dihedral, q);
+        dihedral
+            .series
+            .iter()
+            .map(|c| c.k * (1.0 + (c.periodicity * phi - c.phase).cos()))
+            .sum::<f64>()
+    }
+
+    /// `dV/dφ` and `∂φ/∂r` of one dihedral (shifted along `direction` for dual numbers).
+    #[inline(always)]
+    fn derivative<T: Scalar>(
         &self,
+        dihedral: &Dihedral,
         q: &[f64],
         direction: Option<&[f64]>,
-        out: &mut [f64],
-        part: impl Fn(T) -> f64,
-    ) {
-        for dihedral in &self.dihedrals {
-            let [i, j, k, l] = dihedral.atoms;
-            let r_ij = self.difference::<T>(q, direction, i, j);
-            let r_kj = self.difference::<T>(q, direction, k, j);
-            let r_kl = self.difference::<T>(q, direction, k, l);
-            let (phi, g) = dihedral_gradient(&r_ij, &r_kj, &r_kl);
-            // dV/dφ = −Σ k n sin(nφ − δ)
-            let mut dv = T::constant(0.0);
-            for c in &dihedral.series {
-                let arg = T::constant(c.periodicity) * phi - T::constant(c.phase);
-                dv = dv - T::constant(c.k * c.periodicity) * arg.sin();
-            }
-            for (atom, gradient) in [i, j, k, l].into_iter().zip(&g) {
-                for axis in 0..3 {
-                    out[3 * atom + axis] += part(dv * gradient[axis]);
-                }
-            }
+    ) -> (T, [[T; 3]; 4]) {
+        let [i, j, k, l] = dihedral.atoms;
+        let r_ij = self.difference::<T>(q, direction, i, j);
+        let r_kj = self.difference::<T>(q, direction, k, j);
+        let r_kl = self.difference::<T>(q, direction, k, l);
+        let (phi, g) = dihedral_gradient(&r_ij, &r_kj, &r_kl);
+        // dV/dφ = −Σ k n sin(nφ − δ)
+        let mut dv = T::constant(0.0);
+        for c in &dihedral.series {
+            let arg = T::constant(c.periodicity) * phi - T::constant(c.phase);
+            dv = dv - T::constant(c.k * c.periodicity) * arg.sin();
+        }
+        (dv, g)
+    }
+}
+
+/// Adds `part(dV/dξ · ∂ξ/∂r)` of one dihedral (`∂ξ/∂r` in `g`, one row per atom) to `out`.
+#[inline(always)]
+pub(crate) fn scatter<T: Scalar>(
+    out: &mut [f64],
+    atoms: [usize; 4],
+    dv: T,
+    g: &[[T; 3]; 4],
+    part: impl Fn(T) -> f64,
+) {
+    for (atom, gradient) in atoms.into_iter().zip(g) {
+        for axis in 0..3 {
+            out[3 * atom + axis] += part(dv * gradient[axis]);
         }
     }
 }
+
+/// The [`ForceTerm`] methods a dihedral term shares, written into its `impl ForceTerm`: the
+/// class (bonded); the energy, the sum of its `energy_of` over `dihedrals`; the gradient and
+/// the Hessian-vector product from its per-dihedral `derivative` (on `f64` and on dual
+/// numbers; `Dual` and [`scatter`] in scope); the couplings and the count.
+macro_rules! dihedral_term_methods {
+    () => {
+        fn class(&self) -> TermClass {
+            TermClass::Bonded
+        }
+
+        fn energy(&self, q: &[f64]) -> f64 {
+            self.dihedrals.iter().map(|d| self.energy_of(d, q)).sum()
+        }
+
+        fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+            for d in &self.dihedrals {
+                let (dv, g) = self.derivative::<f64>(d, q, None);
+                scatter(gradient, d.atoms, dv, &g, |x| x);
+            }
+        }
+
+        fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
+            for d in &self.dihedrals {
+                let (dv, g) = self.derivative::<Dual>(d, q, Some(v));
+                scatter(out, d.atoms, dv, &g, |x| x.derivative);
+            }
+        }
+
+        fn couplings(&self) -> Vec<Vec<usize>> {
+            self.dihedrals.iter().map(|d| d.atoms.to_vec()).collect()
+        }
+
+        fn interaction_count(&self) -> usize {
+            self.dihedrals.len()
+        }
+    };
+}
+pub(crate) use dihedral_term_methods;
 
 /// `r_a − r_b` (minimum image), shifted by `ε (v_a − v_b)`.
 #[inline(always)]
@@ -168,37 +228,5 @@ impl ForceTerm for Torsions {
         "torsion"
     }
 
-    fn class(&self) -> TermClass {
-        TermClass::Bonded
-    }
-
-    fn energy(&self, q: &[f64]) -> f64 {
-        self.dihedrals
-            .iter()
-            .map(|dihedral| {
-                let phi = self.angle_of(dihedral, q);
-                dihedral
-                    .series
-                    .iter()
-                    .map(|c| c.k * (1.0 + (c.periodicity * phi - c.phase).cos()))
-                    .sum::<f64>()
-            })
-            .sum()
-    }
-
-    fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
-        self.accumulate::<f64>(q, None, gradient, |x| x);
-    }
-
-    fn add_hessian_vector(&self, q: &[f64], v: &[f64], out: &mut [f64]) {
-        self.accumulate::<Dual>(q, Some(v), out, |x| x.derivative);
-    }
-
-    fn couplings(&self) -> Vec<Vec<usize>> {
-        self.dihedrals.iter().map(|d| d.atoms.to_vec()).collect()
-    }
-
-    fn interaction_count(&self) -> usize {
-        self.dihedrals.len()
-    }
+    dihedral_term_methods!();
 }

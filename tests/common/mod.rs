@@ -45,12 +45,68 @@ pub fn longstep() -> std::process::Command {
 
 /// Run `longstep` with `args`: its exit code (-1 when killed), stdout and stderr.
 pub fn run_cli(args: &[&str]) -> (i32, String, String) {
-    let output = longstep().args(args).output().expect("longstep runs");
+    run_cli_threads(args, None)
+}
+
+/// [`run_cli`] with `threads` rayon threads (`RAYON_NUM_THREADS`) when given.
+pub fn run_cli_threads(args: &[&str], threads: Option<usize>) -> (i32, String, String) {
+    let mut command = longstep();
+    command.args(args);
+    if let Some(n) = threads {
+        command.env("RAYON_NUM_THREADS", n.to_string());
+    }
+    let output = command.output().expect("longstep runs");
     (
         output.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&output.stdout).into_owned(),
         String::from_utf8_lossy(&output.stderr).into_owned(),
     )
+}
+
+/// The words of `line` split at white space: an argument list written on one line. For
+/// flags, values and the repository's own paths; a path that may hold a space is given as an
+/// argument of its own.
+pub fn words(line: &str) -> Vec<&str> {
+    line.split_whitespace().collect()
+}
+
+/// [`words`] of `line` with each word `{}` replaced by the next of `values`, whole (paths
+/// and other computed arguments).
+pub fn argv<'a>(line: &'a str, values: &[&'a str]) -> Vec<&'a str> {
+    let mut values = values.iter();
+    let args = words(line)
+        .into_iter()
+        .map(|word| match word {
+            "{}" => *values.next().expect("a value for each {}"),
+            word => word,
+        })
+        .collect();
+    assert!(values.next().is_none(), "a {{}} for each value");
+    args
+}
+
+/// [`argv`] as owned strings (for argument lists that grow).
+pub fn argv_owned(line: &str, values: &[&str]) -> Vec<String> {
+    argv(line, values).into_iter().map(String::from).collect()
+}
+
+/// The header and rows of a study table (after its first line), split at commas.
+pub fn study_table(file: &std::path::Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let mut lines = text.lines().skip(1);
+    let split = |l: &str| l.split(',').map(String::from).collect::<Vec<_>>();
+    let header = split(lines.next().unwrap());
+    (header, lines.map(split).collect())
+}
+
+/// The rows of a study table (after its first line and header), split at commas.
+pub fn study_rows(file: &std::path::Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(file)
+        .unwrap()
+        .lines()
+        .skip(2)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect()
 }
 
 /// A fresh empty directory under the target dir for a test's outputs.
@@ -97,6 +153,61 @@ pub fn integrate(
         integrator.step(&mut scene.system).unwrap();
     }
     (scene.system.state.q.clone(), scene.system.state.p.clone())
+}
+
+/// The three-spring system (GSS98 section 3): two particles on stiff springs to walls in
+/// group `stiff_group` (rest length 1, so each is held on a circle), with the middle spring
+/// given as `middle` (TOML, empty for none).
+pub fn three_spring(middle: &str, stiff_group: &str) -> String {
+    let stiff = include_str!("../data/three-spring-stiff.toml");
+    format!("{stiff}group = \"{stiff_group}\"\n{middle}\n")
+}
+
+/// The three-spring system's slow middle spring, for [`three_spring`].
+pub const SLOW_MIDDLE: &str = include_str!("../data/three-spring-slow-middle.toml");
+
+/// `max |Jᵀ Ω J − Ω|` of the one-step map of the integrator `make` builds on the scene `text`,
+/// and `max |J|`; J by fourth-order central differences,
+/// `(f(−2ε) − 8f(−ε) + 8f(ε) − f(2ε)) / 12ε`: truncation ε⁴|f⁽⁵⁾|/30, round-off ≈ 1.5u|f|/ε.
+pub fn symplecticity_defect(text: &str, make: &dyn Fn() -> Box<dyn Integrator>) -> (f64, f64) {
+    let base = scene(text);
+    let z0: Vec<f64> = base
+        .system
+        .state
+        .q
+        .iter()
+        .chain(&base.system.state.p)
+        .copied()
+        .collect();
+    let n = z0.len();
+    let step = |z: &[f64]| -> Vec<f64> {
+        let mut s = scene(text);
+        s.system.state.q.copy_from_slice(&z[..n / 2]);
+        s.system.state.p.copy_from_slice(&z[n / 2..]);
+        let (q, p) = integrate(&mut s, make().as_mut(), 1);
+        q.into_iter().chain(p).collect()
+    };
+    let epsilon = 1e-3;
+    let mut jacobian = nalgebra::DMatrix::zeros(n, n);
+    for j in 0..n {
+        let shifted = |s: f64| {
+            let mut z = z0.clone();
+            z[j] += s * epsilon;
+            step(&z)
+        };
+        let (m2, m1, p1, p2) = (shifted(-2.0), shifted(-1.0), shifted(1.0), shifted(2.0));
+        for i in 0..n {
+            jacobian[(i, j)] = (m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]) / (12.0 * epsilon);
+        }
+    }
+    let half = n / 2;
+    let mut omega = nalgebra::DMatrix::zeros(n, n);
+    for i in 0..half {
+        omega[(i, half + i)] = 1.0;
+        omega[(half + i, i)] = -1.0;
+    }
+    let defect = (jacobian.transpose() * &omega * &jacobian - &omega).amax();
+    (defect, jacobian.amax())
 }
 
 /// The methods of the impulse family, with their names.
@@ -151,6 +262,53 @@ pub fn finite_difference_hessian_vector(
         .collect()
 }
 
+/// A finite-difference check of a term's derivatives: central differences with step
+/// `epsilon`, each result within `tolerance · max(1, |exact|)` (the bound is derived where the
+/// check is used), and the exact gradient's and Hessian-vector products' largest entries above
+/// `floor`, so that the check is not empty.
+pub struct FdCheck {
+    pub epsilon: f64,
+    pub tolerance: f64,
+    pub floor: f64,
+}
+
+impl FdCheck {
+    /// Checks `term`'s gradient at `q`, then its Hessian-vector product along three random
+    /// directions from `rng`.
+    pub fn check(
+        &self,
+        term: &dyn longstep::forces::ForceTerm,
+        q: &[f64],
+        rng: &mut TestRng,
+        label: &str,
+    ) {
+        let mut gradient = vec![0.0; q.len()];
+        term.add_gradient(q, &mut gradient);
+        let fd = finite_difference_gradient(term, q, self.epsilon);
+        self.compare(&gradient, &fd, &format!("{label}: gradient"));
+        for _ in 0..3 {
+            let v = rng.vector(q.len(), -1.0, 1.0);
+            let mut hv = vec![0.0; q.len()];
+            term.add_hessian_vector(q, &v, &mut hv);
+            let fd = finite_difference_hessian_vector(term, q, &v, self.epsilon);
+            self.compare(&hv, &fd, &format!("{label}: Hessian-vector product"));
+        }
+    }
+
+    fn compare(&self, exact: &[f64], fd: &[f64], what: &str) {
+        let error = max_abs_difference(exact, fd);
+        let scale = max_abs(exact).max(1.0);
+        assert!(
+            error <= self.tolerance * scale,
+            "{what} differs from finite differences by {error:e} (scale {scale:e})"
+        );
+        assert!(
+            max_abs(exact) > self.floor,
+            "{what} is zero, the check is empty"
+        );
+    }
+}
+
 /// `scan stiffness` on the two-spring system where Verlet blows up: h = 0.5, ω1 over
 /// [0, 4π] in 7 points, t = 60. Verlet is unstable once ω1 h > 2 (ω1 > 4); its error
 /// reaches 1e34–1e140 and overflows from ω1 = 10π/3 on, while impulse stays bounded.
@@ -196,6 +354,25 @@ pub fn flat(forces: &serde_json::Value) -> Vec<f64> {
                 .map(|x| x.as_f64().expect("number"))
         })
         .collect()
+}
+
+/// OpenMM's energy groups in the reference files, as [`group_energy`] names them.
+pub const OPENMM_GROUPS: [&str; 7] = [
+    "bonds",
+    "angles",
+    "torsions",
+    "lj",
+    "coulomb",
+    "lj_14",
+    "coulomb_14",
+];
+
+/// The OpenMM reference `tests/data/openmm-{name}.json`.
+pub fn openmm_json(name: &str) -> serde_json::Value {
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("tests/data/openmm-{name}.json"));
+    let text = std::fs::read_to_string(&path).expect("reference JSON");
+    serde_json::from_str(&text).expect("valid JSON")
 }
 
 /// longstep's energy per OpenMM group.

@@ -189,13 +189,10 @@ impl<T: MeshFloat> Fft3<T> {
     ) -> f64 {
         let [nx, ny, nz] = self.dims;
         let h = self.half;
-        let FftScratch {
-            planes,
-            spectrum,
-            tasks,
-            partial,
-        } = work;
-        let planes = &*planes;
+        let planes = &work.planes;
+        let spectrum = &mut work.spectrum;
+        let tasks = &mut work.tasks;
+        let partial = &mut work.partial;
         let one = |y: usize, lines: &mut [Complex<T>], task: &mut Lines<T>, sum: &mut f64| {
             for z in 0..h {
                 for x in 0..nx {
@@ -255,13 +252,9 @@ impl<T: MeshFloat> Fft3<T> {
     fn inverse_planes(&self, grid: &mut [T], work: &mut FftScratch<T>, parallel: bool) {
         let [nx, ny, nz] = self.dims;
         let h = self.half;
-        let FftScratch {
-            planes,
-            spectrum,
-            tasks,
-            ..
-        } = work;
-        let spectrum = &*spectrum;
+        let spectrum = &work.spectrum;
+        let planes = &mut work.planes;
+        let tasks = &mut work.tasks;
         let plane = |x: usize, output: &mut [T], lines: &mut [Complex<T>], task: &mut Lines<T>| {
             for y in 0..ny {
                 for z in 0..h {
