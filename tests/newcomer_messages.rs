@@ -36,7 +36,10 @@ fn sinr_default_tau_is_the_documented_one_with_units() {
             && docs.contains("| `--thermostats L` | 1 |"),
         "docs/thermostats.md's settings table must state the default τ and L"
     );
-    assert!(line.contains("tau = 3 fs") && line.contains("L = 1,"), "{line}");
+    assert!(
+        line.contains("tau = 3 fs") && line.contains("L = 1,"),
+        "{line}"
+    );
     // friction defaults to 1/τ, printed in full (shortest round-trip decimal); kT = k_B ·
     // 300 K in kcal/mol (k_B = 0.0019872 kcal/mol/K), printed to 6 significant digits.
     let friction: f64 = line
