@@ -90,16 +90,16 @@ STEPS = {
 # GROMACS nstlist per (atoms, K), as the kit chose it (a multiple of the MTS factor K).
 NSTLIST = {(648, 4): 12, (648, 8): 16, (5184, 4): 20, (5184, 8): 32}
 
-MDP = """integrator = md
+# The GROMACS run settings both electrostatics share: plain MD from the given velocities,
+# no thermostat or barostat, Lennard-Jones cut and shifted at 0.9 nm, nothing written.
+MDP_HEAD = """integrator = md
 dt = 0.0005
 nsteps = {nsteps}
 tcoupl = no
 pcoupl = no
 cutoff-scheme = Verlet
-coulombtype = Reaction-Field
-epsilon-rf = 0
-rcoulomb = 0.9
-vdwtype = Cut-off
+"""
+MDP_RUN = """vdwtype = Cut-off
 vdw-modifier = Potential-shift
 rvdw = 0.9
 DispCorr = no
@@ -114,12 +114,16 @@ nstvout = 0
 nstfout = 0
 comm-mode = Linear
 nstcomm = {nstcalc}
-nstlist = {nstlist}
+"""
+MDP = (MDP_HEAD + """coulombtype = Reaction-Field
+epsilon-rf = 0
+rcoulomb = 0.9
+""" + MDP_RUN + """nstlist = {nstlist}
 mts = yes
 mts-levels = 2
 mts-level2-forces = longrange-nonbonded nonbonded pair dihedral
 mts-level2-factor = {k}
-"""
+""")
 
 
 def sh(cmd, **kw):
@@ -333,34 +337,13 @@ def longstep_grid(atoms):
         n += 1
 
 
-PME_MDP = """integrator = md
-dt = 0.0005
-nsteps = {nsteps}
-tcoupl = no
-pcoupl = no
-cutoff-scheme = Verlet
-coulombtype = PME
+PME_MDP = (MDP_HEAD + """coulombtype = PME
 rcoulomb = 0.9
 ewald-rtol = 1e-5
 fourier-spacing = 0.12
 pme-order = 4
-vdwtype = Cut-off
-vdw-modifier = Potential-shift
-rvdw = 0.9
-DispCorr = no
-constraints = none
-continuation = yes
-gen-vel = no
-nstcalcenergy = {nstcalc}
-nstenergy = 0
-nstlog = 0
-nstxout = 0
-nstvout = 0
-nstfout = 0
-comm-mode = Linear
-nstcomm = {nstcalc}
-nstlist = 20
-"""
+""" + MDP_RUN + """nstlist = 20
+""")
 PME_MDP_MTS = """mts = yes
 mts-levels = 2
 mts-level2-forces = longrange-nonbonded

@@ -23,32 +23,16 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 cases=(
-    "chain-pe|systems/chain/scene.toml|--method pseudo-energy --h 0.01 --t-end 0.5"
-    "chain-pe-gl3|systems/chain/scene.toml|--method pseudo-energy --h 0.01 --quadrature gl3 --t-end 0.5"
-    "fpu-ape-sync|systems/fpu.toml|--method async-pseudo-energy --h 0.01 --ratio 5 --t-end 5"
-    "fpu-ape-sync-gl3|systems/fpu.toml|--method async-pseudo-energy --h 0.01 --ratio 5 --quadrature gl3 --t-end 5"
-    "fpu-ape|systems/fpu-slow-fast.toml|--method async-pseudo-energy --h 0.01 --h-fast 0.001 --quadrature midpoint --t-end 5"
-    "fpu-ape-gl5|systems/fpu-slow-fast.toml|--method async-pseudo-energy --h 0.01 --h-fast 0.001 --t-end 5"
-    "water-pe|systems/water-box/scene.toml|--method pseudo-energy --h 0.5fs --t-end 10fs"
-    "water-ape|systems/water-box/scene.toml|--method async-pseudo-energy --h 1fs --ratio 2 --t-end 10fs"
+    "chain-pe|$threads|systems/chain/scene.toml --method pseudo-energy --h 0.01 --t-end 0.5 --energy-every 1"
+    "chain-pe-gl3|$threads|systems/chain/scene.toml --method pseudo-energy --h 0.01 --quadrature gl3 --t-end 0.5 --energy-every 1"
+    "fpu-ape-sync|$threads|systems/fpu.toml --method async-pseudo-energy --h 0.01 --ratio 5 --t-end 5 --energy-every 1"
+    "fpu-ape-sync-gl3|$threads|systems/fpu.toml --method async-pseudo-energy --h 0.01 --ratio 5 --quadrature gl3 --t-end 5 --energy-every 1"
+    "fpu-ape|$threads|systems/fpu-slow-fast.toml --method async-pseudo-energy --h 0.01 --h-fast 0.001 --quadrature midpoint --t-end 5 --energy-every 1"
+    "fpu-ape-gl5|$threads|systems/fpu-slow-fast.toml --method async-pseudo-energy --h 0.01 --h-fast 0.001 --t-end 5 --energy-every 1"
+    "water-pe|$threads|systems/water-box/scene.toml --method pseudo-energy --h 0.5fs --t-end 10fs --energy-every 1"
+    "water-ape|$threads|systems/water-box/scene.toml --method async-pseudo-energy --h 1fs --ratio 2 --t-end 10fs --energy-every 1"
 )
 
-status=0
-for case in "${cases[@]}"; do
-    IFS='|' read -r name scene args <<<"$case"
-    for side in old new; do
-        binary=$old
-        [ "$side" = new ] && binary=$new
-        # shellcheck disable=SC2086
-        RAYON_NUM_THREADS=$threads "$binary" run "$scene" $args --energy-every 1 --quiet \
-            --out "$work/$name-$side" >/dev/null
-    done
-    rows=$(($(wc -l <"$work/$name-old/energy.csv") - 1))
-    if cmp -s "$work/$name-old/energy.csv" "$work/$name-new/energy.csv"; then
-        echo "same  $name ($rows rows, $threads threads)"
-    else
-        echo "DIFF  $name ($rows rows, $threads threads)"
-        status=1
-    fi
-done
-exit $status
+# shellcheck source=scripts/same_bits.sh
+. "$(dirname "$0")/same_bits.sh"
+same_bits_cases "$old" "$new" "$work" "${cases[@]}"

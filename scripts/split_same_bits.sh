@@ -42,28 +42,6 @@ cases=(
     "dipeptide-molecule-t2|2|$dipeptide --split r_in=5,r_out=6,by=molecule,short_level=0,remainder_level=1 --method impulse --h 2fs --inner 2 --t-end 200fs --energy-every 1"
     "dipeptide-molecule-structural|1|$dipeptide --split r_in=5,r_out=6,by=molecule,short_level=0,remainder_level=1 --method structural-zd --block 2 --h 1fs --t-end 10fs --energy-every 1"
 )
-status=0
-for case in "${cases[@]}"; do
-    IFS='|' read -r name threads args <<<"$case"
-    for side in before after; do
-        bin=$before
-        [ "$side" = after ] && bin=$after
-        out="$work/$name.$side"
-        rm -rf "$out"
-        # shellcheck disable=SC2086
-        if ! RAYON_NUM_THREADS=$threads "$bin" run $args --quiet --out "$out" \
-            >"$out.log" 2>&1; then
-            echo "FAIL $name ($side): $(tail -n 3 "$out.log")"
-            status=1
-            continue 2
-        fi
-    done
-    rows=$(($(wc -l <"$work/$name.before/energy.csv") - 1))
-    if cmp -s "$work/$name.before/energy.csv" "$work/$name.after/energy.csv"; then
-        echo "same  $name ($rows rows, $threads thread(s))"
-    else
-        echo "DIFF  $name: $(cmp "$work/$name.before/energy.csv" "$work/$name.after/energy.csv")"
-        status=1
-    fi
-done
-exit $status
+# shellcheck source=scripts/same_bits.sh
+. "$(dirname "$0")/same_bits.sh"
+same_bits_cases "$before" "$after" "$work" "${cases[@]}"

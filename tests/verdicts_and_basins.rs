@@ -299,11 +299,6 @@ fn analyze_prints_and_writes_the_basins() {
     assert!((total - 1.0).abs() < 1e-12, "{table}");
 }
 
-/// `scan.csv`'s rows (after the comment and header lines), split at commas.
-fn scan_rows(dir: &Path) -> Vec<Vec<String>> {
-    common::study_rows(&dir.join("scan.csv"))
-}
-
 #[test]
 fn scan_steps_says_how_long_a_run_would_decide_and_runs_it_until_decided() {
     // Impulse on the three-spring system at h = 0.2 over 20 time units: its drift, about
@@ -321,32 +316,12 @@ fn scan_steps_says_how_long_a_run_would_decide_and_runs_it_until_decided() {
         args.extend(extra);
         let (code, _, stderr) = common::run_cli(&args);
         assert_eq!(code, 0, "{stderr}");
-        (scan_rows(&dir), stderr)
+        let (header, rows) = common::study_table(&dir.join("scan.csv"));
+        (header, rows, stderr)
     };
-    let (short, stderr) = scan("scan-undecided", &[]);
-    // The columns of src/cli/studies.rs's scan table.
-    let header_of = |name: &str| -> usize {
-        [
-            "index",
-            "method",
-            "h",
-            "status",
-            "drift",
-            "true_drift",
-            "judged_energy",
-            "blowup_time",
-            "max_relative_error",
-            "steps",
-            "slow_evaluations",
-            "fast_evaluations",
-            "hessian_vector",
-            "drift_error",
-            "decide_at",
-        ]
-        .iter()
-        .position(|c| *c == name)
-        .unwrap()
-    };
+    let (header, short, stderr) = scan("scan-undecided", &[]);
+    // The columns by name, from the table's own header.
+    let header_of = |name: &str| -> usize { header.iter().position(|c| c == name).unwrap() };
     let (status, steps, decide_at) = (
         header_of("status"),
         header_of("steps"),
@@ -359,7 +334,7 @@ fn scan_steps_says_how_long_a_run_would_decide_and_runs_it_until_decided() {
         stderr.contains("impulse at h = 0.2 (a run of 20): undecided: a run of ~"),
         "{stderr}"
     );
-    let (long, _) = scan("scan-until-decided", &["--until-decided", "4"]);
+    let (_, long, _) = scan("scan-until-decided", &["--until-decided", "4"]);
     assert_ne!(long[0][status], "undecided", "{long:?}");
     let (n_short, n_long): (u64, u64) = (
         short[0][steps].parse().unwrap(),
