@@ -29,7 +29,7 @@ cases=(
     "three-level-mixed-t2|2|$water/three-level.toml $impulse3 --precision mixed"
     "three-level-pme|1|$water/three-level.toml $impulse3 --coulomb pme"
     "three-level-pme-mixed-t2|2|$water/three-level.toml $impulse3 --coulomb pme --precision mixed"
-    "three-level-sinr|1|$water/three-level.toml --method sinr --h 20fs --level-steps 10,4 --t-end 1ps --energy-every 1 --seed 7 --temperature 300K"
+    "three-level-sinr|1|$water/three-level.toml --method sinr --h 20fs --level-steps 10,4 --thermostats 4 --tau 5fs --t-end 1ps --energy-every 1 --seed 7 --temperature 300K"
     "three-level-structural|1|$water/three-level.toml --method structural-zd --block 2 --h 1fs --t-end 40fs --energy-every 1"
     "long-cutoff-three-level|1|$water/long-cutoff-three-level.toml $impulse_lc"
     "long-cutoff-three-level-t2|2|$water/long-cutoff-three-level.toml $impulse_lc"
