@@ -233,10 +233,12 @@ fn open_trajectory(
     let mut writer = TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
     if t.velocities {
         if system.mass_matrix.is_some() {
-            return Err(Error::input(
+            return Err(Error::flag(
+                "--trajectory-velocities",
                 "--trajectory-velocities: the velocities of a non-diagonal mass matrix \
                  are not written; leave the flag out",
-            ));
+            )
+            .expected("a scene with a diagonal mass matrix"));
         }
         writer = writer.with_velocities()?;
     }

@@ -136,10 +136,15 @@ impl Average {
             .into_iter()
             .find(|a| a.name() == name)
             .ok_or_else(|| {
-                Error::input(format!(
-                    "unknown mollifier \"{name}\"; use short-average, long-average, \
+                Error::setting(
+                    "mollifier",
+                    format!(
+                        "unknown mollifier \"{name}\"; use short-average, long-average, \
                      linear-average or equilibrium-molly"
-                ))
+                    ),
+                )
+                .expected("short-average, long-average, linear-average or equilibrium-molly")
+                .got_named(name)
             })
     }
 
@@ -226,9 +231,12 @@ impl JacobianChoice {
             None | Some("auto") => Ok(JacobianChoice::Auto),
             Some("forward") => Ok(JacobianChoice::Fixed(JacobianMode::Forward)),
             Some("adjoint") => Ok(JacobianChoice::Fixed(JacobianMode::Adjoint)),
-            Some(other) => Err(Error::input(format!(
-                "unknown jacobian \"{other}\"; use forward, adjoint or auto"
-            ))),
+            Some(other) => Err(Error::setting(
+                "jacobian",
+                format!("unknown jacobian \"{other}\"; use forward, adjoint or auto"),
+            )
+            .expected("forward, adjoint or auto")
+            .got_named(other)),
         }
     }
 }
