@@ -227,11 +227,15 @@ fn check_study_rows(merged: &Located) -> Result<()> {
         (Err(_), None) => return Ok(()),
         (Ok(column), Some(configs)) => (column, configs),
         _ => {
-            return Err(Error::input(format!(
-                "the merged {} table has a `config` column without its study's `configs` \
+            return Err(Error::setting(
+                "configs",
+                format!(
+                    "the merged {} table has a `config` column without its study's `configs` \
                  setting, or the reverse: shards of a study are written by `scan steps --study`",
-                table.study
-            )));
+                    table.study
+                ),
+            )
+            .expected("a `config` column and a `configs` setting together"));
         }
     };
     let labels: Vec<&str> = configs.split(';').collect();

@@ -641,15 +641,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let (mut setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
     refuse_sampling_starts(criterion, setup.starts, None)?;
-    if args.repeats > MAX_REPEATS {
-        return Err(Error::flag(
-            "--repeats",
-            format!(
-                "--repeats must be at most {MAX_REPEATS}, got {}",
-                args.repeats
-            ),
-        ));
-    }
+    check_repeats(args.repeats)?;
     check_points(&setup, &methods, &steps)?;
     if !args.quiet {
         async_band_warnings(&setup, &methods, &steps)?;
@@ -704,10 +696,30 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--repeats` of the timings: at most [`MAX_REPEATS`] (0 takes none).
+pub(super) fn check_repeats(repeats: usize) -> Result<()> {
+    if repeats > MAX_REPEATS {
+        return Err(Error::flag(
+            "--repeats",
+            format!("--repeats must be at most {MAX_REPEATS}"),
+        )
+        .expected(format!("at most {MAX_REPEATS}"))
+        .got(repeats.to_string()));
+    }
+    Ok(())
+}
+
+/// A scan's safe steps, the outer steps each was chosen from, and the timings.
+pub(super) type SafeTable<'a> = (
+    &'a [SafeStep],
+    &'a dyn Fn(&SafeStep) -> Vec<f64>,
+    &'a [Timing],
+);
+
 /// The end of a scan: its safe-step table, then how many runs (`runs`: "12 runs") took
 /// how long, and where the results are.
 pub(super) fn print_scan_end(
-    (safe, steps, timings): (&[SafeStep], &dyn Fn(&SafeStep) -> Vec<f64>, &[Timing]),
+    (safe, steps, timings): SafeTable,
     units: Units,
     (criterion, shard): (Criterion, Option<&str>),
     (runs, results, out): (&str, &[StepResult], &Path),

@@ -620,12 +620,17 @@ impl SlowMollifier for Mollifier {
     fn setup(&mut self, system: &System) -> Result<()> {
         let levels = system.forces.n_levels();
         if levels != 2 {
-            return Err(Error::input(format!(
-                "{} averages with the fast forces and mollifies the slow ones: it needs \
+            return Err(Error::setting(
+                "method",
+                format!(
+                    "{} averages with the fast forces and mollifies the slow ones: it needs \
                  exactly two force levels, the scene has {levels} (use impulse for \
                  recursive r-RESPA)",
-                self.average.name()
-            )));
+                    self.average.name()
+                ),
+            )
+            .expected("a scene of two force levels")
+            .got_named(self.average.name()));
         }
         let components = system.forces.fast_components(system.n_particles());
         Mollifier::setup(self, system.dim, &components);

@@ -7,14 +7,14 @@ use std::path::Path;
 
 use super::super::common::{SCAN_STEPS, keep_shard, parse_steps, progress_bar};
 use super::{
-    Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, choose_criterion,
-    print_scan_end, reference_analysis, refuse_sampling_starts, sampling_criterion, sampling_table,
-    scan_meta, scan_table, timing_table,
+    Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, check_repeats,
+    choose_criterion, print_scan_end, reference_analysis, refuse_sampling_starts,
+    sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
 };
 use crate::analysis::sampling::{constrained_dof, run_sampling_point};
 use crate::analysis::scan::{
-    MAX_REPEATS, ScanConfig, ScanSetup, StepResult, Timing, config_points, point_settings,
-    run_config_points, run_point, safe_steps, take_timings, until_decided,
+    ScanConfig, ScanSetup, StepResult, Timing, config_points, point_settings, run_config_points,
+    run_point, safe_steps, take_timings, until_decided,
 };
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
@@ -259,15 +259,7 @@ fn study_timings(
 /// `scan steps SCENE --study FILE`: every (configuration, h) point, configuration-major.
 pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()> {
     refuse_single_flags(args)?;
-    if args.repeats > MAX_REPEATS {
-        return Err(Error::flag(
-            "--repeats",
-            format!(
-                "--repeats must be at most {MAX_REPEATS}, got {}",
-                args.repeats
-            ),
-        ));
-    }
+    check_repeats(args.repeats)?;
     let study = read_study(path)?;
     // Before the configurations are built: their checks of the starts are the drift's.
     if args.criterion == Some(Criterion::Sampling) {
