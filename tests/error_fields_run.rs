@@ -150,6 +150,26 @@ fn write_shard(dir: &Path, name: &str, points: usize, indices: &[usize]) -> std:
     path
 }
 
+/// The error of merging two shards, a.csv and b.csv, each of (points, indices), read
+/// from files; and b.csv's path.
+fn merge_error(
+    name: &str,
+    a: (usize, &[usize]),
+    b: (usize, &[usize]),
+) -> (Error, std::path::PathBuf) {
+    let dir = scratch_dir(name);
+    let first = write_shard(&dir, "a.csv", a.0, a.1);
+    let second = write_shard(&dir, "b.csv", b.0, b.1);
+    let shards = vec![
+        Located::read(&first).unwrap(),
+        Located::read(&second).unwrap(),
+    ];
+    match merge_located(shards) {
+        Ok(_) => panic!("{name}: the shards merged"),
+        Err(e) => (e, second),
+    }
+}
+
 #[test]
 fn a_short_row_of_a_study_table_gives_its_file_and_line() {
     let dir = scratch_dir("fields-study-short-row");
@@ -178,14 +198,7 @@ fn a_short_row_of_a_study_table_gives_its_file_and_line() {
 
 #[test]
 fn a_point_two_shards_both_hold_gives_the_file_and_line_of_the_second() {
-    let dir = scratch_dir("fields-study-twice");
-    let first = write_shard(&dir, "a.csv", 3, &[0, 1]);
-    let second = write_shard(&dir, "b.csv", 3, &[1, 2]);
-    let shards = vec![
-        Located::read(&first).unwrap(),
-        Located::read(&second).unwrap(),
-    ];
-    let error = merge_located(shards).unwrap_err();
+    let (error, second) = merge_error("fields-study-twice", (3, &[0, 1]), (3, &[1, 2]));
     let p = problem(&error);
     // Point 1 is b.csv's first row, line 3 (after the first line and the header).
     assert_eq!(p.location.file.as_deref(), Some(second.as_path()));
@@ -200,14 +213,7 @@ fn a_point_two_shards_both_hold_gives_the_file_and_line_of_the_second() {
 
 #[test]
 fn shards_of_different_settings_give_the_setting_and_both_values() {
-    let dir = scratch_dir("fields-study-settings");
-    let first = write_shard(&dir, "a.csv", 2, &[0]);
-    let second = write_shard(&dir, "b.csv", 3, &[1]);
-    let shards = vec![
-        Located::read(&first).unwrap(),
-        Located::read(&second).unwrap(),
-    ];
-    let error = merge_located(shards).unwrap_err();
+    let (error, second) = merge_error("fields-study-settings", (2, &[0]), (3, &[1]));
     let p = problem(&error);
     assert_eq!(p.location.file.as_deref(), Some(second.as_path()));
     assert_eq!(p.location.line, Some(1));
