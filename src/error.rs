@@ -54,14 +54,18 @@ impl Location {
 ///
 /// It prints as `file:line: ` (when the file is known; `:line` when the line is), then
 /// `message`, or, with no message, `` `key` takes EXPECTED `` (a wrong value described
-/// by its fields alone), then `, got GOT` when the value got is known. The key and the
-/// expected value are not printed again after a message: the message names them.
+/// by its fields alone), then `, got GOT` when the value got is known and the message
+/// does not name it already (`got_in_message`). The key and the expected value are not
+/// printed again after a message: the message names them.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Problem {
     pub location: Location,
     pub message: String,
     pub expected: Option<String>,
     pub got: Option<String>,
+    /// The message names the value got (`unknown method "nope"; …`), so it is not
+    /// printed again after it.
+    pub got_in_message: bool,
 }
 
 impl Problem {
@@ -93,7 +97,7 @@ impl fmt::Display for Problem {
             f.write_str(": ")?;
         }
         f.write_str(&self.body())?;
-        if let Some(got) = &self.got {
+        if let Some(got) = self.got.as_ref().filter(|_| !self.got_in_message) {
             write!(f, ", got {got}")?;
         }
         Ok(())
@@ -144,6 +148,7 @@ fn problem(file: Option<PathBuf>, key: Option<String>, message: String) -> Box<P
         message,
         expected: None,
         got: None,
+        got_in_message: false,
     })
 }
 
@@ -244,6 +249,34 @@ impl Error {
         self.with(|p| p.got = Some(got.into()))
     }
 
+    /// The file the problem is in (a study table, a picture): it prints first, as
+    /// `file: message`.
+    pub fn file(self, file: impl Into<PathBuf>) -> Self {
+        self.with(|p| p.location.file = Some(file.into()))
+    }
+
+    /// The error after `prefix` (`euler at h = 0.1: …`), as `prefix: error`. A
+    /// command-line problem (no file) keeps its key, expected and got values; any other
+    /// error becomes a free-form message of its whole text after the prefix.
+    pub fn context(self, prefix: &str) -> Self {
+        match self {
+            Error::Input(mut p) if p.location.file.is_none() => {
+                p.message = format!("{prefix}: {}", p.body());
+                Error::Input(p)
+            }
+            other => Error::input(format!("{prefix}: {other}")),
+        }
+    }
+
+    /// The value given, where the message already names it (`unknown method "nope"`):
+    /// a field to read, not printed again.
+    pub fn got_named(self, got: impl Into<String>) -> Self {
+        self.with(|p| {
+            p.got = Some(got.into());
+            p.got_in_message = true;
+        })
+    }
+
     /// The message with `note` after it (`message (note)` reads `{body}{note}`).
     pub fn append(self, note: &str) -> Self {
         self.with(|p| p.message = format!("{}{note}", p.body()))
@@ -292,6 +325,22 @@ mod tests {
             Error::topology("t.prmtop", "no such file").to_string(),
             "t.prmtop: no such file"
         );
+    }
+
+    #[test]
+    fn a_context_keeps_the_fields_and_the_text() {
+        let e = Error::flag("--h", "--h must be positive").got("-1");
+        let before = format!("euler at h = -1: {e}");
+        let e = e.context("euler at h = -1");
+        assert_eq!(e.to_string(), before);
+        assert_eq!(e.location().unwrap().key.as_deref(), Some("--h"));
+        assert_eq!(e.problem().unwrap().got.as_deref(), Some("-1"));
+        let named = Error::flag("--method", "unknown method \"x\"").got_named("x");
+        assert_eq!(named.to_string(), "unknown method \"x\"");
+        assert_eq!(named.problem().unwrap().got.as_deref(), Some("x"));
+        let scene = Error::scene("a.toml", "bad").line(2);
+        let text = format!("x: {scene}");
+        assert_eq!(scene.context("x").to_string(), text);
     }
 
     #[test]

@@ -72,10 +72,11 @@ impl Format {
         };
         if !directory.is_dir() {
             return Err(Error::input(format!(
-                "{}: cannot write the picture there: the directory {} does not exist",
-                path.display(),
+                "cannot write the picture there: the directory {} does not exist",
                 directory.display()
-            )));
+            ))
+            .file(path)
+            .expected("a path in a directory that exists"));
         }
         match path
             .extension()
@@ -85,10 +86,9 @@ impl Format {
         {
             Some("png") => Ok(Format::Png),
             Some("svg") => Ok(Format::Svg),
-            _ => Err(Error::input(format!(
-                "{}: a picture must end in .png or .svg",
-                path.display()
-            ))),
+            _ => Err(Error::input("a picture must end in .png or .svg")
+                .file(path)
+                .expected(".png or .svg")),
         }
     }
 }
@@ -441,53 +441,46 @@ fn draw_colour_bar<DB: DrawingBackend>(
         .margin_right(8)
         .y_label_area_size(0)
         .right_y_label_area_size(62);
-    let shade = |t: f64| viridis(t).filled();
+    // The bar in `steps` shades, evenly spaced in `lo..hi` and placed on the axis by
+    // `to_axis`, then its labelled axis: one body for the log and the linear axis, whose
+    // plotters coordinate types differ.
+    macro_rules! shade_and_label {
+        ($chart:expr, ($lo:expr, $hi:expr), $to_axis:expr) => {{
+            let mut chart = $chart.map_err(|e| e.to_string())?;
+            let (lo, hi): (f64, f64) = ($lo, $hi);
+            let to_axis = $to_axis;
+            chart
+                .draw_series((0..steps).map(|k| {
+                    let a = lo + (hi - lo) * k as f64 / steps as f64;
+                    let b = lo + (hi - lo) * (k + 1) as f64 / steps as f64;
+                    let t = (k as f64 + 0.5) / steps as f64;
+                    Rectangle::new([(0.0, to_axis(a)), (1.0, to_axis(b))], viridis(t).filled())
+                }))
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .disable_x_axis()
+                .y_desc(label)
+                .y_label_formatter(&|v| format_number(*v))
+                .label_style(("sans-serif", 13))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
     if log {
-        let mut chart = builder
-            .build_cartesian_2d(
-                0.0..1.0,
-                (min..max).log_scale().with_key_points(log_ticks(min, max)),
-            )
-            .map_err(|e| e.to_string())?;
-        let (lmin, lmax) = (min.log10(), max.log10());
-        chart
-            .draw_series((0..steps).map(|k| {
-                let a = lmin + (lmax - lmin) * k as f64 / steps as f64;
-                let b = lmin + (lmax - lmin) * (k + 1) as f64 / steps as f64;
-                let t = (k as f64 + 0.5) / steps as f64;
-                Rectangle::new([(0.0, 10f64.powf(a)), (1.0, 10f64.powf(b))], shade(t))
-            }))
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .disable_x_axis()
-            .y_desc(label)
-            .y_label_formatter(&|v| format_number(*v))
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(|e| e.to_string())?;
+        let axis = (min..max).log_scale().with_key_points(log_ticks(min, max));
+        shade_and_label!(
+            builder.build_cartesian_2d(0.0..1.0, axis),
+            (min.log10(), max.log10()),
+            |x: f64| 10f64.powf(x)
+        );
     } else {
-        let mut chart = builder
-            .build_cartesian_2d(0.0..1.0, min..max)
-            .map_err(|e| e.to_string())?;
-        chart
-            .draw_series((0..steps).map(|k| {
-                let a = min + (max - min) * k as f64 / steps as f64;
-                let b = min + (max - min) * (k + 1) as f64 / steps as f64;
-                let t = (k as f64 + 0.5) / steps as f64;
-                Rectangle::new([(0.0, a), (1.0, b)], shade(t))
-            }))
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .disable_x_axis()
-            .y_desc(label)
-            .y_label_formatter(&|v| format_number(*v))
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(|e| e.to_string())?;
+        shade_and_label!(
+            builder.build_cartesian_2d(0.0..1.0, min..max),
+            (min, max),
+            |x: f64| x
+        );
     }
     Ok(())
 }

@@ -233,10 +233,12 @@ fn open_trajectory(
     let mut writer = TrajectoryWriter::create(&t.path, &t.names, system.dim, system.periodic_box)?;
     if t.velocities {
         if system.mass_matrix.is_some() {
-            return Err(Error::input(
+            return Err(Error::flag(
+                "--trajectory-velocities",
                 "--trajectory-velocities: the velocities of a non-diagonal mass matrix \
                  are not written; leave the flag out",
-            ));
+            )
+            .expected("a scene with a diagonal mass matrix"));
         }
         writer = writer.with_velocities()?;
     }
@@ -451,20 +453,30 @@ fn check_applicable(scene: &str, system: &System, integrator: &dyn Integrator) -
             .iter()
             .find(|t| t.term.magnetic().is_some())
     {
-        return Err(Error::input(format!(
-            "{} \"{}\" is a velocity-dependent (magnetic) term, which {} cannot integrate; \
+        return Err(Error::setting(
+            "method",
+            format!(
+                "{} \"{}\" is a velocity-dependent (magnetic) term, which {} cannot integrate; \
              use structural-zd or structural-zds",
-            term.term.kind(),
-            term.name,
-            integrator.name()
-        )));
+                term.term.kind(),
+                term.name,
+                integrator.name()
+            ),
+        )
+        .expected("structural-zd or structural-zds")
+        .got_named(integrator.name()));
     }
     if system.mass_matrix.is_some() && !integrator.supports_mass_matrix() {
-        return Err(Error::input(format!(
-            "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
+        return Err(Error::setting(
+            "method",
+            format!(
+                "{scene} has a non-diagonal mass matrix, which {} cannot use; run it with \
              --method pseudo-energy, or set lump = true in the scene's [mass_matrix]",
-            integrator.name()
-        )));
+                integrator.name()
+            ),
+        )
+        .expected("pseudo-energy")
+        .got_named(integrator.name()));
     }
     Ok(())
 }

@@ -74,11 +74,16 @@ impl Value {
     pub fn evaluate(&self, parameters: &BTreeMap<String, f64>, what: &str) -> Result<f64> {
         let value = match self {
             Value::Number(x) => *x,
-            Value::Expression(text) => expr::evaluate(text, parameters)
-                .map_err(|e| Error::input(format!("{what}: {e}")))?,
+            Value::Expression(text) => expr::evaluate(text, parameters).map_err(|e| {
+                Error::setting(what, format!("{what}: {e}"))
+                    .expected("a number or an expression of the parameters")
+            })?,
         };
         if !value.is_finite() {
-            return Err(Error::input(format!("{what} is not finite ({value})")));
+            return Err(
+                Error::setting(what, format!("{what} is not finite ({value})"))
+                    .expected("a finite number"),
+            );
         }
         Ok(value)
     }
@@ -93,10 +98,16 @@ impl Value {
         let value = match self {
             Value::Number(x) => *x,
             Value::Expression(text) => expr::evaluate_with_units(text, parameters, time_units)
-                .map_err(|e| Error::input(format!("{what}: {e}")))?,
+                .map_err(|e| {
+                    Error::setting(what, format!("{what}: {e}"))
+                        .expected("a number or an expression of the parameters")
+                })?,
         };
         if !value.is_finite() {
-            return Err(Error::input(format!("{what} is not finite ({value})")));
+            return Err(
+                Error::setting(what, format!("{what} is not finite ({value})"))
+                    .expected("a finite number"),
+            );
         }
         Ok(value)
     }
@@ -513,7 +524,8 @@ pub fn whole_ratio(numerator: f64, denominator: f64, small: &str, large: &str) -
         return Err(Error::input(format!(
             "{small} = {denominator} does not divide the {large} = {numerator} (ratio \
              {ratio}); choose {small} = {large}/k for a whole number k"
-        )));
+        ))
+        .expected(format!("{large}/k for a whole number k")));
     }
     Ok(k as usize)
 }

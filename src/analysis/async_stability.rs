@@ -288,9 +288,12 @@ impl MapParameter {
         match text {
             "h-slow" | "h_slow" => Ok(MapParameter::HSlow),
             "h-fast" | "h_fast" => Ok(MapParameter::HFast),
-            other => Err(Error::input(format!(
-                "unknown map parameter \"{other}\"; use h-slow or h-fast"
-            ))),
+            other => Err(Error::flag(
+                "--param",
+                format!("unknown map parameter \"{other}\"; use h-slow or h-fast"),
+            )
+            .expected("h-slow or h-fast")
+            .got_named(other)),
         }
     }
 }

@@ -119,28 +119,32 @@ impl SamplingCriterion {
             (self.basin_bound, "--basin-bound"),
         ] {
             if !(value > 0.0 && value.is_finite()) {
-                return Err(Error::input(format!(
-                    "{flag} must be positive, got {value}"
-                )));
+                return Err(Error::flag(flag, format!("{flag} must be positive"))
+                    .expected("a positive number")
+                    .got(value.to_string()));
             }
         }
         if !(1..=MAX_FRAMES).contains(&self.frames) {
-            return Err(Error::input(format!(
-                "--frames must be between 1 and {MAX_FRAMES}, got {}",
-                self.frames
-            )));
+            return Err(Error::flag(
+                "--frames",
+                format!("--frames must be between 1 and {MAX_FRAMES}"),
+            )
+            .expected(format!("1 to {MAX_FRAMES}"))
+            .got(self.frames.to_string()));
         }
         if !(0.0..t_end).contains(&self.discard) {
-            return Err(Error::input(format!(
-                "--discard {} is outside the run [0, {t_end}): nothing would be left to compare",
-                self.discard
-            )));
+            return Err(Error::flag("--discard", format!("--discard {} is outside the run [0, {t_end}): nothing would be left to compare", self.discard)).expected(format!("a time in [0, {t_end})")).got_named(self.discard.to_string()));
         }
         if self.frames < self.blocks {
-            return Err(Error::input(format!(
-                "--frames {} is fewer than --blocks {}: every block needs a trajectory frame",
-                self.frames, self.blocks
-            )));
+            return Err(Error::flag(
+                "--frames",
+                format!(
+                    "--frames {} is fewer than --blocks {}: every block needs a trajectory frame",
+                    self.frames, self.blocks
+                ),
+            )
+            .expected(format!("at least --blocks {}", self.blocks))
+            .got_named(self.frames.to_string()));
         }
         Ok(())
     }
@@ -363,14 +367,19 @@ pub fn check_reference_temperature(
     // A NaN mean or error (too few blocks to tell) is refused too.
     let within = (t.mean - target).abs() <= tolerance;
     if !within {
-        return Err(Error::input(format!(
-            "the reference run {} has a mean kinetic temperature of {:.2} ± {:.2}{unit}, not \
+        return Err(Error::flag(
+            "--reference",
+            format!(
+                "the reference run {} has a mean kinetic temperature of {:.2} ± {:.2}{unit}, not \
              the scan's {target}{unit}: compare at equal temperature (give the reference's \
              --temperature, or a reference run at {target}{unit})",
-            dir.display(),
-            t.mean,
-            t.error
-        )));
+                dir.display(),
+                t.mean,
+                t.error
+            ),
+        )
+        .expected(format!("a reference run at {target}{unit}"))
+        .got_named(format!("{:.2}{unit}", t.mean)));
     }
     Ok(())
 }
@@ -393,7 +402,7 @@ pub fn run_sampling_point(
         frame_every: criterion.frame_every(setup.t_end, h),
     };
     let summary = run_once(setup, method, h, &outputs)
-        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+        .map_err(|e| e.context(&format!("{method} at h = {h}")))?;
     judge_sampling_point(setup, criterion, reference, (index, method, h), &summary)
 }
 

@@ -326,7 +326,7 @@ pub fn point_settings(setup: &ScanSetup, method: &str, h: f64) -> Result<MethodS
         .run
         .overridden_by(&point_spec(setup, method, h)?)
         .resolve_with_units(&scene.parameters, scene.units)
-        .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
+        .map_err(|e| e.context(&format!("{method} at h = {h}")))
 }
 
 /// The run settings of one point: the setup's, with its method, step, length and levels.
@@ -412,10 +412,15 @@ pub fn check_until_decided(factor: Option<f64>) -> Result<f64> {
     match factor {
         None => Ok(0.0),
         Some(f) if (1.0..=MAX_UNTIL_DECIDED).contains(&f) => Ok(f),
-        Some(f) => Err(Error::input(format!(
-            "--until-decided must be a factor of the run length between 1 and \
-             {MAX_UNTIL_DECIDED}, got {f}"
-        ))),
+        Some(f) => Err(Error::flag(
+            "--until-decided",
+            format!(
+                "--until-decided must be a factor of the run length between 1 and \
+             {MAX_UNTIL_DECIDED}"
+            ),
+        )
+        .expected(format!("1 to {MAX_UNTIL_DECIDED}"))
+        .got(f.to_string())),
     }
 }
 
@@ -449,7 +454,7 @@ pub fn run_point(setup: &ScanSetup, index: usize, method: &str, h: f64) -> Resul
             .par_iter()
             .map(|start| {
                 run_once(start, method, h, &PointOutputs::default())
-                    .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))
+                    .map_err(|e| e.context(&format!("{method} at h = {h}")))
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(judge_starts(
@@ -467,9 +472,12 @@ pub fn check_starts(starts: Option<usize>) -> Result<usize> {
     match starts {
         None => Ok(1),
         Some(n) if (1..=MAX_STARTS).contains(&n) => Ok(n),
-        Some(n) => Err(Error::input(format!(
-            "--starts must be between 1 and {MAX_STARTS}, got {n}"
-        ))),
+        Some(n) => Err(Error::flag(
+            "--starts",
+            format!("--starts must be between 1 and {MAX_STARTS}"),
+        )
+        .expected(format!("1 to {MAX_STARTS}"))
+        .got(n.to_string())),
     }
 }
 
@@ -479,12 +487,17 @@ pub fn check_starts_possible(setup: &ScanSetup, method: &str, h: f64) -> Result<
     if setup.starts <= 1 || point_settings(setup, method, h)?.temperature.is_some() {
         return Ok(());
     }
-    Err(Error::input(format!(
-        "--starts {} needs start velocities drawn at a temperature (seeds s, s+1, …): {method} \
+    Err(Error::flag(
+        "--starts",
+        format!(
+            "--starts {} needs start velocities drawn at a temperature (seeds s, s+1, …): {method} \
          at h = {h} has no --temperature (nor a [run] temperature), so every start would take \
          the scene's own velocities and be the same run; give --temperature T or --starts 1",
-        setup.starts
-    )))
+            setup.starts
+        ),
+    )
+    .expected("--temperature T or --starts 1")
+    .got_named(setup.starts.to_string()))
 }
 
 /// The setups of a point's starts: one (the setup itself), or `starts` with the seeds
@@ -500,10 +513,15 @@ pub fn start_setups(setup: &ScanSetup, method: &str, h: f64) -> Result<Vec<ScanS
         .map(|k| {
             let mut start = setup.clone();
             start.base.seed = Some(seed.checked_add(k).ok_or_else(|| {
-                Error::input(format!(
-                    "--seed {seed} leaves no room for {} starts",
+                Error::flag(
+                    "--seed",
+                    format!("--seed {seed} leaves no room for {} starts", setup.starts),
+                )
+                .expected(format!(
+                    "a seed that leaves room for {} starts",
                     setup.starts
                 ))
+                .got_named(seed.to_string())
             })?);
             Ok(start)
         })
@@ -709,7 +727,7 @@ pub fn run_config_points(
         .map(|&(index, c, h)| {
             let config = &configs[c];
             let result = run(&config.setup, index, &config.method, h)
-                .map_err(|e| Error::input(format!("configuration \"{}\": {e}", config.label)))
+                .map_err(|e| e.context(&format!("configuration \"{}\"", config.label)))
                 .map(|mut r| {
                     r.config = Some(config.label.clone());
                     r
@@ -724,11 +742,15 @@ pub fn run_config_points(
 
 /// The refusal of a thermostatted method under the drift criterion.
 pub fn thermostatted_by_drift(method: &str) -> Error {
-    Error::input(format!(
-        "{method} is thermostatted: it exchanges energy with its heat bath by design, so an \
+    Error::flag(
+        "--criterion",
+        format!(
+            "{method} is thermostatted: it exchanges energy with its heat bath by design, so an \
          NVE energy drift cannot judge it; scan it with --criterion sampling --reference DIR \
          (a reference run at the same temperature)"
-    ))
+        ),
+    )
+    .expected("--criterion sampling")
 }
 
 /// Most timed repetitions of one point (a bound on a user-given count).
@@ -744,9 +766,12 @@ pub fn time_point(
     repeats: usize,
 ) -> Result<f64> {
     if !(1..=MAX_REPEATS).contains(&repeats) {
-        return Err(Error::input(format!(
-            "--repeats must be between 1 and {MAX_REPEATS}, got {repeats}"
-        )));
+        return Err(Error::flag(
+            "--repeats",
+            format!("--repeats must be between 1 and {MAX_REPEATS}"),
+        )
+        .expected(format!("1 to {MAX_REPEATS}"))
+        .got(repeats.to_string()));
     }
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = threads {
@@ -914,14 +939,7 @@ mod tests {
     }
 
     fn start(value: f64, error: f64) -> Measurement {
-        Measurement {
-            value,
-            error,
-            fixed_error: 0.0,
-            start: 0.0,
-            span: 10.0,
-            exponent: 1.0,
-        }
+        crate::run::verdict::measured(value, error, 1.0)
     }
 
     #[test]

@@ -154,12 +154,17 @@ impl StiffnessStudy {
             let defaulted = self.reference_steps.is_none()
                 || (self.base.inner_steps.is_none() && self.base.dt.is_none());
             if defaulted && (needed > MAX_DEFAULT_SUBSTEPS as f64 || needed.is_nan()) {
-                return Err(Error::input(format!(
-                    "--h {h}: the fastest fast mode over the scan (ω = {:e}) would need more \
+                return Err(Error::flag(
+                    "--h",
+                    format!(
+                        "--h {h}: the fastest fast mode over the scan (ω = {:e}) would need more \
                      than {MAX_DEFAULT_SUBSTEPS} default inner or reference steps per outer \
                      step; give --inner (or --dt) and --reference-steps",
-                    self.omega_max
-                )));
+                        self.omega_max
+                    ),
+                )
+                .expected("--inner (or --dt) and --reference-steps")
+                .got_named(h.to_string()));
             }
         }
         Ok(())
@@ -172,7 +177,7 @@ impl StiffnessStudy {
             for &h in &self.steps {
                 let settings = self.settings(method, h, first)?;
                 study_integrator(&settings, &mut Vec::new())
-                    .map_err(|e| Error::input(format!("--method {method} at h = {h}: {e}")))?;
+                    .map_err(|e| e.context(&format!("--method {method} at h = {h}")))?;
             }
         }
         Ok(())
@@ -346,16 +351,24 @@ pub fn outer_steps(t_end: f64, h: f64) -> Result<usize> {
     let ratio = t_end / h;
     let n = ratio.round();
     if n < 1.0 || (ratio - n).abs() > 1e-9 * ratio {
-        return Err(Error::input(format!(
-            "--t-end {t_end} is not a whole number of outer steps --h {h} (ratio {ratio})"
-        )));
+        return Err(Error::flag(
+            "--t-end",
+            format!("--t-end {t_end} is not a whole number of outer steps --h {h} (ratio {ratio})"),
+        )
+        .expected("a whole number of outer steps --h")
+        .got_named(t_end.to_string()));
     }
     // The reference keeps the positions at every outer step.
     if n > MAX_OUTER_STEPS as f64 {
-        return Err(Error::input(format!(
-            "--t-end {t_end} / --h {h} is {n} outer steps, more than the {MAX_OUTER_STEPS} a \
+        return Err(Error::flag(
+            "--t-end",
+            format!(
+                "--t-end {t_end} / --h {h} is {n} outer steps, more than the {MAX_OUTER_STEPS} a \
              stiffness study keeps"
-        )));
+            ),
+        )
+        .expected(format!("at most {MAX_OUTER_STEPS} outer steps"))
+        .got_named(t_end.to_string()));
     }
     Ok(n as usize)
 }
@@ -385,15 +398,20 @@ pub fn largest(points: &[&StiffnessPoint]) -> Option<(f64, f64)> {
 fn check_param(parsed: &SceneFile, param: &str, scene: &Path) -> Result<()> {
     if !parsed.parameters.contains_key(param) {
         let known: Vec<&str> = parsed.parameters.keys().map(String::as_str).collect();
-        return Err(Error::input(format!(
-            "--param {param}: the scene {} has no parameter \"{param}\" (it has: {})",
-            scene.display(),
-            if known.is_empty() {
-                "none".to_string()
-            } else {
-                known.join(", ")
-            }
-        )));
+        let known = if known.is_empty() {
+            "none".to_string()
+        } else {
+            known.join(", ")
+        };
+        return Err(Error::flag(
+            "--param",
+            format!(
+                "--param {param}: the scene {} has no parameter \"{param}\" (it has: {known})",
+                scene.display()
+            ),
+        )
+        .expected(format!("a parameter of the scene: {known}"))
+        .got_named(param));
     }
     Ok(())
 }
@@ -408,27 +426,39 @@ fn check_scan(
     reference_steps: Option<usize>,
 ) -> Result<()> {
     if values.is_empty() || values.iter().any(|v| !v.is_finite()) {
-        return Err(Error::input("--range must give finite values"));
+        return Err(
+            Error::flag("--range", "--range must give finite values").expected("finite values")
+        );
     }
     if methods.is_empty() {
-        return Err(Error::input("--method: give at least one method"));
+        return Err(
+            Error::flag("--method", "--method: give at least one method")
+                .expected("at least one method"),
+        );
     }
     if !(t_end.is_finite() && t_end > 0.0) {
-        return Err(Error::input(format!(
-            "--t-end must be positive, got {t_end}"
-        )));
+        return Err(Error::flag("--t-end", "--t-end must be positive")
+            .expected("a positive time")
+            .got(t_end.to_string()));
     }
     for &h in steps {
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!("--h must be positive, got {h}")));
+            return Err(Error::flag("--h", "--h must be positive")
+                .expected("a positive step")
+                .got(h.to_string()));
         }
         outer_steps(t_end, h)?;
     }
     if steps.is_empty() {
-        return Err(Error::input("--h: give at least one outer step"));
+        return Err(Error::flag("--h", "--h: give at least one outer step")
+            .expected("at least one outer step"));
     }
     if reference_steps == Some(0) {
-        return Err(Error::input("--reference-steps must be at least 1"));
+        return Err(
+            Error::flag("--reference-steps", "--reference-steps must be at least 1")
+                .expected("at least 1")
+                .got("0"),
+        );
     }
     Ok(())
 }

@@ -242,7 +242,10 @@ fn reference_samples(
         &args.out.join("reference.csv"),
     )?;
     if reference.times.len() != sample_times(times.sample, times.t_end).len() {
-        return Err(Error::input("the reference run does not reach --t-end"));
+        return Err(Error::flag(
+            "--t-end",
+            "the reference run does not reach --t-end",
+        ));
     }
     Ok(reference)
 }

@@ -187,7 +187,7 @@ pub fn check_methods(
         for &h in steps {
             let settings = point_settings(scene, base, method, h)?;
             crate::run::prepare::check_settings(&settings)
-                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+                .map_err(|e| e.context(&format!("{method} at h = {h}")))?;
         }
     }
     Ok(())

@@ -13,7 +13,7 @@ use crate::analysis::scan::{SafeStep, ScanPoint, Verdict, safe_steps_of};
 use crate::analysis::stability::map::Shard;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
-use crate::io::study_csv::{StudyTable, differing_setting, merge};
+use crate::io::study_csv::{Located, StudyTable, differing_setting, merge_located};
 use crate::io::summary::REAL_DRIFT_UNIT;
 use crate::units::Units;
 
@@ -40,11 +40,17 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
     for entry in maps {
         let (path, table) = entry;
         if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
-            return Err(Error::input(format!(
+            let message = format!(
                 "the map shards differ in {key}: {theirs} in {}, {ours} in {}",
                 path.display(),
                 first_path.display()
-            )));
+            );
+            return Err(Error::input(message)
+                .file(path)
+                .line(1)
+                .key(key)
+                .expected(ours)
+                .got_named(theirs));
         }
         let shard = table
             .meta
@@ -59,23 +65,34 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
             slices = vec![None; shard.count];
         }
         if shard.count != slices.len() {
-            return Err(Error::input(format!(
+            let message = format!(
                 "{} is shard {}/{} but {} is one of {}: give the shards of one --shard split",
                 path.display(),
                 shard.index,
                 shard.count,
                 first_path.display(),
                 slices.len()
-            )));
+            );
+            return Err(Error::input(message)
+                .file(path)
+                .line(1)
+                .key("shard")
+                .expected(format!("k/{}", slices.len()))
+                .got_named(format!("{}/{}", shard.index, shard.count)));
         }
         if let Some((other, _)) = slices[shard.index - 1] {
-            return Err(Error::input(format!(
+            let message = format!(
                 "shard {}/{} appears twice: {} and {}",
                 shard.index,
                 shard.count,
                 other.display(),
                 path.display()
-            )));
+            );
+            return Err(Error::input(message)
+                .file(path)
+                .line(1)
+                .key("shard")
+                .got_named(format!("{}/{}", shard.index, shard.count)));
         }
         let expected = shard.range(points).len();
         if table.rows.len() != expected {
@@ -96,7 +113,9 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
             "the map shards do not cover its {points} points: shard {}/{} is missing",
             k + 1,
             slices.len()
-        )));
+        ))
+        .key("shard")
+        .expected(format!("{}/{}", k + 1, slices.len())));
     }
     let path = out.join("stability-map.csv");
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -111,10 +130,7 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
 }
 
 /// The shards' tables, by the study each names, and the stability-map shards apart.
-type Shards = (
-    BTreeMap<String, Vec<(String, StudyTable)>>,
-    Vec<(PathBuf, StudyTable)>,
-);
+type Shards = (BTreeMap<String, Vec<Located>>, Vec<(PathBuf, StudyTable)>);
 
 /// `longstep merge DIR…`: combine shard outputs into what a single run writes.
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
@@ -134,7 +150,7 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     let mut merged = Vec::new();
     for (study, tables) in by_study {
         let count = tables.len();
-        let table = merge(tables)?;
+        let table = merge_located(tables)?;
         check_study_rows(&table)?;
         merged.push((study, count, table));
     }
@@ -148,7 +164,7 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
             "scan-stiffness" => SCAN_STIFFNESS,
             _ => "merged.csv",
         };
-        merged.write(&args.out.join(name))?;
+        merged.table.write(&args.out.join(name))?;
         eprintln!(
             "merged {count} shards of {study} into {}",
             args.out.join(name).display()
@@ -161,7 +177,7 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
 /// Every study table of the inputs (directories, or CSV files), grouped by the study it
 /// names, so shard files may be called anything.
 fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
-    let mut by_study: BTreeMap<String, Vec<(String, StudyTable)>> = BTreeMap::new();
+    let mut by_study: BTreeMap<String, Vec<Located>> = BTreeMap::new();
     let mut maps: Vec<(PathBuf, StudyTable)> = Vec::new();
     for input in inputs {
         let files: Vec<PathBuf> = if input.is_dir() {
@@ -175,9 +191,9 @@ fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
         };
         if files.is_empty() {
             return Err(Error::input(format!(
-                "{}: no study table ({WORK_PRECISION}, {SCAN_STEPS}, {SCAN_STIFFNESS}) in it",
-                input.display()
-            )));
+                "no study table ({WORK_PRECISION}, {SCAN_STEPS}, {SCAN_STIFFNESS}) in it"
+            ))
+            .file(input));
         }
         for file in files {
             let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
@@ -189,16 +205,15 @@ fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
                         .into(),
                 });
             }
-            let table = StudyTable::read(&file)?;
-            if table.study == "stability-map" {
-                maps.push((file.clone(), table));
+            let located = Located::read(&file)?;
+            if located.table.study == "stability-map" {
+                maps.push((file.clone(), located.table));
                 continue;
             }
-            let name = file.display().to_string();
             by_study
-                .entry(table.study.clone())
+                .entry(located.table.study.clone())
                 .or_default()
-                .push((name, table));
+                .push(located);
         }
     }
     Ok((by_study, maps))
@@ -206,41 +221,52 @@ fn read_shards(inputs: &[PathBuf]) -> Result<Shards> {
 
 /// A merged `scan steps --study` table: its `config` column and its `configs` setting come
 /// together, and every row's configuration is one the study names.
-fn check_study_rows(table: &StudyTable) -> Result<()> {
+fn check_study_rows(merged: &Located) -> Result<()> {
+    let table = &merged.table;
     let (column, configs) = match (table.column("config"), table.meta.get("configs")) {
         (Err(_), None) => return Ok(()),
         (Ok(column), Some(configs)) => (column, configs),
         _ => {
-            return Err(Error::input(format!(
-                "the merged {} table has a `config` column without its study's `configs` \
+            return Err(Error::setting(
+                "configs",
+                format!(
+                    "the merged {} table has a `config` column without its study's `configs` \
                  setting, or the reverse: shards of a study are written by `scan steps --study`",
-                table.study
-            )));
+                    table.study
+                ),
+            )
+            .expected("a `config` column and a `configs` setting together"));
         }
     };
     let labels: Vec<&str> = configs.split(';').collect();
     match table
         .rows
         .iter()
-        .find(|row| !labels.contains(&row[column].as_str()))
+        .zip(&merged.sources)
+        .find(|(row, _)| !labels.contains(&row[column].as_str()))
     {
-        Some(row) => Err(Error::input(format!(
-            "point {} of the merged {} table is of configuration \"{}\", which its study \
-             ({configs}) does not name",
-            row[0], table.study, row[column]
-        ))),
+        Some((row, source)) => Err(source
+            .error(format!(
+                "point {} of the merged {} table is of configuration \"{}\", which its study \
+                 ({configs}) does not name",
+                row[0], table.study, row[column]
+            ))
+            .key("config")
+            .expected(configs.replace(';', ", "))
+            .got_named(row[column].clone())),
         None => Ok(()),
     }
 }
 
 /// The pictures of the merged tables, as the studies draw them.
-fn draw_merged(merged_tables: &BTreeMap<String, StudyTable>, out: &Path) -> Result<()> {
-    if let Some(table) = merged_tables.get("work-precision") {
-        draw_work_precision(table, merged_tables.get("work-precision-wall-time"), out)?;
+fn draw_merged(merged_tables: &BTreeMap<String, Located>, out: &Path) -> Result<()> {
+    if let Some(merged) = merged_tables.get("work-precision") {
+        let wall_time = merged_tables.get("work-precision-wall-time");
+        draw_work_precision(&merged.table, wall_time.map(|m| &m.table), out)?;
     }
-    if let Some(table) = merged_tables.get("scan-steps") {
-        draw_scan(table, out)?;
-        print_merged_safe_steps(table)?;
+    if let Some(merged) = merged_tables.get("scan-steps") {
+        draw_scan(&merged.table, out)?;
+        print_merged_safe_steps(merged)?;
     }
     if merged_tables.contains_key("scan-stiffness") {
         eprintln!(
@@ -253,7 +279,8 @@ fn draw_merged(merged_tables: &BTreeMap<String, StudyTable>, out: &Path) -> Resu
 
 /// The safe-step table of a merged step scan, as an unsharded `scan steps` prints it
 /// (without the timing columns: shards take no timings).
-fn print_merged_safe_steps(table: &StudyTable) -> Result<()> {
+fn print_merged_safe_steps(merged: &Located) -> Result<()> {
+    let table = &merged.table;
     let (method, h, status) = (
         table.column("method")?,
         table.column("h")?,
@@ -261,12 +288,15 @@ fn print_merged_safe_steps(table: &StudyTable) -> Result<()> {
     );
     let config = table.column("config").ok();
     let mut points = Vec::with_capacity(table.rows.len());
-    for row in &table.rows {
+    for (row, source) in table.rows.iter().zip(&merged.sources) {
         let verdict = Verdict::parse(&row[status]).ok_or_else(|| {
-            Error::input(format!(
-                "point {} of the merged scan has status \"{}\", which is no verdict",
-                row[0], row[status]
-            ))
+            source
+                .error(format!(
+                    "point {} of the merged scan has status \"{}\", which is no verdict",
+                    row[0], row[status]
+                ))
+                .key("status")
+                .got_named(row[status].clone())
         })?;
         points.push(ScanPoint {
             config: config.map(|c| row[c].clone()),

@@ -175,10 +175,14 @@ fn asynchronous_map(args: &StabilityMapArgs) -> Result<super::async_map::AsyncMa
         (model.scene.is_some(), "--scene (give the scene as SCENE)"),
     ];
     if let Some((_, name)) = stray.iter().find(|(given, _)| *given) {
-        return Err(Error::input(format!(
-            "{name} does not apply to --method async-pseudo-energy, whose map varies the step \
+        return Err(Error::flag(
+            *name,
+            format!(
+                "{name} does not apply to --method async-pseudo-energy, whose map varies the step \
              over --range (see longstep async-stability-map --help)"
-        )));
+            ),
+        )
+        .expected("flags of async-pseudo-energy's map"));
     }
     let missing = |name: &str| {
         Error::flag(
@@ -384,12 +388,17 @@ fn check_output_size(rows: usize, allow_large: bool) -> Result<()> {
     if allow_large || bytes <= MAX_MAP_BYTES {
         return Ok(());
     }
-    Err(Error::input(format!(
-        "the map's CSV would hold {rows} rows, about {:.0} GB (~{ROW_BYTES} bytes a row), more \
+    Err(Error::flag(
+        "--n",
+        format!(
+            "the map's CSV would hold {rows} rows, about {:.0} GB (~{ROW_BYTES} bytes a row), more \
          than {:.0} GB: give a coarser --n, compute it in slices (--shard k/n), or --allow-large",
-        bytes / 1e9,
-        MAX_MAP_BYTES / 1e9
-    )))
+            bytes / 1e9,
+            MAX_MAP_BYTES / 1e9
+        ),
+    )
+    .expected(format!("a map of at most {:.0} GB", MAX_MAP_BYTES / 1e9))
+    .got_named(rows.to_string()))
 }
 
 /// Points along each axis of a map without --n.
@@ -407,9 +416,11 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {
         return super::async_map::async_map_command(&asynchronous_map(args)?);
     }
     if let Some(name) = args.asynchronous.given() {
-        return Err(Error::input(format!(
-            "{name} applies to --method async-pseudo-energy only"
-        )));
+        return Err(Error::flag(
+            name,
+            format!("{name} applies to --method async-pseudo-energy only"),
+        )
+        .expected("--method async-pseudo-energy"));
     }
     map_csv(args)?;
     let (evaluator, notices, description) = evaluator(&args.model)?;
@@ -424,11 +435,16 @@ pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {
     // few hundred megabytes (≈ 9 bytes per point).
     let drawing = args.png.is_some() || args.svg.is_some();
     if drawing && grid.len() > MAX_PICTURE_POINTS {
-        return Err(Error::input(format!(
-            "a picture of {} points is more than the {MAX_PICTURE_POINTS} a picture can hold; \
+        return Err(Error::flag(
+            "--n",
+            format!(
+                "a picture of {} points is more than the {MAX_PICTURE_POINTS} a picture can hold; \
              draw a coarser map (--n) or write only the CSV",
-            grid.len()
-        )));
+                grid.len()
+            ),
+        )
+        .expected(format!("at most {MAX_PICTURE_POINTS} points"))
+        .got_named(grid.len().to_string()));
     }
     check_output_size(range.len(), args.allow_large)?;
     let tally = compute_map(args, &evaluator, &grid, shard, range.clone(), drawing)?;
@@ -467,7 +483,15 @@ fn map_grid(args: &StabilityMapArgs) -> Result<(Grid, Shard)> {
         gamma2: Axis::parse(&args.gamma2, n, "--gamma2")?,
     };
     if grid.gamma1.start < 0.0 || grid.gamma2.start < 0.0 {
-        return Err(Error::input("Γ ranges must start at 0 or above"));
+        return Err(Error::flag(
+            if grid.gamma1.start < 0.0 {
+                "--gamma1"
+            } else {
+                "--gamma2"
+            },
+            "Γ ranges must start at 0 or above",
+        )
+        .expected("a range starting at 0 or above"));
     }
     let shard = match &args.shard {
         Some(text) => Shard::parse(text)?,

@@ -1,6 +1,6 @@
 //! The studies: `longstep modes`, `longstep scan steps`, `longstep minimize`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::{Args, Subcommand};
 
@@ -226,7 +226,11 @@ fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
     };
     let value = |s: &str| -> Result<f64> {
         s.parse::<Value>()
-            .map_err(|_| Error::input(format!("bad number in {what}")))?
+            .map_err(|_| {
+                Error::flag(what, format!("bad number in {what}"))
+                    .expected("a number LO:HI")
+                    .got(format!("\"{s}\""))
+            })?
             .evaluate_time(&Default::default(), what, units.time_units())
     };
     let (lo, hi) = (value(lo)?, value(hi)?);
@@ -244,7 +248,7 @@ fn check_points(setup: &ScanSetup, methods: &[String], steps: &[f64]) -> Result<
             crate::analysis::scan::check_starts_possible(setup, method, h)?;
             let settings = point_settings(setup, method, h)?;
             crate::run::prepare::check_settings(&settings)
-                .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+                .map_err(|e| e.context(&format!("{method} at h = {h}")))?;
         }
     }
     Ok(())
@@ -393,9 +397,11 @@ fn scan_methods(args: &ScanStepsArgs) -> Result<Vec<String>> {
     }
     methods.retain(|m| !m.is_empty());
     if methods.is_empty() {
-        return Err(Error::input(
+        return Err(Error::flag(
+            "--methods",
             "scan steps needs the methods to scan: give --methods A,B (or --method A)",
-        ));
+        )
+        .expected("--methods A,B or --method A"));
     }
     Ok(methods)
 }
@@ -407,7 +413,11 @@ fn scan_setup(
 ) -> Result<(ScanSetup, Vec<f64>)> {
     let units = scene.units;
     let h = args.run.h.as_ref().ok_or_else(|| {
-        Error::input("scan steps needs the outer steps to scan: give --h LO:HI:STEP or a list")
+        Error::flag(
+            "--h",
+            "scan steps needs the outer steps to scan: give --h LO:HI:STEP or a list",
+        )
+        .expected("LO:HI:STEP or a list")
     })?;
     let steps = parse_steps(&h.to_string(), units)?;
     Ok((base_setup(args, scene)?, steps))
@@ -421,7 +431,13 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         .t_end
         .as_ref()
         .or(scene.run.t_end.as_ref())
-        .ok_or_else(|| Error::input("scan steps needs each run's length: give --t-end"))?
+        .ok_or_else(|| {
+            Error::flag(
+                "--t-end",
+                "scan steps needs each run's length: give --t-end",
+            )
+            .expected("a run length")
+        })?
         .evaluate_time(&scene.parameters, "--t-end", units.time_units())?;
     if t_end <= 0.0 {
         return Err(Error::flag("--t-end", "--t-end must be positive"));
@@ -444,9 +460,11 @@ fn base_setup(args: &ScanStepsArgs, scene: &crate::io::scene::Scene) -> Result<S
         ..args.run.clone()
     };
     if !args.level_dt.is_empty() && args.run.level_steps.is_some() {
-        return Err(Error::input(
+        return Err(Error::flag(
+            "--level-dt",
             "give the inner levels either as --level-steps or as --level-dt, not both",
-        ));
+        )
+        .expected("--level-steps or --level-dt, not both"));
     }
     if args.level_dt.len() > 16 {
         return Err(Error::flag(
@@ -513,11 +531,16 @@ fn refuse_sampling_starts(criterion: Criterion, starts: usize, config: Option<&s
         return Ok(());
     }
     let whose = config.map_or(String::new(), |c| format!("configuration \"{c}\": "));
-    Err(Error::input(format!(
-        "{whose}--starts {starts} applies to the drift criterion (the mean drift of several \
+    Err(Error::flag(
+        "--starts",
+        format!(
+            "{whose}--starts {starts} applies to the drift criterion (the mean drift of several \
          starts); --criterion sampling judges one run per point against its reference: \
          leave out --starts (and a study's `starts`) for a sampling scan"
-    )))
+        ),
+    )
+    .expected("1 with --criterion sampling")
+    .got_named(starts.to_string()))
 }
 
 /// The reference's basin populations with their errors and the residues pooled, or that
@@ -618,15 +641,7 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     let (mut setup, steps) = scan_setup(args, &scene)?;
     let criterion = choose_criterion(args, &methods)?;
     refuse_sampling_starts(criterion, setup.starts, None)?;
-    if args.repeats > MAX_REPEATS {
-        return Err(Error::flag(
-            "--repeats",
-            format!(
-                "--repeats must be at most {MAX_REPEATS}, got {}",
-                args.repeats
-            ),
-        ));
-    }
+    check_repeats(args.repeats)?;
     check_points(&setup, &methods, &steps)?;
     if !args.quiet {
         async_band_warnings(&setup, &methods, &steps)?;
@@ -671,21 +686,50 @@ pub fn scan_steps_command(args: &ScanStepsArgs) -> Result<()> {
     super::draw::draw_scan(&table, &args.out)?;
     let safe = safe_steps(&results);
     let timings = write_timings(args, &setup, &safe, meta, scene.units)?;
-    print_safe_steps(
-        &safe,
-        &|_| steps.clone(),
-        &timings,
+    let runs = format!("{} runs", results.len());
+    print_scan_end(
+        (&safe, &|_| steps.clone(), &timings),
         scene.units,
         (criterion, args.shard.as_deref()),
-    );
-    let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
-    eprintln!(
-        "{} runs, {:.1} s of run time; results in {}",
-        results.len(),
-        wall,
-        path.display()
+        (&runs, &results, &path),
     );
     Ok(())
+}
+
+/// `--repeats` of the timings: at most [`MAX_REPEATS`] (0 takes none).
+pub(super) fn check_repeats(repeats: usize) -> Result<()> {
+    if repeats > MAX_REPEATS {
+        return Err(Error::flag(
+            "--repeats",
+            format!("--repeats must be at most {MAX_REPEATS}"),
+        )
+        .expected(format!("at most {MAX_REPEATS}"))
+        .got(repeats.to_string()));
+    }
+    Ok(())
+}
+
+/// A scan's safe steps, the outer steps each was chosen from, and the timings.
+pub(super) type SafeTable<'a> = (
+    &'a [SafeStep],
+    &'a dyn Fn(&SafeStep) -> Vec<f64>,
+    &'a [Timing],
+);
+
+/// The end of a scan: its safe-step table, then how many runs (`runs`: "12 runs") took
+/// how long, and where the results are.
+pub(super) fn print_scan_end(
+    (safe, steps, timings): SafeTable,
+    units: Units,
+    (criterion, shard): (Criterion, Option<&str>),
+    (runs, results, out): (&str, &[StepResult], &Path),
+) {
+    print_safe_steps(safe, steps, timings, units, (criterion, shard));
+    let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
+    eprintln!(
+        "{runs}, {wall:.1} s of run time; results in {}",
+        out.display()
+    );
 }
 
 /// Warn before an asynchronous run enters an instability band (small linear scenes).

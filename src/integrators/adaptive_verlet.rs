@@ -68,23 +68,35 @@ impl Control {
             }),
             Some((name, alpha)) if name.trim() == "min-distance" => {
                 let alpha: f64 = alpha.trim().parse().map_err(|_| {
-                    Error::input(format!(
-                        "control \"{text}\": the exponent α after min-distance= must be a \
-                         number, got \"{}\"",
-                        alpha.trim()
-                    ))
+                    Error::setting(
+                        "control",
+                        format!(
+                            "control \"{text}\": the exponent α after min-distance= must be a \
+                         number"
+                        ),
+                    )
+                    .expected("min-distance=ALPHA with a number ALPHA")
+                    .got(format!("\"{}\"", alpha.trim()))
                 })?;
                 if !(alpha.is_finite() && alpha > 0.0) {
-                    return Err(Error::input(format!(
-                        "control \"{text}\": the exponent α must be positive, got {alpha}"
-                    )));
+                    return Err(Error::setting(
+                        "control",
+                        format!("control \"{text}\": the exponent α must be positive"),
+                    )
+                    .expected("a positive exponent α")
+                    .got(alpha.to_string()));
                 }
                 Ok(Control::MinDistance { alpha })
             }
-            _ => Err(Error::input(format!(
-                "unknown step control \"{text}\" for adaptive-verlet; known: arclength, \
+            _ => Err(Error::setting(
+                "control",
+                format!(
+                    "unknown step control \"{text}\" for adaptive-verlet; known: arclength, \
                  min-distance, min-distance=ALPHA"
-            ))),
+                ),
+            )
+            .expected("arclength, min-distance or min-distance=ALPHA")
+            .got_named(format!("\"{text}\""))),
         }
     }
 }
@@ -160,25 +172,32 @@ impl AdaptiveVerlet {
         h_max: Option<f64>,
     ) -> Result<Self> {
         if !(fictive_step.is_finite() && fictive_step > 0.0) {
-            return Err(Error::input(format!(
-                "fictive step Δs (--h) must be positive and finite, got {fictive_step}"
-            )));
+            return Err(
+                Error::setting("h", "fictive step Δs (--h) must be positive and finite")
+                    .expected("a positive finite step")
+                    .got(fictive_step.to_string()),
+            );
         }
         for (name, bound) in [("h_min", h_min), ("h_max", h_max)] {
             if let Some(b) = bound
                 && !(b.is_finite() && b > 0.0)
             {
-                return Err(Error::input(format!(
-                    "{name} must be positive and finite, got {b}"
-                )));
+                return Err(
+                    Error::setting(name, format!("{name} must be positive and finite"))
+                        .expected("a positive finite number")
+                        .got(b.to_string()),
+                );
             }
         }
         if let (Some(lo), Some(hi)) = (h_min, h_max)
             && lo >= hi
         {
-            return Err(Error::input(format!(
-                "h_min = {lo} must be smaller than h_max = {hi}"
-            )));
+            return Err(Error::setting(
+                "h_min",
+                format!("h_min must be smaller than h_max = {hi}"),
+            )
+            .expected(format!("less than h_max = {hi}"))
+            .got(lo.to_string()));
         }
         Ok(AdaptiveVerlet {
             fictive_step,
@@ -445,10 +464,12 @@ impl Integrator for AdaptiveVerlet {
                     && t.term.min_distance(&system.state.q).is_some()
             });
             if !has_pairs {
-                return Err(Error::input(
+                return Err(Error::setting(
+                    "control",
                     "adaptive-verlet --control min-distance needs a non-bonded pair \
                      interaction (gravity, Lennard-Jones, inverse-power) to measure r_min",
-                ));
+                )
+                .expected("a scene with a non-bonded pair term"));
             }
         }
         self.gradient = vec![0.0; system.n_dofs()];

@@ -313,12 +313,18 @@ impl AsyncPseudoEnergy {
     /// Coarse step `h_slow = ratio · h_fast`; the fine step is `h_slow / ratio`.
     pub fn new(h_slow: f64, ratio: usize, quadrature: Quadrature) -> Result<Self> {
         if !(h_slow.is_finite() && h_slow > 0.0) {
-            return Err(Error::input(format!(
-                "coarse step h_slow must be positive and finite, got {h_slow}"
-            )));
+            return Err(
+                Error::setting("h_slow", "coarse step h_slow must be positive and finite")
+                    .expected("a positive finite step")
+                    .got(h_slow.to_string()),
+            );
         }
         if ratio == 0 {
-            return Err(Error::input("ratio K = h_slow / h_fast must be at least 1"));
+            return Err(
+                Error::setting("ratio", "ratio K = h_slow / h_fast must be at least 1")
+                    .expected("a whole number ≥ 1")
+                    .got(ratio.to_string()),
+            );
         }
         Ok(AsyncPseudoEnergy {
             h_slow,
@@ -356,23 +362,32 @@ impl AsyncPseudoEnergy {
             ));
         }
         let ratio = match (settings.h_fast, settings.ratio) {
-            (Some(h_fast), None) => whole_ratio(h_slow, h_fast, "h_fast", "h_slow")?,
+            (Some(h_fast), None) => {
+                whole_ratio(h_slow, h_fast, "h_fast", "h_slow").map_err(|e| e.key("h_fast"))?
+            }
             (None, Some(k)) => k,
             (Some(h_fast), Some(k)) => {
-                let from_steps = whole_ratio(h_slow, h_fast, "h_fast", "h_slow")?;
+                let from_steps =
+                    whole_ratio(h_slow, h_fast, "h_fast", "h_slow").map_err(|e| e.key("h_fast"))?;
                 if from_steps != k {
-                    return Err(Error::input(format!(
-                        "h_slow / h_fast = {from_steps} but ratio = {k}: give one of \
+                    return Err(Error::setting(
+                        "ratio",
+                        format!(
+                            "h_slow / h_fast = {from_steps} but ratio = {k}: give one of \
                          --h-fast and --ratio, or consistent values"
-                    )));
+                        ),
+                    )
+                    .expected(from_steps.to_string()));
                 }
                 k
             }
             (None, None) => {
-                return Err(Error::input(
+                return Err(Error::setting(
+                    "h_fast",
                     "async-pseudo-energy needs the fine step: give --h-fast or --ratio K \
                      (h_slow = K h_fast)",
-                ));
+                )
+                .expected("--h-fast or --ratio K"));
             }
         };
         Self::new(h_slow, ratio, quadrature)

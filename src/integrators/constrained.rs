@@ -83,11 +83,16 @@ pub fn build(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
         )?)),
         "langevin-respa" => {
             if let Some(mollifier) = &settings.mollifier {
-                return Err(Error::input(format!(
-                    "langevin-respa with constraints runs without a mollifier (the mollifier \
+                return Err(Error::setting(
+                    "mollifier",
+                    format!(
+                        "langevin-respa with constraints runs without a mollifier (the mollifier \
                      {mollifier} is not defined on the constraint manifold here); drop \
                      --mollifier or the constraints"
-                )));
+                    ),
+                )
+                .expected("no mollifier with constraints")
+                .got_named(mollifier));
             }
             let langevin = Langevin::from_settings(settings)?;
             Ok(Box::new(Impulse::with_innermost(
@@ -104,12 +109,17 @@ pub fn build(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
             if settings.rigid_water {
                 asked.push("rigid_water".to_string());
             }
-            Err(Error::input(format!(
-                "{other} does not run with constraints ({}): constraints act on the innermost \
+            Err(Error::setting(
+                "method",
+                format!(
+                    "{other} does not run with constraints ({}): constraints act on the innermost \
                  level of {} only; run one of those, or drop the constraints",
-                asked.join(", "),
-                CONSTRAINED_METHODS.join(", ")
-            )))
+                    asked.join(", "),
+                    CONSTRAINED_METHODS.join(", ")
+                ),
+            )
+            .expected(CONSTRAINED_METHODS.join(", "))
+            .got_named(other))
         }
     }
 }

@@ -85,9 +85,11 @@ impl Impulse {
     ) -> Result<Self> {
         let h = settings.h;
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!(
-                "outer step h must be positive and finite, got {h}"
-            )));
+            return Err(
+                Error::setting("h", "outer step h must be positive and finite")
+                    .expected("a positive finite step")
+                    .got(h.to_string()),
+            );
         }
         let name = match (&mollifier, variant) {
             (Some(mollifier), _) => mollifier.name(),
@@ -95,9 +97,11 @@ impl Impulse {
             (None, Variant::Midpoint) => "impulse-midpoint",
         };
         if settings.inner_steps.is_none() && settings.level_steps.is_none() {
-            return Err(Error::input(format!(
-                "{name} needs the inner step: give --inner K (dt = h/K) or --dt"
-            )));
+            return Err(Error::setting(
+                "inner_steps",
+                format!("{name} needs the inner step: give --inner K (dt = h/K) or --dt"),
+            )
+            .expected("--inner K or --dt"));
         }
         Ok(Impulse {
             name,
@@ -293,13 +297,16 @@ impl Integrator for Impulse {
         match (&self.level_steps_setting, self.inner_steps) {
             (Some(steps), _) => {
                 if steps.len() != levels - 1 {
-                    return Err(Error::input(format!(
-                        "level_steps gives {} numbers, but the scene has {levels} force levels \
-                         and needs {} (steps of each level per step of the level above, \
-                         outermost first)",
-                        steps.len(),
-                        levels - 1
-                    )));
+                    return Err(Error::setting(
+                        "level_steps",
+                        format!(
+                            "the scene has {levels} force levels, so level_steps needs {} numbers \
+                         (steps of each level per step of the level above, outermost first)",
+                            levels - 1
+                        ),
+                    )
+                    .expected(format!("{} numbers", levels - 1))
+                    .got(steps.len().to_string()));
                 }
                 for (i, &s) in steps.iter().enumerate() {
                     self.substeps[levels - 1 - i] = s;
@@ -311,11 +318,16 @@ impl Integrator for Impulse {
         if self.variant == Variant::Midpoint
             && let Some(odd) = self.substeps[1..].iter().find(|&&s| s % 2 == 1)
         {
-            return Err(Error::input(format!(
-                "{} oscillates h/2 on each side of the kick, so it needs an even number of \
-                 inner steps per level, got {odd}",
-                self.name
-            )));
+            return Err(Error::setting(
+                "level_steps",
+                format!(
+                    "{} oscillates h/2 on each side of the kick, so it needs an even number of \
+                 inner steps per level",
+                    self.name
+                ),
+            )
+            .expected("an even number of inner steps per level")
+            .got(odd.to_string()));
         }
         if let Some(mollifier) = &mut self.mollifier {
             mollifier.setup(system)?;

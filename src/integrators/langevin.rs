@@ -78,10 +78,14 @@ pub fn required_kt(settings: &MethodSettings) -> Result<f64> {
                 "--temperature KT (a number: k_B T with k_B = 1 in a dimensionless scene)"
             }
         };
-        Error::input(format!(
-            "{} is thermostatted and needs a temperature: give {how}",
-            settings.method
-        ))
+        Error::setting(
+            "temperature",
+            format!(
+                "{} is thermostatted and needs a temperature: give {how}",
+                settings.method
+            ),
+        )
+        .expected(how)
     })
 }
 
@@ -122,10 +126,7 @@ impl Langevin {
             (Some(gamma), _) => gamma,
             (None, Units::Real) => DEFAULT_FRICTION_PER_FS,
             (None, Units::None) => {
-                return Err(Error::input(format!(
-                    "{} needs the friction γ in a dimensionless scene: give --friction                      (an inverse time)",
-                    settings.method
-                )));
+                return Err(Error::setting("friction", format!("{} needs the friction γ in a dimensionless scene: give --friction (an inverse time)", settings.method)).expected("an inverse time"));
             }
         };
         Ok(Langevin::new(

@@ -136,10 +136,15 @@ impl Average {
             .into_iter()
             .find(|a| a.name() == name)
             .ok_or_else(|| {
-                Error::input(format!(
-                    "unknown mollifier \"{name}\"; use short-average, long-average, \
+                Error::setting(
+                    "mollifier",
+                    format!(
+                        "unknown mollifier \"{name}\"; use short-average, long-average, \
                      linear-average or equilibrium-molly"
-                ))
+                    ),
+                )
+                .expected("short-average, long-average, linear-average or equilibrium-molly")
+                .got_named(name)
             })
     }
 
@@ -226,9 +231,12 @@ impl JacobianChoice {
             None | Some("auto") => Ok(JacobianChoice::Auto),
             Some("forward") => Ok(JacobianChoice::Fixed(JacobianMode::Forward)),
             Some("adjoint") => Ok(JacobianChoice::Fixed(JacobianMode::Adjoint)),
-            Some(other) => Err(Error::input(format!(
-                "unknown jacobian \"{other}\"; use forward, adjoint or auto"
-            ))),
+            Some(other) => Err(Error::setting(
+                "jacobian",
+                format!("unknown jacobian \"{other}\"; use forward, adjoint or auto"),
+            )
+            .expected("forward, adjoint or auto")
+            .got_named(other)),
         }
     }
 }
@@ -612,12 +620,17 @@ impl SlowMollifier for Mollifier {
     fn setup(&mut self, system: &System) -> Result<()> {
         let levels = system.forces.n_levels();
         if levels != 2 {
-            return Err(Error::input(format!(
-                "{} averages with the fast forces and mollifies the slow ones: it needs \
+            return Err(Error::setting(
+                "method",
+                format!(
+                    "{} averages with the fast forces and mollifies the slow ones: it needs \
                  exactly two force levels, the scene has {levels} (use impulse for \
                  recursive r-RESPA)",
-                self.average.name()
-            )));
+                    self.average.name()
+                ),
+            )
+            .expected("a scene of two force levels")
+            .got_named(self.average.name()));
         }
         let components = system.forces.fast_components(system.n_particles());
         Mollifier::setup(self, system.dim, &components);

@@ -152,9 +152,9 @@ pub struct PseudoEnergy {
 impl PseudoEnergy {
     pub fn new(h: f64, quadrature: Quadrature) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!(
-                "step h must be positive and finite, got {h}"
-            )));
+            return Err(Error::setting("h", "step h must be positive and finite")
+                .expected("a positive finite step")
+                .got(h.to_string()));
         }
         Ok(PseudoEnergy {
             h,
@@ -186,9 +186,11 @@ impl PseudoEnergy {
             let h_min = settings.h_min.unwrap_or(settings.h / 1024.0);
             method = method.with_adaptive(epsilon, h_min)?;
         } else if settings.h_min.is_some() {
-            return Err(Error::input(
+            return Err(Error::setting(
+                "h_min",
                 "h_min is the floor of adaptive halving: give --adaptive EPS with it",
-            ));
+            )
+            .expected("--adaptive EPS with it"));
         }
         Ok(method)
     }
@@ -196,15 +198,19 @@ impl PseudoEnergy {
     /// Halve a step whose jump has `⅛|M^{−1/2}[p]|² > ε |H̃|` (Remark 8), not below `h_min`.
     pub fn with_adaptive(mut self, epsilon: f64, h_min: f64) -> Result<Self> {
         if !(epsilon.is_finite() && epsilon > 0.0) {
-            return Err(Error::input(format!(
-                "adaptive tolerance must be positive, got {epsilon}"
-            )));
+            return Err(
+                Error::setting("adaptive", "adaptive tolerance must be positive")
+                    .expected("a positive number")
+                    .got(epsilon.to_string()),
+            );
         }
         if !(h_min.is_finite() && h_min > 0.0 && h_min <= self.h) {
-            return Err(Error::input(format!(
-                "h_min must be positive and at most h = {}, got {h_min}",
-                self.h
-            )));
+            return Err(Error::setting(
+                "h_min",
+                format!("h_min must be positive and at most h = {}", self.h),
+            )
+            .expected(format!("a positive step of at most h = {}", self.h))
+            .got(h_min.to_string()));
         }
         self.adaptive = Some(Adaptive { epsilon, h_min });
         Ok(self)

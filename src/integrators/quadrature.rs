@@ -54,10 +54,15 @@ impl Quadrature {
             "gauss5" => Self::gauss_legendre(5),
             other => {
                 let known: Vec<&str> = QUADRATURES.iter().map(|(n, _)| *n).collect();
-                Err(Error::input(format!(
-                    "unknown quadrature \"{other}\"; known quadratures: {}",
-                    known.join(", ")
-                )))
+                Err(Error::setting(
+                    "quadrature",
+                    format!(
+                        "unknown quadrature \"{other}\"; known quadratures: {}",
+                        known.join(", ")
+                    ),
+                )
+                .expected(known.join(", "))
+                .got_named(other))
             }
         }
     }

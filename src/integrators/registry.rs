@@ -194,11 +194,16 @@ fn method_info(
 ) -> Result<&'static MethodInfo> {
     let Some(info) = METHODS.iter().find(|m| m.name == settings.method) else {
         let known: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
-        return Err(Error::input(format!(
-            "unknown method \"{}\"; known methods: {}",
-            settings.method,
-            known.join(", ")
-        )));
+        return Err(Error::setting(
+            "method",
+            format!(
+                "unknown method \"{}\"; known methods: {}",
+                settings.method,
+                known.join(", ")
+            ),
+        )
+        .expected(known.join(", "))
+        .got_named(&settings.method));
     };
     for setting in settings.given() {
         if !info.uses.contains(&setting) {
@@ -218,10 +223,14 @@ fn averaging(
 ) -> Result<Box<dyn mollified::SlowMollifier>> {
     let choice = mollified::JacobianChoice::parse(settings.jacobian.as_deref())?;
     let inner_steps = settings.inner_steps.ok_or_else(|| {
-        Error::input(format!(
-            "{} needs the inner step: give --inner K (dt = h/K) or --dt",
-            average.name()
-        ))
+        Error::setting(
+            "inner_steps",
+            format!(
+                "{} needs the inner step: give --inner K (dt = h/K) or --dt",
+                average.name()
+            ),
+        )
+        .expected("--inner K or --dt")
     })?;
     Ok(Box::new(mollified::Mollifier::new(
         average,

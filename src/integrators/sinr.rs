@@ -128,9 +128,12 @@ impl Sinr {
     /// SIN(R) with L pairs, time scale τ and thermostat friction γ at `kt`.
     pub fn new(kt: f64, thermostats: usize, tau: f64, friction: f64, seed: u64) -> Result<Self> {
         if !(1..=MAX_THERMOSTATS).contains(&thermostats) {
-            return Err(Error::input(format!(
-                "sinr: thermostats (L) must be between 1 and {MAX_THERMOSTATS}, got {thermostats}"
-            )));
+            return Err(Error::setting(
+                "thermostats",
+                format!("sinr: thermostats (L) must be between 1 and {MAX_THERMOSTATS}"),
+            )
+            .expected(format!("1 to {MAX_THERMOSTATS}"))
+            .got(thermostats.to_string()));
         }
         let q = kt * tau * tau;
         Ok(Sinr {
@@ -170,10 +173,12 @@ impl Sinr {
             (Some(tau), _) => tau,
             (None, Units::Real) => DEFAULT_TAU_FS,
             (None, Units::None) => {
-                return Err(Error::input(
+                return Err(Error::setting(
+                    "tau",
                     "sinr needs the thermostat time scale in a dimensionless scene: give --tau \
                      (thermostat masses Q = kT τ²)",
-                ));
+                )
+                .expected("a time scale τ"));
             }
         };
         Sinr::new(

@@ -17,9 +17,9 @@ pub struct VelocityVerlet {
 impl VelocityVerlet {
     pub fn new(h: f64) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!(
-                "step h must be positive and finite, got {h}"
-            )));
+            return Err(Error::setting("h", "step h must be positive and finite")
+                .expected("a positive finite step")
+                .got(h.to_string()));
         }
         Ok(VelocityVerlet {
             h,

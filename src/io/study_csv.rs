@@ -40,7 +40,11 @@ impl StudyTable {
         self.meta
             .get("points")
             .and_then(|p| p.parse().ok())
-            .ok_or_else(|| Error::input(format!("study {} has no `points` count", self.study)))
+            .ok_or_else(|| {
+                Error::input(format!("study {} has no `points` count", self.study))
+                    .key("points")
+                    .expected("a whole number of points")
+            })
     }
 
     /// The column named `name`, with or without a unit (`h` finds `h` and `h[fs]`, so
@@ -49,7 +53,11 @@ impl StudyTable {
         self.header
             .iter()
             .position(|h| column_matches(h, name))
-            .ok_or_else(|| Error::input(format!("study {} has no column {name}", self.study)))
+            .ok_or_else(|| {
+                Error::input(format!("study {} has no column {name}", self.study))
+                    .key(name)
+                    .expected(format!("a column {name}"))
+            })
     }
 
     /// Put units on header fields in a scene with real units, as `energy.csv` writes them
@@ -90,52 +98,110 @@ impl StudyTable {
     }
 
     pub fn read(path: &Path) -> Result<Self> {
+        Located::read(path).map(|located| located.table)
+    }
+}
+
+/// Where a row of a study table was read: its file and line (1-based).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RowSource {
+    pub file: String,
+    pub line: usize,
+}
+
+impl RowSource {
+    /// A problem with this row, placed at its file and line.
+    pub fn error(&self, message: impl Into<String>) -> Error {
+        Error::input(message).file(&self.file).line(self.line)
+    }
+}
+
+/// A study table with the file it was read from (`name`) and where each row came from:
+/// what `longstep merge` needs to place a problem at a shard's file and line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Located {
+    pub name: String,
+    pub table: StudyTable,
+    pub sources: Vec<RowSource>,
+}
+
+impl Located {
+    /// `table` as the file `name` holds it: the first line, the header, then a row a line.
+    pub fn new(name: String, table: StudyTable) -> Self {
+        let sources = (0..table.rows.len())
+            .map(|k| RowSource {
+                file: name.clone(),
+                line: k + 3,
+            })
+            .collect();
+        Located {
+            name,
+            table,
+            sources,
+        }
+    }
+
+    /// Read the study table at `path`; a problem names the file and line.
+    pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let bad = |message: &str| Error::Structure {
-            path: path.to_path_buf(),
-            message: message.to_string(),
-        };
+        let at = |line: usize, message: &str| Error::input(message).file(path).line(line);
         let (first, body) = text.split_once('\n').unwrap_or((&text, ""));
         let (study, meta) = first
             .trim_end_matches('\r')
             .strip_prefix("# longstep ")
-            .ok_or_else(|| bad("not a longstep study table (no `# longstep` first line)"))
-            .and_then(|first| parse_first_line(first).map_err(|e| bad(&e)))?;
+            .ok_or_else(|| {
+                at(1, "not a longstep study table (no `# longstep` first line)")
+                    .expected("# longstep STUDY, key = value, …")
+            })
+            .and_then(|first| parse_first_line(first).map_err(|e| at(1, &e)))?;
         let mut reader = ::csv::ReaderBuilder::new()
             .flexible(true)
             .from_reader(body.as_bytes());
-        // Line numbers in messages count the file's first line, which the reader never saw.
-        let at = |e: ::csv::Error| {
-            let line = e.position().map_or(0, |p| p.line() + 1);
-            bad(&format!("line {line}: {e}"))
-        };
+        // Line numbers count the file's first line, which the reader never saw.
+        let line_of =
+            |position: Option<&::csv::Position>| position.map_or(0, |p| p.line() as usize + 1);
+        let csv_error = |e: ::csv::Error| at(line_of(e.position()), &e.to_string());
         let header: Vec<String> = reader
             .headers()
-            .map_err(at)?
+            .map_err(csv_error)?
             .iter()
             .map(String::from)
             .collect();
         if header.is_empty() {
-            return Err(bad("no header line"));
+            return Err(at(2, "no header line"));
         }
-        let mut rows = Vec::new();
+        let name = path.display().to_string();
+        let (mut rows, mut sources) = (Vec::new(), Vec::new());
         for (n, record) in reader.records().enumerate() {
-            let row: Vec<String> = record.map_err(at)?.iter().map(String::from).collect();
-            if row.len() != header.len() {
-                return Err(bad(&format!(
+            let record = record.map_err(csv_error)?;
+            let line = line_of(record.position());
+            if record.len() != header.len() {
+                let message = format!(
                     "row {} has {} fields, the header {}",
                     n + 1,
-                    row.len(),
+                    record.len(),
                     header.len()
-                )));
+                );
+                return Err(at(line, &message)
+                    .expected(format!("{} fields", header.len()))
+                    .got_named(record.len().to_string()));
             }
-            rows.push(row);
+            rows.push(record.iter().map(String::from).collect());
+            sources.push(RowSource {
+                file: name.clone(),
+                line,
+            });
         }
-        Ok(StudyTable {
+        let table = StudyTable {
             study,
             meta,
             header,
             rows,
+        };
+        Ok(Located {
+            name,
+            table,
+            sources,
         })
     }
 }
@@ -181,61 +247,120 @@ pub fn differing_setting(
 /// the shard), every index from 0 to points − 1 exactly once. Returns the table a single run
 /// would have written.
 pub fn merge(tables: Vec<(String, StudyTable)>) -> Result<StudyTable> {
+    let located = tables
+        .into_iter()
+        .map(|(name, table)| Located::new(name, table))
+        .collect();
+    merge_located(located).map(|merged| merged.table)
+}
+
+/// [`merge`] of tables read from files: a problem names the shard's file and line (the
+/// first line for its settings, the header for its columns, a row's own line).
+pub fn merge_located(tables: Vec<Located>) -> Result<Located> {
     let mut tables = tables.into_iter();
-    let (first_name, mut merged) = tables
+    let mut merged = tables
         .next()
         .ok_or_else(|| Error::input("nothing to merge"))?;
-    for (name, table) in tables {
-        if table.study != merged.study {
-            return Err(Error::input(format!(
-                "cannot merge a {} table ({name}) with a {} table ({first_name})",
-                table.study, merged.study
-            )));
-        }
-        if let Some((key, theirs, ours)) = differing_setting(&table.meta, &merged.meta) {
-            return Err(Error::input(format!(
-                "the shards of {} differ in {key}: {theirs} in {name}, {ours} in {first_name}",
-                merged.study
-            ))
-            .key(key));
-        }
-        if table.header != merged.header {
-            return Err(Error::input(format!(
-                "the shards of {} differ in their columns: {} in {name}, {} in {first_name}",
-                merged.study,
-                table.header.join(","),
-                merged.header.join(",")
-            )));
-        }
-        merged.rows.extend(table.rows);
+    for shard in tables {
+        check_same_study(&merged, &shard)?;
+        merged.table.rows.extend(shard.table.rows);
+        merged.sources.extend(shard.sources);
     }
-    merged.meta.remove("shard");
-    let points = merged.points()?;
-    let index = |row: &Vec<String>| row[0].parse::<usize>().unwrap_or(usize::MAX);
-    merged.rows.sort_by_key(index);
-    for (expected, row) in merged.rows.iter().enumerate() {
-        let found = index(row);
-        if found != expected {
-            return Err(Error::input(format!(
-                "the shards of {} do not cover its {points} points exactly once: point {} {}",
-                merged.study,
-                expected,
-                if found > expected {
-                    "is missing"
-                } else {
-                    "appears twice"
-                }
-            )));
-        }
-    }
-    if merged.rows.len() != points {
-        return Err(Error::input(format!(
-            "the shards of {} hold {} of its {points} points",
-            merged.study,
-            merged.rows.len()
-        )));
-    }
+    merged.table.meta.remove("shard");
+    let rows = std::mem::take(&mut merged.table.rows);
+    let sources = std::mem::take(&mut merged.sources);
+    let mut pairs: Vec<_> = rows.into_iter().zip(sources).collect();
+    pairs.sort_by_key(|(row, _)| row_index(row));
+    (merged.table.rows, merged.sources) = pairs.into_iter().unzip();
+    check_points(&merged)?;
     Ok(merged)
+}
+
+/// A row's `index` (the first field); `usize::MAX` where it is not a number.
+fn row_index(row: &[String]) -> usize {
+    row.first()
+        .and_then(|i| i.parse().ok())
+        .unwrap_or(usize::MAX)
+}
+
+/// The shard must be of the first's study, settings (but the shard) and columns.
+fn check_same_study(merged: &Located, shard: &Located) -> Result<()> {
+    let (first_name, name) = (&merged.name, &shard.name);
+    let (first, table) = (&merged.table, &shard.table);
+    let at = |line: usize, message: String| Error::input(message).file(name).line(line);
+    if table.study != first.study {
+        let message = format!(
+            "cannot merge a {} table with a {} table ({first_name})",
+            table.study, first.study
+        );
+        return Err(at(1, message)
+            .key("study")
+            .expected(first.study.clone())
+            .got_named(table.study.clone()));
+    }
+    if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
+        let message = format!(
+            "the shards of {} differ in {key}: {theirs} in {name}, {ours} in {first_name}",
+            first.study
+        );
+        return Err(at(1, message).key(key).expected(ours).got_named(theirs));
+    }
+    if table.header != first.header {
+        let (theirs, ours) = (table.header.join(","), first.header.join(","));
+        let message = format!(
+            "the shards of {} differ in their columns: {theirs} in {name}, {ours} in \
+             {first_name}",
+            first.study
+        );
+        return Err(at(2, message)
+            .key("header")
+            .expected(ours)
+            .got_named(theirs));
+    }
+    Ok(())
+}
+
+/// The merged rows, in index order, must be the points 0 … points − 1, each once.
+fn check_points(merged: &Located) -> Result<()> {
+    let table = &merged.table;
+    let points = table.points()?;
+    let uncovered = format!(
+        "the shards of {} do not cover its {points} points exactly once",
+        table.study
+    );
+    for (expected, (row, source)) in table.rows.iter().zip(&merged.sources).enumerate() {
+        let found = row_index(row);
+        if found > expected {
+            return Err(
+                Error::input(format!("{uncovered}: point {expected} is missing"))
+                    .key("index")
+                    .expected(expected.to_string()),
+            );
+        }
+        if found < expected {
+            return Err(source
+                .error(format!("{uncovered}: point {found} appears twice"))
+                .key("index")
+                .got_named(found.to_string()));
+        }
+    }
+    if table.rows.len() != points {
+        let message = format!(
+            "the shards of {} hold {} of its {points} points",
+            table.study,
+            table.rows.len()
+        );
+        // Too many rows: the first one past the last point.
+        let error = match merged.sources.get(points) {
+            Some(extra) => extra.error(message),
+            None => Error::input(message),
+        };
+        return Err(error
+            .key("index")
+            .expected(format!("{points} rows"))
+            .got_named(table.rows.len().to_string()));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

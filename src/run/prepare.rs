@@ -205,7 +205,11 @@ impl PreparedRun {
     /// The end time: `--t-end` or the scene's `[run] t_end`.
     pub fn t_end(&self) -> Result<f64> {
         self.settings.t_end.ok_or_else(|| {
-            Error::input("no end time: give --t-end or set t_end in the scene's [run] table")
+            Error::setting(
+                "t_end",
+                "no end time: give --t-end or set t_end in the scene's [run] table",
+            )
+            .expected("an end time")
         })
     }
 
@@ -296,9 +300,9 @@ fn set_precision(scene: &Scene, name: Option<&str>, notices: &mut Vec<String>) -
         return Ok(());
     };
     let precision = Precision::parse(name).ok_or_else(|| {
-        Error::input(format!(
-            "--precision must be double or mixed, got \"{name}\""
-        ))
+        Error::flag("--precision", "--precision must be double or mixed")
+            .expected("double or mixed")
+            .got(format!("\"{}\"", name))
     })?;
     if scene.system.forces.set_precision(precision) == 0 && precision != Precision::Double {
         notices.push(format!(
@@ -421,12 +425,17 @@ pub fn is_stochastic(method: &str) -> bool {
 pub fn check_seed_used(settings: &MethodSettings, source: &str) -> Result<()> {
     match settings.seed {
         Some(seed) if settings.temperature.is_none() && !is_stochastic(&settings.method) => {
-            Err(Error::input(format!(
-                "{source} {seed} is given, but nothing uses it: there is no temperature \
+            Err(Error::setting(
+                if source == "--seed" { "--seed" } else { "seed" },
+                format!(
+                    "{source} {seed} is given, but nothing uses it: there is no temperature \
                  (--temperature or the scene's [run] temperature) to draw start velocities \
                  at, and {} is not a stochastic method; drop the seed or give a temperature",
-                settings.method
-            )))
+                    settings.method
+                ),
+            )
+            .expected("a temperature or a stochastic method with it")
+            .got_named(seed.to_string()))
         }
         _ => Ok(()),
     }

@@ -161,19 +161,25 @@ fn round_up(t: f64) -> f64 {
     significant(up, 2).parse().unwrap_or(up)
 }
 
+/// A measurement over the span 0 … 10 with no fixed error: the tests' fixture.
+#[cfg(test)]
+pub(crate) fn measured(value: f64, error: f64, exponent: f64) -> Measurement {
+    Measurement {
+        value,
+        error,
+        fixed_error: 0.0,
+        start: 0.0,
+        span: 10.0,
+        exponent,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn mean(value: f64, error: f64) -> Measurement {
-        Measurement {
-            value,
-            error,
-            fixed_error: 0.0,
-            start: 0.0,
-            span: 10.0,
-            exponent: MEAN_EXPONENT,
-        }
+        measured(value, error, MEAN_EXPONENT)
     }
 
     #[test]

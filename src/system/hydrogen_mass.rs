@@ -37,25 +37,32 @@ impl System {
         units: Units,
     ) -> Result<Repartition> {
         if !(hydrogen_mass.is_finite() && hydrogen_mass > 0.0) {
-            return Err(Error::input(format!(
-                "hydrogen_mass must be positive and finite, got {hydrogen_mass}"
-            )));
+            return Err(Error::setting(
+                "hydrogen_mass",
+                "hydrogen_mass must be positive and finite",
+            )
+            .expected("a positive finite mass")
+            .got(hydrogen_mass.to_string()));
         }
         if topology.len() != self.n_particles() || self.mass_matrix.is_some() {
-            return Err(Error::input(
+            return Err(Error::setting(
+                "hydrogen_mass",
                 "hydrogen_mass needs a molecular scene (a [forcefield] over a structure) with a \
                  diagonal mass matrix",
-            ));
+            )
+            .expected("a molecular scene with a diagonal mass matrix"));
         }
         let target = units.mass(hydrogen_mass);
         let old = self.particles.masses.clone();
         let mut new = old.clone();
         let pairs = hydrogen_heavy_pairs(topology);
         if pairs.is_empty() {
-            return Err(Error::input(
+            return Err(Error::setting(
+                "hydrogen_mass",
                 "hydrogen_mass: the scene has no hydrogen bonded to a heavy atom outside water \
                  (elements H, bonds from the structure), so there is no mass to repartition",
-            ));
+            )
+            .expected("a scene with hydrogens bonded to heavy atoms"));
         }
         for &(h, heavy) in &pairs {
             new[heavy] -= target - new[h];
@@ -112,14 +119,18 @@ fn check_heavy_atoms(
 ) -> Result<()> {
     for &(h, heavy) in pairs {
         if !(new[heavy].is_finite() && new[heavy] > new[h]) {
-            return Err(Error::input(format!(
-                "hydrogen_mass: atom {heavy} ({}) would be left with mass {} {}, not more than \
+            return Err(Error::setting(
+                "hydrogen_mass",
+                format!(
+                    "hydrogen_mass: atom {heavy} ({}) would be left with mass {} {}, not more than \
                  its hydrogen {h}'s {}; give a smaller hydrogen mass",
-                topology.elements[heavy],
-                units.mass_in_scene_units(new[heavy]),
-                mass_unit(units),
-                units.mass_in_scene_units(new[h]),
-            )));
+                    topology.elements[heavy],
+                    units.mass_in_scene_units(new[heavy]),
+                    mass_unit(units),
+                    units.mass_in_scene_units(new[h])
+                ),
+            )
+            .expected("a smaller hydrogen mass"));
         }
     }
     Ok(())

@@ -210,9 +210,11 @@ fn thermal_start(
     seed: u64,
 ) -> Result<ThermalStart> {
     if !(kt.is_finite() && kt > 0.0) {
-        return Err(Error::input(format!(
-            "a temperature must be positive and finite, got k_B T = {kt}"
-        )));
+        return Err(
+            Error::setting("temperature", "a temperature must be positive and finite")
+                .expected("a positive finite temperature")
+                .got(format!("k_B T = {kt}")),
+        );
     }
     if system.mass_matrix.is_some() {
         return Err(Error::input(

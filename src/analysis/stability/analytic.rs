@@ -49,9 +49,11 @@ pub struct LinearProblem {
 impl LinearProblem {
     pub fn new(method: AnalyticMethod, h: f64, coupling: Coupling) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!(
-                "outer step h must be positive and finite, got {h}"
-            )));
+            return Err(
+                Error::setting("h", "outer step h must be positive and finite")
+                    .expected("a positive finite step")
+                    .got(h.to_string()),
+            );
         }
         coupling.validate()?;
         Ok(LinearProblem {

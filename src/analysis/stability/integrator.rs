@@ -95,14 +95,19 @@ fn check_frequency_parameters(parsed: &SceneFile, path: &Path) -> Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    Err(Error::input(format!(
-        "--scene {}: stability-map --mode integrator sets Γ1 = h·omega1 and Γ2 = h·omega2 at \
+    Err(Error::flag(
+        "--scene",
+        format!(
+            "--scene {}: stability-map --mode integrator sets Γ1 = h·omega1 and Γ2 = h·omega2 at \
          every point, so the scene needs [parameters] omega1 and omega2 (the two frequencies \
          the map varies); it lacks {} (its parameters: {has}). Leave out --scene for the \
          three-spring system of GSS98, or use `longstep scan steps` for a molecule",
-        path.display(),
-        missing.join(" and ")
-    )))
+            path.display(),
+            missing.join(" and ")
+        ),
+    )
+    .expected("a scene with [parameters] omega1 and omega2")
+    .got_named(path.display().to_string()))
 }
 
 /// One method with its settings on one scene: measures propagation matrices.
@@ -153,9 +158,9 @@ impl IntegratorProbe {
     /// The propagation matrix at (Γ1, Γ2) on the scene's `omega1`, `omega2`.
     pub fn matrix_at(&self, gamma1: f64, gamma2: f64) -> Result<DMatrix<f64>> {
         if !(gamma1.is_finite() && gamma2.is_finite() && gamma1 >= 0.0 && gamma2 >= 0.0) {
-            return Err(Error::input(format!(
-                "Γ1 and Γ2 must be finite and non-negative, got ({gamma1}, {gamma2})"
-            )));
+            return Err(Error::input("Γ1 and Γ2 must be finite and non-negative")
+                .expected("finite non-negative numbers")
+                .got(format!("({gamma1}, {gamma2})")));
         }
         self.propagation_matrix(&self.gamma_overrides(gamma1, gamma2))
     }

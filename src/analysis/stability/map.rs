@@ -30,19 +30,28 @@ pub struct Axis {
 impl Axis {
     pub fn new(start: f64, end: f64, count: usize, what: &str) -> Result<Self> {
         if !(start.is_finite() && end.is_finite()) {
-            return Err(Error::input(format!(
-                "{what}: the range {start}:{end} is not finite"
-            )));
+            return Err(Error::flag(
+                what,
+                format!("{what}: the range {start}:{end} is not finite"),
+            )
+            .expected("a finite range START:END")
+            .got_named(format!("{start}:{end}")));
         }
         if count == 0 {
-            return Err(Error::input(format!(
-                "{what}: at least one point is needed"
-            )));
+            return Err(
+                Error::flag(what, format!("{what}: at least one point is needed"))
+                    .expected("at least one point"),
+            );
         }
         if count > 1 && end <= start {
-            return Err(Error::input(format!(
-                "{what}: the range {start}:{end} is empty; give START:END with START < END"
-            )));
+            return Err(Error::flag(
+                what,
+                format!(
+                    "{what}: the range {start}:{end} is empty; give START:END with START < END"
+                ),
+            )
+            .expected("START:END with START < END")
+            .got_named(format!("{start}:{end}")));
         }
         Ok(Axis { start, end, count })
     }
@@ -50,14 +59,18 @@ impl Axis {
     /// Parse `START:END` (numbers or expressions such as `4*pi`).
     pub fn parse(text: &str, count: usize, what: &str) -> Result<Self> {
         let Some((start, end)) = text.split_once(':') else {
-            return Err(Error::input(format!(
-                "{what}: expected a range START:END such as 0:6.5 or 0:4*pi, got \"{text}\""
-            )));
+            return Err(Error::flag(
+                what,
+                format!("{what}: expected a range START:END such as 0:6.5 or 0:4*pi"),
+            )
+            .expected("a range START:END")
+            .got(format!("\"{}\"", text)));
         };
         let no_parameters = BTreeMap::new();
         let value = |part: &str| -> Result<f64> {
-            expr::evaluate(part.trim(), &no_parameters)
-                .map_err(|e| Error::input(format!("{what}: {e}")))
+            expr::evaluate(part.trim(), &no_parameters).map_err(|e| {
+                Error::flag(what, format!("{what}: {e}")).expected("a number or an expression")
+            })
         };
         Axis::new(value(start)?, value(end)?, count, what)
     }
@@ -125,9 +138,12 @@ impl Shard {
             Some((index, count)) if count >= 1 && (1..=count).contains(&index) => {
                 Ok(Shard { index, count })
             }
-            _ => Err(Error::input(format!(
-                "--shard: expected k/n with 1 <= k <= n (for example 2/8), got \"{text}\""
-            ))),
+            _ => Err(Error::flag(
+                "--shard",
+                "--shard: expected k/n with 1 <= k <= n (for example 2/8)",
+            )
+            .expected("k/n with 1 <= k <= n")
+            .got(format!("\"{}\"", text))),
         }
     }
 

@@ -95,10 +95,7 @@ impl AnalyticMethod {
             .find(|m| m.name() == name)
             .ok_or_else(|| {
                 let known: Vec<&str> = AnalyticMethod::ALL.iter().map(|m| m.name()).collect();
-                Error::input(format!(
-                    "method \"{name}\" has no analytic stability theory; analytic mode knows: {}",
-                    known.join(", ")
-                ))
+                Error::flag("--method", format!("method \"{name}\" has no analytic stability theory; analytic mode knows: {}", known.join(", "))).expected(known.join(", ")).got_named(name)
             })
     }
 
@@ -155,9 +152,11 @@ impl Coupling {
             beta,
         } = *self;
         if !(alpha1.is_finite() && alpha2.is_finite() && beta.is_finite()) {
-            return Err(Error::input(format!(
-                "slow coupling must be finite, got alpha1 = {alpha1}, alpha2 = {alpha2}, beta = {beta}"
-            )));
+            return Err(Error::input("slow coupling must be finite")
+                .expected("finite numbers")
+                .got(format!(
+                    "alpha1 = {alpha1}, alpha2 = {alpha2}, beta = {beta}"
+                )));
         }
         // Semidefinite: α1, α2 ≥ 0 and β² ≤ α1 α2 (a relative round-off slack on the
         // determinant lets a user type a singular matrix such as α = 1/3, β = −1/3).

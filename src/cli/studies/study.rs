@@ -7,14 +7,14 @@ use std::path::Path;
 
 use super::super::common::{SCAN_STEPS, keep_shard, parse_steps, progress_bar};
 use super::{
-    Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, choose_criterion,
-    print_safe_steps, reference_analysis, refuse_sampling_starts, sampling_criterion,
-    sampling_table, scan_meta, scan_table, timing_table,
+    Criterion, ScanStepsArgs, async_band_warnings, base_setup, basins_notice, check_repeats,
+    choose_criterion, print_scan_end, reference_analysis, refuse_sampling_starts,
+    sampling_criterion, sampling_table, scan_meta, scan_table, timing_table,
 };
 use crate::analysis::sampling::{constrained_dof, run_sampling_point};
 use crate::analysis::scan::{
-    MAX_REPEATS, ScanConfig, ScanSetup, StepResult, Timing, config_points, point_settings,
-    run_config_points, run_point, safe_steps, take_timings, until_decided,
+    ScanConfig, ScanSetup, StepResult, Timing, config_points, point_settings, run_config_points,
+    run_point, safe_steps, take_timings, until_decided,
 };
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
@@ -59,7 +59,9 @@ fn config_setup(
     if let Some(t_end) = &config.run.t_end {
         setup.t_end = t_end.evaluate_time(&scene.parameters, "t_end", units.time_units())?;
         if setup.t_end <= 0.0 {
-            return Err(Error::input("t_end must be positive"));
+            return Err(Error::setting("t_end", "t_end must be positive")
+                .expected("a positive time")
+                .got(setup.t_end.to_string()));
         }
         setup.fit_from = args.drift.fit_from(&scene.parameters, units, setup.t_end)?;
     }
@@ -70,14 +72,19 @@ fn config_setup(
             .map(|v| v.evaluate_time(&scene.parameters, "level_dt", units.time_units()))
             .collect::<Result<Vec<f64>>>()?;
         if setup.level_dts.iter().any(|&t| t <= 0.0) || setup.level_dts.len() > 16 {
-            return Err(Error::input("`level_dt` takes at most 16 positive steps"));
+            return Err(
+                Error::setting("level_dt", "`level_dt` takes at most 16 positive steps")
+                    .expected("at most 16 positive steps"),
+            );
         }
     }
     if !setup.level_dts.is_empty() && setup.base.level_steps.is_some() {
-        return Err(Error::input(
+        return Err(Error::setting(
+            "level_dt",
             "give the inner levels either as `level_steps` or as `level_dt` (--level-dt), \
              not both",
-        ));
+        )
+        .expected("level_steps or level_dt, not both"));
     }
     setup.set.extend(config.set.iter().cloned());
     if let Some(starts) = config.starts {
@@ -95,7 +102,7 @@ fn config_setup(
         crate::analysis::scan::check_starts_possible(&setup, &method, h)?;
         let settings = point_settings(&setup, &method, h)?;
         crate::run::prepare::check_settings(&settings)
-            .map_err(|e| Error::input(format!("{method} at h = {h}: {e}")))?;
+            .map_err(|e| e.context(&format!("{method} at h = {h}")))?;
     }
     Ok(ScanConfig {
         label: config.label.clone(),
@@ -252,15 +259,7 @@ fn study_timings(
 /// `scan steps SCENE --study FILE`: every (configuration, h) point, configuration-major.
 pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()> {
     refuse_single_flags(args)?;
-    if args.repeats > MAX_REPEATS {
-        return Err(Error::flag(
-            "--repeats",
-            format!(
-                "--repeats must be at most {MAX_REPEATS}, got {}",
-                args.repeats
-            ),
-        ));
-    }
+    check_repeats(args.repeats)?;
     let study = read_study(path)?;
     // Before the configurations are built: their checks of the starts are the drift's.
     if args.criterion == Some(Criterion::Sampling) {
@@ -309,20 +308,12 @@ pub(super) fn scan_study_command(args: &ScanStepsArgs, path: &Path) -> Result<()
             .find(|c| s.config.as_deref() == Some(c.label.as_str()))
             .map_or_else(Vec::new, |c| c.steps.clone())
     };
-    print_safe_steps(
-        &safe,
-        &steps_of,
-        &timings,
+    let runs = format!("{} runs of {} configurations", results.len(), configs.len());
+    print_scan_end(
+        (&safe, &steps_of, &timings),
         scene.units,
         (criterion, args.shard.as_deref()),
-    );
-    let wall: f64 = results.iter().map(|r| r.wall_seconds).sum();
-    eprintln!(
-        "{} runs of {} configurations, {:.1} s of run time; results in {}",
-        results.len(),
-        configs.len(),
-        wall,
-        out.display()
+        (&runs, &results, &out),
     );
     Ok(())
 }

@@ -88,9 +88,12 @@ impl MollyJacobian {
         match text {
             None | Some("exact") => Ok(MollyJacobian::Exact),
             Some("projection") => Ok(MollyJacobian::Projection),
-            Some(other) => Err(Error::input(format!(
-                "unknown molly_jacobian \"{other}\"; use exact or projection"
-            ))),
+            Some(other) => Err(Error::setting(
+                "molly_jacobian",
+                format!("unknown molly_jacobian \"{other}\"; use exact or projection"),
+            )
+            .expected("exact or projection")
+            .got_named(other)),
         }
     }
 
@@ -144,15 +147,22 @@ impl EquilibriumMolly {
         max_iterations: usize,
     ) -> Result<Self> {
         if !(tolerance.is_finite() && tolerance > 0.0 && tolerance < 1.0) {
-            return Err(Error::input(format!(
-                "equilibrium-molly: the Newton tolerance --tol must be in (0, 1), got {tolerance}"
-            )));
+            return Err(Error::setting(
+                "tol",
+                "equilibrium-molly: the Newton tolerance --tol must be in (0, 1)",
+            )
+            .expected("a number in (0, 1)")
+            .got(tolerance.to_string()));
         }
         if !(1..=MAX_ITERATIONS_LIMIT).contains(&max_iterations) {
-            return Err(Error::input(format!(
-                "equilibrium-molly: --max-iter must be between 1 and {MAX_ITERATIONS_LIMIT}, \
-                 got {max_iterations}"
-            )));
+            return Err(Error::setting(
+                "max_iter",
+                format!(
+                    "equilibrium-molly: --max-iter must be between 1 and {MAX_ITERATIONS_LIMIT}"
+                ),
+            )
+            .expected(format!("1 to {MAX_ITERATIONS_LIMIT}"))
+            .got(max_iterations.to_string()));
         }
         Ok(EquilibriumMolly {
             set,

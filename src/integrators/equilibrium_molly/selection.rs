@@ -30,9 +30,12 @@ impl ConstraintSet {
         match text {
             None | Some("bonds-angles") => Ok(ConstraintSet::BondsAngles),
             Some("bonds") => Ok(ConstraintSet::Bonds),
-            Some(other) => Err(Error::input(format!(
-                "unknown molly_constraints \"{other}\"; use bonds or bonds-angles"
-            ))),
+            Some(other) => Err(Error::setting(
+                "molly_constraints",
+                format!("unknown molly_constraints \"{other}\"; use bonds or bonds-angles"),
+            )
+            .expected("bonds or bonds-angles")
+            .got_named(other)),
         }
     }
 

@@ -224,14 +224,18 @@ impl StructuralCoefficients {
         precision: Precision,
     ) -> Result<Self> {
         if !(1..=MAX_BLOCK).contains(&block) {
-            return Err(Error::input(format!(
-                "block size R must be between 1 and {MAX_BLOCK}, got {block}"
-            )));
+            return Err(Error::setting(
+                "block",
+                format!("block size R must be between 1 and {MAX_BLOCK}"),
+            )
+            .expected(format!("1 to {MAX_BLOCK}"))
+            .got(block.to_string()));
         }
         if !(1..=2).contains(&derivatives) {
             return Err(Error::input(format!(
                 "structural schemes use first (ZD) or second (ZDS) derivatives, not {derivatives}"
-            )));
+            ))
+            .expected("1 or 2 derivatives"));
         }
         match precision {
             Precision::Double => Self::compute::<f64>(block, derivatives, basis),

@@ -82,20 +82,24 @@ impl Structural {
         max_iterations: usize,
     ) -> Result<Self> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(Error::input(format!(
-                "step h must be positive and finite, got {h}"
-            )));
+            return Err(Error::setting("h", "step h must be positive and finite")
+                .expected("a positive finite step")
+                .got(h.to_string()));
         }
         if !(tolerance.is_finite() && tolerance > 0.0) {
-            return Err(Error::input(format!(
-                "tolerance tol must be positive and finite, got {tolerance}"
-            )));
+            return Err(
+                Error::setting("tol", "tolerance tol must be positive and finite")
+                    .expected("a positive finite number")
+                    .got(tolerance.to_string()),
+            );
         }
         if max_iterations == 0 || max_iterations > u32::MAX as usize {
-            return Err(Error::input(format!(
-                "max_iter must be between 1 and {}, got {max_iterations}",
-                u32::MAX
-            )));
+            return Err(Error::setting(
+                "max_iter",
+                format!("max_iter must be between 1 and {}", u32::MAX),
+            )
+            .expected(format!("1 to {}", u32::MAX))
+            .got(max_iterations.to_string()));
         }
         let coefficients = StructuralCoefficients::new(block, kind.derivatives())?;
         Ok(Structural {

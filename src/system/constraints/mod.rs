@@ -176,9 +176,12 @@ impl Constraints {
     /// This set with relative tolerance `tolerance` (> 0, < 1).
     pub fn with_tolerance(mut self, tolerance: f64) -> Result<Self> {
         if !(tolerance > 0.0 && tolerance < 1.0) {
-            return Err(Error::input(format!(
-                "constraint_tolerance must lie between 0 and 1 (a relative error), got {tolerance}"
-            )));
+            return Err(Error::setting(
+                "constraint_tolerance",
+                "constraint_tolerance must lie between 0 and 1 (a relative error)",
+            )
+            .expected("a number in (0, 1)")
+            .got(tolerance.to_string()));
         }
         self.tolerance = tolerance;
         Ok(self)
