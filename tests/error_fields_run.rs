@@ -8,7 +8,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{run_cli, scratch_dir};
+use common::{argv, run_cli, scratch_dir};
 use longstep::error::{Error, Problem};
 use longstep::integrators::adaptive_verlet::Control;
 use longstep::io::study_csv::{Located, merge_located};
@@ -94,27 +94,11 @@ fn a_stiffness_run_length_that_is_no_whole_number_of_steps_names_t_end() {
     // Through the command line: the same refusal, exit status 1, the flags named.
     let dir = scratch_dir("fields-stiffness-t-end");
     let out = dir.join("stiffness.csv");
-    let (code, _, stderr) = run_cli(&[
-        "scan",
-        "stiffness",
-        "systems/two-spring.toml",
-        "--method",
-        "impulse",
-        "--param",
-        "omega1",
-        "--range",
-        "0:32",
-        "--n",
-        "2",
-        "--h",
-        "0.3",
-        "--t-end",
-        "1",
-        "--inner",
-        "10",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, stderr) = run_cli(&argv(
+        "scan stiffness systems/two-spring.toml --method impulse --param omega1 --range 0:32 \
+         --n 2 --h 0.3 --t-end 1 --inner 10 --out {}",
+        &[out.to_str().unwrap()],
+    ));
     assert_eq!(code, 1, "{stderr}");
     assert!(
         stderr.contains("--t-end 1 is not a whole number of outer steps --h 0.3"),
