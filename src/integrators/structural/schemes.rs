@@ -242,24 +242,28 @@ impl Integrator for Structural {
                 state.next_node, self.block
             )));
         }
-        let [x, p, dx, dp, sx, sp] = &state.start;
-        restore_vector(name, "block start x", x, &mut self.x)?;
-        restore_vector(name, "block start p", p, &mut self.p)?;
-        restore_vector(name, "block start dx", dx, &mut self.dx)?;
-        restore_vector(name, "block start dp", dp, &mut self.dp)?;
-        restore_vector(name, "block start sx", sx, &mut self.sx)?;
-        restore_vector(name, "block start sp", sp, &mut self.sp)?;
+        let into = [
+            &mut self.x,
+            &mut self.p,
+            &mut self.dx,
+            &mut self.dp,
+            &mut self.sx,
+            &mut self.sp,
+        ];
+        restore_six(name, "block start", &state.start, into)?;
         if state.next_node < self.block {
             let Some(solver) = self.solver.as_mut() else {
                 return Err(Error::input(format!("{name} restored before setup")));
             };
-            let [zx, zp, dx, dp, sx, sp] = &state.nodes;
-            restore_vector(name, "block nodes x", zx, &mut solver.zx)?;
-            restore_vector(name, "block nodes p", zp, &mut solver.zp)?;
-            restore_vector(name, "block nodes dx", dx, &mut solver.dx)?;
-            restore_vector(name, "block nodes dp", dp, &mut solver.dp)?;
-            restore_vector(name, "block nodes sx", sx, &mut solver.sx)?;
-            restore_vector(name, "block nodes sp", sp, &mut solver.sp)?;
+            let into = [
+                &mut solver.zx,
+                &mut solver.zp,
+                &mut solver.dx,
+                &mut solver.dp,
+                &mut solver.sx,
+                &mut solver.sp,
+            ];
+            restore_six(name, "block nodes", &state.nodes, into)?;
         }
         self.next_node = state.next_node;
         self.last_iterations = state.last_iterations;
@@ -392,4 +396,19 @@ struct StructuralState {
     total_iterations: u64,
     blocks: u64,
     most_iterations: u32,
+}
+
+/// The six saved vectors of a block part (`x, p, dx, dp, sx, sp`) into `into`, each
+/// refused by name when its length is not this system's.
+fn restore_six(
+    name: &str,
+    part: &str,
+    saved: &[Vec<f64>; 6],
+    into: [&mut Vec<f64>; 6],
+) -> Result<()> {
+    const LABELS: [&str; 6] = ["x", "p", "dx", "dp", "sx", "sp"];
+    for ((label, saved), into) in LABELS.iter().zip(saved).zip(into) {
+        restore_vector(name, &format!("{part} {label}"), saved, into)?;
+    }
+    Ok(())
 }
