@@ -390,29 +390,14 @@ impl ForceSplit {
     /// a sorted particle list, in order of their smallest particle. A particle no fast
     /// force touches is a component of its own.
     pub fn fast_components(&self, n_particles: usize) -> Vec<Vec<usize>> {
-        let mut parent: Vec<usize> = (0..n_particles).collect();
-        fn root(parent: &mut [usize], mut i: usize) -> usize {
-            while parent[i] != i {
-                parent[i] = parent[parent[i]];
-                i = parent[i];
-            }
-            i
-        }
+        let mut components = crate::forces::components::Components::new(n_particles);
         for &t in &self.levels[0] {
             for coupling in self.terms[t].term.couplings() {
                 for pair in coupling.windows(2) {
-                    let (a, b) = (root(&mut parent, pair[0]), root(&mut parent, pair[1]));
-                    if a != b {
-                        parent[a.max(b)] = a.min(b);
-                    }
+                    components.join(pair[0], pair[1]);
                 }
             }
         }
-        let mut by_root: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-        for i in 0..n_particles {
-            let r = root(&mut parent, i);
-            by_root.entry(r).or_default().push(i);
-        }
-        by_root.into_values().collect()
+        components.groups(0..n_particles)
     }
 }

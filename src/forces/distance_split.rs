@@ -177,34 +177,13 @@ pub struct SplitSpec {
 /// Molecules as the connected components of the bond graph: an index per atom, numbered
 /// in order of each molecule's first atom.
 pub fn molecules_from_bonds(n: usize, bonds: &[[usize; 2]]) -> Vec<u32> {
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut components = super::components::Components::new(n);
     for &[a, b] in bonds {
         if a < n && b < n {
-            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-            if ra != rb {
-                parent[ra.max(rb)] = ra.min(rb);
-            }
+            components.join(a, b);
         }
     }
-    let mut index = vec![u32::MAX; n];
-    let mut molecule_of = vec![0u32; n];
-    let mut next = 0;
-    for (i, molecule) in molecule_of.iter_mut().enumerate() {
-        let r = root(&mut parent, i);
-        if index[r] == u32::MAX {
-            index[r] = next;
-            next += 1;
-        }
-        *molecule = index[r];
-    }
-    molecule_of
+    components.labels()
 }
 
 /// The reference atom of each molecule: the first atom (in file order) for which

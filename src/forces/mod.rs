@@ -14,6 +14,7 @@
 
 pub mod angle;
 pub mod clusters;
+pub mod components;
 pub mod coulomb;
 pub mod distance_split;
 pub mod dual;

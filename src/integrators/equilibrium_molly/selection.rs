@@ -15,6 +15,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use crate::error::{Error, Result};
+use crate::forces::components::Components;
 use crate::forces::{RestGeometry, Site};
 use crate::system::{PeriodicBox, System};
 
@@ -284,31 +285,16 @@ fn angle_candidates(
 /// Connected components of the constraint graph (particles that no constraint touches are
 /// left out: the mollifier leaves them where they are).
 fn components(n: usize, candidates: &[Candidate]) -> Vec<Vec<usize>> {
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut components = Components::new(n);
     let mut touched = vec![false; n];
     for c in candidates {
         touched[c.a] = true;
         if let End::Particle(b) = c.b {
             touched[b] = true;
-            let (x, y) = (root(&mut parent, c.a), root(&mut parent, b));
-            if x != y {
-                parent[x.max(y)] = x.min(y);
-            }
+            components.join(c.a, b);
         }
     }
-    let mut by_root: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-    for i in (0..n).filter(|&i| touched[i]) {
-        let r = root(&mut parent, i);
-        by_root.entry(r).or_default().push(i);
-    }
-    by_root.into_values().collect()
+    components.groups((0..n).filter(|&i| touched[i]))
 }
 
 /// Breadth-first order of a component from a pseudo-peripheral atom (the last one reached
