@@ -12,10 +12,25 @@ r-RESPA impulse with bonds and angles inner at 0.5 fs and non-bonded outer at h.
 
   longstep : `longstep run SCENE --method impulse --h H --inner K [--precision mixed]`, wall
              time of the stepping loop from the JSON summary; threads = RAYON_NUM_THREADS
-  GROMACS  : `gmx mdrun` (mixed precision) and `gmx_d mdrun` (double), two-level MTS (non-bonded
-             every K steps of 0.5 fs), -ntmpi 1 -ntomp THREADS -pin on -resethway, ns/day from
-             the log. Its closest model: reaction-field Coulomb with eps_rf = infinity (same
-             cost, a different model: potential energy -4.3 %); nstlist as the kit chose it
+  GROMACS  : two builds of the same 2022.5 sources, both run:
+             `gromacs-native`: GROMACS built for this machine's SIMD (cmake GMX_SIMD=AUTO,
+               AVX2_256 or AVX_512 on current x86) by scripts/build_gromacs_native.sh into a
+               cache folder outside the repository (built the first time, about 25 minutes;
+               --no-build-native skips it), mixed precision: the anchor, what a user who
+               compiles GROMACS or loads a cluster's module runs;
+             `gromacs`: Debian's package, `gmx` (mixed) and `gmx_d` (double), built for
+               SSE4.1 only (portability), kept because many users have only that.
+             Two-level MTS (non-bonded every K steps of 0.5 fs), -ntmpi 1 -ntomp THREADS -pin
+             on -resethway, ns/day from the log. Its closest model: reaction-field Coulomb
+             with eps_rf = infinity (same cost, a different model: potential energy -4.3 %).
+             The mdp is GROMACS's production default: the Verlet buffer from
+             verlet-buffer-tolerance 0.005, nstcalcenergy and nstcomm 100 (rounded up to a
+             multiple of K), nstlist as mdrun tunes it. mdrun does not tune nstlist in NVE
+             ("Can not increase nstlist because an NVE ensemble is used"), so each GROMACS
+             first runs mdrun -nsteps 0 on the same input with v-rescale at 300 K from nstlist
+             10 (the smallest multiple of K from 10 with MTS) and the timed NVE runs use the
+             nstlist it chose (grompp sizes the buffer for it from the initial temperature).
+             Each GROMACS's SIMD level and nstlist are printed once per size and scheme
   LAMMPS   : `lmp` with run_style respa 2 K bond 1 angle 1 pair 2 ("Loop time"), the same
              model (lj/cut/coul/dsf); 2 threads = mpirun -np 2 (no OpenMP package in Debian's)
   OpenMM   : CPU platform (its own mixed precision), CustomNonbondedForce with the same model,
@@ -40,8 +55,10 @@ accuracy:
 
   longstep : --coulomb pme --pme-order 4; plain `--method verlet --h 0.5fs`, MTS `--method
              impulse --inner K --nonbonded-level 0 --pme-level 1`
-  GROMACS  : coulombtype = PME, ewald-rtol 1e-5, fourier-spacing 0.12, pme-order 4, nstlist 20;
-             MTS mts-level2-forces = longrange-nonbonded, mts-level2-factor = K; -notunepme
+  GROMACS  : coulombtype = PME, ewald-rtol 1e-5, fourier-spacing 0.12, pme-order 4, nstlist
+             as mdrun tunes it (as above), nstcalcenergy 100; MTS mts-level2-forces = longrange-nonbonded,
+             mts-level2-factor = K; -notunepme (on one rank without a GPU mdrun does not tune
+             PME anyway)
   LAMMPS   : lj/cut/coul/long 9 with pppm, kspace_modify gewald/mesh/order 4/diff ad (the
              analytic-derivative SPME of the others) with longstep's alpha and grid; excluded
              pairs by special_bonds (their erf correction); MTS run_style respa 2 K bond 1
@@ -52,8 +69,10 @@ accuracy:
 
     python3 scripts/head_to_head.py --coulomb pme --json out/pme.json | tee out/pme.txt
 
-The peers are installed when missing (--install): OpenMM with pip, LAMMPS, GROMACS and
-Open MPI with apt-get. Needs a release build of longstep (`cargo build --release`).
+The peers are installed when missing (--no-install to skip): OpenMM with pip, LAMMPS, GROMACS
+and Open MPI with apt-get, the native GROMACS by scripts/build_gromacs_native.sh
+(--no-build-native to skip; the row is then dropped when the build is not there). Needs a
+release build of longstep (`cargo build --release`).
 """
 import argparse
 import json
@@ -72,6 +91,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
 PEERS = os.path.join(HERE, "peers")
 BIN = os.path.join(ROOT, "target", "release", "longstep")
+BUILD_NATIVE = os.path.join(HERE, "build_gromacs_native.sh")
+NATIVE = "gromacs-native"
+GROMACS_CODES = (NATIVE, "gromacs")
 INNER = 0.5  # fs
 
 # atoms -> (kit name, longstep scene, structure dir)
@@ -84,11 +106,19 @@ SYSTEMS = {
 STEPS = {
     "longstep": {648: 3000, 5184: 400},
     "gromacs": {648: 4000, 5184: 800},
+    NATIVE: {648: 6000, 5184: 1200},
     "lammps": {648: 600, 5184: 80},
     "openmm": {648: 400, 5184: 60},
 }
-# GROMACS nstlist per (atoms, K), as the kit chose it (a multiple of the MTS factor K).
-NSTLIST = {(648, 4): 12, (648, 8): 16, (5184, 4): 20, (5184, 8): 32}
+# GROMACS's production defaults: nstlist 10 (mdrun raises it; with MTS it must be a multiple
+# of the factor K) and energies every 100 steps (nstcalcenergy; a multiple of K).
+NSTLIST_DEFAULT = 10
+NSTCALCENERGY_DEFAULT = 100
+
+
+def multiple_of(k, at_least):
+    """The smallest multiple of k that is at least `at_least`."""
+    return k * -(-at_least // k)
 
 # The GROMACS run settings both electrostatics share: plain MD from the given velocities,
 # no thermostat or barostat, Lennard-Jones cut and shifted at 0.9 nm, nothing written.
@@ -107,6 +137,7 @@ constraints = none
 continuation = yes
 gen-vel = no
 nstcalcenergy = {nstcalc}
+verlet-buffer-tolerance = 0.005
 nstenergy = 0
 nstlog = 0
 nstxout = 0
@@ -144,31 +175,99 @@ def run_longstep(atoms, h, k, steps, threads, precision):
         return s["steps"] / s["wall_seconds"]
 
 
-def run_gromacs(atoms, h, k, steps, threads, precision):
-    name = SYSTEMS[atoms][0]
-    gmx = "gmx_d" if precision == "double" else "gmx"
-    nstlist = NSTLIST.get((atoms, k), 4 * k)
-    inner_steps = steps * k
+def gmx_binary(code, precision):
+    """The gmx of a GROMACS code: Debian's gmx / gmx_d, or the native build's gmx."""
+    if code == NATIVE:
+        return native_gmx()
+    return "gmx_d" if precision == "double" else "gmx"
+
+
+def native_gmx():
+    """Where scripts/build_gromacs_native.sh installs (or would install) the native gmx."""
+    res = sh(["bash", BUILD_NATIVE, "--path"])
+    if res.returncode != 0:
+        raise RuntimeError("build_gromacs_native.sh --path failed: %s" % res.stderr[-500:])
+    return res.stdout.strip()
+
+
+def gromacs_log_note(text):
+    """The SIMD level the mdrun binary used and the nstlist / rlist mdrun chose, from md.log."""
+    simd = re.search(r"^SIMD instructions:\s+(\S+)", text, re.M)
+    changed = re.search(r"Changing nstlist from (\d+) to (\d+), rlist from (\S+) to (\S+)", text)
+    if changed:
+        nstlist = "nstlist %s -> %s, rlist %s -> %s nm (mdrun)" % changed.groups()
+    else:
+        found = re.findall(r"^\s*nstlist\s*=\s*(\d+)", text, re.M)
+        rlist = re.findall(r"^\s*rlist\s*=\s*(\S+)", text, re.M)
+        nstlist = "nstlist %s, rlist %s nm" % (found[-1] if found else "?",
+                                                rlist[-1] if rlist else "?")
+    return "SIMD %s, %s" % (simd.group(1) if simd else "?", nstlist)
+
+
+def gromacs_mdrun(code, precision, mdp_text, gro, top, inner_steps, threads, extra=()):
+    """grompp and mdrun one run in a temporary directory; returns md.log's text."""
+    gmx = gmx_binary(code, precision)
     with tempfile.TemporaryDirectory() as work:
         mdp = os.path.join(work, "run.mdp")
         with open(mdp, "w") as f:
-            f.write(MDP.format(nsteps=inner_steps, nstcalc=inner_steps, nstlist=nstlist, k=k))
+            f.write(mdp_text)
         tpr = os.path.join(work, "run.tpr")
-        res = sh([gmx, "grompp", "-f", mdp, "-c", os.path.join(PEERS, "gromacs", name + ".gro"),
-                  "-p", os.path.join(PEERS, "gromacs", name + ".top"), "-o", tpr,
+        res = sh([gmx, "grompp", "-f", mdp, "-c", gro, "-p", top, "-o", tpr,
                   "-po", os.path.join(work, "out.mdp"), "-maxwarn", "1"], cwd=work)
         if res.returncode != 0:
             raise RuntimeError("grompp failed: %s" % res.stderr[-2000:])
         log = os.path.join(work, "md.log")
         res = sh([gmx, "mdrun", "-s", tpr, "-nsteps", str(inner_steps), "-ntmpi", "1",
                   "-ntomp", str(threads), "-pin", "on", "-noconfout", "-resethway", "-g", log,
-                  "-e", os.path.join(work, "ener.edr")], cwd=work,
+                  "-e", os.path.join(work, "ener.edr")] + list(extra), cwd=work,
                  env=dict(os.environ, GMX_MAXBACKUP="-1"))
         if res.returncode != 0:
             raise RuntimeError("mdrun failed: %s" % res.stderr[-2000:])
-        text = open(log).read()
-        ns_per_day = float(re.search(r"^Performance:\s+([0-9.eE+-]+)", text, re.M).group(1))
-        return ns_per_day / (h * 1e-6 * 86400.0)
+        return open(log).read()
+
+
+def gromacs_outer_steps_per_s(text, h):
+    ns_per_day = float(re.search(r"^Performance:\s+([0-9.eE+-]+)", text, re.M).group(1))
+    return ns_per_day / (h * 1e-6 * 86400.0)
+
+
+# (code, precision, coulomb, atoms, K) -> the nstlist mdrun chose in its NVT probe.
+TUNED_NSTLIST = {}
+NVT_PROBE = """tcoupl = v-rescale
+tc-grps = System
+tau-t = 0.1
+ref-t = 300
+"""
+
+
+def tuned_nstlist(key, mdp_format, k, gro, top):
+    """The nstlist mdrun picks for this input at 300 K with v-rescale (mdrun -nsteps 0 from
+    nstlist 10, or the smallest multiple of K above it), once per key. mdrun raises nstlist
+    only with a thermostat; the NVE runs then use its choice."""
+    if key not in TUNED_NSTLIST:
+        start = multiple_of(k, NSTLIST_DEFAULT)
+        mdp = mdp_format(start).replace("tcoupl = no\n", NVT_PROBE)
+        text = gromacs_mdrun(key[0], key[1], mdp, gro, top, 0, 1)
+        changed = re.search(r"Changing nstlist from \d+ to (\d+)", text)
+        TUNED_NSTLIST[key] = int(changed.group(1)) if changed else start
+    return TUNED_NSTLIST[key]
+
+
+def run_gromacs(atoms, h, k, steps, threads, precision, code="gromacs"):
+    name = SYSTEMS[atoms][0]
+    gro = os.path.join(PEERS, "gromacs", name + ".gro")
+    top = os.path.join(PEERS, "gromacs", name + ".top")
+    inner_steps = steps * k
+    nstcalc = multiple_of(k, NSTCALCENERGY_DEFAULT)
+    mdp = lambda nstlist: MDP.format(nsteps=inner_steps, nstcalc=nstcalc, nstlist=nstlist, k=k)
+    nstlist = tuned_nstlist((code, precision, "rf", atoms, k), mdp, k, gro, top)
+    text = gromacs_mdrun(code, precision, mdp(nstlist), gro, top, inner_steps, threads)
+    check_note("%s %s" % (code, precision), atoms, k, gromacs_log_note(text))
+    return gromacs_outer_steps_per_s(text, h)
+
+
+def run_gromacs_native(atoms, h, k, steps, threads, precision):
+    return run_gromacs(atoms, h, k, steps, threads, precision, code=NATIVE)
 
 
 def run_lammps(atoms, h, k, steps, threads, precision):
@@ -210,8 +309,16 @@ def run_openmm(atoms, h, k, steps, threads, precision):
     return steps / (time.perf_counter() - start)
 
 
-RUNNERS = {"longstep": run_longstep, "gromacs": run_gromacs, "lammps": run_lammps,
-           "openmm": run_openmm}
+RUNNERS = {"longstep": run_longstep, "gromacs": run_gromacs, NATIVE: run_gromacs_native,
+           "lammps": run_lammps, "openmm": run_openmm}
+# (code, atoms, K) -> the settings a code reported (SIMD, nstlist), printed once.
+CHECKS = {}
+
+
+def check_note(code, atoms, k, text):
+    if (code, atoms, k) not in CHECKS:
+        CHECKS[(code, atoms, k)] = text
+        print("  %5d atoms  K %d  %-22s check: %s" % (atoms, k, code, text), flush=True)
 
 # ---------------------------------------------------------------- PME mode ------------------
 PME_SYSTEMS = {
@@ -229,6 +336,7 @@ PME_ORDER = 4
 PME_STEPS = {
     "longstep": {648: 800, 5184: 120, 41472: 40},
     "gromacs": {648: 1600, 5184: 240, 41472: 40},
+    NATIVE: {648: 2400, 5184: 360, 41472: 60},
     "lammps": {648: 320, 5184: 48, 41472: 8},
     "openmm": {648: 400, 5184: 48, 41472: 8},
 }
@@ -276,10 +384,11 @@ class PmeInputs:
         if res.returncode != 0:
             sys.exit("replicate_box.py failed: %s" % res.stderr)
         self.scenes[41472] = os.path.join(box, "scene.toml")
-        if "gromacs" not in self.codes:
+        gmx = [gmx_binary(c, "mixed") for c in GROMACS_CODES if c in self.codes]
+        if not gmx:
             return
         gro = os.path.join(self.work, "water13824.gro")
-        res = sh(["gmx", "genconf", "-f", os.path.join(PEERS, "gromacs", "water1728.gro"),
+        res = sh([gmx[0], "genconf", "-f", os.path.join(PEERS, "gromacs", "water1728.gro"),
                   "-nbox", "2", "2", "2", "-o", gro], cwd=self.work)
         if res.returncode != 0:
             sys.exit("gmx genconf failed: %s" % res.stderr[-2000:])
@@ -342,7 +451,7 @@ rcoulomb = 0.9
 ewald-rtol = 1e-5
 fourier-spacing = 0.12
 pme-order = 4
-""" + MDP_RUN + """nstlist = 20
+""" + MDP_RUN + """nstlist = {nstlist}
 """)
 PME_MDP_MTS = """mts = yes
 mts-levels = 2
@@ -351,38 +460,28 @@ mts-level2-factor = {k}
 """
 
 
-def run_gromacs_pme(atoms, h, k, steps, threads, precision):
-    gmx = "gmx_d" if precision == "double" else "gmx"
+def run_gromacs_pme(atoms, h, k, steps, threads, precision, code="gromacs"):
     inner_steps = steps * k
-    with tempfile.TemporaryDirectory() as work:
-        mdp = os.path.join(work, "run.mdp")
-        with open(mdp, "w") as f:
-            f.write(PME_MDP.format(nsteps=inner_steps, nstcalc=inner_steps))
-            if k > 1:
-                f.write(PME_MDP_MTS.format(k=k))
-        tpr = os.path.join(work, "run.tpr")
-        res = sh([gmx, "grompp", "-f", mdp, "-c", PME.gro[atoms], "-p", PME.top[atoms],
-                  "-o", tpr, "-po", os.path.join(work, "out.mdp"), "-maxwarn", "1"], cwd=work)
-        if res.returncode != 0:
-            raise RuntimeError("grompp failed: %s" % res.stderr[-2000:])
-        log = os.path.join(work, "md.log")
-        res = sh([gmx, "mdrun", "-s", tpr, "-nsteps", str(inner_steps), "-ntmpi", "1",
-                  "-ntomp", str(threads), "-pin", "on", "-noconfout", "-resethway",
-                  "-notunepme", "-g", log, "-e", os.path.join(work, "ener.edr")], cwd=work,
-                 env=dict(os.environ, GMX_MAXBACKUP="-1"))
-        if res.returncode != 0:
-            raise RuntimeError("mdrun failed: %s" % res.stderr[-2000:])
-        text = open(log).read()
-        grid = [re.search(r"fourier-n%s\s*=\s*(\d+)" % a, text) for a in "xyz"]
-        width = re.search(r"Gaussian width \(1/beta\) of ([0-9.eE+-]+) nm", text)
-        order = re.search(r"pme-order\s*=\s*(\d+)", text)
-        nstlist = re.findall(r"nstlist\s*=\s*(\d+)", text)
-        pme_note("gromacs " + precision, atoms, "alpha = %s 1/A, grid %s, order %s, nstlist %s" % (
-            "%.6f" % (0.1 / float(width.group(1))) if width else "?",
-            "x".join(g.group(1) if g else "?" for g in grid), order.group(1) if order else "?",
-            nstlist[-1] if nstlist else "?"))
-        ns_per_day = float(re.search(r"^Performance:\s+([0-9.eE+-]+)", text, re.M).group(1))
-        return ns_per_day / (h * 1e-6 * 86400.0)
+    mdp = lambda nstlist: PME_MDP.format(nsteps=inner_steps, nstcalc=NSTCALCENERGY_DEFAULT,
+                                         nstlist=nstlist) + (PME_MDP_MTS.format(k=k) if k > 1
+                                                             else "")
+    # The non-bonded pairs are on the fast level here: nstlist need not be a multiple of K.
+    nstlist = tuned_nstlist((code, precision, "pme", atoms, k), mdp, 1, PME.gro[atoms],
+                            PME.top[atoms])
+    text = gromacs_mdrun(code, precision, mdp(nstlist), PME.gro[atoms], PME.top[atoms],
+                         inner_steps, threads, extra=["-notunepme"])
+    grid = [re.search(r"fourier-n%s\s*=\s*(\d+)" % a, text) for a in "xyz"]
+    width = re.search(r"Gaussian width \(1/beta\) of ([0-9.eE+-]+) nm", text)
+    order = re.search(r"pme-order\s*=\s*(\d+)", text)
+    pme_note("%s %s" % (code, precision), atoms, "alpha = %s 1/A, grid %s, order %s" % (
+        "%.6f" % (0.1 / float(width.group(1))) if width else "?",
+        "x".join(g.group(1) if g else "?" for g in grid), order.group(1) if order else "?"))
+    check_note("%s %s" % (code, precision), atoms, k, gromacs_log_note(text))
+    return gromacs_outer_steps_per_s(text, h)
+
+
+def run_gromacs_native_pme(atoms, h, k, steps, threads, precision):
+    return run_gromacs_pme(atoms, h, k, steps, threads, precision, code=NATIVE)
 
 
 def run_lammps_pme(atoms, h, k, steps, threads, precision):
@@ -523,11 +622,12 @@ def run_openmm_pme(atoms, h, k, steps, threads, precision):
 
 
 PME_RUNNERS = {"longstep": run_longstep_pme, "gromacs": run_gromacs_pme,
-               "lammps": run_lammps_pme, "openmm": run_openmm_pme}
+               NATIVE: run_gromacs_native_pme, "lammps": run_lammps_pme,
+               "openmm": run_openmm_pme}
 # Each code with the precisions it runs: GROMACS both (gmx, gmx_d), LAMMPS double only,
 # OpenMM's CPU platform its own mixed precision only.
 PRECISIONS = {"longstep": ["double", "mixed"], "gromacs": ["mixed", "double"],
-              "lammps": ["double"], "openmm": ["mixed"]}
+              NATIVE: ["mixed"], "lammps": ["double"], "openmm": ["mixed"]}
 
 
 def install(codes):
@@ -552,13 +652,37 @@ def install(codes):
                            check=True)
 
 
+def native_ready(build):
+    """True when the native GROMACS is installed; builds it first when `build` (once, about
+    25 minutes: scripts/build_gromacs_native.sh, its output on stderr)."""
+    if os.access(native_gmx(), os.X_OK):
+        return True
+    if not build:
+        print("no native GROMACS at %s (--no-build-native): its rows are left out; build it "
+              "with scripts/build_gromacs_native.sh" % native_gmx(), flush=True)
+        return False
+    print("building the native GROMACS (scripts/build_gromacs_native.sh, once; about 25 "
+          "minutes)", flush=True)
+    res = subprocess.run(["bash", BUILD_NATIVE], stdout=subprocess.DEVNULL)
+    if res.returncode != 0 or not os.access(native_gmx(), os.X_OK):
+        sys.exit("scripts/build_gromacs_native.sh failed (exit %d)" % res.returncode)
+    return True
+
+
+def gromacs_version(gmx):
+    """'GROMACS 2022.5-... (SIMD AVX_512)' from `gmx --version`."""
+    line = sh([gmx, "--version"]).stdout
+    m = re.search(r"GROMACS version:\s+(\S+)", line)
+    simd = re.search(r"SIMD instructions:\s+(\S+)", line)
+    return "GROMACS %s (SIMD %s)" % (m.group(1) if m else "?", simd.group(1) if simd else "?")
+
+
 def versions(codes):
     out = []
+    if NATIVE in codes:
+        out.append("gromacs-native: " + gromacs_version(native_gmx()))
     if "gromacs" in codes:
-        line = sh(["gmx", "--version"]).stdout
-        m = re.search(r"GROMACS version:\s+(\S+)", line)
-        simd = re.search(r"SIMD instructions:\s+(\S+)", line)
-        out.append("GROMACS %s (SIMD %s)" % (m.group(1) if m else "?", simd.group(1) if simd else "?"))
+        out.append("gromacs (Debian): " + gromacs_version("gmx"))
     if "lammps" in codes:
         m = re.search(r"Simulator - (.+)", sh(["lmp", "-h"]).stdout)
         out.append("LAMMPS %s" % (m.group(1) if m else "?"))
@@ -642,8 +766,8 @@ def report(rows, atoms, threads, h):
 def markdown(rows):
     """The medians as a docs table: one row per size, threads and scheme, every run in
     brackets in repeat order."""
-    columns = [("longstep", "double"), ("longstep", "mixed"), ("gromacs", "mixed"),
-               ("gromacs", "double"), ("lammps", "double"), ("openmm", "mixed")]
+    columns = [("longstep", "double"), ("longstep", "mixed"), (NATIVE, "mixed"),
+               ("gromacs", "mixed"), ("gromacs", "double"), ("lammps", "double"), ("openmm", "mixed")]
     fmt = lambda v: "%.0f" % v if v >= 100 else "%.3g" % v
     print("| atoms | threads | scheme | " + " | ".join("%s %s" % c for c in columns) + " |")
     print("|" + "---|" * (3 + len(columns)))
@@ -703,7 +827,9 @@ def parse_args():
     ap.add_argument("--threads", type=ints, default=[1, 2])
     ap.add_argument("--h", type=floats, default=None,
                     help="outer steps in fs (inner 0.5); default 4,2 (PME: 0.5,1,2)")
-    ap.add_argument("--codes", type=words, default=["longstep", "gromacs", "lammps", "openmm"])
+    ap.add_argument("--codes", type=words,
+                    default=["longstep", NATIVE, "gromacs", "lammps", "openmm"],
+                    help="default longstep,gromacs-native,gromacs,lammps,openmm")
     ap.add_argument("--precisions", type=words, default=["double", "mixed"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--steps-factor", type=float, default=1.0,
@@ -711,6 +837,9 @@ def parse_args():
     ap.add_argument("--quick", action="store_true",
                     help="smoke test: one repeat, 1/20 of the steps")
     ap.add_argument("--no-install", dest="install", action="store_false")
+    ap.add_argument("--no-build-native", dest="build_native", action="store_false",
+                    help="do not build the native GROMACS when it is missing (its rows are "
+                         "then left out)")
     ap.add_argument("--json", help="also write every run to this file")
     args = ap.parse_args()
     if args.quick:
@@ -739,6 +868,8 @@ def main():
         sys.exit("no release build at %s: run `cargo build --release` first" % BIN)
     if args.install:
         install(args.codes)
+    if NATIVE in args.codes and not native_ready(args.build_native):
+        args.codes = [c for c in args.codes if c != NATIVE]
     cpu = open("/proc/cpuinfo").read().split("model name")[1].split(":")[1].split("\n")[0].strip()
     print("machine: %s, %d cores, load average %s; %s; %s" % (
         cpu, os.cpu_count(), " ".join("%.2f" % x for x in os.getloadavg()), versions(args.codes),

@@ -40,7 +40,8 @@ ROWS = {
         "trpcage": ("trp-split-con", "langevin-respa-split-hmr", 12)}),
     "sinr-split-96fs": (96, {"trpcage": ("trp-split-flex", "sinr-three-level-split", 96)}),
 }
-PEERS = {"gmx-hbonds-2fs", "gmx-hmr-4fs", "gmx-mts-hmr-4fs", "gmx-mts-2fs",
+PEERS = {"native-hbonds-2fs", "native-hmr-4fs", "native-mts-hmr-4fs", "native-mts-2fs",
+         "gmx-hbonds-2fs", "gmx-hmr-4fs", "gmx-mts-hmr-4fs", "gmx-mts-2fs",
          "openmm-hbonds-2fs", "openmm-hmr-4fs", "openmm-mts-4fs"}
 
 
@@ -93,7 +94,7 @@ def svg(title, points, peers):
     out.append('<text x="15" y="%d" transform="rotate(-90 15 %d)" text-anchor="middle">'
                'ns/day, one thread</text>' % ((top + h - bottom) // 2, (top + h - bottom) // 2))
     for name, value in sorted(peers.items(), key=lambda kv: -kv[1]):
-        dash = '' if name.startswith("gmx") else ' stroke-dasharray="5,4"'
+        dash = '' if name.startswith(("gmx", "native")) else ' stroke-dasharray="5,4"'
         out.append('<line x1="%d" y1="%.1f" x2="%d" y2="%.1f" stroke="grey"%s/>' % (
             left, py(value), w - right, py(value), dash))
         out.append('<text x="%d" y="%.1f">%s %.0f</text>' % (

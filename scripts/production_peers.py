@@ -1,16 +1,24 @@
 #!/usr/bin/env python3
 """The peers at their production settings and longstep, in one interleaved timing sitting.
 
-One system, GROMACS (`gmx`, mixed precision, CPU) and OpenMM (CPU platform) at the settings
-their users run in production, and the longstep configurations given with --longstep, timed
-in turn on the same machine (issue 29 item 4). Runs from a clone and reads nothing outside
-it; installs GROMACS (apt-get) and OpenMM (pip) when they are missing, saying so
-(scripts/head_to_head.py's `install`). Needs a release build (`cargo build --release`).
+One system, GROMACS (mixed precision, CPU) and OpenMM (CPU platform) at the settings their
+users run in production, and the longstep configurations given with --longstep, timed in turn
+on the same machine (issue 29 item 4). Two builds of GROMACS 2022.5, the same sources:
+`gromacs-native`, built for this machine's SIMD (cmake GMX_SIMD=AUTO: AVX2_256 or AVX_512 on
+current x86) by scripts/build_gromacs_native.sh into a cache folder outside the repository,
+the anchor (what a user who compiles GROMACS or loads a cluster's module runs); and Debian's
+package `gmx`, built for SSE4.1 only (portability), kept as a row because many users have only
+that. Each GROMACS's check line names the SIMD its mdrun used (md.log). Runs from a clone and
+reads nothing outside it; installs Debian's GROMACS (apt-get) and OpenMM (pip) when they are
+missing, and builds the native GROMACS the first time (about 25 minutes; --no-build-native
+skips it and leaves its rows out), saying so (scripts/head_to_head.py's `install` and
+`native_ready`). Needs a release build (`cargo build --release`).
 
     python3 scripts/production_peers.py --system ala2 \\
         --longstep 'verlet-hbonds-2fs=--method verlet --h 2fs --constraints h-bonds
                     --rigid-water --temperature 300K --seed 1 --energy-every 100'
-    python3 scripts/production_peers.py --system trpcage --threads 1 --repeats 1 --ps 0.2
+    python3 scripts/production_peers.py --system trpcage --threads 1 --repeats 1 --ps 0.2 \\
+        --rows native-hmr-4fs,gmx-hmr-4fs
 
 Systems (--system): `ala2`, the alanine dipeptide in 423 TIP3P waters (1291 atoms,
 systems/alanine-dipeptide-amber/ala2-solvated.*), and `trpcage`, Trp-cage in 2205 TIP3P waters
@@ -29,10 +37,13 @@ same, or changes only the PME accuracy):
   - the constraint solvers differ: GROMACS LINCS (order 4, 1 iteration) and SETTLE, OpenMM
     its CPU constraint solver (tolerance 1e-5) and SETTLE, longstep RATTLE (1e-8) and SETTLE.
 
-The rows (--rows picks some; default all). GROMACS rows: `integrator = md` (leap-frog),
-v-rescale at 300 K (tau-t 0.1 ps, one group), Maxwell-Boltzmann start (gen-vel, seed = the
-repeat), energies every 100 steps (nstcalcenergy's default), no output, `mdrun -ntmpi 1
--ntomp N -pin on -notunepme` (mdrun raises nstlist from 10 to 40 by itself; printed). OpenMM
+The rows (--rows picks some; default all). GROMACS rows, GROMACS's production defaults:
+`integrator = md` (leap-frog), v-rescale at 300 K (tau-t 0.1 ps, one group), Maxwell-Boltzmann
+start (gen-vel, seed = the repeat), energies every 100 steps (nstcalcenergy's default), the
+Verlet buffer from verlet-buffer-tolerance's default 0.005 and nstlist left at its default 10
+for mdrun to raise (it does, to 40-100; printed), no output, `mdrun -ntmpi 1 -ntomp N -pin on
+-notunepme` (mdrun does not tune PME on one rank without a GPU anyway). Every gmx-* row has a
+native-* twin run by the native build, with the same mdp. OpenMM
 rows: Langevin at 300 K, friction 1/ps, rigid water (SETTLE; the script adds the H-H
 constraint the prmtop lacks, see rigid_water), velocities at 300 K (seed = the repeat), no
 reporters, CPU platform property Threads = N (checked after every run).
@@ -79,8 +90,9 @@ Output (--out PREFIX, default docs/data/sittings/production-SYSTEM-DATE): PREFIX
 run (system, row, threads, repeat, ns_day, wall_s, setup_fraction, loop_s), written as the
 sitting goes; PREFIX.txt, the exact command line, machine and versions, each row's check
 line, and per thread count each row's median ns/day with its min-max over the repeats, the
-median wall and set-up fraction, and its ratio to the fastest GROMACS row at that thread count
-(the one with the highest median ns/day): the ratio of the medians, and in brackets the
+median wall and set-up fraction, and its ratios to the fastest native GROMACS row and to the
+fastest Debian GROMACS row at that thread count (each the one with the highest median
+ns/day; the native first): the ratio of the medians, and in brackets the
 widest ratio the repeats allow (the row's min over the reference's max, its max over the
 reference's min).
 """
@@ -120,6 +132,10 @@ WATER = {"HOH", "WAT", "SOL"}  # water residue names
 
 # name -> (code, dt fs, hydrogen mass repartitioning?, MTS factor of the slow level)
 PEER_ROWS = {
+    "native-hbonds-2fs": ("gromacs-native", 2.0, False, 1),
+    "native-hmr-4fs": ("gromacs-native", 4.0, True, 1),
+    "native-mts-2fs": ("gromacs-native", 2.0, False, 2),
+    "native-mts-hmr-4fs": ("gromacs-native", 4.0, True, 2),
     "gmx-hbonds-2fs": ("gromacs", 2.0, False, 1),
     "gmx-hmr-4fs": ("gromacs", 4.0, True, 1),
     "gmx-mts-2fs": ("gromacs", 2.0, False, 2),
@@ -173,9 +189,17 @@ def system_files(name):
 
 
 # ------------------------------------------------------------------ GROMACS ------------------
-def gromacs_has_repartition():
+GROMACS_CODES = h2h.GROMACS_CODES
+
+
+def gmx_of(row):
+    """The gmx binary of a GROMACS row: Debian's `gmx`, or the native build's."""
+    return h2h.gmx_binary(PEER_ROWS[row][0], "mixed")
+
+
+def gromacs_has_repartition(gmx):
     """GROMACS 2023 added mass-repartition-factor; 2022 and before do not have it."""
-    m = re.search(r"GROMACS version:\s+(\d+)", h2h.sh(["gmx", "--version"]).stdout)
+    m = re.search(r"GROMACS version:\s+(\d+)", h2h.sh([gmx, "--version"]).stdout)
     return bool(m) and int(m.group(1)) >= 2023
 
 
@@ -237,7 +261,7 @@ def gromacs_inputs(work, row, files, nsteps, seed):
                       rtol=h2h.PME_RTOL, order=h2h.PME_ORDER, seed=seed)
     if factor > 1:
         text += MDP_MTS.format(factor=factor)
-    if hmr and gromacs_has_repartition():
+    if hmr and gromacs_has_repartition(gmx_of(row)):
         text += "mass-repartition-factor = 3\n"
     elif hmr:
         top = os.path.join(work, "hmr.top")
@@ -249,9 +273,9 @@ def gromacs_inputs(work, row, files, nsteps, seed):
     return mdp, top
 
 
-def gromacs_dump_check(tpr):
+def gromacs_dump_check(gmx, tpr):
     """Constraints, SETTLEs and hydrogen masses from `gmx dump` of the tpr."""
-    text = h2h.sh(["gmx", "dump", "-s", tpr]).stdout
+    text = h2h.sh([gmx, "dump", "-s", tpr]).stdout
     counts = {int(k): int(n) for k, n in re.findall(
         r"moltype\s+=\s+(\d+) \"[^\"]*\"\s*\n\s*#molecules\s+=\s+(\d+)", text)}
     blocks = re.split(r"\n\s*moltype \((\d+)\):", text)
@@ -278,6 +302,8 @@ def gromacs_log_check(log):
     if mts == "true":
         text += " (%s every %s steps)" % (value("mts-level2-forces"), value("mts-level2-factor"))
     width = re.search(r"Gaussian width \(1/beta\) of ([0-9.eE+-]+) nm", log)
+    simd = re.search(r"^SIMD instructions:\s+(\S+)", log, re.M)
+    text = "SIMD %s, %s" % (simd.group(1) if simd else "?", text)
     return text + ", nstlist %s, PME grid %sx%sx%s order %s alpha %s/A, tcoupl %s" % (
         nstlist.group(1) if nstlist else value("nstlist"), value("fourier-nx"),
         value("fourier-ny"), value("fourier-nz"), value("pme-order"),
@@ -287,16 +313,17 @@ def gromacs_log_check(log):
 def run_gromacs(row, files, ps, threads, seed, check):
     _, dt, _, factor = PEER_ROWS[row]
     nsteps = max(factor, int(round(ps * 1000.0 / dt / factor)) * factor)
+    gmx = gmx_of(row)
     with tempfile.TemporaryDirectory(prefix="peers-gmx-") as work:
         mdp, top = gromacs_inputs(work, row, files, nsteps, seed)
         tpr = os.path.join(work, "run.tpr")
-        res = h2h.sh(["gmx", "grompp", "-f", mdp, "-c", files["gro"], "-p", top, "-o", tpr,
+        res = h2h.sh([gmx, "grompp", "-f", mdp, "-c", files["gro"], "-p", top, "-o", tpr,
                       "-po", os.path.join(work, "out.mdp"), "-maxwarn", "0"], cwd=work)
         if res.returncode != 0:
             raise RuntimeError("grompp failed: %s" % res.stderr[-1500:])
         log = os.path.join(work, "md.log")
         start = time.perf_counter()
-        res = h2h.sh(["gmx", "mdrun", "-s", tpr, "-ntmpi", "1", "-ntomp", str(threads),
+        res = h2h.sh([gmx, "mdrun", "-s", tpr, "-ntmpi", "1", "-ntomp", str(threads),
                       "-pin", "on", "-notunepme", "-noconfout", "-g", log,
                       "-e", os.path.join(work, "ener.edr")], cwd=work,
                      env=dict(os.environ, GMX_MAXBACKUP="-1"))
@@ -311,7 +338,7 @@ def run_gromacs(row, files, ps, threads, seed, check):
         loop = float(re.search(r"^\s+Time:\s+[0-9.eE+-]+\s+([0-9.eE+-]+)", text, re.M).group(1))
         note = None
         if check:
-            note = "%s; %s" % (gromacs_log_check(text), gromacs_dump_check(tpr))
+            note = "%s; %s" % (gromacs_log_check(text), gromacs_dump_check(gmx, tpr))
         return ns_day, wall, loop, note
 
 
@@ -516,7 +543,7 @@ def run_row(row, args, ps, threads, repeat, check, pme):
     files = system_files(args.system)
     if row in args.longstep:
         return run_longstep(args.longstep[row], files["scene"], ps, threads, check)
-    if PEER_ROWS[row][0] == "gromacs":
+    if PEER_ROWS[row][0] in GROMACS_CODES:
         return run_gromacs(row, files, ps, threads, repeat + 1, check)
     return run_openmm(row, files, ps, threads, repeat + 1, check, pme)
 
@@ -575,26 +602,31 @@ def sitting(args, pme, writer, sink):
     return runs, checks
 
 
+def fastest_row(args, runs, threads, code):
+    """The row of `code` with the highest median ns/day at this thread count, or None."""
+    rows = [r for r in args.rows if r in PEER_ROWS and PEER_ROWS[r][0] == code
+            and (r, threads) in runs]
+    median = lambda r: statistics.median(x[0] for x in runs[(r, threads)])
+    return max(rows, key=median) if rows else None
+
+
 def summary(args, runs, checks, header):
     lines = list(header) + ["", "checks (once per row, outside the timings):"]
     lines += ["  %-20s %s" % (row, checks.get(row, "(no successful run)")) for row in args.rows]
     for threads in args.threads:
-        gmx = [r for r in args.rows if r in PEER_ROWS and PEER_ROWS[r][0] == "gromacs"
-               and (r, threads) in runs]
-        median = lambda r: statistics.median(x[0] for x in runs[(r, threads)])
-        ref = max(gmx, key=median) if gmx else None
+        refs = [r for r in (fastest_row(args, runs, threads, c) for c in GROMACS_CODES) if r]
         lines += ["", "%d thread(s): ns/day median [min-max] of n runs; process wall and set-up "
                   "fraction medians; ratio to %s (median ratio [widest by the repeats])" % (
-                      threads, ref or "no GROMACS row"),
+                      threads, " and to ".join(refs) or "no GROMACS row"),
                   "  %-20s %9s %21s %3s %9s %8s  %s" % ("row", "ns/day", "[min-max]", "n",
-                                                        "wall s", "set-up", "ratio")]
+                                                        "wall s", "set-up", "ratios")]
         for row in args.rows:
             lines.append(summary_line(row, runs.get((row, threads)),
-                                      runs.get((ref, threads)) if ref else None))
+                                      [runs[(ref, threads)] for ref in refs]))
     return lines
 
 
-def summary_line(row, these, ref):
+def summary_line(row, these, refs):
     if not these:
         return "  %-20s (no successful run)" % row
     ns = [x[0] for x in these]
@@ -602,7 +634,7 @@ def summary_line(row, these, ref):
     text = "  %-20s %9.2f %21s %3d %9.2f %7.1f%%%s" % (
         row, statistics.median(ns), "[%.2f-%.2f]" % (min(ns), max(ns)), len(ns),
         statistics.median(x[1] for x in these), 100.0 * setup, "!" if setup > 0.05 else " ")
-    if ref:
+    for ref in refs:
         rs = [x[0] for x in ref]
         text += " %6.2f [%.2f-%.2f]" % (statistics.median(ns) / statistics.median(rs),
                                          min(ns) / max(rs), max(ns) / min(rs))
@@ -629,6 +661,9 @@ def parse_args(argv):
                          "from a calibration run of --ps (default: every run --ps)")
     ap.add_argument("--out", default=None, help="PREFIX of PREFIX.csv and PREFIX.txt")
     ap.add_argument("--no-install", dest="install", action="store_false")
+    ap.add_argument("--no-build-native", dest="build_native", action="store_false",
+                    help="do not build the native GROMACS when it is missing (its rows are "
+                         "then left out)")
     args = ap.parse_args(argv)
     check_args(ap, args)
     return args
@@ -704,6 +739,11 @@ def main(argv):
     codes = sorted({PEER_ROWS[r][0] for r in args.rows if r in PEER_ROWS})
     if args.install and codes:
         h2h.install(codes)
+    if h2h.NATIVE in codes and not h2h.native_ready(args.build_native):
+        args.rows = [r for r in args.rows if PEER_ROWS.get(r, ("",))[0] != h2h.NATIVE]
+        codes.remove(h2h.NATIVE)
+        if not args.rows:
+            sys.exit("no rows left without the native GROMACS")
     for code in codes:
         if code == "gromacs" and not shutil.which("gmx"):
             sys.exit("gmx is not on PATH (install GROMACS, or leave out the gmx rows)")
