@@ -694,6 +694,11 @@ def versions(codes):
     return ", ".join(out)
 
 
+def cpu_name():
+    """The CPU's model name from /proc/cpuinfo."""
+    return open("/proc/cpuinfo").read().split("model name")[1].split(":")[1].split("\n")[0].strip()
+
+
 def configurations(args):
     for atoms in args.sizes:
         for threads in args.threads:
@@ -870,7 +875,7 @@ def main():
         install(args.codes)
     if NATIVE in args.codes and not native_ready(args.build_native):
         args.codes = [c for c in args.codes if c != NATIVE]
-    cpu = open("/proc/cpuinfo").read().split("model name")[1].split(":")[1].split("\n")[0].strip()
+    cpu = cpu_name()
     print("machine: %s, %d cores, load average %s; %s; %s" % (
         cpu, os.cpu_count(), " ".join("%.2f" % x for x in os.getloadavg()), versions(args.codes),
         time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())), flush=True)
