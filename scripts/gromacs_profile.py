@@ -100,8 +100,8 @@ def main():
                                  epilog=__doc__.split("\n", 1)[1])
     ap.add_argument("--cases", default="trpcage,water5184",
                     help="trpcage and/or water5184 (default both)")
-    ap.add_argument("--trpcage-steps", type=int, default=5000)
-    ap.add_argument("--water-steps", type=int, default=8000)
+    ap.add_argument("--trpcage-steps", type=int, default=2500)
+    ap.add_argument("--water-steps", type=int, default=2000)
     ap.add_argument("--out", help="write the report here too")
     ap.add_argument("--no-build-native", dest="build_native", action="store_false")
     args = ap.parse_args()

@@ -55,10 +55,10 @@ accuracy:
 
   longstep : --coulomb pme --pme-order 4; plain `--method verlet --h 0.5fs`, MTS `--method
              impulse --inner K --nonbonded-level 0 --pme-level 1`
-  GROMACS  : coulombtype = PME, ewald-rtol 1e-5, fourier-spacing 0.12, pme-order 4, nstlist
-             as mdrun tunes it (as above), nstcalcenergy 100; MTS mts-level2-forces = longrange-nonbonded,
-             mts-level2-factor = K; -notunepme (on one rank without a GPU mdrun does not tune
-             PME anyway)
+  GROMACS  : both builds; coulombtype = PME, ewald-rtol 1e-5, fourier-spacing 0.12, pme-order
+             4, nstlist as mdrun tunes it (as above), nstcalcenergy 100; MTS
+             mts-level2-forces = longrange-nonbonded, mts-level2-factor = K; -notunepme (on
+             one rank without a GPU mdrun does not tune PME anyway)
   LAMMPS   : lj/cut/coul/long 9 with pppm, kspace_modify gewald/mesh/order 4/diff ad (the
              analytic-derivative SPME of the others) with longstep's alpha and grid; excluded
              pairs by special_bonds (their erf correction); MTS run_style respa 2 K bond 1
