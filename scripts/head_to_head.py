@@ -772,7 +772,8 @@ def markdown(rows):
     """The medians as a docs table: one row per size, threads and scheme, every run in
     brackets in repeat order."""
     columns = [("longstep", "double"), ("longstep", "mixed"), (NATIVE, "mixed"),
-               ("gromacs", "mixed"), ("gromacs", "double"), ("lammps", "double"), ("openmm", "mixed")]
+               ("gromacs", "mixed"), ("gromacs", "double"), ("lammps", "double"),
+               ("openmm", "mixed")]
     fmt = lambda v: "%.0f" % v if v >= 100 else "%.3g" % v
     print("| atoms | threads | scheme | " + " | ".join("%s %s" % c for c in columns) + " |")
     print("|" + "---|" * (3 + len(columns)))
