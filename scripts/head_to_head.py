@@ -75,6 +75,7 @@ and Open MPI with apt-get, the native GROMACS by scripts/build_gromacs_native.sh
 release build of longstep (`cargo build --release`).
 """
 import argparse
+import functools
 import json
 import os
 import re
@@ -182,6 +183,7 @@ def gmx_binary(code, precision):
     return "gmx_d" if precision == "double" else "gmx"
 
 
+@functools.lru_cache(maxsize=None)
 def native_gmx():
     """Where scripts/build_gromacs_native.sh installs (or would install) the native gmx."""
     res = sh(["bash", BUILD_NATIVE, "--path"])
