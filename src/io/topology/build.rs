@@ -523,21 +523,24 @@ fn pairs_14(
     let mut scales: BTreeMap<String, usize> = BTreeMap::new();
     for pair in &topology.pairs_14 {
         let [i, j] = pair.atoms;
-        let key = format!(
-            "Coulomb × {:.6}, LJ × {:.6}",
-            pair.coulomb_scale, pair.lj_scale
-        );
+        let ((c12, c6), lj_scale, lj_key) = match pair.lj {
+            Some(own) => (own, 1.0, "own LJ".to_string()),
+            None => {
+                let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
+                let key = format!("LJ × {:.6}", pair.lj_scale);
+                (topology.lj.pair(a, b), pair.lj_scale, key)
+            }
+        };
+        let key = format!("Coulomb × {:.6}, {lj_key}", pair.coulomb_scale);
         *scales.entry(key).or_insert(0) += 1;
-        let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
-        let (c12, c6) = topology.lj.pair(a, b);
-        if pair.lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
+        if lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
             // ε and σ of the pair: σ⁶ = c12/c6, ε = c6²/(4 c12).
             let sigma = (c12 / c6).powf(1.0 / 6.0);
             let epsilon = c6 * c6 / (4.0 * c12);
             lj_pairs.push(Pair {
                 a: Site::Particle(i),
                 b: Site::Particle(j),
-                potential: LennardJones::new(pair.lj_scale * epsilon, sigma, f64::INFINITY, false),
+                potential: LennardJones::new(lj_scale * epsilon, sigma, f64::INFINITY, false),
             });
         }
         let qq = pair.coulomb_scale

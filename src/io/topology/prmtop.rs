@@ -654,6 +654,7 @@ fn dihedrals(sections: &Sections, p: &Pointers, topology: &mut Topology) -> Resu
                     atoms: [key.0, key.1],
                     coulomb_scale: scale(scee[t]),
                     lj_scale: scale(scnb[t]),
+                    lj: None,
                 });
             }
         }
