@@ -376,6 +376,51 @@ fn check_reads_a_top_and_its_settles_as_rigid_water() {
     assert_eq!(code, 0, "{stderr}");
 }
 
+/// `--define FLEXIBLE` on the command line (issue 43 item 2) reads the top as a scene's
+/// `defines = ["FLEXIBLE"]` does: flexible water, and the potential energy of OpenMM's
+/// GromacsTopFile with FLEXIBLE (tests/data/openmm-ala2-solvated-gromacs.json, the same
+/// reaction field at 9 Å that a topology with a box gets by default) to the tolerance above;
+/// without it the water is rigid. `forces` prints the total it checks here; a define on a
+/// prmtop is refused.
+#[test]
+fn a_define_on_the_command_line_reads_the_water_flexible() {
+    let solvated = system_path("ala2-solvated.top");
+    let solvated = solvated.to_str().expect("path");
+    let flags = longstep::io::scene::SceneFlags {
+        defines: vec!["FLEXIBLE".into()],
+        ..Default::default()
+    };
+    let scene = longstep::io::scene::load_scene_with(Path::new(solvated), &flags, &[])
+        .expect("the top reads with --define FLEXIBLE");
+    let total: f64 = scene.system.potential_energies().iter().sum();
+    let expected = json("ala2-solvated-gromacs")["energy"]["total"]
+        .as_f64()
+        .expect("total");
+    let error = (total - expected).abs() / expected.abs();
+    eprintln!("--define FLEXIBLE: {total:.9} kcal/mol, OpenMM {expected:.9}, relative {error:.1e}");
+    assert!(error <= TOLERANCE, "{total} vs OpenMM {expected}");
+    let (code, stdout, stderr) = common::run_cli(&[
+        "check",
+        solvated,
+        "--define",
+        "FLEXIBLE",
+        "--rigid-water",
+        "false",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let said = format!("{stdout}{stderr}");
+    assert!(!said.contains("SETTLE"), "{said}");
+    let prmtop = system_path("ala2.prmtop");
+    let (code, _, stderr) = common::run_cli(&[
+        "check",
+        prmtop.to_str().expect("path"),
+        "--define",
+        "FLEXIBLE",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--define"), "{stderr}");
+}
+
 /// The solvated top without FLEXIBLE: the peptide's terms, no water bonds or angle, one
 /// SETTLE per water at the top's d_OH, d_HH, and the same exclusions as the flexible read
 /// (the water's three pairs).

@@ -221,6 +221,15 @@ pub fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
     if extension_in(path, GROMACS_EXTENSIONS) {
         read_gromacs_top(path, defines)
     } else if extension_in(path, PRMTOP_EXTENSIONS) {
+        if let Some(name) = defines.first() {
+            return Err(Error::topology(
+                path,
+                "defines (--define, [topology] defines) are for a GROMACS .top's \
+                 preprocessor; an AMBER prmtop has none",
+            )
+            .key("--define")
+            .got(name.clone()));
+        }
         read_prmtop(path)
     } else {
         Err(Error::topology(
