@@ -9,6 +9,20 @@ use common::{argv, longstep, scratch_dir};
 use std::path::Path;
 use std::time::{Duration, Instant, SystemTime};
 
+/// Run longstep on one thread: exit code, stdout, stderr.
+fn run(args: &[&str]) -> (i32, String, String) {
+    let output = longstep()
+        .args(args)
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .expect("longstep runs");
+    (
+        output.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
 fn modified(path: &Path) -> Option<SystemTime> {
     std::fs::metadata(path).and_then(|m| m.modified()).ok()
 }
@@ -65,5 +79,87 @@ fn a_killed_run_keeps_every_row_before_its_checkpoint() {
     assert!(
         rows >= step,
         "checkpoint at step {step}, but only {rows} energy rows on disk"
+    );
+}
+
+/// A chain run under langevin with a checkpoint, for the restart tests.
+fn langevin_checkpoint(dir: &Path, extra: &[&str]) -> std::path::PathBuf {
+    let out = dir.join("origin");
+    let mut args = argv(
+        "run systems/chain/scene.toml --method langevin-respa --h 0.01 --inner 2 --t-end 0.1 \
+         --temperature 1 --friction 1 --checkpoint-every 0.05 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    );
+    args.extend(extra);
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, 0, "{stderr}");
+    out.join("checkpoint.json")
+}
+
+/// Item 7: a restart that spells out the default it ran with (`--seed 2013`, or a real
+/// scene's `--friction 1/ps`) is the same run and continues; a real difference is named
+/// with its value, without Rust's `Some(…)`.
+#[test]
+fn a_restart_with_the_defaults_spelled_out_continues() {
+    let dir = scratch_dir("newcomer-restart-defaults");
+    let checkpoint = langevin_checkpoint(&dir, &[]);
+    let out = dir.join("seed");
+    let (code, _, stderr) = run(&argv(
+        "run systems/chain/scene.toml --method langevin-respa --h 0.01 --inner 2 --t-end 0.2 --temperature 1 \
+         --friction 1 --seed 2013 --quiet --out {} --restart {}",
+        &[out.to_str().unwrap(), checkpoint.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "--seed 2013 (the default) refused:\n{stderr}");
+
+    let out = dir.join("other-seed");
+    let (code, _, stderr) = run(&argv(
+        "run systems/chain/scene.toml --method langevin-respa --h 0.01 --inner 2 --t-end 0.2 --temperature 1 \
+         --friction 1 --seed 7 --quiet --out {} --restart {}",
+        &[out.to_str().unwrap(), checkpoint.to_str().unwrap()],
+    ));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("seed: 2013 in the checkpoint, 7 now"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Some("), "Debug text in: {stderr}");
+
+    // A real scene: friction 1/ps is langevin's default there.
+    let water = dir.join("water");
+    let (code, _, stderr) = run(&argv(
+        "run systems/alanine-dipeptide-amber/ala2.prmtop --method langevin-respa --h 1fs \
+         --t-end 4fs --temperature 300K --checkpoint-every 2fs --quiet --out {}",
+        &[water.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    let out = dir.join("water-friction");
+    let (code, _, stderr) = run(&argv(
+        "run systems/alanine-dipeptide-amber/ala2.prmtop --method langevin-respa --h 1fs \
+         --t-end 6fs --temperature 300K --friction 1/ps --quiet --out {} --restart {}",
+        &[
+            out.to_str().unwrap(),
+            water.join("checkpoint.json").to_str().unwrap(),
+        ],
+    ));
+    assert_eq!(code, 0, "--friction 1/ps (the default) refused:\n{stderr}");
+    let out = dir.join("water-cutoff");
+    let (code, _, stderr) = run(&argv(
+        "run systems/alanine-dipeptide-amber/ala2.prmtop --method langevin-respa --h 1fs \
+         --t-end 6fs --temperature 300K --friction 2/ps --cutoff 8 --quiet --out {} \
+         --restart {}",
+        &[
+            out.to_str().unwrap(),
+            water.join("checkpoint.json").to_str().unwrap(),
+        ],
+    ));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("friction: 0.001 /fs in the checkpoint, 0.002 /fs now"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("cutoff = 8"), "{stderr}");
+    assert!(
+        !stderr.contains("Some(") && !stderr.contains("SceneFlags"),
+        "{stderr}"
     );
 }

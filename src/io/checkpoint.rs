@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::io::number::Num;
 use crate::io::scene::Scene;
 use crate::settings::MethodSettings;
 
@@ -56,7 +57,8 @@ pub struct Fingerprint {
 /// What of a run request, besides the scene and settings, goes into a [`Fingerprint`].
 pub struct RequestParts<'a> {
     pub set: &'a [String],
-    /// The scene flags as `Debug` prints them (topology coordinates, `--coulomb`, PME).
+    /// The scene flags as `key = value` (topology coordinates, `--coulomb`, PME):
+    /// [`SceneFlags::describe`](crate::io::scene::SceneFlags::describe).
     pub flags: String,
     pub precision: Option<&'a str>,
 }
@@ -99,12 +101,20 @@ impl Fingerprint {
             self.scene_crc32.clone(),
             run.scene_crc32.clone(),
         );
-        differ("--set", format!("{:?}", self.set), format!("{:?}", run.set));
+        let set = |s: &[String]| {
+            if s.is_empty() {
+                "none".to_string()
+            } else {
+                s.join(" ")
+            }
+        };
+        differ("--set", set(&self.set), set(&run.set));
         differ("scene flags", self.flags.clone(), run.flags.clone());
+        let precision = |p: &Option<String>| p.clone().unwrap_or_else(|| "the default".to_string());
         differ(
             "--precision",
-            format!("{:?}", self.precision),
-            format!("{:?}", run.precision),
+            precision(&self.precision),
+            precision(&run.precision),
         );
         differ("atoms", self.atoms.to_string(), run.atoms.to_string());
         differ("dimension", self.dim.to_string(), run.dim.to_string());
@@ -131,8 +141,11 @@ impl Fingerprint {
 }
 
 /// Every method setting but the end time (`--t-end` is the end of the whole run), by name,
-/// as `Debug` prints it (shortest round-trip decimals for numbers).
+/// resolved (the defaults its method fills in written out,
+/// [`with_defaults`](crate::integrators::registry::with_defaults)) and written as a value
+/// with its unit (`0.001 /fs`, `2013`, `not set`), shortest round-trip decimals for numbers.
 fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
+    let s = crate::integrators::registry::with_defaults(s);
     let MethodSettings {
         method,
         h,
@@ -165,43 +178,70 @@ fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
         constraint_tolerance,
         hydrogen_mass,
         units,
-    } = s;
+    } = &s;
+    let time = units.time_name();
+    let per_time = if time.is_empty() {
+        String::new()
+    } else {
+        format!("/{time}")
+    };
+    let mass = if time.is_empty() { "" } else { "amu" };
+    let number = |x: &Option<f64>, unit: &str| shown(x.map(Num), unit);
+    let count = |x: &Option<usize>| shown(x.as_ref(), "");
+    let text = |x: &Option<String>| shown(x.as_ref(), "");
     let fields: [(&str, String); 30] = [
         ("method", method.clone()),
-        ("h", format!("{h:?}")),
-        ("inner_steps", format!("{inner_steps:?}")),
-        ("blowup", format!("{blowup:?}")),
-        ("level_steps", format!("{level_steps:?}")),
-        ("jacobian", format!("{jacobian:?}")),
-        ("quadrature", format!("{quadrature:?}")),
-        ("h_slow", format!("{h_slow:?}")),
-        ("h_fast", format!("{h_fast:?}")),
-        ("ratio", format!("{ratio:?}")),
-        ("adaptive", format!("{adaptive:?}")),
-        ("control", format!("{control:?}")),
-        ("h_min", format!("{h_min:?}")),
-        ("h_max", format!("{h_max:?}")),
-        ("block", format!("{block:?}")),
-        ("tol", format!("{tol:?}")),
-        ("max_iter", format!("{max_iter:?}")),
-        ("temperature", format!("{temperature:?}")),
-        ("seed", format!("{seed:?}")),
-        ("friction", format!("{friction:?}")),
-        ("thermostats", format!("{thermostats:?}")),
-        ("tau", format!("{tau:?}")),
-        ("mollifier", format!("{mollifier:?}")),
-        ("molly_constraints", format!("{molly_constraints:?}")),
-        ("molly_jacobian", format!("{molly_jacobian:?}")),
-        ("constraints", format!("{constraints:?}")),
-        ("rigid_water", format!("{rigid_water:?}")),
-        ("constraint_tolerance", format!("{constraint_tolerance:?}")),
-        ("hydrogen_mass", format!("{hydrogen_mass:?}")),
-        ("units", format!("{units:?}")),
+        ("h", number(&Some(*h), time)),
+        ("inner_steps", count(inner_steps)),
+        ("blowup", Num(*blowup).to_string()),
+        (
+            "level_steps",
+            shown(
+                level_steps
+                    .as_ref()
+                    .map(|l| l.iter().map(usize::to_string).collect::<Vec<_>>().join(",")),
+                "",
+            ),
+        ),
+        ("jacobian", text(jacobian)),
+        ("quadrature", text(quadrature)),
+        ("h_slow", number(h_slow, time)),
+        ("h_fast", number(h_fast, time)),
+        ("ratio", count(ratio)),
+        ("adaptive", number(adaptive, "")),
+        ("control", text(control)),
+        ("h_min", number(h_min, time)),
+        ("h_max", number(h_max, time)),
+        ("block", count(block)),
+        ("tol", number(tol, "")),
+        ("max_iter", count(max_iter)),
+        ("temperature", number(temperature, units.temperature_name())),
+        ("seed", shown(seed.as_ref(), "")),
+        ("friction", number(friction, &per_time)),
+        ("thermostats", count(thermostats)),
+        ("tau", number(tau, time)),
+        ("mollifier", text(mollifier)),
+        ("molly_constraints", text(molly_constraints)),
+        ("molly_jacobian", text(molly_jacobian)),
+        ("constraints", format!("{constraints:?}").to_lowercase()),
+        ("rigid_water", rigid_water.to_string()),
+        ("constraint_tolerance", number(constraint_tolerance, "")),
+        ("hydrogen_mass", number(hydrogen_mass, mass)),
+        ("units", units.name().to_string()),
     ];
     fields
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect()
+}
+
+/// A setting's value and unit for a message, `not set` when absent.
+fn shown<T: std::fmt::Display>(value: Option<T>, unit: &str) -> String {
+    match value {
+        Some(v) if unit.is_empty() => v.to_string(),
+        Some(v) => format!("{v} {unit}"),
+        None => "not set".to_string(),
+    }
 }
 
 /// A checkpoint: borrowed from the run when written, owned when read.
