@@ -163,3 +163,54 @@ fn a_restart_with_the_defaults_spelled_out_continues() {
         "{stderr}"
     );
 }
+
+/// Item 8: a checkpoint with one coordinate edited (still valid JSON) is refused, naming
+/// the checksum; the refused restart leaves no manifest behind, so the same command runs
+/// once the checkpoint is good; and a killed run's manifest is called interrupted.
+#[test]
+fn an_edited_checkpoint_is_refused_and_leaves_nothing_behind() {
+    let dir = scratch_dir("newcomer-edited-checkpoint");
+    let checkpoint = langevin_checkpoint(&dir, &[]);
+    let text = std::fs::read_to_string(&checkpoint).unwrap();
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let q0 = value["q"][0].as_f64().unwrap();
+    value["q"][0] = serde_json::Value::from(q0 + 0.5);
+    let edited = dir.join("edited.json");
+    std::fs::write(&edited, value.to_string()).unwrap();
+    let out = dir.join("continued");
+    let args = |file: &Path| -> Vec<String> {
+        common::argv_owned(
+            "run systems/chain/scene.toml --method langevin-respa --h 0.01 --inner 2 --t-end 0.2 \
+             --temperature 1 --friction 1 --quiet --out {} --restart {}",
+            &[out.to_str().unwrap(), file.to_str().unwrap()],
+        )
+    };
+    let run_owned = |args: Vec<String>| run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let (code, _, stderr) = run_owned(args(&edited));
+    assert_eq!(code, 1, "an edited checkpoint was accepted:\n{stderr}");
+    assert!(stderr.contains("checksum"), "{stderr}");
+    assert!(stderr.contains(edited.to_str().unwrap()), "{stderr}");
+    assert!(
+        !out.join("manifest.json").exists(),
+        "a refused restart left a manifest"
+    );
+    let (code, _, stderr) = run_owned(args(&checkpoint));
+    assert_eq!(code, 0, "the retry with the good checkpoint: {stderr}");
+
+    // A run that never finished (its manifest has no end time) is called interrupted.
+    let killed = dir.join("killed");
+    std::fs::create_dir_all(&killed).unwrap();
+    let manifest = serde_json::json!({
+        "longstep": "0", "run_id": "0123456789abcdef", "command": ["longstep", "run"],
+        "started": "2026-01-01T00:00:00Z", "files": [{"name": "energy.csv"}]
+    });
+    std::fs::write(killed.join("manifest.json"), manifest.to_string()).unwrap();
+    std::fs::write(killed.join("energy.csv"), "t\n0\n").unwrap();
+    let (code, _, stderr) = run(&argv(
+        "run systems/chain/scene.toml --method verlet --h 0.01 --t-end 0.02 --quiet --out {}",
+        &[killed.to_str().unwrap()],
+    ));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert!(!stderr.contains("an earlier run"), "{stderr}");
+}

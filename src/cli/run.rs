@@ -230,7 +230,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         checkpoint,
         resume: prepared.restart.clone(),
     };
-    let mut summary = prepared.run(&options)?;
+    let mut summary = prepared
+        .run(&options)
+        .inspect_err(|_| manifest.withdraw(&out_dir))?;
     complete_summary(args, &prepared.scene, &mut summary, drift_bound)?;
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;

@@ -32,9 +32,10 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// What the `format` key says, so another JSON file is recognised as not a checkpoint.
 const FORMAT: &str = "longstep checkpoint";
 
-/// The format version this build writes and reads (2: the pair-list states; version 1
-/// had none, and its runs rebuilt the lists at every checkpoint).
-pub const VERSION: u32 = 2;
+/// The format version this build writes and reads (4: a checksum; 3: settings in the
+/// fingerprint resolved and written with their units; 2: the pair-list states; version 1 had none,
+/// and its runs rebuilt the lists at every checkpoint).
+pub const VERSION: u32 = 4;
 
 /// What a checkpoint must match to be continued from: the scene file (by name and
 /// CRC-32 of its text), the `--set` values and scene flags, the atoms (count, dimension,
@@ -274,9 +275,23 @@ pub struct Checkpoint<'a> {
     /// [`ForceSplit::rebuild_lists_without_state`](crate::split::ForceSplit::rebuild_lists_without_state)):
     /// then a continued run matches only with checkpoints at the same steps.
     pub rebuilt_lists: bool,
+    /// CRC-32 (8 hex digits) of the checkpoint written compactly with this field empty:
+    /// an edited number (still valid JSON) is refused ([`Checkpoint::checksum_of`]).
+    #[serde(default)]
+    pub checksum: String,
 }
 
 impl<'a> Checkpoint<'a> {
+    /// The CRC-32 of `self` as compact JSON with an empty `checksum`: the same text for
+    /// the same numbers however the file is laid out, since every `f64` is written as its
+    /// shortest round-trip decimal and read back to the same bits. One serialisation.
+    pub fn checksum_of(&self) -> std::result::Result<String, serde_json::Error> {
+        let mut unsealed = self.clone();
+        unsealed.checksum.clear();
+        let text = serde_json::to_string(&unsealed)?;
+        Ok(format!("{:08x}", crc32fast::hash(text.as_bytes())))
+    }
+
     /// A checkpoint of the current state, borrowing the positions and momenta.
     pub fn new(fingerprint: &'a Fingerprint, q: &'a [f64], p: &'a [f64]) -> Self {
         Checkpoint {
@@ -294,20 +309,25 @@ impl<'a> Checkpoint<'a> {
             integrator: serde_json::Value::Null,
             lists: Vec::new(),
             rebuilt_lists: false,
+            checksum: String::new(),
         }
     }
 
-    /// Write to `path` atomically: to `path` + `.tmp`, flushed to disk, then renamed.
+    /// Write to `path` atomically, sealed with its checksum: to `path` + `.tmp`, flushed
+    /// to disk, then renamed.
     pub fn write(&self, path: &Path) -> Result<()> {
+        let cannot = |e: serde_json::Error| Error::Checkpoint {
+            path: path.to_path_buf(),
+            message: format!("cannot write the checkpoint: {e}"),
+        };
+        let mut sealed = self.clone();
+        sealed.checksum = self.checksum_of().map_err(cannot)?;
         let mut temporary = path.as_os_str().to_owned();
         temporary.push(".tmp");
         let temporary = PathBuf::from(temporary);
         let file = std::fs::File::create(&temporary).map_err(|e| Error::io(&temporary, e))?;
         let mut writer = std::io::BufWriter::new(file);
-        serde_json::to_writer(&mut writer, self).map_err(|e| Error::Checkpoint {
-            path: path.to_path_buf(),
-            message: format!("cannot write the checkpoint: {e}"),
-        })?;
+        serde_json::to_writer(&mut writer, &sealed).map_err(cannot)?;
         writer.flush().map_err(|e| Error::io(&temporary, e))?;
         let file = writer
             .into_inner()
@@ -356,6 +376,17 @@ impl Restart {
         let checkpoint: Checkpoint<'static> = Checkpoint::deserialize(&value)
             .map_err(|e| bad(format!("malformed checkpoint: {e}")))?;
         check_consistent(&checkpoint).map_err(bad)?;
+        let checksum = checkpoint
+            .checksum_of()
+            .map_err(|e| bad(format!("cannot check the checksum: {e}")))?;
+        if checkpoint.checksum != checksum {
+            return Err(bad(format!(
+                "its checksum {:?} is not that of its contents ({checksum}): the file was \
+                 edited or damaged after it was written; continue from an untouched \
+                 checkpoint",
+                checkpoint.checksum
+            )));
+        }
         Ok(Restart {
             path: path.to_path_buf(),
             checkpoint,
