@@ -214,3 +214,116 @@ fn an_edited_checkpoint_is_refused_and_leaves_nothing_behind() {
     assert!(stderr.contains("interrupted"), "{stderr}");
     assert!(!stderr.contains("an earlier run"), "{stderr}");
 }
+
+/// `systems/alanine-dipeptide-amber/ala2.top` with `from` replaced by `to`, written into
+/// `dir` beside a copy of its .gro; the path of the copy.
+fn spoiled_top(dir: &Path, name: &str, from: &str, to: &str) -> std::path::PathBuf {
+    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    let text = std::fs::read_to_string(systems.join("ala2.top")).unwrap();
+    assert!(text.contains(from), "{from} not in ala2.top");
+    let top = dir.join(format!("{name}.top"));
+    std::fs::write(&top, text.replacen(from, to, 1)).unwrap();
+    std::fs::copy(systems.join("ala2.gro"), dir.join(format!("{name}.gro"))).unwrap();
+    top
+}
+
+/// `check` on `args`: exit code and everything it printed.
+fn check(args: &[&str]) -> (i32, String) {
+    let mut all = vec!["check"];
+    all.extend(args);
+    let (code, stdout, stderr) = run(&all);
+    (code, format!("{stdout}{stderr}"))
+}
+
+/// Item 10: nonsense that was accepted silently is refused, or warned about.
+#[test]
+fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
+    let dir = scratch_dir("newcomer-nonsense");
+    // A charge off by half an electron: a warning naming the total.
+    let top = spoiled_top(
+        &dir,
+        "charge",
+        " 0.11230000   1.007947",
+        " 0.61230000   1.007947",
+    );
+    let (code, said) = check(&[top.to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(said.contains("not a whole number"), "{said}");
+    // Refused, naming the file: a negative bond force constant, a negative mass, a
+    // [ moleculetype ] defined twice.
+    let refused = [
+        (
+            "bond",
+            "0.15220 265265.600000",
+            "0.15220 -265265.600000",
+            "negative",
+        ),
+        (
+            "mass",
+            "0.11230000   1.007947",
+            "0.11230000   -1.007947",
+            "mass",
+        ),
+        (
+            "twice",
+            "[ system ]",
+            "[ moleculetype ]\nsystem1 3\n\n[ atoms ]\n1 H1 1 ACE H1 1 0.0 1.008\n\n[ system ]",
+            "defined twice",
+        ),
+    ];
+    for (name, from, to, what) in refused {
+        let top = spoiled_top(&dir, name, from, to);
+        let (code, said) = check(&[top.to_str().unwrap()]);
+        assert_eq!(code, 1, "{name}: {said}");
+        assert!(
+            said.contains(what) && said.contains(top.to_str().unwrap()),
+            "{name}: {said}"
+        );
+    }
+    // Flags out of any sense.
+    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    let vacuum = systems.join("ala2.prmtop");
+    let solvated = systems.join("ala2-solvated.prmtop");
+    for (scene, flags, what) in [
+        (&solvated, &["--epsilon-rf", "0.5"][..], "epsilon_rf"),
+        (&vacuum, &["--hydrogen-mass", "0.5amu"][..], "lighter than"),
+        (&vacuum, &["--temperature", "1e30K"][..], "temperature"),
+    ] {
+        let mut args = vec![scene.to_str().unwrap()];
+        args.extend(flags);
+        let (code, said) = check(&args);
+        assert_eq!(code, 1, "{flags:?}: {said}");
+        assert!(said.contains(what), "{flags:?}: {said}");
+    }
+    // A solvated top whose .gro box is 0 0 0 is read in vacuum: a warning says so.
+    let systems_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    std::fs::copy(
+        systems_dir.join("ala2-solvated.top"),
+        dir.join("no-box.top"),
+    )
+    .unwrap();
+    let gro = std::fs::read_to_string(systems_dir.join("ala2-solvated.gro")).unwrap();
+    let mut lines: Vec<&str> = gro.lines().collect();
+    let last = lines.len() - 1;
+    lines[last] = "   0.00000   0.00000   0.00000";
+    std::fs::write(dir.join("no-box.gro"), lines.join("\n") + "\n").unwrap();
+    let (code, said) = check(&[dir.join("no-box.top").to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(
+        said.contains("warning:") && said.contains("gives no box"),
+        "{said}"
+    );
+    // With PME, a charged box says so (docs/molecules.md).
+    let solvated_top = systems.join("ala2-solvated.top");
+    let text = std::fs::read_to_string(&solvated_top).unwrap();
+    let charged = dir.join("charged-box.top");
+    std::fs::write(&charged, text.replacen(" 0.11230000 ", " 1.11230000 ", 1)).unwrap();
+    std::fs::copy(
+        systems.join("ala2-solvated.gro"),
+        dir.join("charged-box.gro"),
+    )
+    .unwrap();
+    let (code, said) = check(&[charged.to_str().unwrap(), "--coulomb", "pme"]);
+    assert_eq!(code, 0, "{said}");
+    assert!(said.contains("net charge of 1.000000 e"), "{said}");
+}

@@ -299,6 +299,24 @@ fn box_from_coordinates(
     if takes_box && let Some(lengths) = coordinates.box_lengths {
         topology.periodic_box = Some(lengths);
     }
+    if topology.format == GROMACS_FORMAT && topology.periodic_box.is_none() {
+        // A solvated system read without its box would silently become a droplet in
+        // vacuum with plain Coulomb over every pair.
+        let water = |name: &str| ["HOH", "SOL", "WAT", "TIP3"].contains(&name);
+        let solvated = !topology.settles.is_empty()
+            || topology.residues.iter().any(|r| water(r.name.as_str()));
+        topology.notes.push(format!(
+            "{}{} gives no box (a .gro's 0 0 0): read in vacuum, no cutoff, plain Coulomb \
+             over every pair{}",
+            if solvated { "warning: " } else { "" },
+            path.display(),
+            if solvated {
+                "; the system holds water: give the .gro its box for a periodic run"
+            } else {
+                ""
+            }
+        ));
+    }
     Ok(())
 }
 

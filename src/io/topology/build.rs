@@ -142,6 +142,7 @@ pub fn build_terms(
         ));
     }
     let electrostatics = nonbonded(topology, q, options, &mut terms, &mut report)?;
+    report.extend(charge_notices(topology, electrostatics));
     // With a distance split the 1-4 pairs, short-range by construction, go with its
     // short part; otherwise with the non-bonded terms (the slowest level by default).
     let level_14 = options.split.as_ref().map_or(Assignment::Default, |s| {
@@ -366,7 +367,7 @@ fn electrostatics(
     let form = match coulomb {
         Coulomb::Plain => Electrostatics::Plain,
         Coulomb::ReactionField => Electrostatics::ReactionField {
-            dielectric: options.epsilon_rf.unwrap_or(DEFAULT_EPSILON_RF),
+            dielectric: rf_dielectric(options.epsilon_rf.unwrap_or(DEFAULT_EPSILON_RF))?,
         },
         Coulomb::Dsf => Electrostatics::DampedShiftedForce {
             alpha: options.dsf_alpha.unwrap_or(0.0),
@@ -508,6 +509,41 @@ fn cutoff_terms(
         default_by: SwitchBy::AtomPair,
     };
     split_terms(section, &atoms, spec, q, terms, report)
+}
+
+/// A total charge off a whole number by more than 1e-3 e (a charge lost or mistyped: the
+/// files print charges to 1e-8 e, and their round-off over 10⁵ atoms stays below 1e-5 e);
+/// with PME a box's net charge above 1e-4 e, which PME neutralises with a uniform
+/// background (as the scenes' `[forcefield]` says, `nonbonded::pme_term`).
+fn charge_notices(topology: &Topology, electrostatics: Electrostatics) -> Vec<String> {
+    let net = topology.total_charge();
+    let mut notices = Vec::new();
+    if (net - net.round()).abs() > 1e-3 {
+        notices.push(format!(
+            "warning: the total charge is {net:.6} e, not a whole number: a charge may be \
+             missing or mistyped in {}",
+            topology.source.display()
+        ));
+    }
+    if matches!(electrostatics, Electrostatics::Ewald { .. }) && net.abs() > 1e-4 {
+        notices.push(format!(
+            "notice: the box carries a net charge of {net:.6} e; PME adds the neutralising \
+             background -pi Q^2/(2 V alpha^2) (energy component ewald-background)"
+        ));
+    }
+    notices
+}
+
+/// A reaction field's dielectric ε_rf: at least 1 (the vacuum's) and finite (78.3 for
+/// water), else an error naming it.
+pub fn rf_dielectric(epsilon_rf: f64) -> Result<f64, String> {
+    if epsilon_rf.is_finite() && epsilon_rf >= 1.0 {
+        return Ok(epsilon_rf);
+    }
+    Err(format!(
+        "epsilon_rf = {epsilon_rf}: the reaction field's dielectric constant must be at least \
+         1 (vacuum) and finite (water: 78.3)"
+    ))
 }
 
 /// The scaled 1-4 pairs, without cutoff, plain Coulomb: `lj-14` and `coulomb-14`.

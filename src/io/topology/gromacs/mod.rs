@@ -306,6 +306,21 @@ fn molecule_atoms(
             last_residue = Some(key);
         }
         let mass = a.mass.unwrap_or(t.mass);
+        if !(mass.is_finite() && mass > 0.0) {
+            return Err(error(
+                &parsed.lines[a.at],
+                format!(
+                    "atom {} ({}): mass {mass} ({}): an atom's mass must be positive",
+                    k + 1,
+                    a.name,
+                    if a.mass.is_some() {
+                        "[ atoms ]"
+                    } else {
+                        "its [ atomtypes ] entry"
+                    }
+                ),
+            ));
+        }
         let element = match t.atomic_number {
             Some(z) if z > 0 => element_of_number(z),
             _ => element_of_mass(mass),
@@ -438,6 +453,21 @@ impl Context<'_> {
         Ok(())
     }
 
+    /// A harmonic force constant must not be negative: the term would push its atoms
+    /// apart without bound.
+    fn not_negative(&self, item: &Interaction, k: f64, what: &str) -> Result<()> {
+        if k >= 0.0 {
+            return Ok(());
+        }
+        Err(error(
+            self.at(item),
+            format!(
+                "[ {what} ] force constant {k}: negative (the term would push its atoms \
+                 apart without bound)"
+            ),
+        ))
+    }
+
     fn bond(&self, item: &Interaction) -> Result<Bond> {
         if item.function != 1 {
             return Err(self.unsupported(item, "bonds"));
@@ -446,6 +476,7 @@ impl Context<'_> {
             .params(item, &self.parsed.bondtypes, &[1], "bond")?
             .remove(0);
         self.need(item, &p, 2, "bonds")?;
+        self.not_negative(item, p[1], "bonds")?;
         Ok(harmonic_bond([item.atoms[0], item.atoms[1]], p[0], p[1]))
     }
 
@@ -458,6 +489,7 @@ impl Context<'_> {
             .remove(0);
         let n = if item.function == 5 { 4 } else { 2 };
         self.need(item, &p, n, "angles")?;
+        self.not_negative(item, p[1], "angles")?;
         let a = &item.atoms;
         layout.angles.push(Angle {
             atoms: [a[0], a[1], a[2]],
