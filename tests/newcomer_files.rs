@@ -327,3 +327,23 @@ fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("net charge of 1.000000 e"), "{said}");
 }
+
+/// Item 11: with PME the solvated dipeptide still conserves its momentum (the Ewald sum is
+/// translation invariant; only its mesh interpolation leaves a net force ~1e-3 of the
+/// forces): the start removes the centre-of-mass momentum and the temperature counts
+/// 3N − 3 = 3870 degrees of freedom, as with the reaction field.
+#[test]
+fn with_pme_the_centre_of_mass_momentum_is_removed() {
+    let dir = scratch_dir("newcomer-pme-momentum");
+    let (code, stdout, stderr) = run(&argv(
+        "run systems/alanine-dipeptide-amber/ala2-solvated-pme.toml --temperature 300K \
+         --t-end 2fs --out {}",
+        &[dir.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    let said = format!("{stdout}{stderr}");
+    assert!(
+        said.contains("3870 degrees of freedom (3·1291 − 3: centre-of-mass momentum removed)"),
+        "{said}"
+    );
+}
