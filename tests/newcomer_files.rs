@@ -347,3 +347,23 @@ fn with_pme_the_centre_of_mass_momentum_is_removed() {
         "{said}"
     );
 }
+
+/// Item 3: `check --help` says a topology is accepted in place of a scene, and the box of
+/// a topology read in nm prints as the number it is (45.981, not 45.980999999999995).
+#[test]
+fn check_help_names_topologies_and_boxes_print_short() {
+    let (code, stdout, _) = run(&["check", "--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("or a topology in its place"), "{stdout}");
+    let dir = scratch_dir("newcomer-box-digits");
+    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    let gro = std::fs::read_to_string(systems.join("ala2-solvated.gro")).unwrap();
+    let mut lines: Vec<&str> = gro.lines().collect();
+    let last = lines.len() - 1;
+    lines[last] = "   4.59810   4.59810   4.59810";
+    std::fs::write(dir.join("box.gro"), lines.join("\n") + "\n").unwrap();
+    std::fs::copy(systems.join("ala2-solvated.top"), dir.join("box.top")).unwrap();
+    let (code, said) = check(&[dir.join("box.top").to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(said.contains("box 45.981 × 45.981 × 45.981 Å"), "{said}");
+}

@@ -22,7 +22,8 @@ use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Scene file (TOML), for example systems/three-spring.toml.
+    /// Scene file (TOML), for example systems/three-spring.toml, or a topology in its place
+    /// (AMBER .prmtop/.parm7, GROMACS .top).
     pub scene: PathBuf,
     /// Method and step settings; each overrides the scene's [run] table.
     #[command(flatten)]
@@ -92,7 +93,8 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]

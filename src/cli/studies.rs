@@ -30,7 +30,8 @@ use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct ModesArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -91,7 +92,8 @@ pub enum Criterion {
     .value_name("LO:HI:STEP")))]
 #[command(mut_arg("method", |a| a.help("One method to scan (added to --methods)")))]
 pub struct ScanStepsArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Methods to scan, comma-separated (--method names one).
     #[arg(long, value_delimiter = ',')]
@@ -199,7 +201,8 @@ pub struct SamplingArgs {
 
 #[derive(Args, Debug)]
 pub struct MinimizeArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]

@@ -185,7 +185,11 @@ fn summary_line(topology: &Topology) -> String {
         topology.residues.len(),
         topology.total_charge(),
         match topology.periodic_box {
-            Some(b) => format!("{} × {} × {} Å", b[0], b[1], b[2]),
+            Some(b) => {
+                // To 10 significant digits: 45.981, not the 45.980999999999995 of nm × 10.
+                let side = |x: f64| crate::io::summary::significant(x, 10);
+                format!("{} × {} × {} Å", side(b[0]), side(b[1]), side(b[2]))
+            }
             None => "none".into(),
         }
     )
