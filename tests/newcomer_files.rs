@@ -367,3 +367,28 @@ fn check_help_names_topologies_and_boxes_print_short() {
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("box 45.981 × 45.981 × 45.981 Å"), "{said}");
 }
+
+/// Item 5: `minimize --save` to a format that rounds positions (PDB: 0.001 Å) warns that
+/// the minimum is lost; `minimize --json` prints its report as JSON.
+#[test]
+fn minimize_warns_of_a_rounding_format_and_takes_json() {
+    let dir = scratch_dir("newcomer-minimize");
+    let pdb = dir.join("min.pdb");
+    let (code, stdout, stderr) = run(&[
+        "minimize",
+        "systems/alanine-dipeptide-amber/ala2.prmtop",
+        "--max-iterations",
+        "20",
+        "--json",
+        "--save",
+        pdb.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("warning") && stderr.contains("0.001 Å"),
+        "{stderr}"
+    );
+    let json = &stdout[..stdout.rfind('}').map_or(0, |k| k + 1)];
+    let report: serde_json::Value = serde_json::from_str(json).expect("a JSON report");
+    assert_eq!(report["iterations"], 20, "{stdout}");
+}
