@@ -348,6 +348,26 @@ fn with_pme_the_centre_of_mass_momentum_is_removed() {
     );
 }
 
+/// Item 9: `analyze` of a run directory without manifest.json says it cannot check that
+/// its files come from one run.
+#[test]
+fn analyze_without_a_manifest_says_nothing_is_checked() {
+    let dir = scratch_dir("newcomer-analyze-no-manifest");
+    let out = dir.join("run");
+    let (code, _, stderr) = run(&argv(
+        "run systems/chain/scene.toml --method verlet --h 0.01 --t-end 0.2 \
+         --trajectory-every 2 --quiet --out {}",
+        &[out.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    std::fs::remove_file(out.join("manifest.json")).unwrap();
+    let (_, _, stderr) = run(&["analyze", "systems/chain/scene.toml", out.to_str().unwrap()]);
+    assert!(
+        stderr.contains("no manifest.json") && stderr.contains("without a check"),
+        "{stderr}"
+    );
+}
+
 /// Item 3: `check --help` says a topology is accepted in place of a scene, and the box of
 /// a topology read in nm prints as the number it is (45.981, not 45.980999999999995).
 #[test]
