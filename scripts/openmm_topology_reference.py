@@ -44,6 +44,12 @@ tests/data/openmm-trpcage*.json — but its per-atom forces only for a fixed sub
 would make 1 MB files), with the RMS over all atoms of each part of the forces
 ("forces_rms") beside them.
 
+Explicit 1-4 parameters: the vacuum dipeptide as ParmEd writes it from an OpenMM System
+(gen-pairs no, fudgeLJ 1, σ/ε inline or in [ pairtypes ], and a gen-pairs yes variant:
+scripts/make_gromacs_topologies.py --only-explicit-pairs wrote tests/data/gromacs-pairs-*)
+through GromacsTopFile into tests/data/openmm-gromacs-pairs-*.json, in the same groups
+(--only-explicit-pairs writes only these).
+
 GROMACS dihedral functions 2 (harmonic improper) and 3 (Ryckaert-Bellemans): the hand-made
 tests/data/gromacs-dihedral-types.top/.gro through GromacsTopFile (which builds them as a
 CustomTorsionForce and an RBTorsionForce) into tests/data/openmm-gromacs-dihedral-types.json:
@@ -320,13 +326,27 @@ def dihedral_types():
     print(path, record["energy"])
 
 
+def explicit_pairs():
+    """The vacuum dipeptide's tops with explicit 1-4 σ/ε (inline, [ pairtypes ], gen-pairs yes)."""
+    for variant in ("inline", "types", "genpairs"):
+        write(f"gromacs-pairs-{variant}", f"gromacs-pairs-{variant}.top", "gromacs-pairs.gro",
+              "vacuum", "scripts/make_gromacs_topologies.py --only-explicit-pairs (ParmEd's "
+              "GROMACS writing of OpenMM's System of ala2.prmtop), read by GromacsTopFile",
+              folder=DATA)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--other", action="store_true",
                         help="also the prmtop of another tool (openmmtools, if installed)")
     parser.add_argument("--only-dihedral-types", action="store_true",
                         help="only the hand-made top of GROMACS dihedral functions 2 and 3")
+    parser.add_argument("--only-explicit-pairs", action="store_true",
+                        help="only the tops with explicit 1-4 parameters (tests/data)")
     args = parser.parse_args()
+    if args.only_explicit_pairs:
+        explicit_pairs()
+        return
     dihedral_types()
     if args.only_dihedral_types:
         return
@@ -337,6 +357,7 @@ def main():
         write(name, top, gro, method, "scripts/make_gromacs_topologies.py (ParmEd's GROMACS "
               "writing of the shipped prmtop), read by OpenMM's GromacsTopFile with FLEXIBLE")
     protein()
+    explicit_pairs()
     if args.other:
         other_tool()
 

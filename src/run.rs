@@ -280,6 +280,14 @@ fn step_loop(
             && kinetic_finite
             && steps.is_multiple_of(plan.every)
         {
+            // Every row and frame before the checkpoint on disk first: a run killed after
+            // it and continued from it leaves no gap in its outputs.
+            if let Some(csv) = &mut recorder.csv {
+                csv.sync()?;
+            }
+            if let Some(t) = trajectory {
+                t.writer.sync()?;
+            }
             let at = CheckpointAt {
                 step: steps,
                 t0: stepping.t_start,

@@ -14,6 +14,9 @@ use serde::Deserialize;
 use crate::error::{Error, Result};
 use crate::expr;
 
+/// The highest temperature a real scene takes (K).
+pub const MAX_TEMPERATURE_K: f64 = 1e5;
+
 /// A number, or an expression in the scene's parameters (`"omega1^2"`, `"2*pi/omega1"`).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Value {
@@ -499,15 +502,25 @@ impl RunSpec {
                 let t = v
                     .evaluate_time(parameters, key, kelvin)
                     .map_err(|e| e.key(key))?;
+                let real = units == crate::units::Units::Real;
+                let unit = if real { " K" } else { "" };
                 if t <= 0.0 {
-                    let unit = if units == crate::units::Units::Real {
-                        " K"
-                    } else {
-                        ""
-                    };
                     return Err(Error::setting(key, "temperature must be positive")
                         .expected("a positive temperature")
                         .got(format!("{t}{unit}")));
+                }
+                // A molecular force field holds to a few thousand kelvin; far above, start
+                // velocities and the thermostat's noise tear the system apart at once.
+                if real && (t.is_nan() || t > MAX_TEMPERATURE_K) {
+                    return Err(Error::setting(
+                        key,
+                        format!(
+                            "temperature beyond {MAX_TEMPERATURE_K} K: no molecular force \
+                             field holds there"
+                        ),
+                    )
+                    .expected(format!("a temperature up to {MAX_TEMPERATURE_K} K"))
+                    .got(format!("{t:e}{unit}")));
                 }
                 Some(t)
             }

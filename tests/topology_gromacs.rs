@@ -53,8 +53,13 @@ fn load_top(stem: &str) -> (Topology, Vec<f64>) {
 /// is a small difference of the two parts).
 fn compare_with_openmm(stem: &str) {
     let (topology, q) = load_top(stem);
-    let built = build(&topology, &q);
-    let reference = json(&format!("{stem}-gromacs"));
+    compare_topology_with_openmm(stem, &topology, &q, &format!("{stem}-gromacs"));
+}
+
+fn compare_topology_with_openmm(stem: &str, topology: &Topology, q: &[f64], reference: &str) {
+    let built = build(topology, q);
+    let q = q.to_vec();
+    let reference = json(reference);
     for group in GROUPS {
         let expected = reference["energy"][group].as_f64().expect("energy");
         let got = group_energy(&built, &q, group);
@@ -77,6 +82,25 @@ fn vacuum_dipeptide_top_matches_openmm_term_by_term() {
 #[test]
 fn solvated_dipeptide_top_matches_openmm_term_by_term() {
     compare_with_openmm("ala2-solvated");
+}
+
+/// Explicit 1-4 Lennard-Jones as ParmEd writes a Structure made from an OpenMM System
+/// (and acpype writes): `gen-pairs no`, `fudgeLJ 1`, each pair's own σ/ε, inline
+/// (`-inline`) or in `[ pairtypes ]` (`-types`), and `gen-pairs yes` with `fudgeLJ 0.5`
+/// and half the `[ pairtypes ]` lines gone, those pairs generated from the atom types
+/// (`-genpairs`): term by term against OpenMM's GromacsTopFile of the same files
+/// (`scripts/make_gromacs_topologies.py --only-explicit-pairs`, then
+/// `scripts/openmm_topology_reference.py --only-explicit-pairs`). Tolerance as above.
+#[test]
+fn explicit_1_4_parameters_match_openmm_term_by_term() {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    for variant in ["inline", "types", "genpairs"] {
+        let stem = format!("gromacs-pairs-{variant}");
+        let topology = read_gromacs_top(&data.join(format!("{stem}.top")), &[]).expect("top reads");
+        let gro = read_gro_for(&data.join("gromacs-pairs.gro"), &topology).expect("gro reads");
+        assert_eq!(topology.pairs_14.len(), 41, "{stem}");
+        compare_topology_with_openmm(&stem, &topology, &gro.positions, &stem);
+    }
 }
 
 /// The top and the prmtop it was written from, at the same (inpcrd) coordinates. The top
@@ -350,6 +374,51 @@ fn check_reads_a_top_and_its_settles_as_rigid_water() {
     let scene = system_path("ala2-solvated-gromacs.toml");
     let (code, _, stderr) = common::run_cli(&["check", scene.to_str().expect("path")]);
     assert_eq!(code, 0, "{stderr}");
+}
+
+/// `--define FLEXIBLE` on the command line (issue 43 item 2) reads the top as a scene's
+/// `defines = ["FLEXIBLE"]` does: flexible water, and the potential energy of OpenMM's
+/// GromacsTopFile with FLEXIBLE (tests/data/openmm-ala2-solvated-gromacs.json, the same
+/// reaction field at 9 Å that a topology with a box gets by default) to the tolerance above;
+/// without it the water is rigid. `forces` prints the total it checks here; a define on a
+/// prmtop is refused.
+#[test]
+fn a_define_on_the_command_line_reads_the_water_flexible() {
+    let solvated = system_path("ala2-solvated.top");
+    let solvated = solvated.to_str().expect("path");
+    let flags = longstep::io::scene::SceneFlags {
+        defines: vec!["FLEXIBLE".into()],
+        ..Default::default()
+    };
+    let scene = longstep::io::scene::load_scene_with(Path::new(solvated), &flags, &[])
+        .expect("the top reads with --define FLEXIBLE");
+    let total: f64 = scene.system.potential_energies().iter().sum();
+    let expected = json("ala2-solvated-gromacs")["energy"]["total"]
+        .as_f64()
+        .expect("total");
+    let error = (total - expected).abs() / expected.abs();
+    eprintln!("--define FLEXIBLE: {total:.9} kcal/mol, OpenMM {expected:.9}, relative {error:.1e}");
+    assert!(error <= TOLERANCE, "{total} vs OpenMM {expected}");
+    let (code, stdout, stderr) = common::run_cli(&[
+        "check",
+        solvated,
+        "--define",
+        "FLEXIBLE",
+        "--rigid-water",
+        "false",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let said = format!("{stdout}{stderr}");
+    assert!(!said.contains("SETTLE"), "{said}");
+    let prmtop = system_path("ala2.prmtop");
+    let (code, _, stderr) = common::run_cli(&[
+        "check",
+        prmtop.to_str().expect("path"),
+        "--define",
+        "FLEXIBLE",
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("--define"), "{stderr}");
 }
 
 /// The solvated top without FLEXIBLE: the peptide's terms, no water bonds or angle, one

@@ -185,6 +185,17 @@ pub(super) fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
             });
         }
     }
+    if !dir.join(crate::io::manifest::MANIFEST).is_file() {
+        eprintln!(
+            "notice: {} has no manifest.json (a peer code's run, or an older longstep's): \
+             its energy.csv and {} are taken as one run's without a check",
+            dir.display(),
+            files
+                .trajectory
+                .file_name()
+                .map_or("trajectory".into(), |n| n.to_string_lossy())
+        );
+    }
     crate::io::manifest::check_same_run(dir, &[&files.energy, &files.trajectory])?;
     Ok(files)
 }

@@ -37,7 +37,8 @@ pub enum ChartCommand {
     .help("A fixed inner step instead of --inner")
     .allow_negative_numbers(false)))]
 pub struct WorkPrecisionArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Methods, comma-separated.
     #[arg(long, alias = "method", value_delimiter = ',', required = true)]

@@ -303,6 +303,10 @@ pub struct SceneArgs {
     /// e.g. `r_in=5,r_out=6,short_level=0,remainder_level=1` (replaces the scene's split).
     #[arg(long, value_name = "KEY=VALUE,...")]
     pub split: Option<String>,
+    /// A GROMACS topology's preprocessor define, as `grompp -DNAME[=VALUE]` (repeatable;
+    /// e.g. `--define FLEXIBLE` for flexible water): added to `[topology] defines`.
+    #[arg(long = "define", value_name = "NAME[=VALUE]")]
+    pub defines: Vec<String>,
 }
 
 impl SceneArgs {
@@ -314,6 +318,7 @@ impl SceneArgs {
             cutoff: self.cutoff,
             epsilon_rf: self.epsilon_rf,
             electrostatics: self.electrostatics()?,
+            defines: self.defines.clone(),
         })
     }
 

@@ -26,7 +26,8 @@ use crate::settings::{MethodSettings, Value};
 #[derive(Args, Debug)]
 #[command(mut_arg("t_end", |a| a.help("Length of each run (whole outer steps up to it)")))]
 pub struct ScanGrowthArgs {
-    /// Scene file (TOML), for example systems/three-spring.toml.
+    /// Scene file (TOML), for example systems/three-spring.toml, or a topology in its place
+    /// (AMBER .prmtop/.parm7, GROMACS .top).
     pub scene: PathBuf,
     #[command(flatten)]
     pub study: MethodSteps,

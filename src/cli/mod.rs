@@ -71,7 +71,7 @@ enum Command {
     /// Spectral radius of the asynchronous pseudo-energy scheme over h_slow (or h_fast) and K on a linear scene, as CSV.
     AsyncStabilityMap(async_map::AsyncMapArgs),
     /// Energy per group and per-atom forces at the scene's starting positions.
-    Forces(forces::ForcesArgs),
+    Forces(Box<forces::ForcesArgs>),
     /// Configurational analysis of finished runs: g(r), potential energy per molecule,
     /// kinetic and configurational temperature, bond lengths and angles, with block-average
     /// error bars (docs/analysis.md).

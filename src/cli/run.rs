@@ -22,7 +22,8 @@ use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct RunArgs {
-    /// Scene file (TOML), for example systems/three-spring.toml.
+    /// Scene file (TOML), for example systems/three-spring.toml, or a topology in its place
+    /// (AMBER .prmtop/.parm7, GROMACS .top).
     pub scene: PathBuf,
     /// Method and step settings; each overrides the scene's [run] table.
     #[command(flatten)]
@@ -92,7 +93,8 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -230,7 +232,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         checkpoint,
         resume: prepared.restart.clone(),
     };
-    let mut summary = prepared.run(&options)?;
+    let mut summary = prepared
+        .run(&options)
+        .inspect_err(|_| manifest.withdraw(&out_dir))?;
     complete_summary(args, &prepared.scene, &mut summary, drift_bound)?;
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;

@@ -30,7 +30,8 @@ use crate::units::Units;
 
 #[derive(Args, Debug)]
 pub struct ModesArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -91,7 +92,8 @@ pub enum Criterion {
     .value_name("LO:HI:STEP")))]
 #[command(mut_arg("method", |a| a.help("One method to scan (added to --methods)")))]
 pub struct ScanStepsArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Methods to scan, comma-separated (--method names one).
     #[arg(long, value_delimiter = ',')]
@@ -199,7 +201,8 @@ pub struct SamplingArgs {
 
 #[derive(Args, Debug)]
 pub struct MinimizeArgs {
-    /// Scene file (TOML).
+    /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
+    /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -214,6 +217,10 @@ pub struct MinimizeArgs {
     /// min.xyz); `longstep run SCENE --start min.xyz` starts a run from it.
     #[arg(long, value_name = "FILE")]
     pub save: Option<PathBuf>,
+    /// Print the report as JSON (iterations, energies before and after, largest force,
+    /// converged) instead of text.
+    #[arg(long)]
+    pub json: bool,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
 }
@@ -1269,6 +1276,25 @@ fn islands(stable: &[f64], scanned: &[f64], units: Units) -> String {
         .join(", ")
 }
 
+/// A structure format that rounds positions (PDB to 0.001 Å, GRO to 0.001 nm) loses the
+/// minimum: say so, and which format keeps it.
+fn warn_if_rounded(path: &std::path::Path) {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let rounding = match extension.as_str() {
+        "pdb" | "ent" => "0.001 Å",
+        "gro" => "0.001 nm",
+        _ => return,
+    };
+    eprintln!(
+        "warning: {} keeps positions to {rounding}: read back, the structure is no longer at \
+         the minimum (its forces are those of the rounding); save as .xyz for every digit",
+        path.display()
+    );
+}
+
 pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
     let mut scene = prepare::load(&RunRequest {
         flags: args.source.flags()?,
@@ -1281,8 +1307,15 @@ pub fn minimize_command(args: &MinimizeArgs) -> Result<()> {
             max_iterations: args.max_iterations,
         },
     );
-    println!("{}", report.text(scene.units));
+    if args.json {
+        let json = serde_json::to_string_pretty(&report)
+            .map_err(|e| Error::input(format!("cannot write the report as JSON: {e}")))?;
+        println!("{json}");
+    } else {
+        println!("{}", report.text(scene.units));
+    }
     if let Some(path) = &args.save {
+        warn_if_rounded(path);
         let system = &scene.system;
         let mut writer = crate::io::trajectory::TrajectoryWriter::create(
             path,

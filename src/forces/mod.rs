@@ -158,6 +158,15 @@ pub trait ForceTerm: Send + Sync {
         None
     }
 
+    /// Whether the term is translation invariant in exact arithmetic though its numbers
+    /// are not to round-off: PME's mesh interpolation leaves a net force of ~1e-3 of its
+    /// forces. The test of whether a system conserves its momentum (`system::velocities`)
+    /// leaves such a term out rather than take it for an external field. By default
+    /// `false`: a term is judged by its numbers.
+    fn invariant_by_construction(&self) -> bool {
+        false
+    }
+
     /// The energy split into named parts, for reports (`longstep forces`): a term that
     /// computes several kinds of interaction in one pass (Lennard-Jones and Coulomb) names
     /// each. By default one part named after [`ForceTerm::kind`].

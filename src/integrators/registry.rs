@@ -63,6 +63,31 @@ const EQUILIBRIUM_MOLLY: &[&str] = &[
     "max_iter",
 ];
 
+/// `settings` with the defaults its method fills in written out — the seed (start
+/// velocities and noise), and in a real scene the friction and SIN(R)'s thermostats and τ
+/// — so a run that spells a default out (`--seed 2013`, `--friction 1/ps`) compares
+/// equal to one that leaves it to the method (a checkpoint's fingerprint). Settings with
+/// no default (a dimensionless scene's friction) stay unset.
+pub fn with_defaults(settings: &MethodSettings) -> MethodSettings {
+    let mut s = settings.clone();
+    s.seed.get_or_insert(langevin::DEFAULT_SEED);
+    if s.units != crate::units::Units::Real {
+        return s;
+    }
+    match s.method.as_str() {
+        "sinr" => {
+            s.thermostats.get_or_insert(sinr::DEFAULT_THERMOSTATS);
+            let tau = *s.tau.get_or_insert(sinr::DEFAULT_TAU_FS);
+            s.friction.get_or_insert(1.0 / tau);
+        }
+        "langevin-respa" => {
+            s.friction.get_or_insert(langevin::DEFAULT_FRICTION_PER_FS);
+        }
+        _ => {}
+    }
+    s
+}
+
 pub const METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "verlet",

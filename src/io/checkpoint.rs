@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::io::number::Num;
 use crate::io::scene::Scene;
 use crate::settings::MethodSettings;
 
@@ -31,9 +32,10 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.json";
 /// What the `format` key says, so another JSON file is recognised as not a checkpoint.
 const FORMAT: &str = "longstep checkpoint";
 
-/// The format version this build writes and reads (2: the pair-list states; version 1
-/// had none, and its runs rebuilt the lists at every checkpoint).
-pub const VERSION: u32 = 2;
+/// The format version this build writes and reads (4: a checksum; 3: settings in the
+/// fingerprint resolved and written with their units; 2: the pair-list states; version 1 had none,
+/// and its runs rebuilt the lists at every checkpoint).
+pub const VERSION: u32 = 4;
 
 /// What a checkpoint must match to be continued from: the scene file (by name and
 /// CRC-32 of its text), the `--set` values and scene flags, the atoms (count, dimension,
@@ -56,7 +58,8 @@ pub struct Fingerprint {
 /// What of a run request, besides the scene and settings, goes into a [`Fingerprint`].
 pub struct RequestParts<'a> {
     pub set: &'a [String],
-    /// The scene flags as `Debug` prints them (topology coordinates, `--coulomb`, PME).
+    /// The scene flags as `key = value` (topology coordinates, `--coulomb`, PME):
+    /// [`SceneFlags::describe`](crate::io::scene::SceneFlags::describe).
     pub flags: String,
     pub precision: Option<&'a str>,
 }
@@ -99,12 +102,20 @@ impl Fingerprint {
             self.scene_crc32.clone(),
             run.scene_crc32.clone(),
         );
-        differ("--set", format!("{:?}", self.set), format!("{:?}", run.set));
+        let set = |s: &[String]| {
+            if s.is_empty() {
+                "none".to_string()
+            } else {
+                s.join(" ")
+            }
+        };
+        differ("--set", set(&self.set), set(&run.set));
         differ("scene flags", self.flags.clone(), run.flags.clone());
+        let precision = |p: &Option<String>| p.clone().unwrap_or_else(|| "the default".to_string());
         differ(
             "--precision",
-            format!("{:?}", self.precision),
-            format!("{:?}", run.precision),
+            precision(&self.precision),
+            precision(&run.precision),
         );
         differ("atoms", self.atoms.to_string(), run.atoms.to_string());
         differ("dimension", self.dim.to_string(), run.dim.to_string());
@@ -131,8 +142,11 @@ impl Fingerprint {
 }
 
 /// Every method setting but the end time (`--t-end` is the end of the whole run), by name,
-/// as `Debug` prints it (shortest round-trip decimals for numbers).
+/// resolved (the defaults its method fills in written out,
+/// [`with_defaults`](crate::integrators::registry::with_defaults)) and written as a value
+/// with its unit (`0.001 /fs`, `2013`, `not set`), shortest round-trip decimals for numbers.
 fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
+    let s = crate::integrators::registry::with_defaults(s);
     let MethodSettings {
         method,
         h,
@@ -165,43 +179,70 @@ fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
         constraint_tolerance,
         hydrogen_mass,
         units,
-    } = s;
+    } = &s;
+    let time = units.time_name();
+    let per_time = if time.is_empty() {
+        String::new()
+    } else {
+        format!("/{time}")
+    };
+    let mass = if time.is_empty() { "" } else { "amu" };
+    let number = |x: &Option<f64>, unit: &str| shown(x.map(Num), unit);
+    let count = |x: &Option<usize>| shown(x.as_ref(), "");
+    let text = |x: &Option<String>| shown(x.as_ref(), "");
     let fields: [(&str, String); 30] = [
         ("method", method.clone()),
-        ("h", format!("{h:?}")),
-        ("inner_steps", format!("{inner_steps:?}")),
-        ("blowup", format!("{blowup:?}")),
-        ("level_steps", format!("{level_steps:?}")),
-        ("jacobian", format!("{jacobian:?}")),
-        ("quadrature", format!("{quadrature:?}")),
-        ("h_slow", format!("{h_slow:?}")),
-        ("h_fast", format!("{h_fast:?}")),
-        ("ratio", format!("{ratio:?}")),
-        ("adaptive", format!("{adaptive:?}")),
-        ("control", format!("{control:?}")),
-        ("h_min", format!("{h_min:?}")),
-        ("h_max", format!("{h_max:?}")),
-        ("block", format!("{block:?}")),
-        ("tol", format!("{tol:?}")),
-        ("max_iter", format!("{max_iter:?}")),
-        ("temperature", format!("{temperature:?}")),
-        ("seed", format!("{seed:?}")),
-        ("friction", format!("{friction:?}")),
-        ("thermostats", format!("{thermostats:?}")),
-        ("tau", format!("{tau:?}")),
-        ("mollifier", format!("{mollifier:?}")),
-        ("molly_constraints", format!("{molly_constraints:?}")),
-        ("molly_jacobian", format!("{molly_jacobian:?}")),
-        ("constraints", format!("{constraints:?}")),
-        ("rigid_water", format!("{rigid_water:?}")),
-        ("constraint_tolerance", format!("{constraint_tolerance:?}")),
-        ("hydrogen_mass", format!("{hydrogen_mass:?}")),
-        ("units", format!("{units:?}")),
+        ("h", number(&Some(*h), time)),
+        ("inner_steps", count(inner_steps)),
+        ("blowup", Num(*blowup).to_string()),
+        (
+            "level_steps",
+            shown(
+                level_steps
+                    .as_ref()
+                    .map(|l| l.iter().map(usize::to_string).collect::<Vec<_>>().join(",")),
+                "",
+            ),
+        ),
+        ("jacobian", text(jacobian)),
+        ("quadrature", text(quadrature)),
+        ("h_slow", number(h_slow, time)),
+        ("h_fast", number(h_fast, time)),
+        ("ratio", count(ratio)),
+        ("adaptive", number(adaptive, "")),
+        ("control", text(control)),
+        ("h_min", number(h_min, time)),
+        ("h_max", number(h_max, time)),
+        ("block", count(block)),
+        ("tol", number(tol, "")),
+        ("max_iter", count(max_iter)),
+        ("temperature", number(temperature, units.temperature_name())),
+        ("seed", shown(seed.as_ref(), "")),
+        ("friction", number(friction, &per_time)),
+        ("thermostats", count(thermostats)),
+        ("tau", number(tau, time)),
+        ("mollifier", text(mollifier)),
+        ("molly_constraints", text(molly_constraints)),
+        ("molly_jacobian", text(molly_jacobian)),
+        ("constraints", format!("{constraints:?}").to_lowercase()),
+        ("rigid_water", rigid_water.to_string()),
+        ("constraint_tolerance", number(constraint_tolerance, "")),
+        ("hydrogen_mass", number(hydrogen_mass, mass)),
+        ("units", units.name().to_string()),
     ];
     fields
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect()
+}
+
+/// A setting's value and unit for a message, `not set` when absent.
+fn shown<T: std::fmt::Display>(value: Option<T>, unit: &str) -> String {
+    match value {
+        Some(v) if unit.is_empty() => v.to_string(),
+        Some(v) => format!("{v} {unit}"),
+        None => "not set".to_string(),
+    }
 }
 
 /// A checkpoint: borrowed from the run when written, owned when read.
@@ -234,9 +275,23 @@ pub struct Checkpoint<'a> {
     /// [`ForceSplit::rebuild_lists_without_state`](crate::split::ForceSplit::rebuild_lists_without_state)):
     /// then a continued run matches only with checkpoints at the same steps.
     pub rebuilt_lists: bool,
+    /// CRC-32 (8 hex digits) of the checkpoint written compactly with this field empty:
+    /// an edited number (still valid JSON) is refused ([`Checkpoint::checksum_of`]).
+    #[serde(default)]
+    pub checksum: String,
 }
 
 impl<'a> Checkpoint<'a> {
+    /// The CRC-32 of `self` as compact JSON with an empty `checksum`: the same text for
+    /// the same numbers however the file is laid out, since every `f64` is written as its
+    /// shortest round-trip decimal and read back to the same bits. One serialisation.
+    pub fn checksum_of(&self) -> std::result::Result<String, serde_json::Error> {
+        let mut unsealed = self.clone();
+        unsealed.checksum.clear();
+        let text = serde_json::to_string(&unsealed)?;
+        Ok(format!("{:08x}", crc32fast::hash(text.as_bytes())))
+    }
+
     /// A checkpoint of the current state, borrowing the positions and momenta.
     pub fn new(fingerprint: &'a Fingerprint, q: &'a [f64], p: &'a [f64]) -> Self {
         Checkpoint {
@@ -254,20 +309,25 @@ impl<'a> Checkpoint<'a> {
             integrator: serde_json::Value::Null,
             lists: Vec::new(),
             rebuilt_lists: false,
+            checksum: String::new(),
         }
     }
 
-    /// Write to `path` atomically: to `path` + `.tmp`, flushed to disk, then renamed.
+    /// Write to `path` atomically, sealed with its checksum: to `path` + `.tmp`, flushed
+    /// to disk, then renamed.
     pub fn write(&self, path: &Path) -> Result<()> {
+        let cannot = |e: serde_json::Error| Error::Checkpoint {
+            path: path.to_path_buf(),
+            message: format!("cannot write the checkpoint: {e}"),
+        };
+        let mut sealed = self.clone();
+        sealed.checksum = self.checksum_of().map_err(cannot)?;
         let mut temporary = path.as_os_str().to_owned();
         temporary.push(".tmp");
         let temporary = PathBuf::from(temporary);
         let file = std::fs::File::create(&temporary).map_err(|e| Error::io(&temporary, e))?;
         let mut writer = std::io::BufWriter::new(file);
-        serde_json::to_writer(&mut writer, self).map_err(|e| Error::Checkpoint {
-            path: path.to_path_buf(),
-            message: format!("cannot write the checkpoint: {e}"),
-        })?;
+        serde_json::to_writer(&mut writer, &sealed).map_err(cannot)?;
         writer.flush().map_err(|e| Error::io(&temporary, e))?;
         let file = writer
             .into_inner()
@@ -316,6 +376,17 @@ impl Restart {
         let checkpoint: Checkpoint<'static> = Checkpoint::deserialize(&value)
             .map_err(|e| bad(format!("malformed checkpoint: {e}")))?;
         check_consistent(&checkpoint).map_err(bad)?;
+        let checksum = checkpoint
+            .checksum_of()
+            .map_err(|e| bad(format!("cannot check the checksum: {e}")))?;
+        if checkpoint.checksum != checksum {
+            return Err(bad(format!(
+                "its checksum {:?} is not that of its contents ({checksum}): the file was \
+                 edited or damaged after it was written; continue from an untouched \
+                 checkpoint",
+                checkpoint.checksum
+            )));
+        }
         Ok(Restart {
             path: path.to_path_buf(),
             checkpoint,

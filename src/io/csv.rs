@@ -117,6 +117,16 @@ impl CsvWriter {
         self.last_flush = Instant::now();
         self.out.flush().map_err(|e| Error::io(&self.path, e))
     }
+
+    /// Flush, then have the system write the file to disk (`fsync`): before a checkpoint,
+    /// so the rows before it survive a crash (a killed process or a lost machine).
+    pub fn sync(&mut self) -> Result<()> {
+        self.flush()?;
+        self.out
+            .get_ref()
+            .sync_data()
+            .map_err(|e| Error::io(&self.path, e))
+    }
 }
 
 impl Drop for CsvWriter {

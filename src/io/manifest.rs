@@ -117,6 +117,14 @@ impl RunManifest {
         std::fs::write(&path, text + "\n").map_err(|e| Error::io(&path, e))
     }
 
+    /// A run refused before it wrote any output: its manifest goes (the output folder is
+    /// as it was), so the same command can be retried.
+    pub fn withdraw(&self, dir: &Path) {
+        if self.files.iter().all(|f| !dir.join(&f.name).exists()) {
+            let _ = std::fs::remove_file(dir.join(MANIFEST));
+        }
+    }
+
     /// At the end of the run: fingerprint every planned file that was written (one not
     /// written, such as the trajectory of a run that failed before it, is dropped), stamp
     /// the end time and write the manifest again.
@@ -223,12 +231,25 @@ pub fn clear_earlier_run(dir: &Path, planned: &[String], force: bool) -> Result<
         return Ok(stale);
     }
     if !force {
+        // A manifest without an end time is a run that was killed or crashed.
+        let which = match RunManifest::read(dir) {
+            Ok(Some(m)) if m.finished.is_none() => format!(
+                "an interrupted run (started {}, never finished: killed or crashed)",
+                m.started
+            ),
+            _ => "an earlier run".to_string(),
+        };
         return Err(Error::Structure {
             path: dir.to_path_buf(),
             message: format!(
-                "holds the outputs of an earlier run ({}); run with --force to remove them \
-                 first, or give another --out",
-                stale.join(", ")
+                "holds the outputs of {which} ({}); run with --force to remove them first{}, \
+                 or give another --out",
+                stale.join(", "),
+                if stale.iter().any(|s| s == "checkpoint.json") {
+                    " (its checkpoint.json continues it with --restart: copy it out first)"
+                } else {
+                    ""
+                }
             ),
         });
     }

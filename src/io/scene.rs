@@ -111,6 +111,41 @@ pub struct SceneFlags {
     pub cutoff: Option<f64>,
     pub epsilon_rf: Option<f64>,
     pub electrostatics: ElectrostaticsOverrides,
+    /// A GROMACS topology's preprocessor defines (`--define NAME[=VALUE]`, as
+    /// `grompp -D`), added to `[topology] defines`.
+    pub defines: Vec<String>,
+}
+
+impl SceneFlags {
+    /// The given flags as `key = value` (the `[topology]` keys they set), `none` when none
+    /// is: for messages, such as a checkpoint's differences.
+    pub fn describe(&self) -> String {
+        let mut table = toml::Table::new();
+        let path = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string().into());
+        for (key, value) in [
+            ("coordinates", path(&self.coordinates)),
+            ("velocities", path(&self.velocities)),
+            ("cutoff", self.cutoff.map(toml::Value::Float)),
+            ("epsilon_rf", self.epsilon_rf.map(toml::Value::Float)),
+            (
+                "defines",
+                (!self.defines.is_empty()).then(|| self.defines.clone().into()),
+            ),
+        ] {
+            if let Some(value) = value {
+                table.insert(key.into(), value);
+            }
+        }
+        self.electrostatics.write_to(&mut table);
+        if table.is_empty() {
+            return "none".into();
+        }
+        table
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 /// [`load_scene`] with the command line's flags: a topology file takes its coordinates and
@@ -147,10 +182,26 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
         ));
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    if flags.electrostatics.is_empty() {
+    if flags.electrostatics.is_empty() && flags.defines.is_empty() {
         return build_scene(&text, path, overrides);
     }
     let mut file = parse_scene(&text, path)?;
+    if !flags.defines.is_empty() {
+        let Some(topology) = file.topology.as_mut() else {
+            return Err(Error::flag(
+                "--define",
+                format!(
+                    "--define is for a GROMACS topology (.top); {} is a scene without \
+                     [topology]",
+                    path.display()
+                ),
+            ));
+        };
+        (topology.get_mut().defines.get_or_insert_with(Vec::new)).extend(flags.defines.clone());
+    }
+    if flags.electrostatics.is_empty() {
+        return build_parsed_scene(&file, &text, path, overrides);
+    }
     match file.forcefield.as_mut() {
         Some(spec) => flags.electrostatics.apply(spec.get_mut()),
         None if file.topology.is_some() => {
@@ -208,6 +259,9 @@ pub fn topology_scene_text(path: &Path, flags: &SceneFlags) -> Result<String> {
     }
     if let Some(cutoff) = flags.cutoff {
         topology.insert("cutoff".into(), cutoff.into());
+    }
+    if !flags.defines.is_empty() {
+        topology.insert("defines".into(), flags.defines.clone().into());
     }
     flags.electrostatics.write_to(&mut topology);
     if let Some(epsilon_rf) = flags.epsilon_rf {

@@ -157,6 +157,17 @@ impl TrajectoryWriter {
         self.frames
     }
 
+    /// Have the system write the frames so far to disk (`fsync`; each frame is already
+    /// handed to it as written): before a checkpoint.
+    pub fn sync(&self) -> Result<()> {
+        if self.frames == 0 {
+            return Ok(());
+        }
+        std::fs::File::open(&self.path)
+            .and_then(|f| f.sync_all())
+            .map_err(|e| trajectory_error(&self.path, format!("cannot write to disk: {e}")))
+    }
+
     /// Append one frame of positions `q` (`n × dim`; missing coordinates are 0).
     pub fn write(&mut self, q: &[f64], step: u64, time: f64) -> Result<()> {
         self.write_state(q, None, step, time)

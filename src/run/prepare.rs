@@ -110,7 +110,7 @@ pub fn prepare(request: &RunRequest) -> Result<PreparedRun> {
     notices.extend(integrator.notices(&scene.system));
     let parts = RequestParts {
         set: request.set,
-        flags: format!("{:?}", request.flags),
+        flags: request.flags.describe(),
         precision: request.precision,
     };
     let fingerprint = Fingerprint::of(&scene, &settings, parts)?;

@@ -64,6 +64,20 @@ impl System {
             )
             .expected("a scene with hydrogens bonded to heavy atoms"));
         }
+        if let Some(&(h, _)) = pairs.iter().find(|(h, _)| target < old[*h]) {
+            return Err(Error::setting(
+                "hydrogen_mass",
+                format!(
+                    "hydrogen_mass {hydrogen_mass} {} is lighter than hydrogen {h}'s own {}: \
+                     repartitioning makes hydrogens heavier (typically 3-4 amu), taking the \
+                     difference from the heavy atom",
+                    mass_unit(units),
+                    units.mass_in_scene_units(old[h])
+                ),
+            )
+            .expected("at least the hydrogens' own mass")
+            .got(hydrogen_mass.to_string()));
+        }
         for &(h, heavy) in &pairs {
             new[heavy] -= target - new[h];
             new[h] = target;

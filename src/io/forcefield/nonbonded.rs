@@ -187,7 +187,9 @@ fn coulomb(spec: &ForcefieldSpec, charges: &[f64]) -> Result<Electrostatics, Str
             alpha: spec.dsf_alpha.unwrap_or(0.0),
         },
         Some("reaction-field") => Electrostatics::ReactionField {
-            dielectric: spec.rf_dielectric.unwrap_or(78.3),
+            dielectric: crate::io::topology::build::rf_dielectric(
+                spec.rf_dielectric.unwrap_or(78.3),
+            )?,
         },
         // α is resolved with the box and cutoff (`settings`).
         Some("pme") => Electrostatics::Ewald { alpha: 0.0 },

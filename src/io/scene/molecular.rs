@@ -57,8 +57,8 @@ impl Scene {
             return Err(Error::scene(
                 &self.path,
                 "the topology's water is [ settles ] (rigid, no bonded terms): it runs with \
-                 rigid water; leave rigid_water on, or give the FLEXIBLE define for a flexible \
-                 water",
+                 rigid water; leave rigid_water on, or define FLEXIBLE for a flexible water \
+                 (--define FLEXIBLE, or [topology] defines = [\"FLEXIBLE\"])",
             )
             .key("rigid_water"));
         }

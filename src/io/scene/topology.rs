@@ -221,6 +221,15 @@ pub fn read_topology_file(path: &Path, defines: &[String]) -> Result<Topology> {
     if extension_in(path, GROMACS_EXTENSIONS) {
         read_gromacs_top(path, defines)
     } else if extension_in(path, PRMTOP_EXTENSIONS) {
+        if let Some(name) = defines.first() {
+            return Err(Error::topology(
+                path,
+                "defines (--define, [topology] defines) are for a GROMACS .top's \
+                 preprocessor; an AMBER prmtop has none",
+            )
+            .key("--define")
+            .got(name.clone()));
+        }
         read_prmtop(path)
     } else {
         Err(Error::topology(
@@ -289,6 +298,24 @@ fn box_from_coordinates(
     let takes_box = topology.periodic_box.is_some() || topology.format == GROMACS_FORMAT;
     if takes_box && let Some(lengths) = coordinates.box_lengths {
         topology.periodic_box = Some(lengths);
+    }
+    if topology.format == GROMACS_FORMAT && topology.periodic_box.is_none() {
+        // A solvated system read without its box would silently become a droplet in
+        // vacuum with plain Coulomb over every pair.
+        let water = |name: &str| ["HOH", "SOL", "WAT", "TIP3"].contains(&name);
+        let solvated = !topology.settles.is_empty()
+            || topology.residues.iter().any(|r| water(r.name.as_str()));
+        topology.notes.push(format!(
+            "{}{} gives no box (a .gro's 0 0 0): read in vacuum, no cutoff, plain Coulomb \
+             over every pair{}",
+            if solvated { "warning: " } else { "" },
+            path.display(),
+            if solvated {
+                "; the system holds water: give the .gro its box for a periodic run"
+            } else {
+                ""
+            }
+        ));
     }
     Ok(())
 }

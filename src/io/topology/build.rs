@@ -142,6 +142,7 @@ pub fn build_terms(
         ));
     }
     let electrostatics = nonbonded(topology, q, options, &mut terms, &mut report)?;
+    report.extend(charge_notices(topology, electrostatics));
     // With a distance split the 1-4 pairs, short-range by construction, go with its
     // short part; otherwise with the non-bonded terms (the slowest level by default).
     let level_14 = options.split.as_ref().map_or(Assignment::Default, |s| {
@@ -184,7 +185,11 @@ fn summary_line(topology: &Topology) -> String {
         topology.residues.len(),
         topology.total_charge(),
         match topology.periodic_box {
-            Some(b) => format!("{} × {} × {} Å", b[0], b[1], b[2]),
+            Some(b) => {
+                // To 10 significant digits: 45.981, not the 45.980999999999995 of nm × 10.
+                let side = |x: f64| crate::io::summary::significant(x, 10);
+                format!("{} × {} × {} Å", side(b[0]), side(b[1]), side(b[2]))
+            }
             None => "none".into(),
         }
     )
@@ -366,7 +371,7 @@ fn electrostatics(
     let form = match coulomb {
         Coulomb::Plain => Electrostatics::Plain,
         Coulomb::ReactionField => Electrostatics::ReactionField {
-            dielectric: options.epsilon_rf.unwrap_or(DEFAULT_EPSILON_RF),
+            dielectric: rf_dielectric(options.epsilon_rf.unwrap_or(DEFAULT_EPSILON_RF))?,
         },
         Coulomb::Dsf => Electrostatics::DampedShiftedForce {
             alpha: options.dsf_alpha.unwrap_or(0.0),
@@ -510,6 +515,41 @@ fn cutoff_terms(
     split_terms(section, &atoms, spec, q, terms, report)
 }
 
+/// A total charge off a whole number by more than 1e-3 e (a charge lost or mistyped: the
+/// files print charges to 1e-8 e, and their round-off over 10⁵ atoms stays below 1e-5 e);
+/// with PME a box's net charge above 1e-4 e, which PME neutralises with a uniform
+/// background (as the scenes' `[forcefield]` says, `nonbonded::pme_term`).
+fn charge_notices(topology: &Topology, electrostatics: Electrostatics) -> Vec<String> {
+    let net = topology.total_charge();
+    let mut notices = Vec::new();
+    if (net - net.round()).abs() > 1e-3 {
+        notices.push(format!(
+            "warning: the total charge is {net:.6} e, not a whole number: a charge may be \
+             missing or mistyped in {}",
+            topology.source.display()
+        ));
+    }
+    if matches!(electrostatics, Electrostatics::Ewald { .. }) && net.abs() > 1e-4 {
+        notices.push(format!(
+            "notice: the box carries a net charge of {net:.6} e; PME adds the neutralising \
+             background -pi Q^2/(2 V alpha^2) (energy component ewald-background)"
+        ));
+    }
+    notices
+}
+
+/// A reaction field's dielectric ε_rf: at least 1 (the vacuum's) and finite (78.3 for
+/// water), else an error naming it.
+pub fn rf_dielectric(epsilon_rf: f64) -> Result<f64, String> {
+    if epsilon_rf.is_finite() && epsilon_rf >= 1.0 {
+        return Ok(epsilon_rf);
+    }
+    Err(format!(
+        "epsilon_rf = {epsilon_rf}: the reaction field's dielectric constant must be at least \
+         1 (vacuum) and finite (water: 78.3)"
+    ))
+}
+
 /// The scaled 1-4 pairs, without cutoff, plain Coulomb: `lj-14` and `coulomb-14`.
 fn pairs_14(
     topology: &Topology,
@@ -523,21 +563,24 @@ fn pairs_14(
     let mut scales: BTreeMap<String, usize> = BTreeMap::new();
     for pair in &topology.pairs_14 {
         let [i, j] = pair.atoms;
-        let key = format!(
-            "Coulomb × {:.6}, LJ × {:.6}",
-            pair.coulomb_scale, pair.lj_scale
-        );
+        let ((c12, c6), lj_scale, lj_key) = match pair.lj {
+            Some(own) => (own, 1.0, "own LJ".to_string()),
+            None => {
+                let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
+                let key = format!("LJ × {:.6}", pair.lj_scale);
+                (topology.lj.pair(a, b), pair.lj_scale, key)
+            }
+        };
+        let key = format!("Coulomb × {:.6}, {lj_key}", pair.coulomb_scale);
         *scales.entry(key).or_insert(0) += 1;
-        let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
-        let (c12, c6) = topology.lj.pair(a, b);
-        if pair.lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
+        if lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
             // ε and σ of the pair: σ⁶ = c12/c6, ε = c6²/(4 c12).
             let sigma = (c12 / c6).powf(1.0 / 6.0);
             let epsilon = c6 * c6 / (4.0 * c12);
             lj_pairs.push(Pair {
                 a: Site::Particle(i),
                 b: Site::Particle(j),
-                potential: LennardJones::new(pair.lj_scale * epsilon, sigma, f64::INFINITY, false),
+                potential: LennardJones::new(lj_scale * epsilon, sigma, f64::INFINITY, false),
             });
         }
         let qq = pair.coulomb_scale

@@ -13,8 +13,8 @@
 //! * Lennard-Jones `c₁₂/r¹² − c₆/r⁶` per pair of atom types (AMBER's A and B coefficients,
 //!   not a mixing rule), Coulomb between the atoms' charges;
 //! * 1-4 pairs computed on their own, without cutoff, with Coulomb × `coulomb_scale` and
-//!   Lennard-Jones × `lj_scale` (AMBER: 1/SCEE and 1/SCNB), as OpenMM's `NonbondedForce`
-//!   exceptions;
+//!   Lennard-Jones × `lj_scale` (AMBER: 1/SCEE and 1/SCNB) or the pair's own Lennard-Jones
+//!   (GROMACS explicit 1-4 parameters), as OpenMM's `NonbondedForce` exceptions;
 //! * the exclusions: pairs the non-bonded term leaves out (1-2, 1-3 and 1-4 pairs).
 
 pub mod build;
@@ -94,12 +94,16 @@ pub struct DihedralTerm {
     pub improper: bool,
 }
 
-/// A 1-4 pair with its scale factors (AMBER: 1/SCEE, 1/SCNB).
+/// A 1-4 pair with its scale factors (AMBER: 1/SCEE, 1/SCNB), or its own Lennard-Jones.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pair14 {
     pub atoms: [usize; 2],
     pub coulomb_scale: f64,
+    /// Scales the atom types' Lennard-Jones when the pair has none of its own.
     pub lj_scale: f64,
+    /// The pair's own `(c12, c6)` (kcal/mol·Å¹², kcal/mol·Å⁶), used as they are (GROMACS
+    /// `[ pairs ]`/`[ pairtypes ]` parameters): `lj_scale` does not apply.
+    pub lj: Option<(f64, f64)>,
 }
 
 /// A rigid three-site water (GROMACS `[settles]`): no bonded terms, its O-H and H-H

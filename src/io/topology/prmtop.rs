@@ -541,8 +541,26 @@ fn lennard_jones(sections: &Sections, p: &Pointers) -> Result<LjTable> {
     Ok(table)
 }
 
+/// A harmonic force constant must not be negative (the term would push its atoms apart
+/// without bound): the first that is, by its number in `section`.
+fn not_negative(sections: &Sections, section: &str, k: &[f64]) -> Result<()> {
+    let Some(bad) = k.iter().position(|&x| x.is_nan() || x < 0.0) else {
+        return Ok(());
+    };
+    Err(sections.error(
+        sections.section(section)?,
+        format!(
+            "force constant {} (entry {}) is negative: the term would push its atoms apart \
+             without bound",
+            k[bad],
+            bad + 1
+        ),
+    ))
+}
+
 fn bonds(sections: &Sections, p: &Pointers, topology: &mut Topology) -> Result<()> {
     let k = sections.reals("BOND_FORCE_CONSTANT", Some(p.numbnd))?;
+    not_negative(sections, "BOND_FORCE_CONSTANT", &k)?;
     let r0 = sections.reals("BOND_EQUIL_VALUE", Some(p.numbnd))?;
     let n = topology.atoms.len();
     for (name, count) in [
@@ -569,6 +587,7 @@ fn bonds(sections: &Sections, p: &Pointers, topology: &mut Topology) -> Result<(
 
 fn angles(sections: &Sections, p: &Pointers, topology: &mut Topology) -> Result<()> {
     let k = sections.reals("ANGLE_FORCE_CONSTANT", Some(p.numang))?;
+    not_negative(sections, "ANGLE_FORCE_CONSTANT", &k)?;
     let theta0 = sections.reals("ANGLE_EQUIL_VALUE", Some(p.numang))?;
     let n = topology.atoms.len();
     for (name, count) in [
@@ -654,6 +673,7 @@ fn dihedrals(sections: &Sections, p: &Pointers, topology: &mut Topology) -> Resu
                     atoms: [key.0, key.1],
                     coulomb_scale: scale(scee[t]),
                     lj_scale: scale(scnb[t]),
+                    lj: None,
                 });
             }
         }

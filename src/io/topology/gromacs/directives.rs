@@ -187,6 +187,16 @@ fn data_line(
                 Some(n) => number(n, "nrexcl", at)?,
                 None => return Err(error(at, "[ moleculetype ] needs a name and nrexcl")),
             };
+            if parsed.molecules.iter().any(|m| m.name == f[0]) {
+                return Err(error(
+                    at,
+                    format!(
+                        "[ moleculetype ] {} is defined twice (grompp refuses it too): which \
+                         one [ molecules ] means is not known",
+                        f[0]
+                    ),
+                ));
+            }
             parsed.molecules.push(MoleculeType {
                 name: f[0].clone(),
                 nrexcl,

@@ -9,8 +9,9 @@
 //! (improper) `k(1 + cos(nφ − φₛ))`; dihedrals 2 (harmonic improper `½k(ξ − ξ₀)²`, the
 //! difference in (−π, π]); dihedrals 3 (Ryckaert–Bellemans `Σₙ Cₙ cosⁿψ`, ψ = φ − 180°,
 //! n ≤ 5), rewritten exactly as a cosine series in φ (see [`ryckaert_bellemans`]); pairs 1
-//! with `fudgeQQ`, `fudgeLJ` (the 1-4 LJ of the atom types, or a `[pairtypes]`/inline one
-//! equal to it); exclusions from the bond graph up to `nrexcl` bonds plus `[exclusions]`;
+//! with `fudgeQQ` and their own 1-4 LJ (inline, else `[pairtypes]`, as given: what ParmEd
+//! and acpype write with `gen-pairs no`, `fudgeLJ 1`), else with `gen-pairs yes` `fudgeLJ`
+//! × the atom types' LJ; exclusions from the bond graph up to `nrexcl` bonds plus `[exclusions]`;
 //! `[settles]` (rigid water: no bonded terms, the O-H and H-H distances held by SETTLE in
 //! a run, its three pairs excluded). Restraints, constraints, virtual sites and
 //! `[nonbond_params]` are refused with their file and line. Cost: linear in the listed
@@ -189,15 +190,9 @@ impl Layout {
             settles: Vec::new(),
             ryckaert_bellemans: 0,
         };
-        let type_names: Vec<&str> = molecule
-            .atoms
-            .iter()
-            .map(|a| a.type_name.as_str())
-            .collect();
         let ctx = Context {
             parsed,
             bond_types: &bond_types,
-            type_names: &type_names,
         };
         for item in &molecule.bonds {
             layout.bonds.push(ctx.bond(item)?);
@@ -311,6 +306,21 @@ fn molecule_atoms(
             last_residue = Some(key);
         }
         let mass = a.mass.unwrap_or(t.mass);
+        if !(mass.is_finite() && mass > 0.0) {
+            return Err(error(
+                &parsed.lines[a.at],
+                format!(
+                    "atom {} ({}): mass {mass} ({}): an atom's mass must be positive",
+                    k + 1,
+                    a.name,
+                    if a.mass.is_some() {
+                        "[ atoms ]"
+                    } else {
+                        "its [ atomtypes ] entry"
+                    }
+                ),
+            ));
+        }
         let element = match t.atomic_number {
             Some(z) if z > 0 => element_of_number(z),
             _ => element_of_mass(mass),
@@ -387,7 +397,6 @@ fn finish(topology: &mut Topology, defaults: &Defaults) {
 struct Context<'a> {
     parsed: &'a Parsed,
     bond_types: &'a [&'a str],
-    type_names: &'a [&'a str],
 }
 
 impl Context<'_> {
@@ -444,6 +453,21 @@ impl Context<'_> {
         Ok(())
     }
 
+    /// A harmonic force constant must not be negative: the term would push its atoms
+    /// apart without bound.
+    fn not_negative(&self, item: &Interaction, k: f64, what: &str) -> Result<()> {
+        if k >= 0.0 {
+            return Ok(());
+        }
+        Err(error(
+            self.at(item),
+            format!(
+                "[ {what} ] force constant {k}: negative (the term would push its atoms \
+                 apart without bound)"
+            ),
+        ))
+    }
+
     fn bond(&self, item: &Interaction) -> Result<Bond> {
         if item.function != 1 {
             return Err(self.unsupported(item, "bonds"));
@@ -452,6 +476,7 @@ impl Context<'_> {
             .params(item, &self.parsed.bondtypes, &[1], "bond")?
             .remove(0);
         self.need(item, &p, 2, "bonds")?;
+        self.not_negative(item, p[1], "bonds")?;
         Ok(harmonic_bond([item.atoms[0], item.atoms[1]], p[0], p[1]))
     }
 
@@ -464,6 +489,7 @@ impl Context<'_> {
             .remove(0);
         let n = if item.function == 5 { 4 } else { 2 };
         self.need(item, &p, n, "angles")?;
+        self.not_negative(item, p[1], "angles")?;
         let a = &item.atoms;
         layout.angles.push(Angle {
             atoms: [a[0], a[1], a[2]],
@@ -569,8 +595,8 @@ impl Context<'_> {
         })
     }
 
-    /// A 1-4 pair: fudgeQQ, and fudgeLJ × the atom types' LJ; an explicit LJ (inline or
-    /// `[pairtypes]`) must equal that, since the 1-4 term scales the types' LJ.
+    /// A 1-4 pair: fudgeQQ, and its own LJ (inline, else from `[pairtypes]`, used as
+    /// given, as `grompp` does), else with gen-pairs yes fudgeLJ × the atom types' LJ.
     fn pair(&self, item: &Interaction, d: &Defaults) -> Result<Pair14> {
         if item.function != 1 {
             return Err(self.unsupported(item, "pairs"));
@@ -584,48 +610,25 @@ impl Context<'_> {
         } else {
             Some(item.params.clone())
         };
-        match explicit {
-            Some(p) => self.check_pair_lj(item, &p, d)?,
+        let lj = match explicit {
+            Some(p) => {
+                self.need(item, &p, 2, "pairs")?;
+                Some(explicit_lj(d.comb_rule, p[0], p[1]))
+            }
             None if !d.gen_pairs => {
                 return Err(error(
                     self.at(item),
                     "[ pairs ] without parameters, no [ pairtypes ] entry, and gen-pairs no",
                 ));
             }
-            None => {}
-        }
+            None => None,
+        };
         Ok(Pair14 {
             atoms: [i, j],
             coulomb_scale: d.fudge_qq,
             lj_scale: d.fudge_lj,
+            lj,
         })
-    }
-
-    /// An explicit 1-4 LJ must be fudgeLJ × the atom types' (to 1e-6 relative: the 1-4
-    /// term scales the types' LJ and cannot take other parameters).
-    fn check_pair_lj(&self, item: &Interaction, p: &[f64], d: &Defaults) -> Result<()> {
-        self.need(item, p, 2, "pairs")?;
-        let type_of = |a: usize| {
-            self.parsed
-                .atomtypes
-                .iter()
-                .find(|t| t.name == self.type_names[a])
-        };
-        let (Some(a), Some(b)) = (type_of(item.atoms[0]), type_of(item.atoms[1])) else {
-            return Err(error(self.at(item), "[ pairs ] atom of no known type"));
-        };
-        let (c12, c6) = combine(d.comb_rule, a, b);
-        let (e12, e6) = explicit_lj(d.comb_rule, p[0], p[1]);
-        let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(y.abs());
-        if close(e12, d.fudge_lj * c12) && close(e6, d.fudge_lj * c6) {
-            return Ok(());
-        }
-        Err(error(
-            self.at(item),
-            "[ pairs ] 1-4 Lennard-Jones parameters ([ pairtypes ] or inline) other than \
-             fudgeLJ × the atom types': longstep's 1-4 term scales the types' LJ and cannot \
-             take others",
-        ))
     }
 }
 
