@@ -24,6 +24,7 @@ const LAYERS: &[&str] = &[
     "io",
     "run",
     "analysis",
+    "studies",
     "cli",
 ];
 

@@ -340,8 +340,8 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
     // +0.55 ± 0.05): beyond the bound of 0.1 and beyond three combined standard errors (a
     // difference the statistics resolve). A run against itself passes with zero differences.
     use longstep::analysis::run_analysis::{Analyzer, RunFiles};
-    use longstep::analysis::sampling::{Bounds, SamplingCriterion, compare};
     use longstep::run::verdict::Verdict;
+    use longstep::studies::criterion::sampling::{Bounds, SamplingCriterion, compare};
     let dir = scratch_dir("scan-sampling-temperature");
     let (cool, warm) = (dir.join("300"), dir.join("400"));
     reference_run(&cool, "300K", "0.2ps");

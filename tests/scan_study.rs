@@ -310,9 +310,9 @@ fn the_shipped_dipeptide_studies_read_and_the_nve_one_runs() {
 fn the_sampling_criterion_counts_a_constrained_models_degrees_of_freedom() {
     // 216 rigid waters (SETTLE: 3 constraints each) leave 3·648 − 648 = 1296 degrees of
     // freedom for the kinetic temperature; the flexible model keeps the analyzer's 3N.
-    use longstep::analysis::sampling::constrained_dof;
-    use longstep::analysis::scan::ScanSetup;
     use longstep::settings::RunSpec;
+    use longstep::studies::scan::ScanSetup;
+    use longstep::studies::scan::constrained_dof;
     let setup = |rigid: Option<bool>| ScanSetup {
         scene: PathBuf::from("systems/water-box/scene.toml"),
         base: RunSpec {

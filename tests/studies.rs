@@ -7,8 +7,9 @@ use std::path::PathBuf;
 
 use longstep::analysis::minimize::{MinimizeOptions, minimize};
 use longstep::analysis::modes::{ResonanceType, fast_modes, predicted_resonances};
-use longstep::analysis::scan::{ScanSetup, Verdict, run_points, scan_points};
 use longstep::settings::RunSpec;
+use longstep::studies::criterion::Verdict;
+use longstep::studies::scan::{ScanSetup, run_points, scan_points};
 
 fn setup(scene: &str, inner: usize, t_end: f64, blowup: f64) -> ScanSetup {
     ScanSetup {

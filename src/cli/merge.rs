@@ -8,13 +8,15 @@ use clap::Args;
 
 use super::common::{SCAN_STEPS, SCAN_STIFFNESS, WALL_TIME, WORK_PRECISION};
 use super::draw::{draw_scan, draw_work_precision};
-use super::studies::{Criterion, print_safe_steps};
-use crate::analysis::scan::{SafeStep, ScanPoint, Verdict, safe_steps_of};
+use super::scan_report::print_safe_steps;
 use crate::analysis::stability::map::Shard;
 use crate::error::{Error, Result};
 use crate::io::csv::write_table;
 use crate::io::study_csv::{Located, StudyTable, differing_setting, merge_located};
 use crate::io::summary::REAL_DRIFT_UNIT;
+use crate::studies::Criterion;
+use crate::studies::criterion::Verdict;
+use crate::studies::scan::{SafeStep, ScanPoint, safe_steps_of};
 use crate::units::Units;
 
 #[derive(Args, Debug)]

@@ -13,10 +13,13 @@ mod draw;
 mod forces;
 mod growth;
 mod merge;
+mod minimize;
+mod modes;
 mod run;
+mod scan_report;
+mod scan_steps;
 pub mod stability;
 mod stiffness;
-mod studies;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
@@ -50,12 +53,12 @@ enum Command {
     /// List the integration methods.
     Methods,
     /// Normal modes of the fast forces and the outer steps where MTS methods resonate.
-    Modes(Box<studies::ModesArgs>),
+    Modes(Box<modes::ModesArgs>),
     /// Minimise a scene's potential energy (FIRE) and report it.
-    Minimize(Box<studies::MinimizeArgs>),
+    Minimize(Box<minimize::MinimizeArgs>),
     /// Scans over outer steps (and, for the three-spring maps, stiffness).
     #[command(subcommand)]
-    Scan(studies::ScanCommand),
+    Scan(ScanCommand),
     /// Charts of accuracy against cost.
     #[command(subcommand)]
     Chart(Box<charts::ChartCommand>),
@@ -76,6 +79,18 @@ enum Command {
     /// kinetic and configurational temperature, bond lengths and angles, with block-average
     /// error bars (docs/analysis.md).
     Analyze(Box<analyze::AnalyzeArgs>),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ScanCommand {
+    /// Run each method at each outer step and classify it: stable, drifting or unstable.
+    Steps(Box<scan_steps::ScanStepsArgs>),
+    /// The largest position error against a scene parameter such as a stiff spring's
+    /// frequency (GSS98 Figures 11–13), against an extrapolated Verlet reference.
+    Stiffness(Box<stiffness::ScanStiffnessArgs>),
+    /// Long runs: the energy error's envelope, its fitted growth rate per step, and 2 ln ρ
+    /// from the linearised step of the same method (GSS98 Figures 6–10).
+    Growth(Box<growth::ScanGrowthArgs>),
 }
 
 /// Every option of `command` and its subcommands that takes a value takes one that starts
@@ -149,10 +164,10 @@ pub fn main() -> i32 {
     let result = match cli.command {
         Command::Run(args) => run::run_command(&args),
         Command::Check(args) => run::check_command(&args).map(|()| 0),
-        Command::Modes(args) => studies::modes_command(&args).map(|()| 0),
-        Command::Minimize(args) => studies::minimize_command(&args).map(|()| 0),
-        Command::Scan(studies::ScanCommand::Steps(args)) => {
-            studies::scan_steps_command(&args).map(|()| 0)
+        Command::Modes(args) => modes::modes_command(&args).map(|()| 0),
+        Command::Minimize(args) => minimize::minimize_command(&args).map(|()| 0),
+        Command::Scan(ScanCommand::Steps(args)) => {
+            scan_steps::scan_steps_command(&args).map(|()| 0)
         }
         Command::Chart(chart) => match *chart {
             charts::ChartCommand::WorkPrecision(args) => {
@@ -160,12 +175,10 @@ pub fn main() -> i32 {
             }
         },
         Command::Merge(args) => merge::merge_command(&args).map(|()| 0),
-        Command::Scan(studies::ScanCommand::Stiffness(args)) => {
+        Command::Scan(ScanCommand::Stiffness(args)) => {
             stiffness::scan_stiffness_command(&args).map(|()| 0)
         }
-        Command::Scan(studies::ScanCommand::Growth(args)) => {
-            growth::scan_growth_command(&args).map(|()| 0)
-        }
+        Command::Scan(ScanCommand::Growth(args)) => growth::scan_growth_command(&args).map(|()| 0),
         Command::StabilityMap(args) => stability::stability_map_command(&args),
         Command::SpectralRadius(args) => stability::spectral_radius_command(&args).map(|()| 0),
         Command::AsyncStabilityMap(args) => async_map::async_map_command(&args),

@@ -125,14 +125,7 @@ pub struct DriftArgs {
 impl DriftArgs {
     /// The bound, checked positive.
     pub fn bound(&self) -> Result<Option<f64>> {
-        match self.drift_bound {
-            Some(b) if !(b.is_finite() && b > 0.0) => Err(Error::flag(
-                "--drift-bound",
-                "--drift-bound must be positive and finite",
-            )
-            .got(b.to_string())),
-            other => Ok(other),
-        }
+        crate::run::drift::check_bound(self.drift_bound)
     }
 
     /// The start of the fit in scene time units, checked to lie in [0, t_end).
@@ -142,21 +135,7 @@ impl DriftArgs {
         units: Units,
         t_end: f64,
     ) -> Result<Option<f64>> {
-        let Some(value) = &self.fit_from else {
-            return Ok(None);
-        };
-        let t = value.evaluate_time(parameters, "--fit-from", units.time_units())?;
-        if !(0.0..t_end).contains(&t) {
-            return Err(Error::flag(
-                "--fit-from",
-                format!(
-                    "--fit-from {} is outside the run [0, {}): the fit needs rows after it",
-                    format_time(t, units),
-                    format_time(t_end, units)
-                ),
-            ));
-        }
-        Ok(Some(t))
+        crate::run::drift::fit_from(self.fit_from.as_ref(), parameters, units, t_end)
     }
 }
 

@@ -22,8 +22,12 @@
 //! scene the drift is the relative change over the span, which grows with the span: no run
 //! length is predicted there.
 
-use crate::io::summary::{Conserved, Drift, DriftReport, REAL_DRIFT_UNIT};
+use std::collections::BTreeMap;
+
+use crate::error::{Error, Result};
+use crate::io::summary::{Conserved, Drift, DriftReport, REAL_DRIFT_UNIT, format_time};
 use crate::run::verdict::{self, Measurement, Verdict, Z};
+use crate::settings::Value;
 use crate::units::Units;
 
 /// The default bound of a run in a scene with real units, in kT/ns/dof: the criterion of
@@ -37,6 +41,42 @@ pub const DEFAULT_RELATIVE_BOUND: f64 = 0.01;
 
 /// The `energy.csv` columns of a method's conserved energy, when it reports one.
 pub const CONSERVED_COLUMNS: &[&str] = &["mollified_total", "pseudo_energy"];
+
+/// A user's drift bound (`--drift-bound`), checked positive and finite.
+pub fn check_bound(bound: Option<f64>) -> Result<Option<f64>> {
+    match bound {
+        Some(b) if !(b.is_finite() && b > 0.0) => Err(Error::flag(
+            "--drift-bound",
+            "--drift-bound must be positive and finite",
+        )
+        .got(b.to_string())),
+        other => Ok(other),
+    }
+}
+
+/// The start of the fit (`--fit-from`) in scene time units, checked to lie in [0, t_end).
+pub fn fit_from(
+    value: Option<&Value>,
+    parameters: &BTreeMap<String, f64>,
+    units: Units,
+    t_end: f64,
+) -> Result<Option<f64>> {
+    let Some(value) = value else {
+        return Ok(None);
+    };
+    let t = value.evaluate_time(parameters, "--fit-from", units.time_units())?;
+    if !(0.0..t_end).contains(&t) {
+        return Err(Error::flag(
+            "--fit-from",
+            format!(
+                "--fit-from {} is outside the run [0, {}): the fit needs rows after it",
+                format_time(t, units),
+                format_time(t_end, units)
+            ),
+        ));
+    }
+    Ok(Some(t))
+}
 
 /// Running sums of a least-squares fit of energies against time.
 #[derive(Clone, Debug, Default)]

@@ -3,7 +3,7 @@
 //!
 //! Each point's run and a reference run (BAOAB at a small step, e.g. 0.5 fs with γ = 1/ps,
 //! at the same temperature) are analysed with the estimators of `longstep analyze`
-//! ([`super::run_analysis`]): the mean potential energy per molecule and the first-peak
+//! ([`crate::analysis::run_analysis`]): the mean potential energy per molecule and the first-peak
 //! height of one pair's g(r), each with its block-average standard error. Each difference to
 //! the reference, with its combined error `√(σ_run² + σ_ref²)`, gets the three-way verdict
 //! of [`crate::run::verdict`] against its bound (by default 0.1 kcal/mol per molecule and
@@ -17,9 +17,9 @@
 //! correlated, so the combined error overstates theirs — a conservative verdict.
 //!
 //! **Backbone basins.** When the scene is a topology whose atom names give a peptide
-//! backbone ([`super::dihedrals::backbone_residues`]), the populations of the (φ, ψ) basins
-//! C7eq/β, αR and αL ([`super::dihedrals::BASINS`]) are compared too, **pooled over every
-//! residue with φ and ψ** ([`super::dihedrals::pooled_populations`]: one row per basin
+//! backbone ([`crate::analysis::dihedrals::backbone_residues`]), the populations of the (φ, ψ) basins
+//! C7eq/β, αR and αL ([`crate::analysis::dihedrals::BASINS`]) are compared too, **pooled over every
+//! residue with φ and ψ** ([`crate::analysis::dihedrals::pooled_populations`]: one row per basin
 //! whatever the protein's length; the alanine dipeptide has one such residue, so pooled is
 //! its own). Each Δp, with the run's block error (shrinking as `1/√T`) and the reference's
 //! as the fixed error, gets the same three-way verdict against `basin_bound` (default 0.1
@@ -31,19 +31,15 @@
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
 use serde::Serialize;
 
-use super::block_average::Estimate;
-use super::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
-use super::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
-use super::scan::{
-    PointOutputs, ScanSetup, StepResult, Verdict, point_spec, run_once, step_result, until_decided,
-};
+use crate::analysis::block_average::Estimate;
+use crate::analysis::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
+use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use crate::error::{Error, Result};
-use crate::io::summary::Status;
+use crate::io::scene::Scene;
 use crate::run::verdict::{self, MEAN_EXPONENT, Measurement};
 
 /// What the sampling criterion compares, and its bounds.
@@ -151,11 +147,7 @@ impl SamplingCriterion {
 
     /// The analyzer of a run of `scene` (the point's or the reference's): the options of
     /// [`Self::analysis_options_for`] and the backbone's basins.
-    pub fn analyzer<'a>(
-        &self,
-        scene: &'a crate::io::scene::Scene,
-        dof: Option<f64>,
-    ) -> Result<Analyzer<'a>> {
+    pub fn analyzer<'a>(&self, scene: &'a Scene, dof: Option<f64>) -> Result<Analyzer<'a>> {
         let mut analyzer = Analyzer::new(scene, self.analysis_options_for(dof))?;
         analyzer.set_backbone(self.backbone.clone());
         Ok(analyzer)
@@ -176,17 +168,6 @@ impl SamplingCriterion {
         let steps = (t_end / h).round().max(1.0);
         ((steps / self.frames as f64).floor() as usize).max(1)
     }
-}
-
-/// The degrees of freedom a point's kinetic temperature is measured over when its model has
-/// constraints: `dim·N − N_c` (every remaining degree of freedom thermalised, the centre of
-/// mass included, as the analyzer's `3N`); `None` without constraints.
-pub fn constrained_dof(setup: &ScanSetup, method: &str, h: f64) -> Result<Option<f64>> {
-    let spec = point_spec(setup, method, h)?;
-    let prepared = crate::run::prepare::prepare(&setup.request(&spec))?;
-    let system = &prepared.scene.system;
-    let constraints = system.constraints.as_ref().map_or(0, |c| c.count());
-    Ok((constraints > 0).then(|| system.n_dofs().saturating_sub(constraints) as f64))
 }
 
 /// One point's run against the reference.
@@ -389,91 +370,35 @@ pub fn point_dir(criterion: &SamplingCriterion, index: usize, method: &str, h: f
     criterion.runs.join(format!("{index:04}-{method}-h{h}"))
 }
 
-/// Run one point with its outputs and judge it against the reference analysis.
-pub fn run_sampling_point(
-    setup: &ScanSetup,
-    criterion: &SamplingCriterion,
-    reference: &RunAnalysis,
-    (index, method, h): (usize, &str, f64),
-) -> Result<StepResult> {
-    let dir = point_dir(criterion, index, method, h);
-    let outputs = PointOutputs {
-        dir: Some(&dir),
-        frame_every: criterion.frame_every(setup.t_end, h),
-    };
-    let summary = run_once(setup, method, h, &outputs)
-        .map_err(|e| e.context(&format!("{method} at h = {h}")))?;
-    judge_sampling_point(setup, criterion, reference, (index, method, h), &summary)
-}
-
-/// Judge a finished point's run (in its directory) against the reference analysis.
-fn judge_sampling_point(
-    setup: &ScanSetup,
-    criterion: &SamplingCriterion,
-    reference: &RunAnalysis,
-    (index, method, h): (usize, &str, f64),
-    summary: &crate::io::summary::RunSummary,
-) -> Result<StepResult> {
-    let dir = point_dir(criterion, index, method, h);
-    if summary.status != Status::Ok {
-        return Ok(step_result(
-            index,
-            method,
-            h,
-            Verdict::Unstable,
-            None,
-            summary,
-        ));
+impl SamplingCriterion {
+    /// Judge a finished run of length `t_end` in `dir` (energy.csv and trajectory.xyz) of
+    /// `scene`, its kinetic temperature over `dof` degrees of freedom, against the
+    /// reference's analysis: [`compare_with_basins`] over the span after `discard`.
+    pub fn judge_run(
+        &self,
+        scene: &Scene,
+        dof: Option<f64>,
+        reference: &RunAnalysis,
+        dir: &Path,
+        t_end: f64,
+    ) -> Result<Comparison> {
+        let analysis = self.analyzer(scene, dof)?.analyze(&RunFiles {
+            energy: dir.join("energy.csv"),
+            trajectory: dir.join("trajectory.xyz"),
+        })?;
+        let bounds = Bounds {
+            potential: self.potential_bound,
+            peak: self.peak_bound,
+            start: self.discard,
+            span: t_end - self.discard,
+        };
+        Ok(compare_with_basins(
+            reference,
+            &analysis,
+            &bounds,
+            self.basin_bound,
+        ))
     }
-    let scene = setup.load_scene()?;
-    let analyzer = criterion.analyzer(&scene, setup.kinetic_dof)?;
-    let analysis = analyzer.analyze(&RunFiles {
-        energy: dir.join("energy.csv"),
-        trajectory: dir.join("trajectory.xyz"),
-    })?;
-    let bounds = Bounds {
-        potential: criterion.potential_bound,
-        peak: criterion.peak_bound,
-        start: criterion.discard,
-        span: setup.t_end - criterion.discard,
-    };
-    let comparison = compare_with_basins(reference, &analysis, &bounds, criterion.basin_bound);
-    let mut result = step_result(
-        index,
-        method,
-        h,
-        Verdict::of(&comparison.verdict),
-        None,
-        summary,
-    );
-    if let verdict::Verdict::Undecided { decide_at } = comparison.verdict {
-        result.decide_at = decide_at;
-    }
-    result.sampling = Some(comparison);
-    Ok(result)
-}
-
-/// Run the given points in parallel and judge each by sampling; `progress` is called once
-/// per finished point.
-pub fn run_sampling_points(
-    setup: &ScanSetup,
-    criterion: &SamplingCriterion,
-    reference: &RunAnalysis,
-    points: &[(usize, String, f64)],
-    progress: &(dyn Fn() + Sync),
-) -> Result<Vec<StepResult>> {
-    let mut results = points
-        .par_iter()
-        .map(|(index, method, h)| {
-            let result = until_decided(setup, &|setup: &ScanSetup| {
-                run_sampling_point(setup, criterion, reference, (*index, method, *h))
-            });
-            progress();
-            result
-        })
-        .collect::<Result<Vec<_>>>()?;
-    results.sort_by_key(|r| r.index);
-    Ok(results)
 }
 
 #[cfg(test)]
@@ -586,10 +511,10 @@ mod tests {
         // 999 changes, correlation time τ = 1/(k_A + k_B) = 5 frames, so the error of p is
         // √(2 p(1 − p) τ/T) = √(2·0.25·5/10⁴) = 0.0158; 2p(1 − p)/√n = 0.5/√999 = 0.0158.
         let exact = (2.0 * 0.25 * 5.0 / 1e4f64).sqrt();
-        let floor = super::super::dihedrals::transition_error(0.5, 999);
+        let floor = crate::analysis::dihedrals::transition_error(0.5, 999);
         assert!((floor / exact - 1.0).abs() < 1e-3, "{floor} vs {exact}");
         // No change seen: one dwell, error 1/2 whatever the population read.
-        assert_eq!(super::super::dihedrals::transition_error(1.0, 0), 0.5);
-        assert_eq!(super::super::dihedrals::transition_error(0.0, 0), 0.5);
+        assert_eq!(crate::analysis::dihedrals::transition_error(1.0, 0), 0.5);
+        assert_eq!(crate::analysis::dihedrals::transition_error(0.0, 0), 0.5);
     }
 }
