@@ -11,8 +11,8 @@ package `gmx`, built for SSE4.1 only (portability), kept as a row because many u
 that. Each GROMACS's check line names the SIMD its mdrun used (md.log). Runs from a clone and
 reads nothing outside it; installs Debian's GROMACS (apt-get) and OpenMM (pip) when they are
 missing, and builds the native GROMACS the first time (about 12 minutes on 2 idle cores,
-over an hour on a loaded machine; --no-build-native skips it and leaves its rows out), saying so (scripts/head_to_head.py's `install` and
-`native_ready`). Needs a release build (`cargo build --release`).
+over an hour on a loaded machine; --no-build-native skips it and leaves its rows out),
+saying so (scripts/head_to_head.py's `install` and `native_ready`). Needs a release build (`cargo build --release`).
 
     python3 scripts/production_peers.py --system ala2 \\
         --longstep 'verlet-hbonds-2fs=--method verlet --h 2fs --constraints h-bonds
