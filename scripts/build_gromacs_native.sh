@@ -5,8 +5,8 @@
 #
 # Debian's gromacs 2022.5 binary package is configured with -DGMX_SIMD=SSE4.1 for portability
 # (its debian/rules); a user who compiles GROMACS gets GROMACS's own choice for the CPU
-# (-DGMX_SIMD=AUTO: AVX2_256 on the project's AMD EPYC). This script builds the same 2022.5
-# sources that way, once, into a cache folder outside the repository:
+# (-DGMX_SIMD=AUTO: AVX_512 on an AVX-512 Intel Xeon, AVX2_256 without AVX-512). This script
+# builds the same 2022.5 sources that way, once, into a cache folder outside the repository:
 #
 #   1. a deb-src line for Debian bookworm main is added when `apt-get source` has none;
 #   2. `apt-get source --download-only gromacs`, the orig tarball unpacked;
@@ -15,8 +15,8 @@
 #      mixed precision (GROMACS's default);
 #   4. `make gmx && make install` into the prefix.
 #
-# About 12 minutes on 2 idle cores, 25+ beside other work. A later call finds the installed
-# bin/gmx and does nothing.
+# About 12 minutes on 2 idle cores; 85 minutes at nice 10-15 on 2 cores loaded by other work
+# (load 16-22). A later call finds the installed bin/gmx and does nothing.
 #
 #   scripts/build_gromacs_native.sh            # build when missing; prints the gmx path last
 #   scripts/build_gromacs_native.sh --path     # print where gmx is (or would be), build nothing
@@ -112,7 +112,7 @@ fi
 
 # 4. Build and install.
 jobs="${GMX_BUILD_JOBS:-$(nproc)}"
-echo "gromacs-native: make -j$jobs gmx (about 12 min on 2 idle cores)" >&2
+echo "gromacs-native: make -j$jobs gmx (about 12 min on 2 idle cores, far longer if loaded)" >&2
 make -j"$jobs" gmx >&2
 make -j"$jobs" install >&2
 "$gmx" --version 2>/dev/null | grep -E 'GROMACS version|SIMD instructions' >&2

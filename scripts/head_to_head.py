@@ -15,8 +15,9 @@ r-RESPA impulse with bonds and angles inner at 0.5 fs and non-bonded outer at h.
   GROMACS  : two builds of the same 2022.5 sources, both run:
              `gromacs-native`: GROMACS built for this machine's SIMD (cmake GMX_SIMD=AUTO,
                AVX2_256 or AVX_512 on current x86) by scripts/build_gromacs_native.sh into a
-               cache folder outside the repository (built the first time, about 25 minutes;
-               --no-build-native skips it), mixed precision: the anchor, what a user who
+               cache folder outside the repository (built the first time: about 12 minutes
+               on 2 idle cores, over an hour on a loaded machine; --no-build-native skips
+               it), mixed precision: the anchor, what a user who
                compiles GROMACS or loads a cluster's module runs;
              `gromacs`: Debian's package, `gmx` (mixed) and `gmx_d` (double), built for
                SSE4.1 only (portability), kept because many users have only that.
@@ -656,15 +657,15 @@ def install(codes):
 
 def native_ready(build):
     """True when the native GROMACS is installed; builds it first when `build` (once, about
-    25 minutes: scripts/build_gromacs_native.sh, its output on stderr)."""
+    12 minutes on 2 idle cores: scripts/build_gromacs_native.sh, its output on stderr)."""
     if os.access(native_gmx(), os.X_OK):
         return True
     if not build:
         print("no native GROMACS at %s (--no-build-native): its rows are left out; build it "
               "with scripts/build_gromacs_native.sh" % native_gmx(), flush=True)
         return False
-    print("building the native GROMACS (scripts/build_gromacs_native.sh, once; about 25 "
-          "minutes)", flush=True)
+    print("building the native GROMACS (scripts/build_gromacs_native.sh, once; about 12 "
+          "minutes on 2 idle cores)", flush=True)
     res = subprocess.run(["bash", BUILD_NATIVE], stdout=subprocess.DEVNULL)
     if res.returncode != 0 or not os.access(native_gmx(), os.X_OK):
         sys.exit("scripts/build_gromacs_native.sh failed (exit %d)" % res.returncode)

@@ -10,9 +10,9 @@ the anchor (what a user who compiles GROMACS or loads a cluster's module runs); 
 package `gmx`, built for SSE4.1 only (portability), kept as a row because many users have only
 that. Each GROMACS's check line names the SIMD its mdrun used (md.log). Runs from a clone and
 reads nothing outside it; installs Debian's GROMACS (apt-get) and OpenMM (pip) when they are
-missing, and builds the native GROMACS the first time (about 25 minutes; --no-build-native
-skips it and leaves its rows out), saying so (scripts/head_to_head.py's `install` and
-`native_ready`). Needs a release build (`cargo build --release`).
+missing, and builds the native GROMACS the first time (about 12 minutes on 2 idle cores,
+over an hour on a loaded machine; --no-build-native skips it and leaves its rows out),
+saying so (scripts/head_to_head.py's `install` and `native_ready`). Needs a release build (`cargo build --release`).
 
     python3 scripts/production_peers.py --system ala2 \\
         --longstep 'verlet-hbonds-2fs=--method verlet --h 2fs --constraints h-bonds
@@ -57,6 +57,11 @@ reporters, CPU platform property Threads = N (checked after every run).
   gmx-mts-2fs        as gmx-hbonds-2fs with mts = yes, mts-levels = 2, mts-level2-forces =
                      longrange-nonbonded, mts-level2-factor = 2: PME mesh every 4 fs
   gmx-mts-hmr-4fs    as gmx-hmr-4fs with the same mts: dt 4 fs, PME mesh every 8 fs
+  gmx-nve-hmr-4fs    as gmx-hmr-4fs in NVE (tcoupl = no; the Maxwell-Boltzmann start stays):
+                     GROMACS's `md` beside longstep's `verlet`. mdrun does not tune nstlist in
+                     NVE, so the row takes the nstlist mdrun chose for the same input with
+                     v-rescale (`mdrun -nsteps 0`, once per row; printed), the buffer sized for
+                     it by grompp from the starting temperature
   openmm-hbonds-2fs  LangevinMiddleIntegrator 2 fs, constraints HBonds
   openmm-hmr-4fs     LangevinMiddleIntegrator 4 fs, HBonds, hydrogenMass 3 amu
   openmm-mts-4fs     MTSLangevinIntegrator 4 fs, the reciprocal sum in force group 1 once a
@@ -140,6 +145,8 @@ PEER_ROWS = {
     "gmx-hmr-4fs": ("gromacs", 4.0, True, 1),
     "gmx-mts-2fs": ("gromacs", 2.0, False, 2),
     "gmx-mts-hmr-4fs": ("gromacs", 4.0, True, 2),
+    "native-nve-hmr-4fs": ("gromacs-native", 4.0, True, 1),
+    "gmx-nve-hmr-4fs": ("gromacs", 4.0, True, 1),
     "openmm-hbonds-2fs": ("openmm", 2.0, False, 1),
     "openmm-hmr-4fs": ("openmm", 4.0, True, 1),
     "openmm-mts-4fs": ("openmm", 4.0, False, 2),  # dt is the outer step here
@@ -174,6 +181,15 @@ nstenergy = 0
 nstlog = 0
 nstxout-compressed = 0
 """
+# NVE rows: no thermostat (the Maxwell-Boltzmann start at 300 K stays), and the nstlist that
+# mdrun chose for the same input with v-rescale (mdrun does not tune nstlist in NVE).
+NVE_ROWS = {"native-nve-hmr-4fs", "gmx-nve-hmr-4fs"}
+THERMOSTAT = """tcoupl = v-rescale
+tc-grps = System
+tau-t = 0.1
+ref-t = {temperature}
+""".format(temperature=TEMPERATURE)
+NVE_NSTLIST = {}  # row -> nstlist from its NVT probe
 MDP_MTS = """mts = yes
 mts-levels = 2
 mts-level2-forces = longrange-nonbonded
@@ -253,14 +269,40 @@ def repartitioned_top(text, mass):
     return "\n".join(lines) + "\n"
 
 
-def gromacs_inputs(work, row, files, nsteps, seed):
-    """Write run.mdp (and the repartitioned .top) into work; returns (mdp, top) paths."""
+def nve_nstlist(row, files):
+    """The nstlist mdrun picks for an NVE row's input with v-rescale at 300 K (`mdrun -nsteps
+    0` of the thermostatted twin, from nstlist 10), once per row."""
+    if row not in NVE_NSTLIST:
+        gmx = gmx_of(row)
+        with tempfile.TemporaryDirectory(prefix="peers-gmx-probe-") as work:
+            mdp, top = gromacs_inputs(work, row, files, 0, 1, nstlist=0)
+            tpr, log = os.path.join(work, "run.tpr"), os.path.join(work, "md.log")
+            res = h2h.sh([gmx, "grompp", "-f", mdp, "-c", files["gro"], "-p", top, "-o", tpr,
+                          "-po", os.path.join(work, "out.mdp")], cwd=work)
+            if res.returncode == 0:
+                res = h2h.sh([gmx, "mdrun", "-s", tpr, "-nsteps", "0", "-ntmpi", "1", "-ntomp",
+                              "1", "-g", log, "-noconfout"], cwd=work,
+                             env=dict(os.environ, GMX_MAXBACKUP="-1"))
+            if res.returncode != 0:
+                raise RuntimeError("nstlist probe failed: %s" % res.stderr[-1500:])
+            m = re.search(r"Changing nstlist from \d+ to (\d+)", open(log).read())
+            NVE_NSTLIST[row] = int(m.group(1)) if m else 10
+    return NVE_NSTLIST[row]
+
+
+def gromacs_inputs(work, row, files, nsteps, seed, nstlist=None):
+    """Write run.mdp (and the repartitioned .top) into work; returns (mdp, top) paths. An NVE
+    row gets no thermostat and `nstlist` (default: its NVT probe's, nve_nstlist; 0: the probe
+    itself, thermostat kept and nstlist at GROMACS's default)."""
     _, dt, hmr, factor = PEER_ROWS[row]
     top = files["top"]
     text = MDP.format(dt=dt / 1000.0, nsteps=nsteps, temperature=TEMPERATURE,
                       rtol=h2h.PME_RTOL, order=h2h.PME_ORDER, seed=seed)
     if factor > 1:
         text += MDP_MTS.format(factor=factor)
+    if row in NVE_ROWS and nstlist != 0:
+        nstlist = nve_nstlist(row, files) if nstlist is None else nstlist
+        text = text.replace(THERMOSTAT, "tcoupl = no\n") + "nstlist = %d\n" % nstlist
     if hmr and gromacs_has_repartition(gmx_of(row)):
         text += "mass-repartition-factor = 3\n"
     elif hmr:
