@@ -2,7 +2,7 @@
 CARGO ?= cargo
 BIN := target/release/longstep
 
-.PHONY: run test test-all bench figures figures-studies cmake fmt
+.PHONY: run test test-all test-slurm bench figures figures-studies cmake fmt
 
 # chemfiles' C++ core is built with CMake; install it when missing (pip first, apt second).
 cmake:
@@ -31,6 +31,12 @@ test: cmake
 
 test-all: test
 	$(CARGO) test --release -- --ignored
+
+# The Slurm job array of docs/studies.md on a single-node Slurm started here (root; installs
+# slurm-wlm and munge when missing): merged shards equal the unsharded scan byte for byte.
+test-slurm: cmake
+	$(CARGO) build --release
+	scripts/test_slurm.sh $(BIN)
 
 bench: cmake
 	$(CARGO) bench

@@ -440,7 +440,15 @@ fn summarise(
             .map(|c| c.path().display().to_string()),
         fit: recorder
             .fit
-            .result(recorder.conserved.map(|(name, _)| name), system.state.t),
+            .result(recorder.conserved.map(|(name, _)| name), system.state.t)
+            .map(|mut drift| {
+                // The kinetic temperature of the fitted rows, where the run records one.
+                drift.temperature = recorder.temperature.as_ref().map(|r| {
+                    r.degrees_of_freedom
+                        .temperature(drift.mean_kinetic, r.boltzmann)
+                });
+                drift
+            }),
         energy_reference: monitor.reference,
         temperature: recorder.temperature.as_ref().map(|t| t.summary()),
         extra: integrator

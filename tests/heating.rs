@@ -121,7 +121,7 @@ fn a_mollified_method_is_judged_by_its_conserved_energy() {
     ));
     let drift = &summary["drift"];
     assert_eq!(drift["energy"], "mollified_total", "{drift}");
-    assert_eq!(drift["unit"], "relative");
+    assert_eq!(drift["unit"], "kT per unit time per dof");
     assert!(drift["conserved_energy"].is_number() && drift["true_energy"].is_number());
     assert_eq!(drift["value"], drift["conserved_energy"]);
     // A dimensionless scene keeps its energy.csv: no units, no temperature column.

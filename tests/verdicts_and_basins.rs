@@ -108,16 +108,13 @@ fn a_drift_is_judged_by_its_slope_and_the_energys_fluctuation() {
     };
     let rate = |slope: f64| slope / 2.0 * 1e6;
     // No oscillation: an exact line; 0.02 kT/ns/dof passes the bound 0.05, 0.2 fails.
-    assert_eq!(
-        judge(&fit(4e-8, 0.0), Units::Real, 0.0, None).verdict,
-        "pass"
-    );
-    let heating = judge(&fit(4e-7, 0.0), Units::Real, 0.0, None);
+    assert_eq!(judge(&fit(4e-8, 0.0), Units::Real, None).verdict, "pass");
+    let heating = judge(&fit(4e-7, 0.0), Units::Real, None);
     assert_eq!(heating.verdict, "fail");
     assert!((heating.value - rate(4e-7)).abs() < 1e-9);
     // The same slopes under a ±0.3 kcal/mol oscillation: error ≈ 5.3, both undecided, and
     // the run that would decide is T · 2σ/|value − bound| (σ ∝ 1/T).
-    let noisy = judge(&fit(4e-7, 0.3), Units::Real, 0.0, None);
+    let noisy = judge(&fit(4e-7, 0.3), Units::Real, None);
     let expected_error = 0.3 / 2f64.sqrt() / 20_000.0 / 2.0 * 1e6;
     assert!(
         (noisy.error / expected_error - 1.0).abs() < 0.01,

@@ -96,6 +96,9 @@ pub struct AnalyzeArgs {
     /// Print the summaries as a JSON array on stdout.
     #[arg(long)]
     pub json: bool,
+    /// No progress spinner (there is one only on a terminal).
+    #[arg(long)]
+    pub quiet: bool,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
@@ -205,7 +208,10 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
     let mut results = Vec::new();
     let mut summaries = Vec::new();
     for ((dir, label), files) in args.runs.iter().zip(&labels).zip(&files) {
-        let result = analyzer.analyze(files)?;
+        let spinner = super::common::spinner(args.quiet, &format!("analyze {label}"));
+        let result = analyzer.analyze(files);
+        spinner.finish_and_clear();
+        let result = result?;
         let out_dir = match &args.out {
             Some(out) => out.join(label),
             None => dir.join("analysis"),

@@ -23,7 +23,7 @@ use crate::settings::Value;
 pub const DEFAULT_PARAM: &str = "h-slow";
 pub const DEFAULT_N: usize = 101;
 pub const DEFAULT_QUADRATURE: &str = "midpoint";
-pub const DEFAULT_OUT: &str = "async-stability-map.csv";
+pub const DEFAULT_OUT: &str = "out/async-stability-map.csv";
 pub const DEFAULT_TOLERANCE: f64 = 1e-8;
 pub const DEFAULT_MAX_DENSE: usize = 1500;
 
@@ -47,7 +47,7 @@ pub struct AsyncMapArgs {
     #[arg(long, default_value = DEFAULT_QUADRATURE)]
     pub quadrature: String,
     /// Output CSV.
-    #[arg(long, default_value = DEFAULT_OUT)]
+    #[arg(long, value_name = "FILE", default_value = DEFAULT_OUT)]
     pub out: PathBuf,
     /// Spectral radius above 1 + TOL counts as unstable.
     #[arg(long, default_value_t = DEFAULT_TOLERANCE, value_name = "TOL")]
@@ -58,9 +58,13 @@ pub struct AsyncMapArgs {
     /// Set a scene parameter, e.g. --set n=100 (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
+    /// No progress bar (there is one only on a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
+    super::common::check_out_file(&args.out, "async-stability-map")?;
     let scene = load_scene(&args.scene, &args.set)?;
     let parameter = MapParameter::parse(&args.param)?;
     let Some((from, to)) = args.range.split_once(':') else {
@@ -114,8 +118,22 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
     };
     let path = args.scene.clone();
     let set = args.set.clone();
-    let make_system = move || load_scene(&path, &set).map(|scene| scene.system);
-    let points = async_stability_map(&make_system, &spec)?;
+    // One system per point: counting them is the map's progress (points started).
+    let bar = super::common::progress_bar(
+        (spec.values.len() * spec.ratios.len()) as u64,
+        args.quiet,
+        "async-stability-map",
+    );
+    let make_system = || {
+        bar.inc(1);
+        load_scene(&path, &set).map(|scene| scene.system)
+    };
+    let points = async_stability_map(&make_system, &spec);
+    bar.finish_and_clear();
+    let points = points?;
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    }
     write_map_csv(&args.out, &points, spec.dx)?;
     let bands = unstable_bands(&points, parameter);
     println!(

@@ -77,7 +77,7 @@ pub struct WorkPrecisionArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Output directory.
-    #[arg(long, default_value = "out/work-precision")]
+    #[arg(long, value_name = "DIR", default_value = "out/work-precision")]
     pub out: PathBuf,
     /// Run only the k-th of n slices of the points.
     #[arg(long, value_name = "K/N")]

@@ -165,6 +165,36 @@ pub fn terminal_bar(total: u64, quiet: bool, template: &str, chars: Option<&str>
     bar
 }
 
+/// Refuse an `--out` that names a folder where the command writes one file (`--help`
+/// says `--out <FILE>` there, `--out <DIR>` where the command writes a folder).
+pub fn check_out_file(path: &Path, command: &str) -> Result<()> {
+    if !path.is_dir() {
+        return Ok(());
+    }
+    Err(Error::flag(
+        "--out",
+        format!(
+            "{} is a folder; `{command} --out` names the CSV file to write (for example {})",
+            path.display(),
+            path.join(format!("{}.csv", command.replace(' ', "-")))
+                .display()
+        ),
+    )
+    .expected("a file name")
+    .got_named(path.display().to_string()))
+}
+
+/// A spinner with the time elapsed on a terminal, for work with no count to show (an
+/// analysis of trajectories); nothing otherwise or under `quiet`.
+pub fn spinner(quiet: bool, label: &str) -> ProgressBar {
+    let bar = terminal_bar(0, quiet, "{spinner} {msg}, {elapsed} elapsed", None);
+    if !bar.is_hidden() {
+        bar.set_message(label.to_string());
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    }
+    bar
+}
+
 /// A progress bar of a study's runs on a terminal, nothing otherwise.
 pub fn progress_bar(total: u64, quiet: bool, label: &str) -> ProgressBar {
     let bar = terminal_bar(

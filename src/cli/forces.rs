@@ -24,7 +24,7 @@ pub struct ForcesArgs {
     /// with its coordinates beside it or given by --coordinates.
     pub scene: PathBuf,
     /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Print {"energy": {...}, "units": {...}} as JSON instead of the table.
     #[arg(long)]
@@ -80,6 +80,9 @@ pub fn forces_command(args: &ForcesArgs) -> Result<()> {
     }
     if let Some(path) = &args.positions {
         crate::run::prepare::start_positions(&mut scene, path, "--positions")?;
+    }
+    if let Some(path) = &args.out {
+        super::common::check_out_file(path, "forces")?;
     }
     let q = scene.system.state.q.clone();
     let evaluation = Evaluation::at(&mut scene.system, &q);

@@ -43,7 +43,7 @@ pub struct ScanGrowthArgs {
     #[arg(long, value_name = "LO:HI")]
     pub fit: Option<String>,
     /// Output directory: growth.csv (one row per run) and envelope.csv.
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
     /// Picture of the envelopes against time (PNG).
     #[arg(long)]

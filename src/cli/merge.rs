@@ -25,7 +25,7 @@ pub struct MergeArgs {
     #[arg(required = true)]
     pub inputs: Vec<PathBuf>,
     /// Where to write the merged tables and pictures.
-    #[arg(long, default_value = "out/merged")]
+    #[arg(long, value_name = "DIR", default_value = "out/merged")]
     pub out: PathBuf,
 }
 

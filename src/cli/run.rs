@@ -32,7 +32,7 @@ pub struct RunArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Output directory for energy.csv (default: the scene's [output] dir, else out/<scene>-<method>).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Print the summary as one JSON object on stdout.
     #[arg(long)]
@@ -72,7 +72,8 @@ pub struct RunArgs {
     /// uninterrupted run's.
     #[arg(long, value_name = "FILE")]
     pub restart: Option<PathBuf>,
-    /// Run even when the estimated step count (over 1e10) or output (over 2 GB) is huge.
+    /// Run even when the estimated work (over 1e10 innermost steps, or 1e12 innermost steps
+    /// × particles) or output (over 100 MB) is larger than a run is usually meant to be.
     #[arg(long)]
     pub allow_large: bool,
     /// Reuse an output directory that holds an earlier run's outputs: remove exactly those
@@ -113,8 +114,8 @@ pub struct CheckArgs {
 #[derive(Args, Clone, Debug, Default)]
 pub struct DriftArgs {
     /// Largest |energy drift| not warned about: in kT/ns/dof in a scene with real units
-    /// (default 0.05); in a dimensionless scene the fitted change of the energy over the
-    /// fitted span relative to |E0| (default 0.01).
+    /// (default 0.05); in kT per unit time per degree of freedom in a dimensionless scene
+    /// (default 0.001), as `scan steps` judges it.
     #[arg(long, value_name = "BOUND", allow_negative_numbers = true)]
     pub drift_bound: Option<f64>,
     /// Fit the drift from this time on, skipping a re-equilibration window (e.g. 2ps).
@@ -458,11 +459,9 @@ fn report(args: &RunArgs, summary: &RunSummary) -> Result<i32> {
     Ok(EXIT_UNSTABLE)
 }
 
-/// A progress bar on a terminal for runs long enough to wait for; hidden otherwise.
+/// A progress bar with the time left on a terminal (cleared when the run ends; a short run
+/// shows it for a moment only), hidden otherwise and under `--quiet`.
 fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
-    if steps < 1e5 {
-        return indicatif::ProgressBar::hidden();
-    }
     let bar = super::common::terminal_bar(
         steps as u64,
         quiet,
@@ -484,7 +483,7 @@ fn judge_drift(summary: &mut RunSummary, bound: Option<f64>) {
     let Some(fit) = &summary.fit else {
         return;
     };
-    let report = judge(fit, summary.scene_units, summary.energy_reference, bound);
+    let report = judge(fit, summary.scene_units, bound);
     summary.warnings.extend(report.warning());
     summary.drift = Some(report);
 }

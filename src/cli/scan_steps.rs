@@ -76,7 +76,7 @@ pub struct ScanStepsArgs {
     #[arg(long, value_name = "FILE")]
     pub study: Option<PathBuf>,
     /// Output directory (scan.csv, timing.csv, charts; runs/ under --criterion sampling).
-    #[arg(long, default_value = "out/scan-steps")]
+    #[arg(long, value_name = "DIR", default_value = "out/scan-steps")]
     pub out: PathBuf,
     /// Run only the k-th of n deterministic slices of the points (1-based), for job arrays.
     #[arg(long, value_name = "K/N")]

@@ -79,8 +79,8 @@ pub struct StabilityMapArgs {
     #[arg(long)]
     pub n: Option<usize>,
     /// CSV output: gamma1,gamma2,spectral_radius,type (type 0 = stable, -1 = overflow);
-    /// required but with async-pseudo-energy (default async-stability-map.csv).
-    #[arg(long)]
+    /// required but with async-pseudo-energy (default out/async-stability-map.csv).
+    #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
     /// Heat-map picture (PNG).
     #[arg(long)]
@@ -98,7 +98,7 @@ pub struct StabilityMapArgs {
     /// No progress bar, notices or summary on stderr.
     #[arg(long)]
     pub quiet: bool,
-    /// Write the map even when its CSV would be larger than 2 GB.
+    /// Write the map even when its CSV would be larger than 100 MB.
     #[arg(long)]
     pub allow_large: bool,
     /// The asynchronous map's own arguments (with --method async-pseudo-energy).
@@ -205,6 +205,7 @@ fn asynchronous_map(args: &StabilityMapArgs) -> Result<super::async_map::AsyncMa
         tolerance: a.tolerance.unwrap_or(defaults::DEFAULT_TOLERANCE),
         max_dense: a.max_dense.unwrap_or(defaults::DEFAULT_MAX_DENSE),
         set: a.set.clone(),
+        quiet: args.quiet,
     })
 }
 
@@ -379,7 +380,7 @@ fn check_points(args: &StabilityMapArgs) -> Result<usize> {
 /// 340 MB for the first 8.5 million rows of a 20 000² map), and the most a map writes
 /// without `--allow-large`.
 const ROW_BYTES: f64 = 40.0;
-const MAX_MAP_BYTES: f64 = 2e9;
+const MAX_MAP_BYTES: f64 = 1e8;
 
 /// Refuse a map whose CSV of `rows` rows would be larger than [`MAX_MAP_BYTES`], before
 /// anything is written.
@@ -391,13 +392,13 @@ fn check_output_size(rows: usize, allow_large: bool) -> Result<()> {
     Err(Error::flag(
         "--n",
         format!(
-            "the map's CSV would hold {rows} rows, about {:.0} GB (~{ROW_BYTES} bytes a row), more \
-         than {:.0} GB: give a coarser --n, compute it in slices (--shard k/n), or --allow-large",
-            bytes / 1e9,
-            MAX_MAP_BYTES / 1e9
+            "the map's CSV would hold {rows} rows, about {:.0} MB (~{ROW_BYTES} bytes a row), more \
+         than {:.0} MB: give a coarser --n, compute it in slices (--shard k/n), or --allow-large",
+            bytes / 1e6,
+            MAX_MAP_BYTES / 1e6
         ),
     )
-    .expected(format!("a map of at most {:.0} GB", MAX_MAP_BYTES / 1e9))
+    .expected(format!("a map of at most {:.0} MB", MAX_MAP_BYTES / 1e6))
     .got_named(rows.to_string()))
 }
 
@@ -406,9 +407,12 @@ const DEFAULT_POINTS: usize = 400;
 
 /// The CSV a map writes (required but with the asynchronous method).
 fn map_csv(args: &StabilityMapArgs) -> Result<&std::path::Path> {
-    args.out
+    let path = args
+        .out
         .as_deref()
-        .ok_or_else(|| Error::flag("--out", "--out FILE.csv is required: the map's CSV"))
+        .ok_or_else(|| Error::flag("--out", "--out FILE.csv is required: the map's CSV"))?;
+    super::common::check_out_file(path, "stability-map")?;
+    Ok(path)
 }
 
 pub fn stability_map_command(args: &StabilityMapArgs) -> Result<i32> {

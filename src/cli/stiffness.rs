@@ -46,7 +46,7 @@ pub struct ScanStiffnessArgs {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// CSV output: index,method,h,<param>,max_error,error_time,reference_error,inner_steps,reference_steps,status.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Chart of the largest error against the parameter (PNG).
     #[arg(long)]
@@ -100,6 +100,7 @@ pub fn parse_values(range: &str, n: usize) -> Result<Vec<f64>> {
 }
 
 pub fn scan_stiffness_command(args: &ScanStiffnessArgs) -> Result<()> {
+    super::common::check_out_file(&args.out, "scan stiffness")?;
     let (study, units) = stiffness_study(args)?;
     if !args.quiet {
         print_setup(&study);

@@ -100,6 +100,29 @@ pub fn load_scene_with_coordinates(
     load_scene_with(path, &flags, overrides)
 }
 
+/// The refusal of a folder given as the scene, naming the scenes and topologies in it.
+fn folder_error(path: &Path) -> Error {
+    let mut inputs: Vec<String> = std::fs::read_dir(path)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|entry| entry.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml") || is_topology_path(p))
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    inputs.sort();
+    let hint = match inputs.len() {
+        0 => String::new(),
+        n if n <= 6 => format!(" (it holds {})", inputs.join(", ")),
+        n => format!(" (it holds {}, … {n} in all)", inputs[..6].join(", ")),
+    };
+    Error::scene(
+        path,
+        format!("is a folder: give the scene or topology file in it{hint}"),
+    )
+    .expected("a scene (.toml) or a topology (.prmtop, .top) file")
+}
+
 /// What a command line may say about where a scene comes from: a topology's coordinates
 /// and non-bonded settings (`--coordinates`, `--cutoff`, `--epsilon-rf`), and the
 /// electrostatics (`--coulomb`, the PME flags) over a scene's `[forcefield]` or a
@@ -152,6 +175,9 @@ impl SceneFlags {
 /// non-bonded settings; a scene file takes only the electrostatics, over its
 /// `[forcefield]`.
 pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) -> Result<Scene> {
+    if path.is_dir() {
+        return Err(folder_error(path));
+    }
     if is_topology_path(path) {
         let text = topology_scene_text(path, flags)?;
         return build_scene(&text, path, overrides);
@@ -547,6 +573,15 @@ impl Builder<'_> {
                 "[topology] needs units = \"real\" (Å, fs, amu, kcal/mol, e) and dim = 3",
             ));
         }
+        if let (Some(_), Some(spanned)) = (&file.topology, &file.forcefield) {
+            return Err(self
+                .error_at(
+                    spanned.span().start,
+                    "a scene takes its force field either from [topology] (a topology file) or \
+                     from [forcefield] (over a [structure] file), not both",
+                )
+                .key("forcefield"));
+        }
         if let Some(spanned) = &file.forcefield {
             if units != Units::Real {
                 return Err(self.error_at(
@@ -554,10 +589,16 @@ impl Builder<'_> {
                     "[forcefield] needs units = \"real\" (Å, fs, amu, kcal/mol, e)",
                 ));
             }
-            if dim != 3 || file.structure.is_none() {
+            if dim != 3 {
+                return Err(self
+                    .error_at(spanned.span().start, "[forcefield] needs dim = 3")
+                    .key("dim")
+                    .got(dim.to_string()));
+            }
+            if file.structure.is_none() {
                 return Err(self.error_at(
                     spanned.span().start,
-                    "[forcefield] needs dim = 3 and the atoms from a [structure] file",
+                    "[forcefield] needs the atoms from a [structure] file",
                 ));
             }
         }
@@ -574,16 +615,54 @@ impl Builder<'_> {
             term.term.add_gradient(q, &mut gradient);
             let energy = term.term.energy(q);
             if !energy.is_finite() || gradient.iter().any(|g| !g.is_finite()) {
-                return Err(self.error(format!(
-                    "{} \"{}\" has a non-finite energy or force at the starting positions \
-                     (overlapping particles?)",
+                let error = self.error(format!(
+                    "{} \"{}\" has a non-finite energy or force at the starting positions",
                     term.term.kind(),
                     term.name
-                )));
+                ));
+                if let Some(k) = q.iter().position(|x| !x.is_finite()) {
+                    let particle = k / system.dim;
+                    return Err(error
+                        .append(&format!(
+                            "; atom {} (particle {particle} from 0) has a non-finite position",
+                            particle + 1
+                        ))
+                        .got(q[k].to_string()));
+                }
+                return Err(match closest_pair(q, system.dim) {
+                    Some((i, j, d)) => error
+                        .append(&format!(
+                            "; the closest atoms are {} and {} (numbered from 1; particles {i} \
+                             and {j} from 0), at distance {d}",
+                            i + 1,
+                            j + 1
+                        ))
+                        .got(format!("atoms {} and {} at distance {d}", i + 1, j + 1)),
+                    None => error.append(" (a zero-length spring with a rest length?)"),
+                });
             }
         }
         Ok(())
     }
+}
+
+/// The closest two particles of positions `q` (`dim` per particle) and their distance:
+/// what most often makes a starting energy non-finite. Cost: O(n²) distances, only on that
+/// error.
+fn closest_pair(q: &[f64], dim: usize) -> Option<(usize, usize, f64)> {
+    let n = q.len() / dim.max(1);
+    let mut best: Option<(usize, usize, f64)> = None;
+    for i in 0..n {
+        for j in i + 1..n {
+            let r2: f64 = (0..dim)
+                .map(|a| (q[i * dim + a] - q[j * dim + a]).powi(2))
+                .sum();
+            if best.is_none_or(|(_, _, b)| r2 < b) {
+                best = Some((i, j, r2));
+            }
+        }
+    }
+    best.map(|(i, j, r2)| (i, j, r2.sqrt()))
 }
 
 /// Internal masses (real units: kcal/mol·fs²/Å², see `units`); momenta scale with them.

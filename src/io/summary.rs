@@ -77,6 +77,12 @@ pub enum Status {
 /// The unit of a drift in a scene with real units.
 pub const REAL_DRIFT_UNIT: &str = "kT/ns/dof";
 
+/// The drift unit of a dimensionless scene (kT by equipartition, as in real units).
+pub const DIMENSIONLESS_DRIFT_UNIT: &str = "kT per unit time per dof";
+
+/// The verdict of a drift that is not judged: a run at rest has no kT to measure it in.
+pub const NO_VERDICT: &str = "none";
+
 /// The fit of a method's conserved energy.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Conserved {
@@ -94,6 +100,10 @@ pub struct Drift {
     pub from: f64,
     pub to: f64,
     pub mean_kinetic: f64,
+    /// The kinetic temperature `2⟨K⟩/(n_dof k_B)` of the fitted rows, where the run
+    /// records a temperature (scenes with real units).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<f64>,
     /// Slope of the true energy `K + V`, energy per time.
     pub true_slope: f64,
     /// The standard deviation of the true energy about the fitted line.
@@ -146,8 +156,8 @@ pub struct DriftReport {
     /// The drift of the conserved energy, when the method reports one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub conserved_energy: Option<f64>,
-    /// `kT/ns/dof` in a scene with real units; `relative` (the fitted change over the
-    /// fitted span over `|E0|`) in a dimensionless one.
+    /// `kT/ns/dof` in a scene with real units, `kT per unit time per dof` in a
+    /// dimensionless one (`crate::run::drift`).
     pub unit: String,
     pub bound: f64,
     /// `|value| > bound`.
@@ -155,8 +165,9 @@ pub struct DriftReport {
     /// The standard error of `value`: the judged energy's fluctuation about its line over
     /// the fitted span, converted like the slope (`crate::run::drift::judge`).
     pub error: f64,
-    /// `pass`, `fail` or `undecided` (`crate::run::verdict`), and the run length (scene
-    /// time unit) that would decide an undecided drift, when one would.
+    /// `pass`, `fail` or `undecided` (`crate::run::verdict`), or `none` for a run at rest
+    /// (no kT to measure a drift in), and the run length (scene time unit) that would
+    /// decide an undecided drift, when one would.
     pub verdict: String,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub decide_at: Option<f64>,
@@ -178,6 +189,21 @@ impl DriftReport {
     /// One line: the judged drift, the true one beside it, the span and the bound.
     pub fn to_text(&self, units: Units) -> String {
         let time = |t: f64| format_time(t, units);
+        if self.verdict == NO_VERDICT {
+            return format!(
+                "{}; the {} energy changed by {} over t = {}–{} ({} rows)",
+                self.verdict_text,
+                if self.energy == "total" {
+                    "true"
+                } else {
+                    &self.energy
+                },
+                format!("{} {}", signed(self.change), units.energy_name()).trim_end(),
+                time(self.from),
+                time(self.to),
+                self.rows,
+            );
+        }
         let by = match &self.conserved_energy {
             Some(_) => format!(
                 "by the conserved energy ({}); true energy {}",
@@ -186,10 +212,7 @@ impl DriftReport {
             ),
             None => "by the true energy".to_string(),
         };
-        let unit = match units {
-            Units::None => "relative to |E0| over the fit".to_string(),
-            _ => self.unit.clone(),
-        };
+        let unit = &self.unit;
         format!(
             "{} ± {} {unit} {by}; fitted over t = {}–{} ({} rows); bound {} at {}σ: {}",
             signed(self.value),

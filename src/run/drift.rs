@@ -18,14 +18,19 @@
 //! `σ_E √(12/n) / T`), and honest for energies that oscillate, whose rows are correlated over
 //! a period: a short run of a method whose energy oscillates cannot show a small drift, and
 //! is not said to. The fluctuation does not shrink with the run, so the error goes as `1/T`
-//! and the run that would decide an undecided drift follows from that. In a dimensionless
-//! scene the drift is the relative change over the span, which grows with the span: no run
-//! length is predicted there.
+//! and the run that would decide an undecided drift follows from that. A dimensionless
+//! scene is judged the same way, in kT per unit time per degree of freedom (default bound
+//! [`DEFAULT_DIMENSIONLESS_BOUND`]), and `scan steps` judges every run with this same
+//! [`judge`]. A run at rest (kinetic temperature below [`AT_REST_TEMPERATURE`], or no
+//! kinetic energy) has no kT to measure a drift in: it gets no verdict, and says why.
 
 use std::collections::BTreeMap;
 
 use crate::error::{Error, Result};
-use crate::io::summary::{Conserved, Drift, DriftReport, REAL_DRIFT_UNIT, format_time};
+use crate::io::summary::{
+    Conserved, DIMENSIONLESS_DRIFT_UNIT, Drift, DriftReport, NO_VERDICT, REAL_DRIFT_UNIT,
+    format_time,
+};
 use crate::run::verdict::{self, Measurement, Verdict, Z};
 use crate::settings::Value;
 use crate::units::Units;
@@ -34,10 +39,16 @@ use crate::units::Units;
 /// the water-box comparisons (docs/performance.md).
 pub const DEFAULT_REAL_BOUND: f64 = 0.05;
 
-/// The default bound in a dimensionless scene, where kT by equipartition may mean nothing
-/// (a Kepler orbit, a pendulum): the fitted change of the energy over the fitted span,
-/// relative to the energy scale `|E0|`.
-pub const DEFAULT_RELATIVE_BOUND: f64 = 0.01;
+/// The default bound in a dimensionless scene, in kT per unit time per degree of freedom
+/// (kT by equipartition, as in real units): `run` and `scan steps` judge alike.
+pub const DEFAULT_DIMENSIONLESS_BOUND: f64 = 1e-3;
+
+/// Below this kinetic temperature (K) of the fitted rows a run is at rest — no temperature
+/// given, a structure at its minimum moving only under its residual forces — and a drift
+/// in kT/ns/dof would divide by a kT nearly zero: the drift of a run at rest is not
+/// judged. 1 K is 300 times below the room temperature at which the default bound is set,
+/// and far above the millikelvins a minimised molecule reaches from rest.
+pub const AT_REST_TEMPERATURE: f64 = 1.0;
 
 /// The `energy.csv` columns of a method's conserved energy, when it reports one.
 pub const CONSERVED_COLUMNS: &[&str] = &["mollified_total", "pseudo_energy"];
@@ -145,6 +156,8 @@ impl DriftFit {
             from: self.first_t,
             to: last_t,
             mean_kinetic: self.mean_kinetic,
+            // The run sets it where it records a temperature.
+            temperature: None,
             true_slope,
             true_fluctuation,
             conserved: conserved.map(|name| {
@@ -162,9 +175,10 @@ impl DriftFit {
 /// A conversion of a slope into the unit a drift is judged in.
 type Convert<'a> = Box<dyn Fn(f64) -> f64 + 'a>;
 
-/// Judge `drift` against `bound` (the default for the scene's units when `None`);
-/// `reference` is the energy scale of relative drifts.
-pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) -> DriftReport {
+/// Judge `drift` against `bound` (the default for the scene's units when `None`): the
+/// rate in kT per unit time per degree of freedom (kT/ns/dof in real units), the same for
+/// `run` and `scan steps`. A run at rest ([`at_rest`]) gets no verdict.
+pub fn judge(drift: &Drift, units: Units, bound: Option<f64>) -> DriftReport {
     let (energy, slope, fluctuation) = drift.judged();
     let span = drift.to - drift.from;
     let (convert, unit, default, exponent): (Convert, &str, f64, f64) = match units {
@@ -181,15 +195,12 @@ pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) ->
                 1.0,
             )
         }
-        Units::None => {
-            let scale = if reference > 0.0 { reference } else { 1.0 };
-            (
-                Box::new(move |s| s * span / scale),
-                "relative",
-                DEFAULT_RELATIVE_BOUND,
-                0.0,
-            )
-        }
+        Units::None => (
+            Box::new(move |s| drift.rate(s)),
+            DIMENSIONLESS_DRIFT_UNIT,
+            DEFAULT_DIMENSIONLESS_BOUND,
+            1.0,
+        ),
     };
     let bound = bound.unwrap_or(default);
     let measurement = Measurement {
@@ -201,6 +212,7 @@ pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) ->
         exponent,
     };
     let verdict = verdict::judge(&measurement, bound);
+    let rest = at_rest(drift, units);
     DriftReport {
         energy: energy.to_string(),
         value: measurement.value,
@@ -208,14 +220,17 @@ pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) ->
         conserved_energy: drift.conserved.as_ref().map(|c| convert(c.slope)),
         unit: unit.to_string(),
         bound,
-        exceeded: measurement.value.abs() > bound,
+        exceeded: rest.is_none() && measurement.value.abs() > bound,
         error: measurement.error,
-        verdict: verdict.name().to_string(),
+        verdict: match rest {
+            Some(_) => NO_VERDICT.to_string(),
+            None => verdict.name().to_string(),
+        },
         decide_at: match verdict {
-            Verdict::Undecided { decide_at } => decide_at,
+            Verdict::Undecided { decide_at } if rest.is_none() => decide_at,
             _ => None,
         },
-        verdict_text: verdict.text(units),
+        verdict_text: rest.unwrap_or_else(|| verdict.text(units)),
         z: Z,
         change: slope * span,
         fluctuation,
@@ -223,6 +238,25 @@ pub fn judge(drift: &Drift, units: Units, reference: f64, bound: Option<f64>) ->
         to: drift.to,
         rows: drift.rows,
     }
+}
+
+/// Why a run is at rest, when it is: its kinetic temperature below
+/// [`AT_REST_TEMPERATURE`], or no kinetic energy at all.
+fn at_rest(drift: &Drift, units: Units) -> Option<String> {
+    let why = match drift.temperature {
+        Some(t) if t < AT_REST_TEMPERATURE => format!(
+            "mean kinetic temperature {} {} over the fit, below {AT_REST_TEMPERATURE} {}",
+            crate::io::summary::significant(t, 2),
+            units.temperature_name(),
+            units.temperature_name()
+        ),
+        _ if drift.mean_kinetic <= 0.0 => "no kinetic energy".to_string(),
+        _ => return None,
+    };
+    Some(format!(
+        "no verdict: the run is at rest ({why}), so there is no kT to measure its drift in; \
+         give it a temperature (--temperature) to judge its drift"
+    ))
 }
 
 /// The verdict of a judged drift.
@@ -287,8 +321,9 @@ mod tests {
         fit.add(2.0, 0.0, 3.0, None);
         let drift = fit.result(None, 2.0).unwrap();
         assert_eq!(drift.judged(), ("total", 1.0, 0.0));
-        // A straight line: no fluctuation, so the relative drift 2/|E0| = 2 fails its bound.
-        let report = judge(&drift, Units::None, 1.0, None);
+        // A straight line: no fluctuation, so the drift 1/(2·⟨K⟩) = 1/(2·2/3) = 0.75 kT per
+        // unit time per dof fails its bound 1e-3.
+        let report = judge(&drift, Units::None, None);
         assert_eq!((report.error, report.verdict.as_str()), (0.0, "fail"));
     }
 }

@@ -82,7 +82,7 @@ impl System {
             new[heavy] -= target - new[h];
             new[h] = target;
         }
-        check_heavy_atoms(topology, &pairs, &new, units)?;
+        check_heavy_atoms(topology, &pairs, &old, &new, units, hydrogen_mass)?;
         let report = report(topology, &pairs, &old, &new, units);
         self.set_masses(&new);
         Ok(report)
@@ -124,30 +124,57 @@ fn hydrogen_heavy_pairs(topology: &BondedTopology) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// Every heavy atom must keep a positive mass above each of its hydrogens'.
+/// Every heavy atom must keep a positive mass above each of its hydrogens'. A heavy atom
+/// of mass `M` with hydrogens of masses `mᵢ` (k of them) keeps `M − Σ(t − mᵢ) > t` when
+/// the hydrogen mass `t < (M + Σmᵢ)/(k + 1)`: the refusal gives the smallest such bound.
 fn check_heavy_atoms(
     topology: &BondedTopology,
     pairs: &[(usize, usize)],
+    old: &[f64],
     new: &[f64],
     units: Units,
+    hydrogen_mass: f64,
 ) -> Result<()> {
+    let Some(&(h, heavy)) = pairs
+        .iter()
+        .find(|&&(h, heavy)| !(new[heavy].is_finite() && new[heavy] > new[h]))
+    else {
+        return Ok(());
+    };
+    // Per heavy atom: its mass and its hydrogens' (before), and their count.
+    let mut groups: BTreeMap<usize, (f64, usize)> = BTreeMap::new();
     for &(h, heavy) in pairs {
-        if !(new[heavy].is_finite() && new[heavy] > new[h]) {
-            return Err(Error::setting(
-                "hydrogen_mass",
-                format!(
-                    "hydrogen_mass: atom {heavy} ({}) would be left with mass {} {}, not more than \
-                 its hydrogen {h}'s {}; give a smaller hydrogen mass",
-                    topology.elements[heavy],
-                    units.mass_in_scene_units(new[heavy]),
-                    mass_unit(units),
-                    units.mass_in_scene_units(new[h])
-                ),
-            )
-            .expected("a smaller hydrogen mass"));
-        }
+        let group = groups.entry(heavy).or_insert((old[heavy], 0));
+        group.0 += old[h];
+        group.1 += 1;
     }
-    Ok(())
+    let bound = groups
+        .values()
+        .map(|&(mass, k)| mass / (k + 1) as f64)
+        .fold(f64::INFINITY, f64::min);
+    let unit = mass_unit(units);
+    let with_unit = |m: f64| format!("{m} {unit}").trim_end().to_string();
+    let bound = with_unit(six_digits_down(units.mass_in_scene_units(bound)));
+    Err(Error::setting(
+        "hydrogen_mass",
+        format!(
+            "hydrogen_mass: it would leave atom {} ({}) with {}, no more than each of its \
+             hydrogens (atom {} among them); the hydrogen mass must stay below {bound}",
+            heavy + 1,
+            topology.elements[heavy],
+            with_unit(units.mass_in_scene_units(new[heavy])),
+            h + 1,
+        ),
+    )
+    .expected(format!("below {bound}"))
+    .got(with_unit(hydrogen_mass)))
+}
+
+/// `x` (positive) rounded down to six significant digits, so that a bound printed stays a
+/// bound.
+fn six_digits_down(x: f64) -> f64 {
+    let scale = 10f64.powi(5 - x.log10().floor() as i32);
+    (x * scale).floor() / scale
 }
 
 fn mass_unit(units: Units) -> &'static str {

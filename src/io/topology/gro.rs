@@ -89,11 +89,7 @@ pub fn parse_gro(text: &str, path: &Path) -> Result<(Coordinates, Vec<String>)> 
             match line.get(start..(start + width).min(line.len())) {
                 None | Some("") => Ok(None),
                 Some(s) if s.trim().is_empty() => Ok(None),
-                Some(s) => s
-                    .trim()
-                    .parse()
-                    .map(Some)
-                    .map_err(|_| error(path, at, format!("\"{}\" is not a number", s.trim()))),
+                Some(s) => number(s.trim(), path, at).map(Some),
             }
         };
         for c in 0..3 {
@@ -109,7 +105,23 @@ pub fn parse_gro(text: &str, path: &Path) -> Result<(Coordinates, Vec<String>)> 
     if !velocities.is_empty() && velocities.len() != 3 * n {
         return Err(error(path, 3, "velocities on some atom lines but not all"));
     }
-    let (box_lengths, box_angles) = box_line(lines[2 + n], path, n + 3)?;
+    let box_text = lines[2 + n];
+    let (box_lengths, box_angles) = match box_line(box_text, path, n + 3) {
+        Err(_) if reads_as_atom(box_text, width) => {
+            return Err(error(
+                path,
+                2,
+                format!(
+                    "the count says {n} atoms, but line {} after them reads as an atom line, \
+                     not the box line: is the count one short?",
+                    n + 3
+                ),
+            )
+            .key("atom count")
+            .got(n.to_string()));
+        }
+        other => other?,
+    };
     let coordinates = Coordinates {
         title: lines[0].trim().to_string(),
         positions,
@@ -118,6 +130,24 @@ pub fn parse_gro(text: &str, path: &Path) -> Result<(Coordinates, Vec<String>)> 
         box_angles,
     };
     Ok((coordinates, names))
+}
+
+/// A coordinate or velocity: a finite number (Rust reads `nan` and `inf` as numbers).
+fn number(text: &str, path: &Path, at: usize) -> Result<f64> {
+    match text.parse::<f64>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        Ok(_) => Err(error(path, at, "a coordinate that is not a finite number").got(text)),
+        Err(_) => Err(error(path, at, "a coordinate that is not a number").got(text)),
+    }
+}
+
+/// Whether `line` has an atom line's three coordinates in columns `width` wide.
+fn reads_as_atom(line: &str, width: usize) -> bool {
+    (0..3).all(|c| {
+        let start = 20 + c * width;
+        line.get(start..start + width)
+            .is_some_and(|s| s.trim().parse::<f64>().is_ok())
+    })
 }
 
 /// The width of a coordinate column: the distance between the first two decimal points

@@ -8,10 +8,10 @@
 //!   reports one, else `K + V`; [`crate::run::drift`]) with its error bar against the
 //!   bound: **pass**, **fail** or **undecided** (with the run length that would decide).
 //!
-//! In a scene with real units the drift is judged exactly as `longstep run` judges it
-//! ([`judge`]): kT/ns/dof, default bound 0.05, the same verdict and wording. In a
-//! dimensionless scene it is the rate in kT per unit time per degree of freedom (default
-//! bound 1e-3): kT is estimated from the mean kinetic energy by equipartition,
+//! The drift is judged exactly as `longstep run` judges it ([`judge`]), the same verdict
+//! and wording: kT/ns/dof with real units (default bound 0.05), and in a dimensionless
+//! scene the rate in kT per unit time per degree of freedom (default bound 1e-3): kT is
+//! estimated from the mean kinetic energy by equipartition,
 //! `kT = 2⟨K⟩/n_dof`, so the rate is `slope / (2⟨K⟩)` and needs no thermostat or temperature
 //! in the scene; its error bar is the energy's fluctuation over the span, converted alike.
 //!
@@ -33,12 +33,12 @@ use super::Verdict;
 use crate::io::summary::{RunSummary, Status};
 use crate::run::drift::{judge, verdict_of};
 use crate::run::verdict::{self, Measurement};
-use crate::units::Units;
 
 /// The default drift bound of a scan in a dimensionless scene, in kT per unit time per
 /// degree of freedom (in a scene with real units it is `run`'s, 0.05 kT/ns/dof).
-pub const DEFAULT_DIMENSIONLESS_BOUND: f64 = 1e-3;
+pub const DEFAULT_DIMENSIONLESS_BOUND: f64 = crate::run::drift::DEFAULT_DIMENSIONLESS_BOUND;
 
+/// Energy drift in kT per unit time per degree of freedom, from `(t, kinetic, total)`
 /// samples: the least-squares slope of E(t) divided by `2⟨K⟩`.
 pub fn drift_rate(series: &[[f64; 3]]) -> f64 {
     let n = series.len() as f64;
@@ -79,45 +79,21 @@ pub struct ScanDrift {
 /// `None` without a fit (too few rows).
 pub fn scan_drift(summary: &RunSummary, bound: f64) -> Option<ScanDrift> {
     let fit = summary.fit.as_ref()?;
-    Some(match summary.scene_units {
-        Units::Real => {
-            let report = judge(fit, Units::Real, summary.energy_reference, Some(bound));
-            ScanDrift {
-                value: report.value,
-                error: report.error,
-                true_energy: report.true_energy,
-                verdict: verdict_of(&report),
-                measurement: Measurement {
-                    value: report.value,
-                    error: report.error,
-                    fixed_error: 0.0,
-                    start: report.from,
-                    span: report.to - report.from,
-                    exponent: 1.0,
-                },
-                energy: report.energy,
-            }
-        }
-        Units::None => {
-            let (energy, slope, fluctuation) = fit.judged();
-            let span = fit.to - fit.from;
-            let measurement = Measurement {
-                value: fit.rate(slope),
-                error: fit.rate(fluctuation / span).abs(),
-                fixed_error: 0.0,
-                start: fit.from,
-                span,
-                exponent: 1.0,
-            };
-            ScanDrift {
-                value: measurement.value,
-                error: measurement.error,
-                true_energy: fit.true_rate(),
-                energy: energy.to_string(),
-                verdict: verdict::judge(&measurement, bound),
-                measurement,
-            }
-        }
+    let report = judge(fit, summary.scene_units, Some(bound));
+    Some(ScanDrift {
+        value: report.value,
+        error: report.error,
+        true_energy: report.true_energy,
+        verdict: verdict_of(&report),
+        measurement: Measurement {
+            value: report.value,
+            error: report.error,
+            fixed_error: 0.0,
+            start: report.from,
+            span: report.to - report.from,
+            exponent: 1.0,
+        },
+        energy: report.energy,
     })
 }
 

@@ -92,10 +92,21 @@ pub fn error(location: &str, message: impl Into<String>) -> Error {
     Error::topology_at(location, message)
 }
 
+/// A field as a number: `nan` and `inf` (which Rust's parser reads) are refused, and a
+/// negative count says so rather than "not a number".
 fn number<T: std::str::FromStr>(field: &str, what: &str, at: &str) -> Result<T> {
-    field
-        .parse()
-        .map_err(|_| error(at, format!("{what} \"{field}\" is not a number")))
+    if let Ok(value) = field.parse::<T>() {
+        if field.parse::<f64>().is_ok_and(|v| !v.is_finite()) {
+            return Err(error(at, format!("{what} is not a finite number")).got(field));
+        }
+        return Ok(value);
+    }
+    if field.parse::<i64>().is_ok_and(|v| v < 0) {
+        return Err(error(at, format!("{what} is negative"))
+            .expected("a whole number, 0 or more")
+            .got(field));
+    }
+    Err(error(at, format!("{what} is not a number")).got(field))
 }
 
 fn numbers(fields: &[String], at: &str) -> Result<Vec<f64>> {
@@ -117,7 +128,12 @@ pub fn parse(source: &Source) -> Result<Parsed> {
         parsed.lines.push(at.clone());
         let index = parsed.lines.len() - 1;
         // The directive a data line is in is the key of its errors.
-        data_line(&mut parsed, &directive, line, index, &at).map_err(|e| e.key(&directive))?;
+        data_line(&mut parsed, &directive, line, index, &at).map_err(|e| {
+            match e.location().and_then(|l| l.key.as_ref()) {
+                Some(_) => e,
+                None => e.key(&directive),
+            }
+        })?;
     }
     Ok(parsed)
 }
@@ -255,6 +271,14 @@ fn defaults(parsed: &mut Parsed, f: &[String], at: &str) -> Result<()> {
 /// `name [bond_type] [at.num] mass charge ptype V W`.
 fn atomtype(parsed: &mut Parsed, f: &[String], at: &str) -> Result<()> {
     let n = f.len();
+    if n == 2 && f[1].parse::<u32>().is_ok() {
+        return Err(error(
+            at,
+            "a `name nrexcl` line under [ atomtypes ]: is the [ moleculetype ] header above it \
+             missing?",
+        )
+        .key("moleculetype"));
+    }
     if !(6..=8).contains(&n) {
         return Err(error(
             at,
