@@ -5,6 +5,7 @@
 pub mod async_stability;
 pub mod block_average;
 pub mod configurational;
+pub mod criteria;
 pub mod dihedrals;
 pub mod geometry;
 pub mod growth;
@@ -16,4 +17,6 @@ pub mod sampling;
 pub mod scan;
 pub mod stability;
 pub mod stiffness;
+pub mod term_energies;
+pub mod trajectory_input;
 pub mod work_precision;
