@@ -15,4 +15,6 @@ pub mod run_analysis;
 pub mod run_dir;
 pub mod stability;
 pub mod stiffness;
+pub mod term_energies;
+pub mod trajectory_input;
 pub mod work_precision;

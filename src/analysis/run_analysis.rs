@@ -16,6 +16,13 @@
 //!   type from the trajectory frames ([`super::configurational`], [`super::rdf`]).
 //! * **Backbone (φ, ψ) basins** per residue, when the analyzer is given a topology's backbone
 //!   ([`Analyzer::set_backbone`], [`super::dihedrals`]).
+//! * **Each force-field term's energy** per frame, recomputed from the frame with the scene's
+//!   force field ([`super::term_energies`]): its mean with a block error, and its variance
+//!   over frames (the scale of the per-term bounds, `studies::criterion::reference`).
+//! * **A trajectory file alone** ([`Analyzer::analyze_trajectory`]: another engine's, or
+//!   longstep's without its `energy.csv`, read as [`super::trajectory_input`] says): the
+//!   blocks cut the frames' times, and the potential energy per molecule is the sum of the
+//!   recomputed terms; there is no kinetic energy (its temperature is NaN, said absent).
 
 use std::path::PathBuf;
 
@@ -27,6 +34,8 @@ use super::configurational::ConfigurationalProbe;
 use super::dihedrals::{BackboneResidue, BasinCounter, ResidueBasins};
 use super::geometry::{Topology, mean_angle, mean_bond_length};
 use super::rdf::{PairSelection, Peak, RdfGrid, first_peak};
+use super::term_energies;
+use super::trajectory_input::{TrajectoryInput, check_order};
 use crate::error::{Error, Result};
 use crate::forces::PeriodicBox;
 use crate::io::energy_table::EnergyTable;
@@ -133,6 +142,32 @@ pub struct RunAnalysis {
     pub geometry: Vec<GeometryResult>,
     /// Backbone basin populations per residue (empty without a backbone).
     pub basins: Vec<ResidueBasins>,
+    /// Each force-field term's energy over the frames ([`super::term_energies`]).
+    pub terms: Vec<TermResult>,
+    /// Where the energies came from: a run's `energy.csv`, or the frames of a trajectory
+    /// file (then times are in frames when `times` is false).
+    pub source: EnergySource,
+}
+
+/// One force-field term's energy over a run's frames.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermResult {
+    /// The series' name ([`super::term_energies::series_names`]).
+    pub name: String,
+    /// Mean over frames, with the block error.
+    pub mean: Estimate,
+    /// Variance of the per-frame energy over all frames (`⟨E²⟩ − ⟨E⟩²`).
+    pub variance: f64,
+}
+
+/// Where a [`RunAnalysis`] took its energies from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnergySource {
+    /// A run directory's `energy.csv` (and kinetic energies).
+    Table,
+    /// A trajectory file's frames, recomputed; `times`: false when the file carries none and
+    /// no `--frame-time` was given (times are frame numbers).
+    Frames { times: bool },
 }
 
 /// The scene-side setup shared by every run analysed against one scene.
@@ -212,9 +247,78 @@ impl<'a> Analyzer<'a> {
         let blocks = self.blocks_of(&table)?;
         let mut reader = TrajectoryReader::open(&files.trajectory)?;
         let mut frames = FramePass::new(self, blocks);
-        frames.run(self, &mut reader)?;
+        frames.run(self, &mut reader, None)?;
         let energies = self.energy_part(&table, blocks)?;
-        frames.finish(self, energies)
+        frames.finish(self, energies, EnergySource::Table)
+    }
+
+    /// Analyse a trajectory file alone (module documentation): the blocks cut the span of
+    /// its frames' times from `skip`, and the energies are recomputed from the frames.
+    pub fn analyze_trajectory(&self, input: &TrajectoryInput) -> Result<RunAnalysis> {
+        let blocks = self.frame_blocks(input)?;
+        let mut reader = TrajectoryReader::open(&input.path)?;
+        let mut frames = FramePass::new(self, blocks);
+        frames.run(self, &mut reader, Some(input))?;
+        let energies = frames.energy_part(self, &input.path)?;
+        let source = EnergySource::Frames {
+            times: input.has_times(),
+        };
+        frames.finish(self, energies, source)
+    }
+
+    /// The blocks over the times of `input`'s frames from `skip` to `until` (a first pass
+    /// over the file that reads only the times).
+    fn frame_blocks(&self, input: &TrajectoryInput) -> Result<Blocks> {
+        let path = &input.path;
+        if !input.has_times() && (self.options.skip > 0.0 || self.options.until.is_some()) {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: "its frames carry no time (a .dcd's header time is unreliable, a .nc's \
+                          is not read): give --frame-time to use --skip or --until"
+                    .into(),
+            });
+        }
+        let mut reader = TrajectoryReader::open(path)?;
+        let mut q = Vec::new();
+        let until = self.options.until.unwrap_or(f64::INFINITY);
+        let mut inside = Vec::new();
+        while let Some(info) = reader.read_next(&mut q)? {
+            if info.index == 0 {
+                check_first_frame(self, &reader, &q, &info, !input.own)?;
+            }
+            let t = input.time(info.index, info.time)?;
+            if t >= self.options.skip && t <= until {
+                inside.push(t);
+            }
+        }
+        let (Some(&start), Some(&end)) = (inside.first(), inside.last()) else {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "no frame between the --skip time {} and {}",
+                    self.options.skip,
+                    self.options
+                        .until
+                        .map_or("the end".into(), |u| u.to_string()),
+                ),
+            });
+        };
+        if inside.len() < self.options.blocks || end <= start {
+            return Err(Error::Structure {
+                path: path.clone(),
+                message: format!(
+                    "{} frames from t = {start} to {end} are too few for {} blocks (each block \
+                     needs a frame): give fewer --blocks",
+                    inside.len(),
+                    self.options.blocks
+                ),
+            });
+        }
+        Ok(Blocks {
+            start,
+            end,
+            count: self.options.blocks,
+        })
     }
 
     fn blocks_of(&self, table: &EnergyTable) -> Result<Blocks> {
@@ -405,6 +509,60 @@ struct FramePass {
     hutchinson: BlockAccumulator,
     probe: Option<ConfigurationalProbe>,
     basins: BasinCounter,
+    terms: TermPass,
+}
+
+/// Each term's energy in every frame (frames × terms), with each frame's block and time.
+#[derive(Default)]
+struct TermPass {
+    names: Vec<String>,
+    values: Vec<f64>,
+    blocks: Vec<usize>,
+    times: Vec<f64>,
+    buffer: Vec<f64>,
+}
+
+impl TermPass {
+    fn add(&mut self, analyzer: &Analyzer, q: &[f64], block: usize, time: f64) {
+        let terms = analyzer.scene.system.forces.terms();
+        if self.names.is_empty() {
+            self.names = term_energies::series_names(terms, q);
+        }
+        term_energies::evaluate(terms, q, &mut self.buffer);
+        self.values.extend_from_slice(&self.buffer);
+        self.blocks.push(block);
+        self.times.push(time);
+    }
+
+    /// Per term: the mean with its block error, and the variance over frames.
+    fn results(&self, blocks: usize) -> Vec<TermResult> {
+        let width = self.names.len();
+        let frames = self.blocks.len();
+        (0..width)
+            .map(|k| {
+                let mut accumulator = BlockAccumulator::new(blocks, 1);
+                for (f, &block) in self.blocks.iter().enumerate() {
+                    accumulator.add(block, self.values[f * width + k]);
+                }
+                let mean = accumulator.estimate();
+                let variance = (0..frames)
+                    .map(|f| (self.values[f * width + k] - mean.mean).powi(2))
+                    .sum::<f64>()
+                    / frames.max(1) as f64;
+                TermResult {
+                    name: self.names[k].clone(),
+                    mean,
+                    variance,
+                }
+            })
+            .collect()
+    }
+
+    /// The potential energy of frame `f`: the sum of its terms.
+    fn potential(&self, f: usize) -> f64 {
+        let width = self.names.len();
+        self.values[f * width..(f + 1) * width].iter().sum()
+    }
 }
 
 impl FramePass {
@@ -454,25 +612,35 @@ impl FramePass {
             hutchinson: BlockAccumulator::new(blocks.count, 1),
             probe,
             basins: BasinCounter::new(analyzer.backbone.clone(), blocks.count),
+            terms: TermPass::default(),
         }
     }
 
-    fn run(&mut self, analyzer: &Analyzer, reader: &mut TrajectoryReader) -> Result<()> {
+    /// Read every frame of `reader`: a run directory's trajectory (`input` None) or a
+    /// trajectory file analysed alone.
+    fn run(
+        &mut self,
+        analyzer: &Analyzer,
+        reader: &mut TrajectoryReader,
+        input: Option<&TrajectoryInput>,
+    ) -> Result<()> {
         let mut q = Vec::new();
         let mut in_span = 0usize;
+        let foreign = input.is_some_and(|i| !i.own);
         while let Some(info) = reader.read_next(&mut q)? {
             if info.index == 0 {
-                check_atoms(analyzer.scene, reader, q.len() / 3)?;
+                check_first_frame(analyzer, reader, &q, &info, foreign)?;
             }
-            let Some(time) = info.time else {
-                return Err(Error::Structure {
+            let time = match input {
+                Some(input) => input.time(info.index, info.time)?,
+                None => info.time.ok_or_else(|| Error::Structure {
                     path: reader.path().to_path_buf(),
                     message: format!(
                         "frame {} has no time property (longstep and scripts/openmm_mts_langevin.py \
                          write it in extended XYZ)",
                         info.index
                     ),
-                });
+                })?,
             };
             let Some(block) = self.blocks.index(time) else {
                 continue;
@@ -481,8 +649,9 @@ impl FramePass {
             if !(in_span - 1).is_multiple_of(analyzer.options.stride) {
                 continue;
             }
-            let lengths = frame_box(analyzer, reader, &info)?;
+            let lengths = frame_box(analyzer, reader, &info, foreign)?;
             self.frame(analyzer, &q, lengths, &info, block);
+            self.terms.add(analyzer, &q, block, time);
         }
         if let Some(empty) = self
             .rdf
@@ -548,18 +717,40 @@ impl FramePass {
     }
 }
 
-/// The trajectory must hold the scene's atoms, with the same names.
-fn check_atoms(scene: &Scene, reader: &TrajectoryReader, atoms: usize) -> Result<()> {
+/// The trajectory must hold the scene's atoms in its order: the same names in longstep's
+/// own files, the model's bonds in another engine's ([`check_order`]).
+fn check_first_frame(
+    analyzer: &Analyzer,
+    reader: &TrajectoryReader,
+    q: &[f64],
+    info: &FrameInfo,
+    foreign: bool,
+) -> Result<()> {
+    let scene = analyzer.scene;
     let bad = |message: String| Error::Structure {
         path: reader.path().to_path_buf(),
         message,
     };
+    let atoms = q.len() / 3;
     if atoms != scene.elements.len() {
         return Err(bad(format!(
-            "has {atoms} atoms, but the scene {} has {}: give the scene the run was made from",
+            "has {atoms} atoms, but the model {} has {}: give the scene or topology the \
+             trajectory was made from",
             scene.path.display(),
             scene.elements.len()
         )));
+    }
+    if foreign {
+        let lengths = frame_box(analyzer, reader, info, true)?;
+        let periodic_box = lengths.map(|lengths| PeriodicBox { lengths });
+        let rest: Vec<_> = scene
+            .system
+            .forces
+            .terms()
+            .iter()
+            .flat_map(|t| t.term.rest_geometry())
+            .collect();
+        return check_order(reader.path(), &scene.path, q, periodic_box.as_ref(), &rest);
     }
     let names = reader.names();
     if let Some(i) = (0..atoms).find(|&i| names[i] != scene.elements[i]) {
@@ -574,12 +765,24 @@ fn check_atoms(scene: &Scene, reader: &TrajectoryReader, atoms: usize) -> Result
 }
 
 /// The box of a frame: its cell, which must be the scene's box (the runs are at constant
-/// volume; trajectory cells are written with about 6 significant digits), else the scene's.
+/// volume; trajectory cells are written with about 6 significant digits), else the scene's;
+/// `strict` (another engine's file): a periodic model needs the frame's cell.
 fn frame_box(
     analyzer: &Analyzer,
     reader: &TrajectoryReader,
     info: &FrameInfo,
+    strict: bool,
 ) -> Result<Option<[f64; 3]>> {
+    if strict && info.cell.is_none() && analyzer.box_lengths.is_some() {
+        return Err(Error::Structure {
+            path: reader.path().to_path_buf(),
+            message: format!(
+                "frame {} has no box, but the model {} is periodic",
+                info.index,
+                analyzer.scene.path.display()
+            ),
+        });
+    }
     match (info.cell, analyzer.box_lengths) {
         (Some(cell), Some(scene_box)) => {
             if (0..3).any(|a| (cell[a] - scene_box[a]).abs() > 1e-4 * scene_box[a]) {
@@ -598,7 +801,50 @@ fn frame_box(
 }
 
 impl FramePass {
-    fn finish(self, analyzer: &Analyzer, energies: EnergyPart) -> Result<RunAnalysis> {
+    /// The energy part of a trajectory file alone: the potential energy per molecule of
+    /// every frame from its terms; no kinetic energy (NaN).
+    fn energy_part(&self, analyzer: &Analyzer, path: &std::path::Path) -> Result<EnergyPart> {
+        let blocks = self.blocks.count;
+        let molecules = analyzer.topology.molecules as f64;
+        let mut potential = BlockAccumulator::new(blocks, 1);
+        let mut kinetic = BlockAccumulator::new(blocks, 1);
+        let mut series = Vec::with_capacity(self.terms.blocks.len());
+        for (f, &block) in self.terms.blocks.iter().enumerate() {
+            let u = self.terms.potential(f) / molecules;
+            if !u.is_finite() {
+                return Err(Error::Structure {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "the potential energy of the frame at t = {} is not finite",
+                        self.terms.times[f]
+                    ),
+                });
+            }
+            potential.add(block, u);
+            kinetic.add(block, f64::NAN);
+            series.push(u);
+        }
+        let times = &self.terms.times;
+        let row_interval = match (times.first(), times.last()) {
+            (Some(a), Some(b)) if times.len() > 1 => (b - a) / (times.len() - 1) as f64,
+            _ => 0.0,
+        };
+        Ok(EnergyPart {
+            potential,
+            blocking: flyvbjerg_petersen(&series),
+            kinetic,
+            rows: series.len(),
+            row_interval,
+            dof: f64::NAN,
+        })
+    }
+
+    fn finish(
+        self,
+        analyzer: &Analyzer,
+        energies: EnergyPart,
+        source: EnergySource,
+    ) -> Result<RunAnalysis> {
         let options = &analyzer.options;
         let potential = energies.potential.estimate();
         let frames_per_block = match self.rdf.first() {
@@ -648,6 +894,8 @@ impl FramePass {
             rdf,
             geometry,
             basins: self.basins.finish(),
+            terms: self.terms.results(self.blocks.count),
+            source,
         })
     }
 

@@ -9,6 +9,12 @@ use crate::error::{Error, Result};
 /// The files of one run directory; missing ones, or ones that its manifest says come from
 /// different runs ([`crate::io::manifest::check_same_run`]), are errors naming the directory.
 pub fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
+    if !dir.exists() {
+        return Err(Error::Structure {
+            path: dir.to_path_buf(),
+            message: "no such run directory or trajectory file".into(),
+        });
+    }
     if !dir.is_dir() {
         return Err(Error::Structure {
             path: dir.to_path_buf(),

@@ -1,7 +1,12 @@
-//! `longstep analyze SCENE RUN_DIR…`: configurational analysis of finished runs.
+//! `longstep analyze SCENE RUN…`: configurational analysis of finished runs.
 //!
-//! Each run directory holds the `energy.csv` and the trajectory of one run of SCENE (or of a
-//! peer code written in the same form: `scripts/openmm_mts_langevin.py`). For every run it
+//! Each RUN is a run directory holding the `energy.csv` and the trajectory of one run of
+//! SCENE (or of a peer code written in the same form: `scripts/openmm_mts_langevin.py`), or a
+//! trajectory file of any engine (`.xtc`, `.trr`, `.dcd`, `.nc`, longstep's `.xyz`) whose
+//! energies are recomputed frame by frame with SCENE's force field
+//! ([`crate::analysis::trajectory_input`]); SCENE may be a topology file. With `--reference
+//! REF` (a run directory or a trajectory file) every run is judged against REF, criterion by
+//! criterion ([`crate::studies::criterion::reference`], printed by `analyze_verdicts`). For every run it
 //! prints (or, with `--json`, emits as one JSON array) the mean potential energy per
 //! molecule, the kinetic and configurational temperatures, the first peak of g(r) for each
 //! `--pairs` entry and the mean bond lengths and angles, each with a block-average error
@@ -17,8 +22,11 @@ use serde_json::{Value as Json, json};
 
 use crate::analysis::block_average::Estimate;
 use crate::analysis::dihedrals::{BASINS, backbone_residues, scene_topology};
-use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles, parse_pair};
+use crate::analysis::run_analysis::{
+    AnalysisOptions, Analyzer, EnergySource, RunAnalysis, RunFiles, parse_pair,
+};
 use crate::analysis::run_dir::run_files;
+use crate::analysis::trajectory_input::TrajectoryInput;
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
 use crate::plot::{AxisSpec, Band, LineChart, PALETTE, Series};
@@ -28,9 +36,12 @@ use crate::settings::Value;
 pub struct AnalyzeArgs {
     /// The scene the runs were made from (atoms, box, force field).
     pub scene: PathBuf,
-    /// Run directories, each with energy.csv and a trajectory.
-    #[arg(required = true, value_name = "RUN_DIR")]
+    /// Runs: directories with energy.csv and a trajectory, or trajectory files of any
+    /// engine (.xtc, .trr, .dcd, .nc, .xyz).
+    #[arg(required = true, value_name = "RUN")]
     pub runs: Vec<PathBuf>,
+    #[command(flatten)]
+    pub verdicts: super::analyze_verdicts::VerdictArgs,
     /// Element pairs for g(r), comma-separated, or "none" (default: O-O in a periodic
     /// box, none without one).
     #[arg(long, value_delimiter = ',')]
@@ -200,26 +211,50 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         .clone()
         .or_else(|| scene.output.trajectory.clone())
         .unwrap_or_else(|| "trajectory.xyz".into());
-    let files: Vec<RunFiles> = args
+    let frame_time = match &args.verdicts.frame_time {
+        Some(text) => Some(time_value(text, "--frame-time", &scene)?),
+        None => None,
+    };
+    let runs: Vec<RunInput> = args
         .runs
         .iter()
-        .map(|dir| run_files(dir, &trajectory))
+        .map(|path| RunInput::of(path, &trajectory, &scene, frame_time))
         .collect::<Result<_>>()?;
+    let reference = match &args.verdicts.reference {
+        Some(path) => {
+            Some(RunInput::of(path, &trajectory, &scene, frame_time)?.analyze(&analyzer)?)
+        }
+        None => None,
+    };
+    let settings = args.verdicts.settings(&scene, reference.as_ref())?;
     let mut results = Vec::new();
     let mut summaries = Vec::new();
-    for ((dir, label), files) in args.runs.iter().zip(&labels).zip(&files) {
+    for ((path, label), run) in args.runs.iter().zip(&labels).zip(&runs) {
         let spinner = super::common::spinner(args.quiet, &format!("analyze {label}"));
-        let result = analyzer.analyze(files);
+        let result = run.analyze(&analyzer);
         spinner.finish_and_clear();
         let result = result?;
         let out_dir = match &args.out {
             Some(out) => out.join(label),
-            None => dir.join("analysis"),
+            None if path.is_dir() => path.join("analysis"),
+            None => path.with_extension("analysis"),
         };
-        let summary = summary_json(&scene, label, dir, &result, &analyzer);
+        let mut summary = summary_json(&scene, label, path, &result, &analyzer);
+        let (_, energy, temperature, time) = units(&scene);
+        let verdicts = reference
+            .as_ref()
+            .map(|r| super::analyze_verdicts::judge((energy, temperature), r, &result, &settings));
+        if let (Some(v), Json::Object(map)) = (&verdicts, &mut summary) {
+            map.insert("reference".into(), json!(args.verdicts.reference));
+            map.insert("criteria".into(), v.json());
+            map.insert("verdict".into(), json!(v.overall_name()));
+        }
         super::analyze_output::write_tables(&out_dir, &result, &summary)?;
         if !args.json {
             print_summary(&scene, label, &out_dir, &result);
+            if let Some(v) = &verdicts {
+                v.print(time, &result);
+            }
         }
         results.push(result);
         summaries.push(summary);
@@ -236,6 +271,30 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         println!("{text}");
     }
     Ok(())
+}
+
+/// A run to analyse: a run directory's files, or a trajectory file alone.
+enum RunInput {
+    Directory(RunFiles),
+    File(TrajectoryInput),
+}
+
+impl RunInput {
+    fn of(path: &Path, trajectory: &str, scene: &Scene, frame_time: Option<f64>) -> Result<Self> {
+        if path.is_file() {
+            return Ok(RunInput::File(TrajectoryInput::new(
+                path, scene, frame_time,
+            )?));
+        }
+        Ok(RunInput::Directory(run_files(path, trajectory)?))
+    }
+
+    fn analyze(&self, analyzer: &Analyzer) -> Result<RunAnalysis> {
+        match self {
+            RunInput::Directory(files) => analyzer.analyze(files),
+            RunInput::File(input) => analyzer.analyze_trajectory(input),
+        }
+    }
 }
 
 fn estimate_json(e: &Estimate) -> Json {
@@ -316,7 +375,24 @@ fn summary_json(
         "rdf_intramolecular_pairs": options.intramolecular,
         "geometry": geometry,
         "basins": basins_json(r),
+        "terms": terms_json(r),
+        "energies_from": match r.source {
+            EnergySource::Table => "energy.csv",
+            EnergySource::Frames { times: true } => "frames (recomputed)",
+            EnergySource::Frames { times: false } => "frames (recomputed; times are frame numbers)",
+        },
     })
+}
+
+/// Each force-field term's mean energy, its error and its variance over frames.
+fn terms_json(r: &RunAnalysis) -> Json {
+    r.terms
+        .iter()
+        .map(|t| {
+            json!({ "term": t.name, "mean": t.mean.mean, "error": t.mean.error,
+                    "variance": t.variance })
+        })
+        .collect()
 }
 
 /// Per backbone residue: each basin's population and error.
@@ -340,6 +416,7 @@ fn pm(e: &Estimate, digits: usize) -> String {
 
 fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
     let (length, energy, temperature, time) = units(scene);
+    let time = crate::studies::criterion::reference::time_unit(r, time);
     println!(
         "run {label}: t = {} to {} {time}, {} blocks of {} {time}, {} energy rows, {} frames",
         r.blocks.start,
@@ -359,11 +436,18 @@ fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
         pm(&r.potential_per_molecule, 4),
         r.molecules
     );
-    println!(
-        "  T kinetic           {} {temperature} (n_dof = {})",
-        pm(&r.kinetic_temperature, 2),
-        r.dof
-    );
+    if r.source == EnergySource::Table {
+        println!(
+            "  T kinetic           {} {temperature} (n_dof = {})",
+            pm(&r.kinetic_temperature, 2),
+            r.dof
+        );
+    } else {
+        println!("  T kinetic           absent (a trajectory file has no velocities)");
+    }
+    for t in &r.terms {
+        println!("  E {:<26} {} {energy}", t.name, pm(&t.mean, 3));
+    }
     if let Some(c) = &r.configurational {
         println!(
             "  T configurational   {} {temperature} (Hutchinson {} probes on {})",

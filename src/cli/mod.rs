@@ -6,6 +6,7 @@
 
 mod analyze;
 mod analyze_output;
+mod analyze_verdicts;
 mod async_map;
 mod charts;
 mod common;

@@ -15,6 +15,7 @@ use serde::Serialize;
 use crate::run::verdict;
 
 pub mod drift;
+pub mod reference;
 pub mod sampling;
 
 /// A scan point's verdict: unstable, or the verdict of its criterion
