@@ -13,6 +13,7 @@ mod draw;
 mod forces;
 mod growth;
 mod merge;
+mod modes_lanczos;
 mod run;
 pub mod stability;
 mod stiffness;
