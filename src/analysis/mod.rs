@@ -8,6 +8,7 @@ pub mod configurational;
 pub mod dihedrals;
 pub mod geometry;
 pub mod growth;
+pub mod lanczos;
 pub mod minimize;
 pub mod modes;
 pub mod rdf;

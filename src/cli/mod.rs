@@ -16,6 +16,7 @@ mod growth;
 mod merge;
 mod minimize;
 mod modes;
+mod modes_lanczos;
 mod run;
 mod scan_report;
 mod scan_steps;

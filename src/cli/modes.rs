@@ -45,6 +45,8 @@ pub struct ModesArgs {
     pub start: Option<PathBuf>,
     #[command(flatten)]
     pub source: super::common::SceneArgs,
+    #[command(flatten)]
+    pub iterative: super::modes_lanczos::LanczosArgs,
 }
 
 /// `LO:HI` → (lo, hi), in the scene's time units when it has them.
@@ -70,6 +72,9 @@ fn parse_range(text: &str, what: &str, units: Units) -> Result<(f64, f64)> {
 }
 
 pub fn modes_command(args: &ModesArgs) -> Result<()> {
+    if args.iterative.wanted() {
+        return modes_iterative(args);
+    }
     let mut scene = prepare::load(&RunRequest {
         flags: args.source.flags()?,
         start: args.start.as_deref(),
@@ -115,6 +120,35 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
     print_modes(&modes, scene.units);
     print_resonances(&resonances, lo, hi, scene.units);
     Ok(())
+}
+
+/// `modes` with --lanczos, constraints or HMR: the iterative path (`cli/modes_lanczos.rs`).
+fn modes_iterative(args: &ModesArgs) -> Result<()> {
+    let request = super::modes_lanczos::LanczosRequest {
+        scene: &args.scene,
+        set: &args.set,
+        start: args.start.as_deref(),
+        flags: args.source.flags()?,
+        args: &args.iterative,
+        h_range: args.h_range.as_deref(),
+        top: args.top,
+        json: args.json,
+        pictures: [&args.png, &args.svg]
+            .into_iter()
+            .flatten()
+            .cloned()
+            .collect(),
+    };
+    if args.minimize {
+        return Err(Error::flag(
+            "--minimize",
+            "the iterative modes (--lanczos, constraints, HMR) are those of the structure as \
+             it runs; minimise first with `longstep minimize --save` and give it as --start",
+        ));
+    }
+    super::modes_lanczos::lanczos_modes(&request, &|range, units| {
+        parse_range(range, "--h-range", units)
+    })
 }
 
 /// Modes of negative curvature predict no resonance; the warning says why they are there.
