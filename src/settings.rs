@@ -295,50 +295,21 @@ impl RunSpec {
         parameters: &BTreeMap<String, f64>,
         units: crate::units::Units,
     ) -> Result<MethodSettings> {
-        let time_units = units.time_units();
-        // Each setting by its `[run]` key (the error's key) and its name in messages.
-        let number = |v: &Option<Value>, (key, what): (&str, &str)| -> Result<Option<f64>> {
-            v.as_ref()
-                .map(|v| v.evaluate(parameters, what).map_err(|e| e.key(key)))
-                .transpose()
-        };
-        let time = |v: &Option<Value>, (key, what): (&str, &str)| -> Result<Option<f64>> {
-            v.as_ref()
-                .map(|v| {
-                    v.evaluate_time(parameters, what, time_units)
-                        .map_err(|e| e.key(key))
-                })
-                .transpose()
-        };
-        let must_be_positive = |x: f64, (key, what): (&str, &str)| {
-            Error::setting(key, format!("{what} must be positive and finite"))
-                .expected("a positive number")
-                .got(x.to_string())
-        };
-        let positive_time = |v: &Option<Value>, setting: (&str, &str)| -> Result<Option<f64>> {
-            match time(v, setting)? {
-                Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
-                other => Ok(other),
-            }
-        };
-        let positive = |v: &Option<Value>, setting: (&str, &str)| -> Result<Option<f64>> {
-            match number(v, setting)? {
-                Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
-                other => Ok(other),
-            }
-        };
-        let h = positive_time(&self.h, ("h", "outer step h"))?.ok_or_else(|| {
-            Error::setting(
-                "h",
-                "no outer step h: give --h or set h in the scene's [run] table",
-            )
-        })?;
-        let dt = positive_time(&self.dt, ("dt", "inner step dt"))?;
+        let values = Values { parameters, units };
+        let h = values
+            .positive_time(&self.h, ("h", "outer step h"))?
+            .ok_or_else(|| {
+                Error::setting(
+                    "h",
+                    "no outer step h: give --h or set h in the scene's [run] table",
+                )
+            })?;
+        let dt = values.positive_time(&self.dt, ("dt", "inner step dt"))?;
         let inner_steps = self.inner_steps_of(h, dt)?;
         self.check_counts()?;
         let temperature = self.temperature_of(parameters, units)?;
         // An inverse time: `1/ps` is 1/1000 per fs, the unit standing alone being its factor.
-        let friction = match time(&self.friction, ("friction", "friction"))? {
+        let friction = match values.time(&self.friction, ("friction", "friction"))? {
             Some(g) if g <= 0.0 => {
                 return Err(Error::setting(
                     "friction",
@@ -353,26 +324,26 @@ impl RunSpec {
             method: self.method.clone().unwrap_or_else(|| "verlet".into()),
             h,
             inner_steps,
-            t_end: positive_time(&self.t_end, ("t_end", "end time t_end"))?,
+            t_end: values.positive_time(&self.t_end, ("t_end", "end time t_end"))?,
             blowup: self.blowup.unwrap_or(10.0),
             level_steps: self.level_steps.clone(),
             jacobian: self.jacobian.clone(),
             quadrature: self.quadrature.clone(),
-            h_slow: positive_time(&self.h_slow, ("h_slow", "h_slow"))?,
-            h_fast: positive_time(&self.h_fast, ("h_fast", "h_fast"))?,
+            h_slow: values.positive_time(&self.h_slow, ("h_slow", "h_slow"))?,
+            h_fast: values.positive_time(&self.h_fast, ("h_fast", "h_fast"))?,
             ratio: self.ratio,
-            adaptive: positive(&self.adaptive, ("adaptive", "adaptive tolerance"))?,
+            adaptive: values.positive(&self.adaptive, ("adaptive", "adaptive tolerance"))?,
             control: self.control.clone(),
-            h_min: positive_time(&self.h_min, ("h_min", "h_min"))?,
-            h_max: positive_time(&self.h_max, ("h_max", "h_max"))?,
+            h_min: values.positive_time(&self.h_min, ("h_min", "h_min"))?,
+            h_max: values.positive_time(&self.h_max, ("h_max", "h_max"))?,
             block: self.block,
-            tol: positive(&self.tol, ("tol", "tol"))?,
+            tol: values.positive(&self.tol, ("tol", "tol"))?,
             max_iter: self.max_iter,
             temperature,
             seed: self.seed,
             friction,
             thermostats: self.thermostats,
-            tau: positive_time(&self.tau, ("tau", "thermostat time scale tau"))?,
+            tau: values.positive_time(&self.tau, ("tau", "thermostat time scale tau"))?,
             mollifier: self.mollifier.clone(),
             molly_constraints: self.molly_constraints.clone(),
             molly_jacobian: self.molly_jacobian.clone(),
@@ -649,4 +620,48 @@ impl MethodSettings {
         }
         given
     }
+}
+
+/// The `[run]` values of one scene, each evaluated in its parameters (times in its units)
+/// and checked; an error names the setting by its `[run]` key, a message by its name.
+struct Values<'a> {
+    parameters: &'a BTreeMap<String, f64>,
+    units: crate::units::Units,
+}
+
+impl Values<'_> {
+    fn number(&self, v: &Option<Value>, (key, what): (&str, &str)) -> Result<Option<f64>> {
+        v.as_ref()
+            .map(|v| v.evaluate(self.parameters, what).map_err(|e| e.key(key)))
+            .transpose()
+    }
+
+    fn time(&self, v: &Option<Value>, (key, what): (&str, &str)) -> Result<Option<f64>> {
+        v.as_ref()
+            .map(|v| {
+                v.evaluate_time(self.parameters, what, self.units.time_units())
+                    .map_err(|e| e.key(key))
+            })
+            .transpose()
+    }
+
+    fn positive_time(&self, v: &Option<Value>, setting: (&str, &str)) -> Result<Option<f64>> {
+        match self.time(v, setting)? {
+            Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
+            other => Ok(other),
+        }
+    }
+
+    fn positive(&self, v: &Option<Value>, setting: (&str, &str)) -> Result<Option<f64>> {
+        match self.number(v, setting)? {
+            Some(x) if x <= 0.0 => Err(must_be_positive(x, setting)),
+            other => Ok(other),
+        }
+    }
+}
+
+fn must_be_positive(x: f64, (key, what): (&str, &str)) -> Error {
+    Error::setting(key, format!("{what} must be positive and finite"))
+        .expected("a positive number")
+        .got(x.to_string())
 }

@@ -36,66 +36,12 @@ const MAP_HEADER: &str = "gamma1,gamma2,spectral_radius,type";
 /// settings and its `k/n`: the shards must agree on every setting and hold every slice
 /// 1..n once, each with the rows its slice has.
 fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
-    let (first_path, first) = &maps[0];
+    let (_, first) = &maps[0];
     let points = first.points()?;
     let mut slices: Vec<Option<&(PathBuf, StudyTable)>> = Vec::new();
     for entry in maps {
         let (path, table) = entry;
-        if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
-            let message = format!(
-                "the map shards differ in {key}: {theirs} in {}, {ours} in {}",
-                path.display(),
-                first_path.display()
-            );
-            return Err(Error::input(message)
-                .file(path)
-                .line(1)
-                .key(key)
-                .expected(ours)
-                .got_named(theirs));
-        }
-        let shard = table
-            .meta
-            .get("shard")
-            .map(|s| Shard::parse(s))
-            .transpose()?
-            .ok_or_else(|| Error::Structure {
-                path: path.clone(),
-                message: "a stability-map table without its `shard`".into(),
-            })?;
-        if slices.is_empty() {
-            slices = vec![None; shard.count];
-        }
-        if shard.count != slices.len() {
-            let message = format!(
-                "{} is shard {}/{} but {} is one of {}: give the shards of one --shard split",
-                path.display(),
-                shard.index,
-                shard.count,
-                first_path.display(),
-                slices.len()
-            );
-            return Err(Error::input(message)
-                .file(path)
-                .line(1)
-                .key("shard")
-                .expected(format!("k/{}", slices.len()))
-                .got_named(format!("{}/{}", shard.index, shard.count)));
-        }
-        if let Some((other, _)) = slices[shard.index - 1] {
-            let message = format!(
-                "shard {}/{} appears twice: {} and {}",
-                shard.index,
-                shard.count,
-                other.display(),
-                path.display()
-            );
-            return Err(Error::input(message)
-                .file(path)
-                .line(1)
-                .key("shard")
-                .got_named(format!("{}/{}", shard.index, shard.count)));
-        }
+        let shard = map_shard(entry, &maps[0], &mut slices)?;
         let expected = shard.range(points).len();
         if table.rows.len() != expected {
             return Err(Error::Structure {
@@ -129,6 +75,71 @@ fn merge_maps(maps: &[(PathBuf, StudyTable)], out: &Path) -> Result<()> {
         path.display()
     );
     Ok(())
+}
+
+/// The `k/n` of one map shard, checked against the first shard (the same settings, the
+/// same `n`) and against the slices already seen (`slices`, sized at the first).
+fn map_shard(
+    (path, table): &(PathBuf, StudyTable),
+    (first_path, first): &(PathBuf, StudyTable),
+    slices: &mut Vec<Option<&(PathBuf, StudyTable)>>,
+) -> Result<Shard> {
+    if let Some((key, theirs, ours)) = differing_setting(&table.meta, &first.meta) {
+        let message = format!(
+            "the map shards differ in {key}: {theirs} in {}, {ours} in {}",
+            path.display(),
+            first_path.display()
+        );
+        return Err(Error::input(message)
+            .file(path)
+            .line(1)
+            .key(key)
+            .expected(ours)
+            .got_named(theirs));
+    }
+    let shard = table
+        .meta
+        .get("shard")
+        .map(|s| Shard::parse(s))
+        .transpose()?
+        .ok_or_else(|| Error::Structure {
+            path: path.clone(),
+            message: "a stability-map table without its `shard`".into(),
+        })?;
+    if slices.is_empty() {
+        *slices = vec![None; shard.count];
+    }
+    if shard.count != slices.len() {
+        let message = format!(
+            "{} is shard {}/{} but {} is one of {}: give the shards of one --shard split",
+            path.display(),
+            shard.index,
+            shard.count,
+            first_path.display(),
+            slices.len()
+        );
+        return Err(Error::input(message)
+            .file(path)
+            .line(1)
+            .key("shard")
+            .expected(format!("k/{}", slices.len()))
+            .got_named(format!("{}/{}", shard.index, shard.count)));
+    }
+    if let Some((other, _)) = slices[shard.index - 1] {
+        let message = format!(
+            "shard {}/{} appears twice: {} and {}",
+            shard.index,
+            shard.count,
+            other.display(),
+            path.display()
+        );
+        return Err(Error::input(message)
+            .file(path)
+            .line(1)
+            .key("shard")
+            .got_named(format!("{}/{}", shard.index, shard.count)));
+    }
+    Ok(shard)
 }
 
 /// The shards' tables, by the study each names, and the stability-map shards apart.

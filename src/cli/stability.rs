@@ -231,80 +231,86 @@ fn evaluator(model: &ModelArgs) -> Result<(Evaluator, Vec<String>, String)> {
         return Err(Error::flag("--h", "--h must be positive").got(h.to_string()));
     }
     match model.mode {
-        Mode::Analytic => {
-            if model.inner_steps.is_some() {
-                return Err(Error::flag(
-                    "--inner",
-                    "--inner applies to --mode integrator; analytic mode integrates the \
-                     reduced problem exactly",
-                ));
-            }
-            if model.scene.is_some() {
-                return Err(Error::flag(
-                    "--scene",
-                    "--scene applies to --mode integrator",
-                ));
-            }
-            let method = AnalyticMethod::from_name(&model.method)?;
-            let defaults = Coupling::default();
-            let coupling = Coupling {
-                alpha1: match &model.alpha1 {
-                    Some(text) => number(text, "--alpha1")?,
-                    None => defaults.alpha1,
-                },
-                alpha2: match &model.alpha2 {
-                    Some(text) => number(text, "--alpha2")?,
-                    None => defaults.alpha2,
-                },
-                beta: match &model.beta {
-                    Some(text) => number(text, "--beta")?,
-                    None => defaults.beta,
-                },
-            };
-            let problem = LinearProblem::new(method, h, coupling)?;
-            let description = format!(
-                "{} (analytic), h = {}, α = ({}, {}), β = {}",
-                method.paper_name(),
-                h,
-                coupling.alpha1,
-                coupling.alpha2,
-                coupling.beta
-            );
-            Ok((Evaluator::Analytic(problem), Vec::new(), description))
-        }
-        Mode::Integrator => {
-            if model.alpha1.is_some() || model.alpha2.is_some() || model.beta.is_some() {
-                return Err(Error::flag(
-                    "--alpha1",
-                    "--alpha1/--alpha2/--beta apply to --mode analytic; in integrator mode \
-                     the scene's slow spring sets the coupling",
-                ));
-            }
-            let scene = match &model.scene {
-                Some(path) => ProbeScene::load(path)?,
-                None => ProbeScene::three_spring(),
-            };
-            let mut settings = MethodSettings::new(&model.method, h);
-            if let Some(k) = model.inner_steps {
-                if k == 0 {
-                    return Err(Error::flag("--inner", "--inner must be at least 1"));
-                }
-                settings = settings.with_inner_steps(k);
-            }
-            let probe = IntegratorProbe::new(scene, settings)?;
-            let notices = probe.notices().to_vec();
-            let description = format!(
-                "{} (integrator{}), h = {}",
-                model.method,
-                model
-                    .inner_steps
-                    .map(|k| format!(", K = {k}"))
-                    .unwrap_or_default(),
-                h
-            );
-            Ok((Evaluator::Integrator(Box::new(probe)), notices, description))
-        }
+        Mode::Analytic => analytic_evaluator(model, h),
+        Mode::Integrator => integrator_evaluator(model, h),
     }
+}
+
+/// `--mode analytic`: the reduced linear problem (GSS98 eq. (27)) at `h`.
+fn analytic_evaluator(model: &ModelArgs, h: f64) -> Result<(Evaluator, Vec<String>, String)> {
+    if model.inner_steps.is_some() {
+        return Err(Error::flag(
+            "--inner",
+            "--inner applies to --mode integrator; analytic mode integrates the \
+             reduced problem exactly",
+        ));
+    }
+    if model.scene.is_some() {
+        return Err(Error::flag(
+            "--scene",
+            "--scene applies to --mode integrator",
+        ));
+    }
+    let method = AnalyticMethod::from_name(&model.method)?;
+    let defaults = Coupling::default();
+    let coupling = Coupling {
+        alpha1: match &model.alpha1 {
+            Some(text) => number(text, "--alpha1")?,
+            None => defaults.alpha1,
+        },
+        alpha2: match &model.alpha2 {
+            Some(text) => number(text, "--alpha2")?,
+            None => defaults.alpha2,
+        },
+        beta: match &model.beta {
+            Some(text) => number(text, "--beta")?,
+            None => defaults.beta,
+        },
+    };
+    let problem = LinearProblem::new(method, h, coupling)?;
+    let description = format!(
+        "{} (analytic), h = {}, α = ({}, {}), β = {}",
+        method.paper_name(),
+        h,
+        coupling.alpha1,
+        coupling.alpha2,
+        coupling.beta
+    );
+    Ok((Evaluator::Analytic(problem), Vec::new(), description))
+}
+
+/// `--mode integrator`: the method's own step on a scene (default: the three springs).
+fn integrator_evaluator(model: &ModelArgs, h: f64) -> Result<(Evaluator, Vec<String>, String)> {
+    if model.alpha1.is_some() || model.alpha2.is_some() || model.beta.is_some() {
+        return Err(Error::flag(
+            "--alpha1",
+            "--alpha1/--alpha2/--beta apply to --mode analytic; in integrator mode \
+             the scene's slow spring sets the coupling",
+        ));
+    }
+    let scene = match &model.scene {
+        Some(path) => ProbeScene::load(path)?,
+        None => ProbeScene::three_spring(),
+    };
+    let mut settings = MethodSettings::new(&model.method, h);
+    if let Some(k) = model.inner_steps {
+        if k == 0 {
+            return Err(Error::flag("--inner", "--inner must be at least 1"));
+        }
+        settings = settings.with_inner_steps(k);
+    }
+    let probe = IntegratorProbe::new(scene, settings)?;
+    let notices = probe.notices().to_vec();
+    let description = format!(
+        "{} (integrator{}), h = {}",
+        model.method,
+        model
+            .inner_steps
+            .map(|k| format!(", K = {k}"))
+            .unwrap_or_default(),
+        h
+    );
+    Ok((Evaluator::Integrator(Box::new(probe)), notices, description))
 }
 
 fn type_meaning(kind: InstabilityType) -> &'static str {

@@ -381,6 +381,25 @@ impl RunSummary {
         }
     }
 
+    /// `ok`, or `UNSTABLE at t = …: message` (`FAILED …` for a method that failed).
+    fn status_text(&self) -> String {
+        let time = |t: f64| format_time(t, self.scene_units);
+        match (&self.status, self.unstable_at) {
+            (Status::Ok, _) => "ok".to_string(),
+            (status, Some(t)) => format!(
+                "{} at t = {}: {}",
+                if *status == Status::Unstable {
+                    "UNSTABLE"
+                } else {
+                    "FAILED"
+                },
+                time(t),
+                self.message.as_deref().unwrap_or("")
+            ),
+            (_, None) => "failed".to_string(),
+        }
+    }
+
     /// The one-screen text form.
     pub fn to_text(&self) -> String {
         let units = self.scene_units;
@@ -440,21 +459,7 @@ impl RunSummary {
         for warning in &self.warnings {
             lines.push(format!("warning    {warning}"));
         }
-        let status = match (&self.status, self.unstable_at) {
-            (Status::Ok, _) => "ok".to_string(),
-            (status, Some(t)) => format!(
-                "{} at t = {}: {}",
-                if *status == Status::Unstable {
-                    "UNSTABLE"
-                } else {
-                    "FAILED"
-                },
-                time(t),
-                self.message.as_deref().unwrap_or("")
-            ),
-            (_, None) => "failed".to_string(),
-        };
-        lines.push(format!("status     {status}"));
+        lines.push(format!("status     {}", self.status_text()));
         for (key, value) in &self.extra {
             lines.push(format!(
                 "{:<10} {}",

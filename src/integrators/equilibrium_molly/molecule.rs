@@ -7,7 +7,7 @@
 
 use super::MollyJacobian;
 use super::kkt::Skyline;
-use super::schur::Schur;
+use super::schur::{ANCHOR, Schur, Vector, dot};
 use super::selection::{self, MoleculePlan};
 use crate::system::PeriodicBox;
 
@@ -26,16 +26,6 @@ pub enum Failure {
     Saddle {
         iterations: usize,
     },
-}
-
-/// The second end of a constraint held to a fixed anchor.
-pub const ANCHOR: usize = usize::MAX;
-
-pub type Vector = [f64; 3];
-
-#[inline]
-pub fn dot(x: &Vector, y: &Vector) -> f64 {
-    x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
 }
 
 /// A factorization of the KKT matrix `[[K, Gᵀ], [G, 0]]`.

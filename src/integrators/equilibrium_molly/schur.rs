@@ -13,7 +13,15 @@
 //! `dim · inertia(K̂) + inertia(−S)` (Haynsworth), so its negative eigenvalues are `dim`
 //! times those of `K̂` plus the positive ones of `S`.
 
-use super::molecule::{ANCHOR, Vector, dot};
+/// The second end of a constraint held to a fixed anchor.
+pub const ANCHOR: usize = usize::MAX;
+
+pub type Vector = [f64; 3];
+
+#[inline]
+pub fn dot(x: &Vector, y: &Vector) -> f64 {
+    x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
+}
 
 /// Factors and buffers for one molecule (sized at setup).
 #[derive(Clone, Debug)]

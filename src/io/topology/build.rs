@@ -441,29 +441,41 @@ fn nonbonded(
         electrostatics.describe()
     ));
     cutoff_terms(topology, spec, q, options, terms, report)?;
-    let level = |l: Option<usize>| l.map_or(Assignment::Default, Assignment::Level);
     if let (Some(params), Some(lengths)) = (ewald, topology.periodic_box) {
-        let charges = topology.atoms.iter().map(|a| a.charge).collect();
-        let term = PmeReciprocal::new(
-            params,
-            lengths,
-            COULOMB_KCAL_ANGSTROM,
-            charges,
-            &topology.exclusions,
-        )?;
-        report.push(format!(
-            "pme-reciprocal: {}; {} excluded pairs corrected (1-2, 1-3, 1-4: the 1-4 pairs' \
-             scaled Coulomb is in coulomb-14); term \"pme-reciprocal\"",
-            params.describe(),
-            topology.exclusions.len()
-        ));
-        terms.push((
-            "pme-reciprocal".into(),
-            Box::new(term),
-            level(options.pme_level),
-        ));
+        pme_reciprocal(topology, (params, lengths), options, terms, report)?;
     }
     Ok(electrostatics)
+}
+
+/// The reciprocal-space PME term of `params` in the box `lengths`, on `pme_level`.
+fn pme_reciprocal(
+    topology: &Topology,
+    (params, lengths): (EwaldParameters, [f64; 3]),
+    options: &NonbondedOptions,
+    terms: &mut Terms,
+    report: &mut Vec<String>,
+) -> Result<(), String> {
+    let level = |l: Option<usize>| l.map_or(Assignment::Default, Assignment::Level);
+    let charges = topology.atoms.iter().map(|a| a.charge).collect();
+    let term = PmeReciprocal::new(
+        params,
+        lengths,
+        COULOMB_KCAL_ANGSTROM,
+        charges,
+        &topology.exclusions,
+    )?;
+    report.push(format!(
+        "pme-reciprocal: {}; {} excluded pairs corrected (1-2, 1-3, 1-4: the 1-4 pairs' \
+         scaled Coulomb is in coulomb-14); term \"pme-reciprocal\"",
+        params.describe(),
+        topology.exclusions.len()
+    ));
+    terms.push((
+        "pme-reciprocal".into(),
+        Box::new(term),
+        level(options.pme_level),
+    ));
+    Ok(())
 }
 
 /// The cutoff term `spec` whole on `nonbonded_level`, or split by distance.

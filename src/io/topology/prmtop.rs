@@ -64,6 +64,33 @@ fn flag_error(path: &Path, line: usize, flag: &str, message: impl std::fmt::Disp
     error_at(path, line, format!("%FLAG {flag}: {message}")).key(flag)
 }
 
+/// Close the last section (it must have had its `%FORMAT`) and check that there was one.
+fn finish_sections<'a>(
+    map: &mut BTreeMap<&'a str, Section<'a>>,
+    current: Option<Section<'a>>,
+    awaiting_format: bool,
+    path: &Path,
+) -> Result<()> {
+    if let Some(section) = current {
+        if awaiting_format {
+            return Err(error_at(
+                path,
+                section.line,
+                format!(
+                    "%FLAG {} has no %FORMAT line (file truncated?)",
+                    section.name
+                ),
+            )
+            .key(section.name));
+        }
+        insert(map, section, path)?;
+    }
+    if map.is_empty() {
+        return Err(error_at(path, 1, "no %FLAG sections: not an AMBER prmtop"));
+    }
+    Ok(())
+}
+
 impl<'a> Sections<'a> {
     fn split(text: &'a str, path: &'a Path) -> Result<Self> {
         let mut map: BTreeMap<&str, Section> = BTreeMap::new();
@@ -129,23 +156,7 @@ impl<'a> Sections<'a> {
                 ));
             }
         }
-        if let Some(section) = current {
-            if awaiting_format {
-                return Err(error_at(
-                    path,
-                    section.line,
-                    format!(
-                        "%FLAG {} has no %FORMAT line (file truncated?)",
-                        section.name
-                    ),
-                )
-                .key(section.name));
-            }
-            insert(&mut map, section, path)?;
-        }
-        if map.is_empty() {
-            return Err(error_at(path, 1, "no %FLAG sections: not an AMBER prmtop"));
-        }
+        finish_sections(&mut map, current, awaiting_format, path)?;
         Ok(Sections {
             path,
             map,
