@@ -10,10 +10,10 @@ use common::{argv, run_cli, scene_file, scratch_dir};
 use std::path::Path;
 
 use longstep::analysis::block_average::Estimate;
-use longstep::analysis::criteria::{judge_mean, term_bound};
 use longstep::analysis::term_energies::{evaluate, series_names};
 use longstep::io::energy_table::EnergyTable;
 use longstep::io::trajectory::TrajectoryReader;
+use longstep::studies::criterion::reference::{judge_mean, term_bound};
 use longstep::units::BOLTZMANN_KCAL_PER_K;
 use serde_json::Value as Json;
 

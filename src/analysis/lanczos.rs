@@ -235,8 +235,8 @@ impl ConstrainedHessian {
             });
             let along: f64 = (0..d).map(|k| row.unit[k] * du[k]).sum();
             let scale = row.lambda / row.length;
-            for k in 0..d {
-                let t = scale * (du[k] - along * row.unit[k]);
+            for (k, (&du_k, &unit_k)) in du.iter().zip(&row.unit).take(d).enumerate() {
+                let t = scale * (du_k - along * unit_k);
                 self.product[row.j * d + k] += t;
                 self.product[row.i * d + k] -= t;
             }
