@@ -181,6 +181,9 @@ pub trait Simd: Copy + Send + Sync {
     fn load(self, values: &[Self::R; 16]) -> Self::V;
     /// Four values repeated `WIDTH / 4` times.
     fn load4(self, values: &[Self::R; 4]) -> Self::V;
+    /// Row `r` of the register (lanes `4r..4r + 4`) from `rows[r]`, for `r < WIDTH / 4`
+    /// (the other rows are not read).
+    fn load_rows(self, rows: [&[Self::R; 4]; 4]) -> Self::V;
     /// Lanes into the first `WIDTH` values.
     fn store(self, v: Self::V, out: &mut [Self::R; 16]);
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
@@ -538,6 +541,10 @@ impl<R: Real> Simd for Portable<R> {
         *values
     }
     #[inline(always)]
+    fn load_rows(self, rows: [&[R; 4]; 4]) -> [R; 4] {
+        *rows[0]
+    }
+    #[inline(always)]
     fn store(self, v: [R; 4], out: &mut [R; 16]) {
         out[..4].copy_from_slice(&v);
     }
@@ -745,6 +752,10 @@ mod x86 {
             unsafe { _mm256_loadu_pd(values.as_ptr()) }
         }
         #[inline(always)]
+        fn load_rows(self, rows: [&[f64; 4]; 4]) -> __m256d {
+            self.load4(rows[0])
+        }
+        #[inline(always)]
         fn rsqrt_seed(self, x: __m256d) -> __m256d {
             // SAFETY: AVX2.
             unsafe {
@@ -815,6 +826,14 @@ mod x86 {
         fn load4(self, values: &[f32; 4]) -> __m256 {
             // SAFETY: AVX2; exactly 4 values are read.
             unsafe { _mm256_broadcast_ps(&*(values.as_ptr() as *const __m128)) }
+        }
+        #[inline(always)]
+        fn load_rows(self, rows: [&[f32; 4]; 4]) -> __m256 {
+            // SAFETY: AVX2; 4 values read from each of the first two rows.
+            unsafe {
+                let low = _mm256_castps128_ps256(_mm_loadu_ps(rows[0].as_ptr()));
+                _mm256_insertf128_ps::<1>(low, _mm_loadu_ps(rows[1].as_ptr()))
+            }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m256) -> __m256 {
@@ -892,6 +911,14 @@ mod x86 {
             unsafe { _mm512_broadcast_f64x4(_mm256_loadu_pd(values.as_ptr())) }
         }
         #[inline(always)]
+        fn load_rows(self, rows: [&[f64; 4]; 4]) -> __m512d {
+            // SAFETY: AVX-512F; 4 values read from each of the first two rows.
+            unsafe {
+                let low = _mm512_castpd256_pd512(_mm256_loadu_pd(rows[0].as_ptr()));
+                _mm512_insertf64x4::<1>(low, _mm256_loadu_pd(rows[1].as_ptr()))
+            }
+        }
+        #[inline(always)]
         fn rsqrt_seed(self, x: __m512d) -> __m512d {
             // SAFETY: AVX-512F.
             unsafe {
@@ -957,6 +984,16 @@ mod x86 {
         fn load4(self, values: &[f32; 4]) -> __m512 {
             // SAFETY: AVX-512F; exactly 4 values are read.
             unsafe { _mm512_broadcast_f32x4(_mm_loadu_ps(values.as_ptr())) }
+        }
+        #[inline(always)]
+        fn load_rows(self, rows: [&[f32; 4]; 4]) -> __m512 {
+            // SAFETY: AVX-512F; 4 values read from each of the four rows.
+            unsafe {
+                let v = _mm512_castps128_ps512(_mm_loadu_ps(rows[0].as_ptr()));
+                let v = _mm512_insertf32x4::<1>(v, _mm_loadu_ps(rows[1].as_ptr()));
+                let v = _mm512_insertf32x4::<2>(v, _mm_loadu_ps(rows[2].as_ptr()));
+                _mm512_insertf32x4::<3>(v, _mm_loadu_ps(rows[3].as_ptr()))
+            }
         }
         #[inline(always)]
         fn rsqrt_seed(self, x: __m512) -> __m512 {

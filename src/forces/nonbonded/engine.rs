@@ -30,6 +30,13 @@ pub struct Workspace {
     types: Vec<[u32; 4]>,
     table64: Vec<[f64; 3]>,
     table32: Vec<[f32; 3]>,
+    /// Per j-cluster and i-type, the force lanes of the table ([`LjData::Table`]).
+    by_type64: Vec<[[f64; 4]; 2]>,
+    by_type32: Vec<[[f32; 4]; 2]>,
+    /// Per cluster, bit `k` where slot `k` holds an atom with Lennard-Jones partners.
+    lj_rows: Vec<u8>,
+    /// Per type, whether it has a Lennard-Jones partner (a non-zero table entry).
+    type_has_lj: Vec<bool>,
     /// One gradient buffer per chunk, by cluster.
     buffers: Vec<Vec<Gradient4>>,
     /// (Lennard-Jones, Coulomb) energy of each chunk.
@@ -60,6 +67,10 @@ impl Workspace {
             types: Vec::new(),
             table64: Vec::new(),
             table32: Vec::new(),
+            by_type64: Vec::new(),
+            by_type32: Vec::new(),
+            lj_rows: Vec::new(),
+            type_has_lj: Vec::new(),
             buffers: vec![Vec::new(); chunks],
             energies: vec![(0.0, 0.0); chunks],
             reduced: Vec::new(),
@@ -145,6 +156,21 @@ impl Nonbonded {
         reserve_total(&mut workspace.factors32, most);
         reserve_total(&mut workspace.types, most);
         reserve_total(&mut workspace.clusters32, most);
+        if workspace.table64.is_empty() {
+            // Padding has type 0 but a zero mask, so its table entries never count.
+            workspace.table64 = self.lj.iter().map(|p| [p.c12, p.c6, p.shift]).collect();
+            workspace.table32 = self
+                .lj
+                .iter()
+                .map(|p| [p.c12, p.c6, p.shift].map(|v| v as f32))
+                .collect();
+            workspace.type_has_lj = (0..self.n_types)
+                .map(|t| {
+                    let row = &workspace.table64[t * self.n_types..(t + 1) * self.n_types];
+                    row.iter().flatten().any(|&v| v != 0.0)
+                })
+                .collect();
+        }
         let slots = &workspace.list.grid.slots;
         workspace.factors64.clear();
         workspace.types.clear();
@@ -166,19 +192,55 @@ impl Nonbonded {
         let factors32 = workspace.factors64.iter().map(|f| f.map(|v| v as f32));
         workspace.factors32.clear();
         workspace.factors32.extend(factors32);
-        if workspace.table64.is_empty() {
-            // Padding has type 0 but a zero mask, so its table entries never count.
-            workspace.table64 = self.lj.iter().map(|p| [p.c12, p.c6, p.shift]).collect();
-            workspace.table32 = self
-                .lj
-                .iter()
-                .map(|p| [p.c12, p.c6, p.shift].map(|v| v as f32))
-                .collect();
+        if self.factored.is_none() {
+            self.table_by_type(workspace, clusters, most);
         }
         for buffer in &mut workspace.buffers {
             ensure(buffer, clusters, most);
         }
         ensure(&mut workspace.reduced, clusters, most);
+    }
+
+    /// [`LjData::Table`]'s lanes by j-cluster and i-type, `(12 c₁₂, 6 c₆)` in each precision
+    /// with the kernel's roundings (the coefficient rounded to the precision, then the
+    /// product in it), and the slots with Lennard-Jones partners.
+    fn table_by_type(&self, workspace: &mut Workspace, clusters: usize, most: usize) {
+        let n_types = self.n_types;
+        let Workspace {
+            list,
+            types,
+            table64,
+            by_type64,
+            by_type32,
+            lj_rows,
+            type_has_lj,
+            ..
+        } = workspace;
+        reserve_total(by_type64, most * n_types);
+        by_type64.clear();
+        reserve_total(by_type32, most * n_types);
+        by_type32.clear();
+        reserve_total(lj_rows, most);
+        lj_rows.clear();
+        let slots = &list.grid.slots;
+        for (c, cluster_types) in types.iter().enumerate().take(clusters) {
+            for t in 0..n_types {
+                let entry = |k: usize| table64[t * n_types + cluster_types[k] as usize];
+                by_type64.push([
+                    std::array::from_fn(|k| 12.0 * entry(k)[0]),
+                    std::array::from_fn(|k| 6.0 * entry(k)[1]),
+                ]);
+                by_type32.push([
+                    std::array::from_fn(|k| 12.0f32 * entry(k)[0] as f32),
+                    std::array::from_fn(|k| 6.0f32 * entry(k)[1] as f32),
+                ]);
+            }
+            let atoms = &slots[c * CLUSTER..(c + 1) * CLUSTER];
+            let bits = (0..CLUSTER).filter(|&k| {
+                atoms[k] != PAD && type_has_lj[self.types[atoms[k] as usize] as usize]
+            });
+            lj_rows.push(bits.fold(0u8, |b, k| b | 1 << k));
+        }
     }
 
     /// Energies (LJ, Coulomb) and, with `gradient`, `gradient += sign ∇V`.
@@ -430,12 +492,14 @@ pub trait Inputs<R: Real> {
 fn lj_data<'a, R>(
     factors: &'a [[R; 8]],
     types: &'a [[u32; 4]],
-    table: &'a [[R; 3]],
+    (table, by_type, lj_rows): (&'a [[R; 3]], &'a [[[R; 4]; 2]], &'a [u8]),
 ) -> LjData<'a, R> {
     if factors.is_empty() {
         LjData::Table {
             types,
             table,
+            by_type,
+            lj_rows,
             n_types: (table.len() as f64).sqrt().round() as usize,
         }
     } else {
@@ -472,7 +536,11 @@ impl Inputs<f64> for Workspace {
         &mut [Vec<Gradient4>],
         &mut [(f64, f64)],
     ) {
-        let lj = lj_data(&self.factors64, &self.types, &self.table64);
+        let lj = lj_data(
+            &self.factors64,
+            &self.types,
+            (&self.table64, &self.by_type64, &self.lj_rows),
+        );
         let job = Job {
             every_group: self.every_group,
             ..job(&self.list, &self.list.positions, lj, inverse_cutoff6)
@@ -496,7 +564,11 @@ impl Inputs<f32> for Workspace {
         &mut [Vec<Gradient4>],
         &mut [(f64, f64)],
     ) {
-        let lj = lj_data(&self.factors32, &self.types, &self.table32);
+        let lj = lj_data(
+            &self.factors32,
+            &self.types,
+            (&self.table32, &self.by_type32, &self.lj_rows),
+        );
         let job = Job {
             every_group: self.every_group,
             ..job(&self.list, &self.clusters32, lj, inverse_cutoff6)

@@ -14,7 +14,8 @@
 //! **Only live groups.** About a third of the register groups of a pruned list (4 × 4 pairs
 //! within the cutoff plus the prune buffer) have no pair within the cutoff, and on water,
 //! two thirds of whose atoms are hydrogens without Lennard-Jones parameters, many groups
-//! have only hydrogens as i-atoms. Both would add
+//! have only hydrogens as i-atoms (with a type table too: a type whose table row is all
+//! zero has no Lennard-Jones lanes, as TIP3P's and Amber's hydroxyl hydrogens). Both would add
 //! exact zeros, so an entry's j-clusters go in blocks through three passes: (1) `r²` of
 //! every group, keeping the positions of the live ones per group; (2) each group over its
 //! live cluster pairs, two side by side, with or without the Lennard-Jones lanes, the
@@ -81,10 +82,15 @@ pub struct Gradient4 {
 pub enum LjData<'a, R> {
     /// `c₁₂ = a_i a_j`, `c₆ = b_i b_j`: per slot `[a₀..a₃, b₀..b₃]`.
     Geometric(&'a [[R; 8]]),
-    /// Type per slot and the `n × n` table of `[c₁₂, c₆, shift]`.
+    /// Type per slot and the `n × n` table of `[c₁₂, c₆, shift]`; per j-cluster and
+    /// i-type `t` (index `n c_j + t`) the lanes `[12 c₁₂, 6 c₆]` of `t` against the
+    /// cluster's atoms, each rounded to `R` and multiplied in `R` as the kernel would; and
+    /// per cluster the bits of the slots whose type has a Lennard-Jones partner.
     Table {
         types: &'a [[u32; 4]],
         table: &'a [[R; 3]],
+        by_type: &'a [[[R; 4]; 2]],
+        lj_rows: &'a [u8],
         n_types: usize,
     },
 }
@@ -481,58 +487,74 @@ pub(crate) fn lennard_jones_energy<S: Simd>(
     s.sub(s.mul(rinv6, s.sub(s.mul(c12, rinv6), c6)), shift)
 }
 
-/// Tabulated Lennard-Jones lanes (gathered per pair).
+/// Tabulated Lennard-Jones lanes. Forces read, per j-cluster and i-type, the four lanes
+/// `(12 c₁₂, 6 c₆)` of that type against the cluster's atoms ([`LjData::Table`]'s `by_type`,
+/// made at each list build): one vector load per row, no gather per pair. Energies gather
+/// `c₁₂, c₆` and the shift per pair from the table (they are asked for rarely).
 #[derive(Clone, Copy)]
 struct Table<'a, S: Simd> {
     types: &'a [[u32; 4]],
     table: &'a [[S::R; 3]],
+    by_type: &'a [[[S::R; 4]; 2]],
+    lj_rows: &'a [u8],
     n_types: usize,
     twelve: S::V,
     six: S::V,
 }
 
 impl<S: Simd> Lj<S> for Table<'_, S> {
-    /// Table row offset of each lane's i-atom.
-    type I = [usize; 16];
-    type J = [u32; 4];
+    /// Type of each row of the group (rows past the register's repeat the last).
+    type I = [usize; 4];
+    /// The j-cluster.
+    type J = usize;
     #[inline(always)]
-    fn i(&self, _s: S, ci: usize, group: usize) -> [usize; 16] {
-        std::array::from_fn(|k| {
-            self.types[ci][row::<S>(group, k % S::WIDTH)] as usize * self.n_types
+    fn i(&self, _s: S, ci: usize, group: usize) -> [usize; 4] {
+        std::array::from_fn(|r| {
+            let r = r.min(S::WIDTH / 4 - 1);
+            self.types[ci][row::<S>(group, 4 * r)] as usize
         })
     }
     #[inline(always)]
-    fn j(&self, _s: S, cj: usize) -> [u32; 4] {
-        self.types[cj]
+    fn j(&self, _s: S, cj: usize) -> usize {
+        cj
     }
-    /// Always: a type's row may pair with others' parameters through the table.
+    /// Whether a row atom of the group has a type with a Lennard-Jones partner (else its
+    /// lanes are exact zeros): bit `row` of `lj_rows`.
     #[inline(always)]
-    fn has_lj(&self, _ci: usize, _group: usize) -> bool {
-        true
+    fn has_lj(&self, ci: usize, group: usize) -> bool {
+        let group = group.min(16 / S::WIDTH - 1);
+        let rows = ((1u32 << (S::WIDTH / 4)) - 1) << (group * (S::WIDTH / 4));
+        u32::from(self.lj_rows[ci]) & rows != 0
     }
     #[inline(always)]
     fn lanes<const ENERGY: bool>(
         &self,
         s: S,
         i: &Self::I,
-        j: &Self::J,
+        &cj: &Self::J,
         rinv2: S::V,
     ) -> (S::V, S::V, S::V) {
-        let mut p = [[S::R::default(); 16]; 3];
-        for k in 0..S::WIDTH {
-            let entry = self.table[i[k] + j[k % 4] as usize];
-            for (c, &v) in entry.iter().enumerate() {
-                p[c][k] = v;
-            }
-        }
-        let (c12, c6) = (s.load(&p[0]), s.load(&p[1]));
-        let (c12x12, c6x6) = (s.mul(self.twelve, c12), s.mul(self.six, c6));
-        let (rinv8, rinv6, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
-        let mut energy = rinv8;
         if ENERGY {
-            energy = lennard_jones_energy(s, c12, c6, s.load(&p[2]), rinv6);
+            let j = &self.types[cj];
+            let mut p = [[S::R::default(); 16]; 3];
+            for k in 0..S::WIDTH {
+                let entry = self.table[i[k / 4] * self.n_types + j[k % 4] as usize];
+                for (c, &v) in entry.iter().enumerate() {
+                    p[c][k] = v;
+                }
+            }
+            let (c12, c6) = (s.load(&p[0]), s.load(&p[1]));
+            let (c12x12, c6x6) = (s.mul(self.twelve, c12), s.mul(self.six, c6));
+            let (rinv8, rinv6, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
+            let energy = lennard_jones_energy(s, c12, c6, s.load(&p[2]), rinv6);
+            return (energy, rinv8, bracket);
         }
-        (energy, rinv8, bracket)
+        let at = |r: usize| &self.by_type[cj * self.n_types + i[r]];
+        let rows = [at(0), at(1), at(2), at(3)];
+        let c12x12 = s.load_rows(rows.map(|p| &p[0]));
+        let c6x6 = s.load_rows(rows.map(|p| &p[1]));
+        let (rinv8, _, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
+        (rinv8, rinv8, bracket)
     }
 }
 
@@ -932,11 +954,15 @@ fn run<S: Simd, C: Coulomb, const ENERGY: bool>(s: S, job: &Job<S::R>, coulomb: 
         LjData::Table {
             types,
             table,
+            by_type,
+            lj_rows,
             n_types,
         } => {
             let lj = Table::<S> {
                 types,
                 table,
+                by_type,
+                lj_rows,
                 n_types,
                 twelve,
                 six,
