@@ -14,11 +14,18 @@ inclusive counts of each part by N2 - N1, so scene loading, set-up and output ca
   exclusions   PmeReciprocal::exclusion_derivative (-Q erf(ar)/r on excluded pairs)
   real space   Nonbonded::add_gradient (cluster-pair kernel with erfc, list updates)
   bonded       bonds and angles
+  constr pos   Constraints::constrain_positions (SETTLE and SHAKE after a drift)
+  constr vel   Constraints::constrain_velocities (SETTLE and RATTLE after a kick)
+  langevin O   Langevin::apply (BAOAB's O step: the normals and the update)
   the rest     the integrator and everything else in the step
 
     cargo build --release
     python3 scripts/pme_profile.py                       # 5 184 atoms, Verlet 0.5 fs
     python3 scripts/pme_profile.py --scene systems/water-box/scene.toml --n1 10 --n2 50
+    python3 scripts/pme_profile.py --scene systems/protein-amber/trpcage-pme.toml --h 4 \
+        --n1 4 --n2 14 -- --method langevin-respa --inner 1 --friction 1/ps \
+        --constraints h-bonds --rigid-water --hydrogen-mass 3amu --temperature 300K \
+        --seed 1 --precision mixed --start systems/protein-amber/trpcage-300K.xyz
 
 Needs valgrind (callgrind_annotate). Runs from a clone; `--bin` profiles another build.
 """
@@ -45,6 +52,9 @@ PARTS = [
                    r"::add_gradient$"),
     ("bonded", r"(HarmonicAngles as longstep::forces::ForceTerm>::add_gradient|"
                r"PairTerm<P> as longstep::forces::ForceTerm>::add_gradient)$"),
+    ("constr pos", r"constraints::Constraints::constrain_positions$"),
+    ("constr vel", r"constraints::Constraints::constrain_velocities$"),
+    ("langevin O", r"langevin::Langevin::apply$"),
 ]
 RECIPROCAL = r"<longstep::forces::ewald::reciprocal::PmeReciprocal as " \
              r"longstep::forces::ForceTerm>::add_gradient$"

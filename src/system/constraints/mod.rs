@@ -22,7 +22,8 @@
 //! sweep that has not converged in `max_iterations` sweeps is a [`ConstraintFailure`].
 //!
 //! **Cost.** SETTLE: ~200 flops per water, its constants computed once
-//! ([`settle::Settle`]). SHAKE/RATTLE: `O(iterations × constraints)`;
+//! ([`settle::Settle`]), eight waters at a time in SIMD lanes (the same bits as one at a
+//! time). SHAKE/RATTLE: `O(iterations × constraints)`;
 //! bonds to hydrogen are decoupled except around a heavy atom, a handful of sweeps.
 //! Nothing is allocated per call: the old bond vectors live in a buffer sized once. The
 //! loops run on one thread in a fixed order, so the bits do not depend on the thread
@@ -264,17 +265,22 @@ impl Constraints {
         inverse_mass: &[f64],
         dt: f64,
     ) -> Result<(), ConstraintFailure> {
+        self.fit_settle(inverse_mass);
         let pbc = self.periodic_box.as_ref();
-        for (s, water) in self.settle.iter_mut().zip(&self.waters) {
-            if !s.fits(inverse_mass) {
-                *s = settle::Settle::new(water, inverse_mass);
-            }
-            settle::positions(s, pbc, q_old, q_new, p, dt)?;
-        }
+        settle::positions_all(&self.settle, pbc, q_old, q_new, p, dt)?;
         if !self.pairs.is_empty() {
             rattle::shake(self, q_old, q_new, p, inverse_mass, dt)?;
         }
         Ok(())
+    }
+
+    /// Refit the SETTLE constants of the waters whose masses are not `inverse_mass`'s.
+    fn fit_settle(&mut self, inverse_mass: &[f64]) {
+        for (s, water) in self.settle.iter_mut().zip(&self.waters) {
+            if !s.fits(inverse_mass) {
+                *s = settle::Settle::new(water, inverse_mass);
+            }
+        }
     }
 
     /// Project the momenta `p` at positions `q` (which satisfy the constraints) so that no
@@ -285,13 +291,9 @@ impl Constraints {
         p: &mut [f64],
         inverse_mass: &[f64],
     ) -> Result<(), ConstraintFailure> {
+        self.fit_settle(inverse_mass);
         let pbc = self.periodic_box.as_ref();
-        for (s, water) in self.settle.iter_mut().zip(&self.waters) {
-            if !s.fits(inverse_mass) {
-                *s = settle::Settle::new(water, inverse_mass);
-            }
-            settle::velocities(s, pbc, q, p)?;
-        }
+        settle::velocities_all(&self.settle, pbc, q, p)?;
         if !self.pairs.is_empty() {
             rattle::rattle(self, q, p, inverse_mass)?;
         }

@@ -23,8 +23,18 @@
 //! inverses) is computed once ([`Settle::new`]) and kept by [`super::Constraints`]; a pass
 //! is a loop over these flat records with no allocation, the minimum image taken once per
 //! bond (the H–H vector is the difference of the two O–H ones).
+//!
+//! **Lanes.** A pass over all waters ([`positions_all`], [`velocities_all`]) takes
+//! [`LANES`] waters at a time: their coordinates are read into arrays, one branch-free
+//! step per water (the checks become a failure code, the minimum image a select) runs in a
+//! loop the compiler vectorises for the widest instruction set ([`Isa::best`]), and the
+//! displacements are written back once every lane has passed. Plain IEEE arithmetic in
+//! the order of the one-water functions and no fused multiply-add, so every lane and every
+//! instruction set gives the bits of [`positions`] one water at a time (the unit tests
+//! check it); a failing lane is reported with its water, as one at a time.
 
 use super::{ConstraintFailure, PeriodicBox, RigidWater};
+use crate::forces::simd::Isa;
 
 type V3 = [f64; 3];
 
@@ -57,13 +67,6 @@ fn cross(a: V3, b: V3) -> V3 {
     ]
 }
 
-/// `v / |v|`, `None` for a zero vector.
-#[inline(always)]
-fn unit(v: V3) -> Option<V3> {
-    let norm = dot(v, v).sqrt();
-    (norm > 0.0).then(|| scale(v, 1.0 / norm))
-}
-
 #[inline(always)]
 fn at(q: &[f64], i: usize) -> V3 {
     let x = &q[3 * i..3 * i + 3];
@@ -76,16 +79,6 @@ fn add_to(q: &mut [f64], i: usize, v: V3) {
     x[0] += v[0];
     x[1] += v[1];
     x[2] += v[2];
-}
-
-/// `qᵢ − qⱼ`, the minimum image in a periodic box.
-#[inline(always)]
-fn image(pbc: Option<&PeriodicBox>, q: &[f64], i: usize, j: usize) -> V3 {
-    let r = sub(at(q, i), at(q, j));
-    match pbc {
-        Some(b) => [b.wrap(0, r[0]), b.wrap(1, r[1]), b.wrap(2, r[2])],
-        None => r,
-    }
 }
 
 /// One rigid water with what SETTLE needs of it, computed once for its masses.
@@ -146,6 +139,111 @@ impl Settle {
     }
 }
 
+/// Lanes of a SETTLE pass: waters handled together, one per lane of a loop the compiler
+/// vectorises (8 doubles: one AVX-512 register, two AVX2 ones).
+const LANES: usize = 8;
+
+/// Why a water could not be SETTLE'd (0: it could).
+const OK: u8 = 0;
+const COLLINEAR: u8 = 1;
+const OXYGEN_OUT: u8 = 2;
+const HYDROGENS_OUT: u8 = 3;
+const TURNED: u8 = 4;
+const SINGULAR: u8 = 5;
+
+/// The minimum image of a difference `d` along a box edge `length`: [`PeriodicBox::wrap`]'s
+/// arithmetic with its branch as a select (both sides computed), so a lane loop vectorises.
+#[inline(always)]
+fn wrap(d: f64, length: f64) -> f64 {
+    let far = d - length * (d / length).round();
+    if d.abs() < 0.5 * length { d } else { far }
+}
+
+/// `a − b` (three atoms' coordinates `x`, atoms `a` and `b`), the minimum image when
+/// `PERIODIC` (box edges `lengths`).
+#[inline(always)]
+fn image_of<const PERIODIC: bool>(lengths: V3, a: V3, b: V3) -> V3 {
+    let r = sub(a, b);
+    if PERIODIC {
+        [
+            wrap(r[0], lengths[0]),
+            wrap(r[1], lengths[1]),
+            wrap(r[2], lengths[2]),
+        ]
+    } else {
+        r
+    }
+}
+
+/// One water's coordinates (oxygen, hydrogen 1, hydrogen 2) read from `q`.
+#[inline(always)]
+fn three(water: &Settle, q: &[f64]) -> [V3; 3] {
+    let [h1, h2] = water.hydrogens;
+    [at(q, water.oxygen), at(q, h1), at(q, h2)]
+}
+
+/// The position step of one water (module doc), branch-free: the displacements `Δq` of
+/// its three atoms for old positions `old` and drifted ones `new`, and a failure code
+/// ([`OK`] or the first check that failed; the displacements are then meaningless).
+/// ~200 flops, 7 square roots, 6 divisions.
+#[inline(always)]
+fn position_step<const PERIODIC: bool>(
+    water: &Settle,
+    lengths: V3,
+    old: [V3; 3],
+    new: [V3; 3],
+) -> ([V3; 3], u8) {
+    // Old bond vectors, and the new positions relative to the new oxygen (unwrapped).
+    let b0 = image_of::<PERIODIC>(lengths, old[1], old[0]);
+    let c0 = image_of::<PERIODIC>(lengths, old[2], old[0]);
+    let b1 = image_of::<PERIODIC>(lengths, new[1], new[0]);
+    let c1 = image_of::<PERIODIC>(lengths, new[2], new[0]);
+    // Relative to the new centre of mass.
+    let com = scale(add(b1, c1), water.h_share);
+    let (a1, b1, c1) = (scale(com, -1.0), sub(b1, com), sub(c1, com));
+    // The frame: z normal to the old plane, x ⟂ (a1, z), y = z × x.
+    let z = cross(b0, c0);
+    let x = cross(a1, z);
+    let y = cross(z, x);
+    let (nx, ny, nz) = (dot(x, x).sqrt(), dot(y, y).sqrt(), dot(z, z).sqrt());
+    let planar = nx > 0.0 && ny > 0.0 && nz > 0.0;
+    let (x, y, z) = (scale(x, 1.0 / nx), scale(y, 1.0 / ny), scale(z, 1.0 / nz));
+    let frame = |v: V3| [dot(v, x), dot(v, y), dot(v, z)];
+    let (b0, c0) = (frame(b0), frame(c0));
+    let (a1, b1, c1) = (frame(a1), frame(b1), frame(c1));
+    let ([a2, b2, c2], tilt) = tilted_triangle(water, [a1[2], b1[2], c1[2]]);
+    let (sin_theta, cos_theta, turn) = in_plane_turn([b0, c0], [b1, c1], [b2, c2]);
+    // Displacements of the three atoms (turned in the plane, back in the lab frame).
+    let moved = |now: V3, moved: V3| {
+        let turned = [
+            moved[0] * cos_theta - moved[1] * sin_theta,
+            moved[0] * sin_theta + moved[1] * cos_theta,
+            moved[2],
+        ];
+        let d = sub(turned, now);
+        add(add(scale(x, d[0]), scale(y, d[1])), scale(z, d[2]))
+    };
+    let code = if !planar {
+        COLLINEAR
+    } else if tilt != OK {
+        tilt
+    } else {
+        turn
+    };
+    ([moved(a1, a2), moved(b1, b2), moved(c1, c2)], code)
+}
+
+/// `Δq` added to one water's positions in `q_new`, and `m Δq / dt` to its momenta.
+#[inline(always)]
+fn apply_positions(water: &Settle, delta: [V3; 3], inverse_dt: f64, q: &mut [f64], p: &mut [f64]) {
+    let [h1, h2] = water.hydrogens;
+    let masses = [water.m_o, water.m_h, water.m_h];
+    for ((atom, d), m) in [water.oxygen, h1, h2].into_iter().zip(delta).zip(masses) {
+        add_to(q, atom, d);
+        add_to(p, atom, scale(d, m * inverse_dt));
+    }
+}
+
 /// SETTLE one water's positions (`q_old` rigid, `q_new` after a drift of `dt`) and its
 /// momenta.
 pub(super) fn positions(
@@ -156,71 +254,109 @@ pub(super) fn positions(
     p: &mut [f64],
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
-    let o = water.oxygen;
-    let [h1, h2] = water.hydrogens;
-    // Old bond vectors, and the new positions relative to the new oxygen (unwrapped).
-    let b0 = image(pbc, q_old, h1, o);
-    let c0 = image(pbc, q_old, h2, o);
-    let b1 = image(pbc, q_new, h1, o);
-    let c1 = image(pbc, q_new, h2, o);
-    // Relative to the new centre of mass.
-    let com = scale(add(b1, c1), water.h_share);
-    let (a1, b1, c1) = (scale(com, -1.0), sub(b1, com), sub(c1, com));
-    // The frame: z normal to the old plane, x ⟂ (a1, z), y = z × x.
-    let z = cross(b0, c0);
-    let x = cross(a1, z);
-    let y = cross(z, x);
-    let (Some(x), Some(y), Some(z)) = (unit(x), unit(y), unit(z)) else {
-        return Err(failure(
-            water,
-            "is collinear or its oxygen sits at its centre of mass",
-        ));
+    let (old, new) = (three(water, q_old), three(water, q_new));
+    let (delta, code) = match pbc {
+        Some(b) => position_step::<true>(water, b.lengths, old, new),
+        None => position_step::<false>(water, [0.0; 3], old, new),
     };
-    let frame = |v: V3| [dot(v, x), dot(v, y), dot(v, z)];
-    let (b0, c0) = (frame(b0), frame(c0));
-    let (a1, b1, c1) = (frame(a1), frame(b1), frame(c1));
-    let [a2, b2, c2] = tilted_triangle(water, [a1[2], b1[2], c1[2]])?;
-    let (sin_theta, cos_theta) = in_plane_turn(water, [b0, c0], [b1, c1], [b2, c2])?;
-    // Displacements of the three atoms (turned in the plane, back in the lab frame): `q`
-    // and `p` take `Δq` and `m Δq / dt`.
+    if code != OK {
+        return Err(failure(water, code));
+    }
+    apply_positions(water, delta, 1.0 / dt, q_new, p);
+    Ok(())
+}
+
+/// SETTLE every water's positions and momenta ([`positions`] for each, the same bits):
+/// [`LANES`] waters at a time through a lane loop compiled for the widest instruction set
+/// ([`Isa::best`]; plain IEEE arithmetic, no fused multiply-add, so every set gives the
+/// same bits), the rest one by one. Allocates nothing.
+pub(super) fn positions_all(
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q_old: &[f64],
+    q_new: &mut [f64],
+    p: &mut [f64],
+    dt: f64,
+) -> Result<(), ConstraintFailure> {
+    positions_on(Isa::best(), waters, pbc, q_old, q_new, p, dt)
+}
+
+/// [`positions_all`] on the instruction set `isa` (available on this processor).
+fn positions_on(
+    isa: Isa,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q_old: &[f64],
+    q_new: &mut [f64],
+    p: &mut [f64],
+    dt: f64,
+) -> Result<(), ConstraintFailure> {
+    isa.run(
+        #[inline(always)]
+        || match pbc {
+            Some(b) => positions_lanes::<true>(waters, b.lengths, q_old, q_new, p, dt),
+            None => positions_lanes::<false>(waters, [0.0; 3], q_old, q_new, p, dt),
+        },
+    )
+}
+
+// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn positions_lanes<const PERIODIC: bool>(
+    waters: &[Settle],
+    lengths: V3,
+    q_old: &[f64],
+    q_new: &mut [f64],
+    p: &mut [f64],
+    dt: f64,
+) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
-    let mut apply = |atom: usize, now: V3, moved: V3, m: f64| {
-        let turned = [
-            moved[0] * cos_theta - moved[1] * sin_theta,
-            moved[0] * sin_theta + moved[1] * cos_theta,
-            moved[2],
-        ];
-        let d = sub(turned, now);
-        let delta = add(add(scale(x, d[0]), scale(y, d[1])), scale(z, d[2]));
-        add_to(q_new, atom, delta);
-        add_to(p, atom, scale(delta, m * inverse_dt));
-    };
-    apply(o, a1, a2, water.m_o);
-    apply(h1, b1, b2, water.m_h);
-    apply(h2, c1, c2, water.m_h);
+    let mut chunks = waters.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        let old: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_old));
+        let new: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_new));
+        let mut delta = [[[0.0; 3]; 3]; LANES];
+        let mut codes = [OK; LANES];
+        for l in 0..LANES {
+            (delta[l], codes[l]) = position_step::<PERIODIC>(&chunk[l], lengths, old[l], new[l]);
+        }
+        if let Some(l) = codes.iter().position(|&c| c != OK) {
+            return Err(failure(&chunk[l], codes[l]));
+        }
+        for (water, delta) in chunk.iter().zip(delta) {
+            apply_positions(water, delta, inverse_dt, q_new, p);
+        }
+    }
+    for water in chunks.remainder() {
+        let (old, new) = (three(water, q_old), three(water, q_new));
+        let (delta, code) = position_step::<PERIODIC>(water, lengths, old, new);
+        if code != OK {
+            return Err(failure(water, code));
+        }
+        apply_positions(water, delta, inverse_dt, q_new, p);
+    }
     Ok(())
 }
 
 /// The canonical triangle (oxygen at `(0, r_a, 0)`, hydrogens at `(∓r_c, −r_b, 0)` about the
 /// centre of mass) tilted by φ about x and ψ about y so that its out-of-plane coordinates
-/// are `z = [z_O, z_H₁, z_H₂]` (MK92 (A1)–(A3)).
+/// are `z = [z_O, z_H₁, z_H₂]` (MK92 (A1)–(A3)), and [`OK`] or why it cannot be.
 #[inline(always)]
-fn tilted_triangle(water: &Settle, z: [f64; 3]) -> Result<[V3; 3], ConstraintFailure> {
+fn tilted_triangle(water: &Settle, z: [f64; 3]) -> ([V3; 3], u8) {
     let (ra, rb, rc) = (water.ra, water.rb, water.rc);
     let sin_phi = z[0] / ra;
-    if sin_phi.abs() >= 1.0 {
-        return Err(failure(water, "oxygen moved out of the plane beyond reach"));
-    }
     let cos_phi = (1.0 - sin_phi * sin_phi).sqrt();
     let sin_psi = (z[1] - z[2]) / (2.0 * rc * cos_phi);
-    if sin_psi.abs() >= 1.0 {
-        return Err(failure(
-            water,
-            "hydrogens moved out of the plane beyond reach",
-        ));
-    }
     let cos_psi = (1.0 - sin_psi * sin_psi).sqrt();
-    Ok([
+    let code = if sin_phi.abs() >= 1.0 {
+        OXYGEN_OUT
+    } else if sin_psi.abs() >= 1.0 {
+        HYDROGENS_OUT
+    } else {
+        OK
+    };
+    let triangle = [
         [0.0, ra * cos_phi, ra * sin_phi],
         [
             -rc * cos_psi,
@@ -232,51 +368,47 @@ fn tilted_triangle(water: &Settle, z: [f64; 3]) -> Result<[V3; 3], ConstraintFai
             -rb * cos_phi + rc * sin_psi * sin_phi,
             -rb * sin_phi - rc * sin_psi * cos_phi,
         ],
-    ])
+    ];
+    (triangle, code)
 }
 
 /// `(sin θ, cos θ)` of the in-plane turn: zero torque of the in-plane constraint
 /// displacements about the old positions, `α sin θ + β cos θ = γ` (MK92 (A8)–(A10)), the
-/// root near `θ = 0`. `old` are the old hydrogens relative to the old oxygen, `new` the
-/// new ones and `tilted` the tilted triangle's, relative to the new centre of mass.
+/// root near `θ = 0`, and [`OK`] or [`TURNED`] when there is none. `old` are the old
+/// hydrogens relative to the old oxygen, `new` the new ones and `tilted` the tilted
+/// triangle's, relative to the new centre of mass.
 #[inline(always)]
-fn in_plane_turn(
-    water: &Settle,
-    [b0, c0]: [V3; 2],
-    [b1, c1]: [V3; 2],
-    [b2, c2]: [V3; 2],
-) -> Result<(f64, f64), ConstraintFailure> {
+fn in_plane_turn([b0, c0]: [V3; 2], [b1, c1]: [V3; 2], [b2, c2]: [V3; 2]) -> (f64, f64, u8) {
     let alpha = b2[0] * (b0[0] - c0[0]) + b0[1] * b2[1] + c0[1] * c2[1];
     let beta = b2[0] * (c0[1] - b0[1]) + b0[0] * b2[1] + c0[0] * c2[1];
     let gamma = b0[0] * b1[1] - b1[0] * b0[1] + c0[0] * c1[1] - c1[0] * c0[1];
     let norm2 = alpha * alpha + beta * beta;
     let discriminant = norm2 - gamma * gamma;
-    if !(discriminant >= 0.0 && norm2 > 0.0) {
-        return Err(failure(water, "turned in its plane beyond reach"));
-    }
+    let code = if discriminant >= 0.0 && norm2 > 0.0 {
+        OK
+    } else {
+        TURNED
+    };
     let sin_theta = (alpha * gamma - beta * discriminant.sqrt()) / norm2;
-    Ok((sin_theta, (1.0 - sin_theta * sin_theta).sqrt()))
+    (sin_theta, (1.0 - sin_theta * sin_theta).sqrt(), code)
 }
 
-/// Project one water's momenta at rigid positions `q` so no distance in it changes.
-pub(super) fn velocities(
+/// The velocity step of one water at rigid positions `q` (oxygen, hydrogens) with momenta
+/// `p`, branch-free: the momentum changes of its three atoms, and [`OK`] or [`SINGULAR`].
+/// ~100 flops, one division.
+#[inline(always)]
+fn velocity_step<const PERIODIC: bool>(
     water: &Settle,
-    pbc: Option<&PeriodicBox>,
-    q: &[f64],
-    p: &mut [f64],
-) -> Result<(), ConstraintFailure> {
-    let o = water.oxygen;
-    let [h1, h2] = water.hydrogens;
+    lengths: V3,
+    q: [V3; 3],
+    p: [V3; 3],
+) -> ([V3; 3], u8) {
     let (wa, wh) = (water.w_o, water.w_h);
-    let rab = image(pbc, q, o, h1);
-    let rac = image(pbc, q, o, h2);
+    let rab = image_of::<PERIODIC>(lengths, q[0], q[1]);
+    let rac = image_of::<PERIODIC>(lengths, q[0], q[2]);
     // q_H₁ − q_H₂ of the same (unwrapped) water.
     let rbc = sub(rac, rab);
-    let (va, vb, vc) = (
-        scale(at(p, o), wa),
-        scale(at(p, h1), wh),
-        scale(at(p, h2), wh),
-    );
+    let (va, vb, vc) = (scale(p[0], wa), scale(p[1], wh), scale(p[2], wh));
     // Impulses: a += λ₁ r_ab + λ₂ r_ac, b += −λ₁ r_ab + λ₃ r_bc, c += −λ₂ r_ac − λ₃ r_bc.
     // The conditions are M λ = r with M symmetric; solved by its adjugate (~50 flops).
     let (m11, m12, m13) = (
@@ -306,26 +438,236 @@ pub(super) fn velocities(
     );
     let det = m11 * c11 + m12 * c12 + m13 * c13;
     // A collinear water makes M singular: det vanishes against the product of its diagonal.
-    if det.abs() <= 1e-12 * (m11 * m22 * m33).abs() || !det.is_finite() {
-        return Err(failure(
-            water,
-            "is collinear: its velocity constraints are singular",
-        ));
-    }
+    let singular = det.abs() <= 1e-12 * (m11 * m22 * m33).abs() || !det.is_finite();
     let inverse_det = 1.0 / det;
     let l1 = (c11 * rhs[0] + c12 * rhs[1] + c13 * rhs[2]) * inverse_det;
     let l2 = (c12 * rhs[0] + c22 * rhs[1] + c23 * rhs[2]) * inverse_det;
     let l3 = (c13 * rhs[0] + c23 * rhs[1] + c33 * rhs[2]) * inverse_det;
-    add_to(p, o, add(scale(rab, l1), scale(rac, l2)));
-    add_to(p, h1, sub(scale(rbc, l3), scale(rab, l1)));
-    add_to(p, h2, scale(add(scale(rac, l2), scale(rbc, l3)), -1.0));
+    let dp = [
+        add(scale(rab, l1), scale(rac, l2)),
+        sub(scale(rbc, l3), scale(rab, l1)),
+        scale(add(scale(rac, l2), scale(rbc, l3)), -1.0),
+    ];
+    (dp, if singular { SINGULAR } else { OK })
+}
+
+/// `Δp` added to one water's momenta.
+#[inline(always)]
+fn apply_momenta(water: &Settle, dp: [V3; 3], p: &mut [f64]) {
+    let [h1, h2] = water.hydrogens;
+    for (atom, d) in [water.oxygen, h1, h2].into_iter().zip(dp) {
+        add_to(p, atom, d);
+    }
+}
+
+/// Project one water's momenta at rigid positions `q` so no distance in it changes (the
+/// reference of [`velocities_all`]'s lanes in the tests).
+#[cfg(test)]
+fn velocities(
+    water: &Settle,
+    pbc: Option<&PeriodicBox>,
+    q: &[f64],
+    p: &mut [f64],
+) -> Result<(), ConstraintFailure> {
+    let (qw, pw) = (three(water, q), three(water, p));
+    let (dp, code) = match pbc {
+        Some(b) => velocity_step::<true>(water, b.lengths, qw, pw),
+        None => velocity_step::<false>(water, [0.0; 3], qw, pw),
+    };
+    if code != OK {
+        return Err(failure(water, code));
+    }
+    apply_momenta(water, dp, p);
     Ok(())
 }
 
-fn failure(water: &Settle, what: &str) -> ConstraintFailure {
+/// Project every water's momenta ([`velocities`] for each, the same bits), [`LANES`] at a
+/// time as [`positions_all`]. Allocates nothing.
+pub(super) fn velocities_all(
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q: &[f64],
+    p: &mut [f64],
+) -> Result<(), ConstraintFailure> {
+    velocities_on(Isa::best(), waters, pbc, q, p)
+}
+
+/// [`velocities_all`] on the instruction set `isa` (available on this processor).
+fn velocities_on(
+    isa: Isa,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q: &[f64],
+    p: &mut [f64],
+) -> Result<(), ConstraintFailure> {
+    isa.run(
+        #[inline(always)]
+        || match pbc {
+            Some(b) => velocities_lanes::<true>(waters, b.lengths, q, p),
+            None => velocities_lanes::<false>(waters, [0.0; 3], q, p),
+        },
+    )
+}
+
+// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn velocities_lanes<const PERIODIC: bool>(
+    waters: &[Settle],
+    lengths: V3,
+    q: &[f64],
+    p: &mut [f64],
+) -> Result<(), ConstraintFailure> {
+    let mut chunks = waters.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        let qw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q));
+        let pw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], p));
+        let mut dp = [[[0.0; 3]; 3]; LANES];
+        let mut codes = [OK; LANES];
+        for l in 0..LANES {
+            (dp[l], codes[l]) = velocity_step::<PERIODIC>(&chunk[l], lengths, qw[l], pw[l]);
+        }
+        if let Some(l) = codes.iter().position(|&c| c != OK) {
+            return Err(failure(&chunk[l], codes[l]));
+        }
+        for (water, dp) in chunk.iter().zip(dp) {
+            apply_momenta(water, dp, p);
+        }
+    }
+    for water in chunks.remainder() {
+        let (dp, code) =
+            velocity_step::<PERIODIC>(water, lengths, three(water, q), three(water, p));
+        if code != OK {
+            return Err(failure(water, code));
+        }
+        apply_momenta(water, dp, p);
+    }
+    Ok(())
+}
+
+fn failure(water: &Settle, code: u8) -> ConstraintFailure {
+    let what = match code {
+        COLLINEAR => "is collinear or its oxygen sits at its centre of mass",
+        OXYGEN_OUT => "oxygen moved out of the plane beyond reach",
+        HYDROGENS_OUT => "hydrogens moved out of the plane beyond reach",
+        TURNED => "turned in its plane beyond reach",
+        _ => "is collinear: its velocity constraints are singular",
+    };
     let [h1, h2] = water.hydrogens;
     ConstraintFailure(format!(
         "SETTLE: water {}-{h1}-{h2} {what}; the step is too long",
         water.oxygen
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::rngs::Xoshiro256PlusPlus;
+    use rand::{RngExt, SeedableRng};
+
+    const OH: f64 = 0.9572;
+    const HH: f64 = 1.5139;
+
+    /// `n` TIP3P-like waters scattered in a 10 Å box (some straddling its faces), rigid
+    /// at `q_old`, drifted by a random displacement to `q_new`, with random momenta.
+    fn scene(n: usize, seed: u64) -> (Vec<Settle>, Vec<f64>, Vec<f64>, Vec<f64>) {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        let (w_o, w_h) = (1.0 / 15.9994, 1.0 / 3.024);
+        let mut q_old = vec![0.0; 9 * n];
+        let mut waters = Vec::with_capacity(n);
+        for k in 0..n {
+            let water = RigidWater {
+                oxygen: 3 * k,
+                hydrogens: [3 * k + 1, 3 * k + 2],
+                oh: OH,
+                hh: HH,
+            };
+            // A rigid triangle in a random orientation (two orthonormal axes).
+            let u: V3 = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let v: V3 = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+            let u = scale(u, 1.0 / dot(u, u).sqrt());
+            let v = sub(v, scale(u, dot(u, v)));
+            let v = scale(v, 1.0 / dot(v, v).sqrt());
+            let o: V3 = std::array::from_fn(|_| rng.random_range(0.0..10.0));
+            let height = (OH * OH - 0.25 * HH * HH).sqrt();
+            let h1 = add(o, add(scale(u, height), scale(v, 0.5 * HH)));
+            let h2 = add(o, sub(scale(u, height), scale(v, 0.5 * HH)));
+            for (atom, x) in [o, h1, h2].into_iter().enumerate() {
+                q_old[9 * k + 3 * atom..9 * k + 3 * atom + 3].copy_from_slice(&x);
+            }
+            waters.push(Settle::with_masses(&water, w_o, w_h));
+        }
+        let q_new = q_old
+            .iter()
+            .map(|x| x + rng.random_range(-0.05..0.05))
+            .collect();
+        let p = (0..9 * n).map(|_| rng.random_range(-1.0..1.0)).collect();
+        (waters, q_old, q_new, p)
+    }
+
+    fn bits(x: &[f64]) -> Vec<u64> {
+        x.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// The lane passes give the bits of the one-water functions on every instruction set,
+    /// in and out of a box, over full chunks and a remainder.
+    #[test]
+    fn lanes_are_the_bits_of_one_water_at_a_time() {
+        let pbc = PeriodicBox { lengths: [10.0; 3] };
+        for (n, periodic) in [(21, true), (21, false), (5, true), (16, true)] {
+            let pbc = periodic.then_some(&pbc);
+            let (waters, q_old, q_new, p) = scene(n, n as u64);
+            let (mut q_one, mut p_one) = (q_new.clone(), p.clone());
+            for w in &waters {
+                positions(w, pbc, &q_old, &mut q_one, &mut p_one, 2.0).unwrap();
+            }
+            let mut p_vel = p_one.clone();
+            for w in &waters {
+                velocities(w, pbc, &q_one, &mut p_vel).unwrap();
+            }
+            for isa in Isa::available() {
+                let (mut q_lanes, mut p_lanes) = (q_new.clone(), p.clone());
+                positions_on(isa, &waters, pbc, &q_old, &mut q_lanes, &mut p_lanes, 2.0).unwrap();
+                assert_eq!(bits(&q_lanes), bits(&q_one), "{isa:?} n {n}");
+                assert_eq!(bits(&p_lanes), bits(&p_one), "{isa:?} n {n}");
+                velocities_on(isa, &waters, pbc, &q_lanes, &mut p_lanes).unwrap();
+                assert_eq!(bits(&p_lanes), bits(&p_vel), "{isa:?} n {n}");
+            }
+        }
+    }
+
+    /// A water that cannot be SETTLE'd in the middle of a chunk fails the pass with the
+    /// message of the one-water function.
+    #[test]
+    fn a_failing_lane_names_its_water() {
+        let (waters, q_old, mut q_new, p) = scene(16, 3);
+        // Water 5's oxygen thrown far out of its old plane: beyond reach.
+        for a in 0..3 {
+            q_new[9 * 5 + a] += 5.0;
+        }
+        let one = positions(
+            &waters[5],
+            None,
+            &q_old,
+            &mut q_new.clone(),
+            &mut p.clone(),
+            1.0,
+        )
+        .unwrap_err();
+        for isa in Isa::available() {
+            let lanes = positions_on(
+                isa,
+                &waters,
+                None,
+                &q_old,
+                &mut q_new.clone(),
+                &mut p.clone(),
+                1.0,
+            )
+            .unwrap_err();
+            assert_eq!(lanes, one);
+            assert!(lanes.0.contains("water 15-16-17"), "{}", lanes.0);
+        }
+    }
 }
