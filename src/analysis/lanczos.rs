@@ -212,6 +212,8 @@ impl ConstrainedHessian {
     }
 
     /// `out = A x`: one Hessian-vector product of the level. Allocates nothing.
+    // `k` indexes the bond vector, its difference and two atoms' coordinates at once.
+    #[allow(clippy::needless_range_loop)]
     pub fn apply(&mut self, forces: &mut ForceSplit, x: &[f64], out: &mut [f64]) {
         out.copy_from_slice(x);
         self.project(out);

@@ -76,12 +76,11 @@ struct LanczosMode {
     water_share: f64,
 }
 
-/// `longstep modes` on the iterative path; `parse_range` reads `--h-range` in the scene's
-/// units.
-pub fn lanczos_modes(
-    request: &LanczosRequest,
-    parse_range: &dyn Fn(&str, Units) -> Result<(f64, f64)>,
-) -> Result<()> {
+/// Reads `--h-range` (`LO:HI`) in the scene's units.
+pub type RangeParser<'a> = &'a dyn Fn(&str, Units) -> Result<(f64, f64)>;
+
+/// `longstep modes` on the iterative path.
+pub fn lanczos_modes(request: &LanczosRequest, parse_range: RangeParser) -> Result<()> {
     let args = request.args;
     let mut scene = load_as_it_runs(request)?;
     let options = LanczosOptions {
