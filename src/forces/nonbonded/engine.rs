@@ -488,11 +488,15 @@ pub trait Inputs<R: Real> {
     );
 }
 
+/// A type-table term's Lennard-Jones tables: the pair table, the rows by j-cluster and
+/// i-type (`table_by_type`), and which types have Lennard-Jones at all.
+type LjTables<'a, R> = (&'a [[R; 3]], &'a [[[R; 4]; 2]], &'a [u8]);
+
 /// The Lennard-Jones data: per-slot factors when the term has them, else types and table.
 fn lj_data<'a, R>(
     factors: &'a [[R; 8]],
     types: &'a [[u32; 4]],
-    (table, by_type, lj_rows): (&'a [[R; 3]], &'a [[[R; 4]; 2]], &'a [u8]),
+    (table, by_type, lj_rows): LjTables<'a, R>,
 ) -> LjData<'a, R> {
     if factors.is_empty() {
         LjData::Table {
