@@ -12,7 +12,7 @@ pub fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
     if !dir.exists() {
         return Err(Error::Structure {
             path: dir.to_path_buf(),
-            message: "no such run directory or trajectory file".into(),
+            message: "is not a run directory or a trajectory file: no such path".into(),
         });
     }
     if !dir.is_dir() {

@@ -16,7 +16,7 @@ use crate::analysis::async_stability::{
 };
 use crate::error::{Error, Result};
 use crate::integrators::quadrature::Quadrature;
-use crate::io::scene::load_scene;
+use crate::io::scene::{Scene, load_scene};
 use crate::settings::Value;
 
 // The defaults, shared with `stability-map --method async-pseudo-energy`.
@@ -63,10 +63,9 @@ pub struct AsyncMapArgs {
     pub quiet: bool,
 }
 
-pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
-    super::common::check_out_file(&args.out, "async-stability-map")?;
-    let scene = load_scene(&args.scene, &args.set)?;
-    let parameter = MapParameter::parse(&args.param)?;
+/// The `--n` values of the mapped parameter over `--range FROM:TO` (expressions in the
+/// scene's parameters), evenly spaced; each end positive.
+fn map_values(args: &AsyncMapArgs, scene: &Scene) -> Result<Vec<f64>> {
     let Some((from, to)) = args.range.split_once(':') else {
         return Err(Error::flag(
             "--range",
@@ -88,7 +87,7 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
     if args.n == 0 {
         return Err(Error::flag("--n", "--n must be at least 1"));
     }
-    let values: Vec<f64> = (0..args.n)
+    Ok((0..args.n)
         .map(|k| {
             if args.n == 1 {
                 from
@@ -96,7 +95,14 @@ pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
                 from + (to - from) * k as f64 / (args.n - 1) as f64
             }
         })
-        .collect();
+        .collect())
+}
+
+pub fn async_map_command(args: &AsyncMapArgs) -> Result<i32> {
+    super::common::check_out_file(&args.out, "async-stability-map")?;
+    let scene = load_scene(&args.scene, &args.set)?;
+    let parameter = MapParameter::parse(&args.param)?;
+    let values = map_values(args, &scene)?;
     let ratios = parse_ratios(&args.ratio)?;
     if !(args.tolerance.is_finite() && args.tolerance > 0.0) {
         return Err(Error::flag(

@@ -147,93 +147,137 @@ impl Fingerprint {
 /// with its unit (`0.001 /fs`, `2013`, `not set`), shortest round-trip decimals for numbers.
 fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
     let s = crate::integrators::registry::with_defaults(s);
+    // Every field named, so that a new setting fails to compile here until it is listed
+    // in one of the two tables below.
     let MethodSettings {
-        method,
-        h,
-        inner_steps,
+        method: _,
+        h: _,
+        inner_steps: _,
         t_end: _,
-        blowup,
-        level_steps,
-        jacobian,
-        quadrature,
-        h_slow,
-        h_fast,
-        ratio,
-        adaptive,
-        control,
-        h_min,
-        h_max,
-        block,
-        tol,
-        max_iter,
-        temperature,
-        seed,
-        friction,
-        thermostats,
-        tau,
-        mollifier,
-        molly_constraints,
-        molly_jacobian,
-        constraints,
-        rigid_water,
-        constraint_tolerance,
-        hydrogen_mass,
-        units,
+        blowup: _,
+        level_steps: _,
+        jacobian: _,
+        quadrature: _,
+        h_slow: _,
+        h_fast: _,
+        ratio: _,
+        adaptive: _,
+        control: _,
+        h_min: _,
+        h_max: _,
+        block: _,
+        tol: _,
+        max_iter: _,
+        temperature: _,
+        seed: _,
+        friction: _,
+        thermostats: _,
+        tau: _,
+        mollifier: _,
+        molly_constraints: _,
+        molly_jacobian: _,
+        constraints: _,
+        rigid_water: _,
+        constraint_tolerance: _,
+        hydrogen_mass: _,
+        units: _,
     } = &s;
-    let time = units.time_name();
-    let per_time = if time.is_empty() {
-        String::new()
-    } else {
-        format!("/{time}")
-    };
-    let mass = if time.is_empty() { "" } else { "amu" };
-    let number = |x: &Option<f64>, unit: &str| shown(x.map(Num), unit);
-    let count = |x: &Option<usize>| shown(x.as_ref(), "");
-    let text = |x: &Option<String>| shown(x.as_ref(), "");
-    let fields: [(&str, String); 30] = [
-        ("method", method.clone()),
-        ("h", number(&Some(*h), time)),
-        ("inner_steps", count(inner_steps)),
-        ("blowup", Num(*blowup).to_string()),
+    let unit = UnitNames::of(s.units);
+    integration_fields(&s, &unit)
+        .into_iter()
+        .chain(bath_and_constraint_fields(&s, &unit))
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+}
+
+/// The unit names a setting's value is shown with.
+struct UnitNames {
+    time: String,
+    per_time: String,
+    mass: &'static str,
+}
+
+impl UnitNames {
+    fn of(units: crate::units::Units) -> Self {
+        let time = units.time_name().to_string();
+        let per_time = if time.is_empty() {
+            String::new()
+        } else {
+            format!("/{time}")
+        };
+        let mass = if time.is_empty() { "" } else { "amu" };
+        UnitNames {
+            time,
+            per_time,
+            mass,
+        }
+    }
+}
+
+fn number(x: &Option<f64>, unit: &str) -> String {
+    shown(x.map(Num), unit)
+}
+
+fn count(x: &Option<usize>) -> String {
+    shown(x.as_ref(), "")
+}
+
+fn text(x: &Option<String>) -> String {
+    shown(x.as_ref(), "")
+}
+
+/// The method and its step settings.
+fn integration_fields(s: &MethodSettings, u: &UnitNames) -> Vec<(&'static str, String)> {
+    let time = u.time.as_str();
+    vec![
+        ("method", s.method.clone()),
+        ("h", number(&Some(s.h), time)),
+        ("inner_steps", count(&s.inner_steps)),
+        ("blowup", Num(s.blowup).to_string()),
         (
             "level_steps",
             shown(
-                level_steps
+                s.level_steps
                     .as_ref()
                     .map(|l| l.iter().map(usize::to_string).collect::<Vec<_>>().join(",")),
                 "",
             ),
         ),
-        ("jacobian", text(jacobian)),
-        ("quadrature", text(quadrature)),
-        ("h_slow", number(h_slow, time)),
-        ("h_fast", number(h_fast, time)),
-        ("ratio", count(ratio)),
-        ("adaptive", number(adaptive, "")),
-        ("control", text(control)),
-        ("h_min", number(h_min, time)),
-        ("h_max", number(h_max, time)),
-        ("block", count(block)),
-        ("tol", number(tol, "")),
-        ("max_iter", count(max_iter)),
-        ("temperature", number(temperature, units.temperature_name())),
-        ("seed", shown(seed.as_ref(), "")),
-        ("friction", number(friction, &per_time)),
-        ("thermostats", count(thermostats)),
-        ("tau", number(tau, time)),
-        ("mollifier", text(mollifier)),
-        ("molly_constraints", text(molly_constraints)),
-        ("molly_jacobian", text(molly_jacobian)),
-        ("constraints", format!("{constraints:?}").to_lowercase()),
-        ("rigid_water", rigid_water.to_string()),
-        ("constraint_tolerance", number(constraint_tolerance, "")),
-        ("hydrogen_mass", number(hydrogen_mass, mass)),
-        ("units", units.name().to_string()),
-    ];
-    fields
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect()
+        ("jacobian", text(&s.jacobian)),
+        ("quadrature", text(&s.quadrature)),
+        ("h_slow", number(&s.h_slow, time)),
+        ("h_fast", number(&s.h_fast, time)),
+        ("ratio", count(&s.ratio)),
+        ("adaptive", number(&s.adaptive, "")),
+        ("control", text(&s.control)),
+        ("h_min", number(&s.h_min, time)),
+        ("h_max", number(&s.h_max, time)),
+        ("block", count(&s.block)),
+        ("tol", number(&s.tol, "")),
+        ("max_iter", count(&s.max_iter)),
+    ]
+}
+
+/// The thermostat, mollifier, constraint and unit settings.
+fn bath_and_constraint_fields(s: &MethodSettings, u: &UnitNames) -> Vec<(&'static str, String)> {
+    vec![
+        (
+            "temperature",
+            number(&s.temperature, s.units.temperature_name()),
+        ),
+        ("seed", shown(s.seed.as_ref(), "")),
+        ("friction", number(&s.friction, &u.per_time)),
+        ("thermostats", count(&s.thermostats)),
+        ("tau", number(&s.tau, &u.time)),
+        ("mollifier", text(&s.mollifier)),
+        ("molly_constraints", text(&s.molly_constraints)),
+        ("molly_jacobian", text(&s.molly_jacobian)),
+        ("constraints", format!("{:?}", s.constraints).to_lowercase()),
+        ("rigid_water", s.rigid_water.to_string()),
+        ("constraint_tolerance", number(&s.constraint_tolerance, "")),
+        ("hydrogen_mass", number(&s.hydrogen_mass, u.mass)),
+        ("units", s.units.name().to_string()),
+    ]
 }
 
 /// A setting's value and unit for a message, `not set` when absent.

@@ -158,7 +158,7 @@ fn check_heavy_atoms(
     Err(Error::setting(
         "hydrogen_mass",
         format!(
-            "hydrogen_mass: it would leave atom {} ({}) with {}, no more than each of its \
+            "hydrogen_mass: it would leave atom {} ({}) with {}, not more than each of its \
              hydrogens (atom {} among them); the hydrogen mass must stay below {bound}",
             heavy + 1,
             topology.elements[heavy],
