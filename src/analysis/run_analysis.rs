@@ -734,7 +734,7 @@ fn check_first_frame(
     let atoms = q.len() / 3;
     if atoms != scene.elements.len() {
         return Err(bad(format!(
-            "has {atoms} atoms, but the model {} has {}: give the scene or topology the \
+            "has {atoms} atoms, but the scene {} has {}: give the scene or topology the \
              trajectory was made from",
             scene.path.display(),
             scene.elements.len()
