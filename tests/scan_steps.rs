@@ -281,6 +281,13 @@ fn the_sampling_criterion_passes_the_reference_itself_and_fails_a_biased_sampler
         // play.
         "--peak-bound",
         "0.5",
+        // Likewise the configurational temperature and the per-term means: over 0.4 ps the
+        // reference against itself is 0 ± 2.1 K, undecided against ΔT = 3 K (and the 2 fs
+        // point's angle energy fails, −26 ± 1.4 kcal/mol: flexible water's bend is
+        // resolved at 0.5 fs, not at 2). `the_scans_verdict_on_a_point_is_analyzes_on_the_same_run`
+        // tests those criteria; here their bound is put out of play.
+        "--temperature-bound",
+        "1e9",
         "--repeats",
         "1",
         "--quiet",
@@ -341,7 +348,9 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
     // difference the statistics resolve). A run against itself passes with zero differences.
     use longstep::analysis::run_analysis::{Analyzer, RunFiles};
     use longstep::run::verdict::Verdict;
-    use longstep::studies::criterion::sampling::{Bounds, SamplingCriterion, compare};
+    use longstep::studies::criterion::reference::Kind;
+    use longstep::studies::criterion::sampling::{SamplingCriterion, compare};
+    use longstep::units::Units;
     let dir = scratch_dir("scan-sampling-temperature");
     let (cool, warm) = (dir.join("300"), dir.join("400"));
     reference_run(&cool, "300K", "0.2ps");
@@ -353,6 +362,8 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
         potential_bound: 0.1,
         peak_bound: 0.05,
         basin_bound: 0.1,
+        temperature_bound: 3.0,
+        temperature: Some(300.0),
         backbone: Vec::new(),
         discard: 40.0,
         blocks: 5,
@@ -366,23 +377,88 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
     };
     let reference = analyzer.analyze(&files(&cool)).unwrap();
     let hot = analyzer.analyze(&files(&warm)).unwrap();
-    let bounds = Bounds {
-        potential: 0.1,
-        peak: 0.05,
-        start: 40.0,
-        span: 160.0,
-    };
-    let same = compare(&reference, &reference, &bounds);
+    let settings = criterion.settings(Units::Real);
+    let same = compare(&reference, &reference, &settings, Units::Real);
     println!("the reference against itself: {same:?}");
     assert!(same.potential_difference == 0.0, "{same:?}");
     assert_ne!(same.verdict, Verdict::Fail, "{same:?}");
-    let wrong = compare(&reference, &hot, &bounds);
-    assert_eq!(wrong.potential_verdict, Verdict::Fail, "{wrong:?}");
+    let wrong = compare(&reference, &hot, &settings, Units::Real);
+    let potential = wrong.criteria.iter().find(|c| c.kind == Kind::Potential);
+    assert_eq!(potential.unwrap().verdict, "fail", "{wrong:?}");
     assert_eq!(wrong.verdict, Verdict::Fail, "{wrong:?}");
     assert!(
         wrong.potential_difference > 0.1
             && wrong.potential_difference > 3.0 * wrong.potential_combined_error,
         "{wrong:?}"
+    );
+}
+
+#[test]
+fn the_scans_verdict_on_a_point_is_analyzes_on_the_same_run() {
+    // One criterion module for both: `scan steps --criterion sampling` judges its point (BAOAB
+    // 2 fs on the water box) by the criteria `analyze --reference` gives the same run
+    // directory with the same discard, blocks and temperature — every criterion, present or
+    // absent, with the same numbers to the bit and the same verdicts.
+    let dir = scratch_dir("scan-sampling-analyze");
+    let reference = dir.join("reference");
+    reference_run(&reference, "300K", "0.4ps");
+    let out = dir.join("scan");
+    ok(&argv(
+        "scan steps systems/water-box/scene.toml --methods langevin-respa --inner 1 --h 2fs \
+         --friction 1/ps --temperature 300K --t-end 0.4ps --criterion sampling --reference {} \
+         --discard 0.1ps --blocks 5 --frames 50 --repeats 0 --quiet --out {}",
+        &[path(&reference), path(&out)],
+    ));
+    let point = out.join("runs/0000-langevin-respa-h2");
+    let scan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(point.join("criteria.json")).unwrap())
+            .unwrap();
+    let stdout = ok(&argv(
+        "analyze systems/water-box/scene.toml {} --reference {} --skip 0.1ps --blocks 5 \
+         --temperature 300K --json --quiet --out {}",
+        &[path(&point), path(&reference), path(&dir.join("analysis"))],
+    ));
+    let analyze: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(
+        scan, analyze[0]["criteria"],
+        "scan {scan:#}\nanalyze {analyze:#}"
+    );
+    // The criteria are there to be compared: the configurational temperature and the terms
+    // are judged (a water box has no backbone: its basins are absent, said so).
+    let criteria = scan.as_array().unwrap();
+    let verdict_of = |kind: &str| -> Vec<&str> {
+        criteria
+            .iter()
+            .filter(|c| c["kind"] == kind)
+            .map(|c| c["verdict"].as_str().unwrap())
+            .collect()
+    };
+    assert_eq!(verdict_of("basin"), ["absent"], "{scan:#}");
+    for kind in ["configurational_temperature", "term", "potential", "peak"] {
+        let verdicts = verdict_of(kind);
+        assert!(!verdicts.is_empty(), "{kind}: {scan:#}");
+        assert!(verdicts.iter().all(|v| *v != "absent"), "{kind}: {scan:#}");
+    }
+    // The scan's verdict on the point is analyze's overall verdict, and its table carries
+    // the configurational temperature's difference and verdict as the criterion has them.
+    let (header, rows) = common::study_table(&out.join("scan.csv"));
+    assert_eq!(
+        rows[0][3],
+        analyze[0]["verdict"].as_str().unwrap(),
+        "{rows:?}"
+    );
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let t_conf = criteria
+        .iter()
+        .find(|c| c["kind"] == "configurational_temperature")
+        .unwrap();
+    let difference: f64 = rows[0][column("configurational_temperature_difference[K]")]
+        .parse()
+        .unwrap();
+    assert_eq!(difference, t_conf["difference"].as_f64().unwrap());
+    assert_eq!(
+        rows[0][column("configurational_temperature_verdict")],
+        t_conf["verdict"].as_str().unwrap()
     );
 }
 

@@ -36,6 +36,10 @@ use crate::split::LabelledTerm;
 /// Most colours for the exact bonded Laplacian (then `3 × 32` products per frame).
 pub const MAX_COLOURS: usize = 32;
 
+/// Hutchinson probes per frame by default (`analyze --probes`, and the scan's sampling
+/// criterion, which analyses as `analyze` does).
+pub const DEFAULT_PROBES: usize = 4;
+
 /// Most Hutchinson probes per frame (a bound on a user-given cost).
 pub const MAX_PROBES: usize = 10_000;
 

@@ -72,7 +72,7 @@ pub struct AnalyzeArgs {
     #[arg(long, default_value_t = 0.1)]
     pub peak_fit: f64,
     /// Hutchinson probe vectors per frame for the non-bonded Laplacian.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = crate::analysis::configurational::DEFAULT_PROBES)]
     pub probes: usize,
     /// Seed of the probe vectors.
     #[arg(long, default_value_t = 1)]

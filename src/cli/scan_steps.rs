@@ -11,6 +11,7 @@ use indicatif::ProgressBar;
 use super::common::progress_bar;
 use crate::error::Result;
 use crate::settings::{RunSpec, Value};
+use crate::studies::criterion::reference::DEFAULT_TEMPERATURE_BOUND;
 use crate::studies::criterion::sampling::DEFAULT_BASIN_BOUND;
 use crate::studies::plan::{
     DEFAULT_BLOCKS, DEFAULT_FRAMES, DEFAULT_PAIR, DEFAULT_PEAK_BOUND, DEFAULT_POTENTIAL_BOUND,
@@ -120,6 +121,10 @@ pub struct SamplingArgs {
     /// residues) that passes, when the scene's topology has a peptide backbone.
     #[arg(long, default_value_t = DEFAULT_BASIN_BOUND, value_name = "BOUND")]
     pub basin_bound: f64,
+    /// The temperature error ΔT (kelvin in a real scene) the configurational temperature
+    /// and each force-field term's mean energy are held to, as in `analyze --reference`.
+    #[arg(long, default_value_t = DEFAULT_TEMPERATURE_BOUND, value_name = "DT")]
+    pub temperature_bound: f64,
     /// Start of each run, and of the reference, left out as equilibration (default: a fifth
     /// of the run length --t-end).
     #[arg(long, value_name = "T")]
@@ -154,6 +159,7 @@ impl ScanStepsArgs {
                 potential_bound: sampling.potential_bound,
                 peak_bound: sampling.peak_bound,
                 basin_bound: sampling.basin_bound,
+                temperature_bound: sampling.temperature_bound,
                 discard: sampling.discard.clone(),
                 blocks: sampling.blocks,
                 frames: sampling.frames,

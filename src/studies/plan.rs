@@ -50,6 +50,8 @@ pub struct SamplingPlan {
     pub potential_bound: f64,
     pub peak_bound: f64,
     pub basin_bound: f64,
+    /// The temperature error `ΔT` of the configurational-temperature and per-term criteria.
+    pub temperature_bound: f64,
     /// Start of each run left out (default: a fifth of the run length).
     pub discard: Option<Value>,
     pub blocks: usize,
@@ -64,6 +66,7 @@ impl Default for SamplingPlan {
             potential_bound: DEFAULT_POTENTIAL_BOUND,
             peak_bound: DEFAULT_PEAK_BOUND,
             basin_bound: DEFAULT_BASIN_BOUND,
+            temperature_bound: super::criterion::reference::DEFAULT_TEMPERATURE_BOUND,
             discard: None,
             blocks: DEFAULT_BLOCKS,
             frames: DEFAULT_FRAMES,
@@ -345,6 +348,9 @@ pub fn sampling_criterion(
         potential_bound: sampling.potential_bound,
         peak_bound: sampling.peak_bound,
         basin_bound: sampling.basin_bound,
+        temperature_bound: sampling.temperature_bound,
+        // The scan's temperature, set where each point's settings are known.
+        temperature: None,
         backbone: match scene_topology(&plan.scene)? {
             Some(topology) => backbone_residues(&topology),
             None => Vec::new(),

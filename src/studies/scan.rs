@@ -521,8 +521,7 @@ fn judge_sampling_point(
         ));
     }
     let scene = setup.load_scene()?;
-    let comparison =
-        criterion.judge_run(&scene, setup.kinetic_dof, reference, &dir, setup.t_end)?;
+    let comparison = criterion.judge_run(&scene, setup.kinetic_dof, reference, &dir)?;
     let mut result = step_result(
         index,
         method,

@@ -114,9 +114,10 @@ fn scan_methods_steps(plan: &StepScanPlan, watch: &dyn Watch) -> Result<StepScan
     let sampling = match criterion {
         Criterion::Drift => None,
         Criterion::Sampling => {
-            let c = sampling_criterion(plan, &scene, setup.t_end)?;
+            let mut c = sampling_criterion(plan, &scene, setup.t_end)?;
             setup.kinetic_dof = constrained_dof(&setup, &methods[0], steps[0])?;
             let temperature = point_settings(&setup, &methods[0], steps[0])?.temperature;
+            c.temperature = temperature;
             let reference = reference_analysis(&scene, &c, temperature, setup.kinetic_dof)?;
             say_basins(plan, &c, &reference, watch);
             Some((c, reference))
@@ -213,7 +214,7 @@ fn finish_scan(
     }
     let table = match sampling {
         None => scan_table(meta, &results),
-        Some((c, _)) => sampling_table(meta, &results, !c.backbone.is_empty(), scene.units),
+        Some((c, reference)) => sampling_table(meta, &results, (c, reference), scene.units),
     };
     let path = plan.out.join(SCAN_STEPS);
     table.write(&path)?;
@@ -357,7 +358,7 @@ fn study_reference(
     configs: &mut [ScanConfig],
     study: &Path,
 ) -> Result<(SamplingCriterion, RunAnalysis)> {
-    let c = sampling_criterion(plan, scene, base.t_end)?;
+    let mut c = sampling_criterion(plan, scene, base.t_end)?;
     let temperature_of = |config: &ScanConfig| -> Result<Option<f64>> {
         Ok(point_settings(&config.setup, &config.method, config.steps[0])?.temperature)
     };
@@ -391,6 +392,7 @@ fn study_reference(
             ));
         }
     }
+    c.temperature = temperature;
     let reference = reference_analysis(scene, &c, temperature, dof)?;
     Ok((c, reference))
 }

@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 
+use super::criterion::reference::Criterion;
 use super::criterion::sampling::{SamplingCriterion, peak_height};
 use super::plan::StepScanPlan;
 use super::scan::{ScanSetup, StepResult, Timing};
@@ -286,13 +287,14 @@ fn with_config_column<'a>(
 }
 
 /// The scan's study table by the sampling criterion: each point's differences to the
-/// reference and their combined errors; with a peptide `backbone`, each basin's Δp, its
-/// combined error and the run's population. In a scene with real units the headers carry
+/// reference and their combined errors; with a peptide backbone, each basin's Δp, its
+/// combined error and the run's population; then the configurational temperature's and
+/// each term's ([`add_criterion_columns`]). In a scene with real units the headers carry
 /// them (`h[fs]`, `potential_difference[kcal/mol]`, `kinetic_temperature[K]`).
 pub fn sampling_table(
     meta: BTreeMap<String, String>,
     results: &[StepResult],
-    backbone: bool,
+    (criterion, reference): (&SamplingCriterion, &RunAnalysis),
     units: Units,
 ) -> StudyTable {
     let mut table = StudyTable::new(
@@ -355,9 +357,18 @@ pub fn sampling_table(
         ]);
         table.rows.push(row);
     }
-    if backbone {
+    if !criterion.backbone.is_empty() {
         add_basin_columns(&mut table, results);
     }
+    // The columns are the reference's criteria (the reference judged against itself), so
+    // every shard of a scan has the same whatever its points did.
+    let own = super::criterion::sampling::compare(
+        reference,
+        reference,
+        &criterion.settings(units),
+        units,
+    );
+    add_criterion_columns(&mut table, results, &own.criteria);
     with_config_column(table, results.iter().map(|r| r.config.as_deref()))
 }
 
@@ -399,6 +410,42 @@ fn add_basin_columns(table: &mut StudyTable, results: &[StepResult]) {
                 Some(b) => row.extend(
                     [b.difference, b.combined_error, b.population].map(|x| Num(x).to_string()),
                 ),
+                None => row.extend(std::iter::repeat_n(String::new(), 3)),
+            }
+        }
+    }
+}
+
+/// The columns of the criteria the fixed columns do not carry (the configurational
+/// temperature, each force-field term's mean): `{key}_difference`, `{key}_combined_error`
+/// (with the criterion's unit) and `{key}_verdict` (`pass`, `fail`, `undecided`, `absent`),
+/// for each such criterion of `own` (the reference's); empty cells for a point without it
+/// (unstable).
+fn add_criterion_columns(table: &mut StudyTable, results: &[StepResult], own: &[Criterion]) {
+    use super::criterion::reference::Kind;
+    let columns: Vec<(String, String)> = own
+        .iter()
+        .filter(|c| matches!(c.kind, Kind::ConfigurationalTemperature | Kind::Term))
+        .map(|c| (c.key(), c.unit.clone()))
+        .collect();
+    for (key, unit) in &columns {
+        let unit = match unit.is_empty() {
+            true => String::new(),
+            false => format!("[{unit}]"),
+        };
+        table.header.push(format!("{key}_difference{unit}"));
+        table.header.push(format!("{key}_combined_error{unit}"));
+        table.header.push(format!("{key}_verdict"));
+    }
+    for (row, r) in table.rows.iter_mut().zip(results) {
+        let criteria = r.sampling.as_ref().map_or(&[][..], |c| &c.criteria[..]);
+        for (key, _) in &columns {
+            match criteria.iter().find(|c| c.key() == *key) {
+                Some(c) => row.extend([
+                    c.difference.map_or(String::new(), |x| Num(x).to_string()),
+                    c.error.map_or(String::new(), |x| Num(x).to_string()),
+                    c.verdict.to_string(),
+                ]),
                 None => row.extend(std::iter::repeat_n(String::new(), 3)),
             }
         }

@@ -67,10 +67,22 @@ pub struct CriterionSettings {
     pub boltzmann: f64,
 }
 
+/// What a criterion measures: the scan's table finds its columns by it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    Potential,
+    ConfigurationalTemperature,
+    Term,
+    Peak,
+    Basin,
+}
+
 /// One criterion of a run against the reference.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Criterion {
     pub name: String,
+    pub kind: Kind,
     pub unit: String,
     /// `pass`, `fail`, `undecided` or `absent`.
     pub verdict: &'static str,
@@ -94,6 +106,7 @@ impl Criterion {
     pub fn absent(name: &str, unit: &str, why: &str) -> Self {
         Criterion {
             name: name.into(),
+            kind: Kind::Potential,
             unit: unit.into(),
             verdict: "absent",
             value: None,
@@ -110,6 +123,26 @@ impl Criterion {
     fn with_note(mut self, note: String) -> Self {
         self.note = Some(note);
         self
+    }
+
+    fn of_kind(mut self, kind: Kind) -> Self {
+        self.kind = kind;
+        self
+    }
+
+    /// The criterion's name as a column key: lower case, every run of other characters
+    /// than letters and digits one `_` (`mean nonbonded/lennard-jones energy` →
+    /// `mean_nonbonded_lennard_jones_energy`).
+    pub fn key(&self) -> String {
+        let mut key = String::new();
+        for c in self.name.chars() {
+            if c.is_ascii_alphanumeric() {
+                key.push(c.to_ascii_lowercase());
+            } else if !key.ends_with('_') && !key.is_empty() {
+                key.push('_');
+            }
+        }
+        key.trim_end_matches('_').to_string()
     }
 }
 
@@ -142,6 +175,7 @@ pub fn judge_mean(
     let judged = verdict::judge(&m, bound);
     Criterion {
         name: name.into(),
+        kind: Kind::Potential,
         unit: unit.into(),
         verdict: judged.name(),
         value: Some(run.mean),
@@ -176,20 +210,25 @@ pub fn judge_runs(
         span,
     )];
     const T_CONF: &str = "configurational temperature";
-    criteria.push(match (&run.configurational, &reference.configurational) {
-        (Some(a), Some(b)) => judge_mean(
-            T_CONF,
-            temperature,
-            &a.temperature,
-            &b.temperature,
-            settings.temperature_bound,
-            span,
-        ),
-        _ => Criterion::absent(T_CONF, temperature, "not computed (--no-configurational)"),
-    });
-    criteria.extend(term_criteria(reference, run, settings, energy, span));
-    criteria.push(peak_criterion(reference, run, settings, span));
-    criteria.extend(basin_criteria(reference, run, settings, span));
+    criteria.push(
+        match (&run.configurational, &reference.configurational) {
+            (Some(a), Some(b)) => judge_mean(
+                T_CONF,
+                temperature,
+                &a.temperature,
+                &b.temperature,
+                settings.temperature_bound,
+                span,
+            ),
+            _ => Criterion::absent(T_CONF, temperature, "not computed (--no-configurational)"),
+        }
+        .of_kind(Kind::ConfigurationalTemperature),
+    );
+    let terms = term_criteria(reference, run, settings, energy, span);
+    criteria.extend(terms.into_iter().map(|c| c.of_kind(Kind::Term)));
+    criteria.push(peak_criterion(reference, run, settings, span).of_kind(Kind::Peak));
+    let basins = basin_criteria(reference, run, settings, span);
+    criteria.extend(basins.into_iter().map(|c| c.of_kind(Kind::Basin)));
     criteria
 }
 
@@ -286,6 +325,7 @@ fn basin_criteria(
         .into_iter()
         .map(|b| Criterion {
             name: format!("basin {} population", b.basin),
+            kind: Kind::Basin,
             unit: String::new(),
             verdict: b.verdict.name(),
             value: Some(b.population),

@@ -3,18 +3,26 @@
 //!
 //! Each point's run and a reference run (BAOAB at a small step, e.g. 0.5 fs with γ = 1/ps,
 //! at the same temperature) are analysed with the estimators of `longstep analyze`
-//! ([`crate::analysis::run_analysis`]): the mean potential energy per molecule and the first-peak
-//! height of one pair's g(r), each with its block-average standard error. Each difference to
-//! the reference, with its combined error `√(σ_run² + σ_ref²)`, gets the three-way verdict
-//! of [`crate::run::verdict`] against its bound (by default 0.1 kcal/mol per molecule and
-//! 0.05 in g): **pass** when its whole 2σ interval lies within the bound, **fail** when
-//! wholly outside, **undecided** otherwise. The point passes when both pass and fails when
-//! either fails; otherwise it is undecided, and the run length that would decide it follows
-//! from the run's error shrinking as `1/√T` over the analysed span while the reference's
-//! stays (a longer run of the point does not improve the reference: when the reference's
-//! error alone is too wide, no run length of the point decides, and the message says so).
-//! The errors are treated as independent; paired runs (same start, same noise) are
-//! correlated, so the combined error overstates theirs — a conservative verdict.
+//! ([`crate::analysis::run_analysis`], its default options: the same frames, blocks, g(r)
+//! bins and Hutchinson probes) and judged by **the criteria of `longstep analyze
+//! --reference`** ([`super::reference::judge_runs`], one module for both): the mean
+//! potential energy per molecule, the configurational temperature, the mean of each
+//! force-field term, the first-peak height of one pair's g(r) and the backbone basins —
+//! each difference to the reference, with its combined error `√(σ_run² + σ_ref²)`, against
+//! its bound: **pass** when its whole 2σ interval lies within the bound, **fail** when
+//! wholly outside, **undecided** otherwise; a criterion that does not apply (no water, no
+//! backbone) is **absent** and takes no part. The point passes when every present criterion
+//! passes and fails when any fails; otherwise it is undecided, and the run length that
+//! would decide it follows from the run's error shrinking as `1/√T` over the analysed span
+//! while the reference's stays (a longer run of the point does not improve the reference:
+//! when the reference's error alone is too wide, no run length of the point decides). The
+//! errors are treated as independent; paired runs (same start, same noise) are correlated,
+//! so the combined error overstates theirs — a conservative verdict. Each point's criteria
+//! are written to `criteria.json` in its run directory, as `analyze --json` gives them.
+//!
+//! The per-term bounds are at the scan's temperature (the thermostat's, `--temperature`);
+//! `analyze --reference … --temperature T` with the same discard and blocks gives the same
+//! verdicts on the same run directories.
 //!
 //! **Backbone basins.** When the scene is a topology whose atom names give a peptide
 //! backbone ([`crate::analysis::dihedrals::backbone_residues`]), the populations of the (φ, ψ) basins
@@ -23,10 +31,14 @@
 //! whatever the protein's length; the alanine dipeptide has one such residue, so pooled is
 //! its own). Each Δp, with the run's block error (shrinking as `1/√T`) and the reference's
 //! as the fixed error, gets the same three-way verdict against `basin_bound` (default 0.1
-//! in absolute population, [`DEFAULT_BASIN_BOUND`]), and joins the point's verdict
-//! ([`verdict::all`]). A basin whose population has a zero error in both runs (the same in
-//! every block: no transition seen) is undecided, never a pass on no information. A scene
-//! without a backbone (a water box) compares no basins.
+//! in absolute population, [`DEFAULT_BASIN_BOUND`]). A basin whose population has a zero
+//! error in both runs (the same in every block: no transition seen) is undecided, never a
+//! pass on no information.
+//!
+//! **Cost.** The analysis visits only the trajectory frames the point's run wrote
+//! (`--frames` per run, default 100): per frame one energy evaluation of every term (the
+//! per-term series), a gradient and [`DEFAULT_PROBES`] Hessian-vector products (the
+//! configurational temperature), the g(r) histogram and the dihedrals.
 //!
 //! The reference is compared at equal temperature, not equal friction: SIN(R)'s γ acts on its
 //! thermostat variables, not on the velocities, so no γ of it corresponds to BAOAB's.
@@ -35,12 +47,15 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use super::reference::{Criterion, CriterionSettings, Kind, judge_runs, overall};
 use crate::analysis::block_average::Estimate;
+pub use crate::analysis::configurational::DEFAULT_PROBES;
 use crate::analysis::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
 use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
 use crate::run::verdict::{self, MEAN_EXPONENT, Measurement};
+use crate::units::Units;
 
 /// What the sampling criterion compares, and its bounds.
 #[derive(Clone, Debug)]
@@ -55,6 +70,12 @@ pub struct SamplingCriterion {
     pub peak_bound: f64,
     /// Largest |Δ population| of a backbone basin that passes.
     pub basin_bound: f64,
+    /// The temperature error `ΔT` the configurational temperature and each term's mean are
+    /// held to ([`super::reference::DEFAULT_TEMPERATURE_BOUND`]).
+    pub temperature_bound: f64,
+    /// The scan's temperature, that of the per-term bounds (`None`: those criteria are
+    /// absent).
+    pub temperature: Option<f64>,
     /// The scene's backbone residues whose basins are compared (empty: no peptide backbone).
     pub backbone: Vec<BackboneResidue>,
     /// Start of each run left out (equilibration), in the scene's time unit.
@@ -79,8 +100,9 @@ pub const DEFAULT_BASIN_BOUND: f64 = 0.1;
 pub const MAX_FRAMES: usize = 100_000;
 
 impl SamplingCriterion {
-    /// The analysis both runs go through: the pair's g(r), the default bins and peak fit of
-    /// `longstep analyze`, no configurational temperature (not compared).
+    /// The analysis both runs go through: the pair's g(r) and every other default of
+    /// `longstep analyze` (bins, peak fit, [`DEFAULT_PROBES`] probes of the configurational
+    /// temperature, seed 1).
     pub fn analysis_options(&self) -> AnalysisOptions {
         self.analysis_options_for(None)
     }
@@ -98,9 +120,9 @@ impl SamplingCriterion {
             r_max: None,
             peak_window: 0.25,
             peak_fit: 0.1,
-            probes: 1,
+            probes: DEFAULT_PROBES,
             seed: 1,
-            configurational: false,
+            configurational: true,
             dof,
             kinetic_column: "kinetic".into(),
             stride: 1,
@@ -113,6 +135,7 @@ impl SamplingCriterion {
             (self.potential_bound, "--potential-bound"),
             (self.peak_bound, "--peak-bound"),
             (self.basin_bound, "--basin-bound"),
+            (self.temperature_bound, "--temperature-bound"),
         ] {
             if !(value > 0.0 && value.is_finite()) {
                 return Err(Error::flag(flag, format!("{flag} must be positive"))
@@ -163,6 +186,19 @@ impl SamplingCriterion {
         format!("pooled over {}", labels.join(" "))
     }
 
+    /// The bounds and temperature of the criteria ([`super::reference`]), with `k_B` of
+    /// the scene's `units`.
+    pub fn settings(&self, units: Units) -> CriterionSettings {
+        CriterionSettings {
+            potential_bound: self.potential_bound,
+            peak_bound: self.peak_bound,
+            basin_bound: self.basin_bound,
+            temperature_bound: self.temperature_bound,
+            temperature: self.temperature,
+            boltzmann: units.boltzmann(),
+        }
+    }
+
     /// Trajectory frame interval in steps of outer step `h` over a run of `t_end`.
     pub fn frame_every(&self, t_end: f64, h: f64) -> usize {
         let steps = (t_end / h).round().max(1.0);
@@ -170,7 +206,8 @@ impl SamplingCriterion {
     }
 }
 
-/// One point's run against the reference.
+/// One point's run against the reference: every criterion ([`super::reference`]), and the
+/// numbers of the scan table's fixed columns.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {
     /// The run's mean potential energy per molecule and its standard error.
@@ -187,12 +224,11 @@ pub struct Comparison {
     /// The run's mean kinetic temperature and its standard error.
     pub kinetic_temperature: f64,
     pub kinetic_temperature_error: f64,
-    /// The verdicts on the two differences, and on the point (pass when both pass, fail
-    /// when either fails).
-    pub potential_verdict: verdict::Verdict,
-    pub peak_verdict: verdict::Verdict,
     /// The backbone basins, pooled over residues (empty without a backbone).
     pub basins: Vec<BasinComparison>,
+    /// Every criterion, present or absent, as `analyze --reference` gives them.
+    pub criteria: Vec<Criterion>,
+    /// The point's verdict: that of every present criterion together ([`verdict::all`]).
     pub verdict: verdict::Verdict,
 }
 
@@ -245,22 +281,6 @@ pub fn compare_basins(
         .collect()
 }
 
-/// [`compare`] with the backbone basins ([`compare_basins`] against `basin_bound`), each
-/// basin's verdict joining the point's.
-pub fn compare_with_basins(
-    reference: &RunAnalysis,
-    run: &RunAnalysis,
-    bounds: &Bounds,
-    basin_bound: f64,
-) -> Comparison {
-    let mut comparison = compare(reference, run, bounds);
-    comparison.basins = compare_basins(&reference.basins, &run.basins, bounds, basin_bound);
-    let mut verdicts = vec![comparison.potential_verdict, comparison.peak_verdict];
-    verdicts.extend(comparison.basins.iter().map(|b| b.verdict));
-    comparison.verdict = verdict::all(&verdicts);
-    comparison
-}
-
 /// The first-peak height of the analysed pair, `None` when no peak was found.
 pub fn peak_height(analysis: &RunAnalysis) -> Option<Estimate> {
     analysis.rdf.first().and_then(|r| r.peak_height)
@@ -289,44 +309,51 @@ fn difference(run: &Estimate, reference: &Estimate, bounds: &Bounds) -> Measurem
     }
 }
 
-/// Compare a run's analysis with the reference's (module documentation); a run or reference
-/// whose g(r) shows no first peak fails.
-pub fn compare(reference: &RunAnalysis, run: &RunAnalysis, bounds: &Bounds) -> Comparison {
-    let potential = difference(
-        &run.potential_per_molecule,
-        &reference.potential_per_molecule,
-        bounds,
-    );
-    let potential_verdict = verdict::judge(&potential, bounds.potential);
-    let (peak, peak_verdict) = match (peak_height(run), peak_height(reference)) {
-        (Some(p), Some(r)) => {
-            let m = difference(&p, &r, bounds);
-            ((p.mean, p.error, m), verdict::judge(&m, bounds.peak))
-        }
-        _ => {
-            let missing = Measurement {
-                value: f64::NAN,
-                error: f64::NAN,
-                ..potential
-            };
-            ((f64::NAN, f64::NAN, missing), verdict::Verdict::Fail)
-        }
+/// Compare a run's analysis with the reference's by every criterion of
+/// [`super::reference::judge_runs`] (module documentation), in the energy and temperature
+/// units of `units`; a run or reference whose g(r) shows no first peak fails.
+pub fn compare(
+    reference: &RunAnalysis,
+    run: &RunAnalysis,
+    settings: &CriterionSettings,
+    units: Units,
+) -> Comparison {
+    let names = (units.energy_name(), units.temperature_name());
+    let criteria = judge_runs(reference, run, settings, names);
+    let of = |kind: Kind| criteria.iter().find(|c| c.kind == kind);
+    let numbers = |c: Option<&Criterion>| {
+        let c = c.and_then(|c| c.difference.zip(c.error));
+        c.unwrap_or((f64::NAN, f64::NAN))
     };
+    let (potential_difference, potential_combined_error) = numbers(of(Kind::Potential));
+    let (peak_difference, peak_combined_error) = numbers(of(Kind::Peak));
+    let peak = peak_height(run);
+    let bounds = Bounds {
+        potential: settings.potential_bound,
+        peak: settings.peak_bound,
+        start: run.blocks.start,
+        span: run.blocks.end - run.blocks.start,
+    };
+    let verdict = overall(&criteria).unwrap_or(verdict::Verdict::Undecided { decide_at: None });
     Comparison {
         potential: run.potential_per_molecule.mean,
         potential_error: run.potential_per_molecule.error,
-        potential_difference: potential.value,
-        potential_combined_error: potential.standard_error(),
-        peak: peak.0,
-        peak_error: peak.1,
-        peak_difference: peak.2.value,
-        peak_combined_error: peak.2.standard_error(),
+        potential_difference,
+        potential_combined_error,
+        peak: peak.map_or(f64::NAN, |p| p.mean),
+        peak_error: peak.map_or(f64::NAN, |p| p.error),
+        peak_difference,
+        peak_combined_error,
         kinetic_temperature: run.kinetic_temperature.mean,
         kinetic_temperature_error: run.kinetic_temperature.error,
-        potential_verdict,
-        peak_verdict,
-        basins: Vec::new(),
-        verdict: verdict::all(&[potential_verdict, peak_verdict]),
+        basins: compare_basins(
+            &reference.basins,
+            &run.basins,
+            &bounds,
+            settings.basin_bound,
+        ),
+        criteria,
+        verdict,
     }
 }
 
@@ -371,33 +398,31 @@ pub fn point_dir(criterion: &SamplingCriterion, index: usize, method: &str, h: f
 }
 
 impl SamplingCriterion {
-    /// Judge a finished run of length `t_end` in `dir` (energy.csv and trajectory.xyz) of
-    /// `scene`, its kinetic temperature over `dof` degrees of freedom, against the
-    /// reference's analysis: [`compare_with_basins`] over the span after `discard`.
+    /// Judge a finished run in `dir` (energy.csv and trajectory.xyz) of `scene`, its
+    /// kinetic temperature over `dof` degrees of freedom, against the reference's analysis
+    /// ([`compare`]), and write its criteria to `dir/criteria.json`.
     pub fn judge_run(
         &self,
         scene: &Scene,
         dof: Option<f64>,
         reference: &RunAnalysis,
         dir: &Path,
-        t_end: f64,
     ) -> Result<Comparison> {
         let analysis = self.analyzer(scene, dof)?.analyze(&RunFiles {
             energy: dir.join("energy.csv"),
             trajectory: dir.join("trajectory.xyz"),
         })?;
-        let bounds = Bounds {
-            potential: self.potential_bound,
-            peak: self.peak_bound,
-            start: self.discard,
-            span: t_end - self.discard,
-        };
-        Ok(compare_with_basins(
+        let comparison = compare(
             reference,
             &analysis,
-            &bounds,
-            self.basin_bound,
-        ))
+            &self.settings(scene.units),
+            scene.units,
+        );
+        let path = dir.join("criteria.json");
+        let text = serde_json::to_string_pretty(&comparison.criteria)
+            .map_err(|e| Error::input(format!("cannot write JSON: {e}")))?;
+        std::fs::write(&path, text + "\n").map_err(|e| Error::io(path, e))?;
+        Ok(comparison)
     }
 }
 
