@@ -330,3 +330,114 @@ fn a_trajectory_of_another_model_is_refused() {
         "{stderr}"
     );
 }
+
+/// Write the frames of longstep's extended XYZ `xyz` to `path` (a `.trr` or `.nc`, by its
+/// extension) through chemfiles, each frame's box kept and, when `times`, its time in ps
+/// (`.trr`: GROMACS's unit; longstep's frames are in fs).
+fn convert(xyz: &Path, path: &Path, times: bool) -> usize {
+    let mut input = chemfiles::Trajectory::open(xyz, 'r').unwrap();
+    let mut output = chemfiles::Trajectory::open(path, 'w').unwrap();
+    let mut frame = chemfiles::Frame::new();
+    for k in 0..input.nsteps() {
+        input.read_step(k, &mut frame).unwrap();
+        if times {
+            let t = match frame.get("time") {
+                Some(chemfiles::Property::Double(t)) => t,
+                Some(chemfiles::Property::String(s)) => s.trim().parse().unwrap(),
+                other => panic!("frame {k} has no time: {other:?}"),
+            };
+            frame.set("time", t / 1000.0);
+        }
+        output.write(&frame).unwrap();
+    }
+    input.nsteps()
+}
+
+#[test]
+fn trr_and_nc_frames_give_the_energies_of_the_xyz_they_hold() {
+    // A short run's extended-XYZ frames (t = 0, 4, …, 16 fs) written again as a GROMACS
+    // .trr (nm, times in ps) and an AMBER .nc (Å, no times: --frame-time places them), and
+    // all three analysed from t = 4 fs: the same four frames, and the same energies to the
+    // files' float32 rounding. Each coordinate is rounded by at most 2⁻²⁴ of the largest
+    // |q| (relative rounding of a float32; the .trr's nm scale by 10 is exact in the
+    // relative sense up to one more rounding: 2⁻²³ bounds both), so a term's energy moves by
+    // at most ‖∇E‖₁ · 2⁻²³ · max|q| per frame to first order (the second order, k·δ² ~ 1e-9
+    // kcal/mol, is far below), and its mean over frames by the largest of those.
+    let out = scratch_dir("analyze-peers-trr-nc");
+    let dir = out.join("run");
+    let (code, _, stderr) = run_cli(&argv(
+        "run {} --method impulse --h 2fs --inner 4 --t-end 16fs --temperature 300K --seed 3 \
+         --energy-every 2 --trajectory-every 2 --out {}",
+        &[SCENE, dir.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    let xyz = dir.join("trajectory.xyz");
+    let (trr, nc) = (out.join("run.trr"), out.join("run.nc"));
+    assert_eq!(convert(&xyz, &trr, true), 5);
+    assert_eq!(convert(&xyz, &nc, false), 5);
+    let tables = out.join("analysis");
+    let analyse = |file: &Path, extra: &[&str]| -> Json {
+        let mut args = argv(
+            "analyze {} {} --skip 4fs --blocks 2 --no-configurational --json --quiet --out {}",
+            &[SCENE, file.to_str().unwrap(), tables.to_str().unwrap()],
+        );
+        args.extend(extra);
+        analyze_json(&args)[0].clone()
+    };
+    let own = analyse(&xyz, &[]);
+    let from_trr = analyse(&trr, &[]);
+    let from_nc = analyse(&nc, &["--frame-time", "4fs"]);
+    // The largest first-order change of each term over the analysed frames.
+    let scene = scene_file(SCENE, &[]);
+    let terms = scene.system.forces.terms();
+    let mut reader = TrajectoryReader::open(&xyz).unwrap();
+    let mut q = Vec::new();
+    let mut shift = std::collections::HashMap::<String, f64>::new();
+    while let Some(info) = reader.read_next(&mut q).unwrap() {
+        if info.time.unwrap() < 4.0 - 1e-9 {
+            continue;
+        }
+        let ulp = 2f64.powi(-23) * q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for t in terms {
+            let mut g = vec![0.0; q.len()];
+            t.term.add_gradient(&q, &mut g);
+            let bound = g.iter().map(|x| x.abs()).sum::<f64>() * ulp;
+            let entry = shift.entry(t.name.clone()).or_insert(0.0);
+            *entry = entry.max(bound);
+        }
+    }
+    for (label, other) in [("trr", &from_trr), ("nc", &from_nc)] {
+        assert_eq!(other["frames"], 4, "{label}: {other}");
+        assert_eq!(own["frames"], 4);
+        // The .trr holds its times as float32 ps: equal to 2⁻²³ relative.
+        for end in ["start", "end"] {
+            let (a, b) = (other["span"][end].as_f64(), own["span"][end].as_f64());
+            let (a, b) = (a.unwrap(), b.unwrap());
+            assert!(
+                (a - b).abs() <= 2f64.powi(-23) * b.abs(),
+                "{label} {end}: {a} vs {b}"
+            );
+        }
+        for name in ["bonds", "angles", "torsions", "pme-reciprocal", "lj-14"] {
+            let mean = |summary: &Json| {
+                let terms = summary["terms"].as_array().unwrap();
+                let t = terms.iter().find(|t| t["term"] == name).unwrap();
+                t["mean"].as_f64().unwrap()
+            };
+            let (ours, theirs) = (mean(&own), mean(other));
+            let tolerance = shift[name];
+            assert!(
+                (ours - theirs).abs() <= tolerance,
+                "{label} {name}: {theirs} vs the xyz's {ours} (tolerance {tolerance})"
+            );
+        }
+    }
+    // Without --frame-time the .nc's times are frame numbers: a --skip in fs cannot be
+    // placed, and is refused.
+    let (code, _, stderr) = run_cli(&argv(
+        "analyze {} {} --skip 4fs --no-configurational --json --quiet",
+        &[SCENE, nc.to_str().unwrap()],
+    ));
+    assert_ne!(code, 0);
+    assert!(stderr.contains("--frame-time"), "{stderr}");
+}
