@@ -388,6 +388,60 @@ fn check_help_names_topologies_and_boxes_print_short() {
     assert!(said.contains("box 45.981 × 45.981 × 45.981 Å"), "{said}");
 }
 
+/// Item 3, the rest: `check` gives the Ewald splitting α in 1/Å, the unit of every real
+/// scene and of a topology (GROMACS's nm are read as Å), where it printed `1/length` with 16
+/// digits on one line and 6 on the next; the lengths of the non-bonded term carry their
+/// unit; no float noise (`-0.000000 e`, `× 0.8333333333333334`). Three ways to PME: an
+/// AMBER prmtop scene, a GROMACS top/gro with `--coulomb pme`, a force-field scene. The
+/// help names the coordinates' formats too.
+#[test]
+fn check_gives_alpha_and_lengths_in_the_scenes_units() {
+    let (code, stdout, _) = run(&["check", "--help"]);
+    assert_eq!(code, 0);
+    for format in [".prmtop", ".top", ".inpcrd", ".gro"] {
+        assert!(stdout.contains(format), "{format}: {stdout}");
+    }
+    let cases: [&[&str]; 3] = [
+        &["systems/protein-amber/trpcage-pme.toml"],
+        &[
+            "systems/alanine-dipeptide-amber/ala2-solvated.top",
+            "--coulomb",
+            "pme",
+        ],
+        &["systems/water-box/pme.toml"],
+    ];
+    for args in cases {
+        let (code, said) = check(args);
+        assert_eq!(code, 0, "{said}");
+        for noise in ["1/length", "-0.000000", "0.8333333333333334"] {
+            assert!(!said.contains(noise), "{args:?}: {noise} in {said}");
+        }
+        let alphas: Vec<f64> = said
+            .match_indices("alpha = ")
+            .map(|(at, key)| {
+                let rest = &said[at + key.len()..];
+                let (number, unit) = rest.split_once(' ').unwrap();
+                assert!(unit.starts_with("1/Å"), "{args:?}: {rest}");
+                let digits = number.chars().filter(char::is_ascii_digit).count();
+                assert!(digits <= 11, "{args:?}: {number}");
+                number.trim_end_matches(',').parse().unwrap()
+            })
+            .collect();
+        // The real-space line and the reciprocal line give the same α.
+        assert_eq!(alphas.len(), 2, "{args:?}: {said}");
+        assert_eq!(alphas[0], alphas[1], "{args:?}");
+        // GROMACS's ewald-rtol 1e-5 at the 9 Å cutoff: LAMMPS reports 0.34704592/Å for it,
+        // GROMACS and OpenMM 0.347046 (docs/data/sittings/head-to-head-pme-2026-11-26.txt);
+        // 10 digits shown keep it within 5e-9 of LAMMPS's 8.
+        assert!(
+            (alphas[0] - 0.34704592).abs() < 1e-8,
+            "{args:?}: {}",
+            alphas[0]
+        );
+        assert!(said.contains("cutoff 9 Å, skin "), "{args:?}: {said}");
+    }
+}
+
 /// Item 5: `minimize --save` to a format that rounds positions (PDB: 0.001 Å) warns that
 /// the minimum is lost; `minimize --json` prints its report as JSON.
 #[test]

@@ -387,6 +387,81 @@ fn progress_shows_on_a_terminal_and_nowhere_else() {
     assert!(!terminal.contains("runs,"), "{terminal}");
 }
 
+/// Item 16 for the other long commands: `modes` (dense Hessian columns, or Lanczos
+/// iterations) and `analyze` (the share of the run analysed) show a bar with the time left
+/// on a terminal, none under `--quiet`, and nothing on a captured stderr; `scan growth`
+/// and `scan stiffness` count their runs.
+#[test]
+fn modes_analyze_and_scans_show_progress_on_a_terminal_only() {
+    let out = scratch_dir("ux-progress-more");
+    let dir = out.to_str().unwrap();
+    let top = format!("{ALA2}/ala2.top");
+    let cases = [
+        (format!("modes {top}"), "Hessian columns"),
+        (
+            format!("modes {top} --lanczos 30"),
+            "Lanczos iterations (at most)",
+        ),
+    ];
+    let run = format!("run {top} --t-end 100fs --trajectory-every 2 --quiet --out {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&run));
+    assert_eq!(code, 0, "{stderr}");
+    let analyze = format!("analyze {top} {dir}/run --blocks 2 --out {dir}/analysis");
+    let growth = format!(
+        "scan growth systems/three-spring.toml --method impulse --h 0.5,0.4 --inner 10 \
+         --t-end 20 --out {dir}/growth"
+    );
+    let stiffness = format!(
+        "scan stiffness systems/two-spring.toml --method impulse --param omega1 --range 0:8 \
+         --n 3 --h 0.5 --t-end 4 --out {dir}/stiffness.csv"
+    );
+    let more = [
+        (analyze, "% of its time span"),
+        (growth, "2/2 runs"),
+        (stiffness, "3/3 runs"),
+    ];
+    for (command, shown) in cases.iter().chain(&more) {
+        let (code, terminal) = on_a_terminal(command);
+        assert_eq!(code, 0, "{command}: {terminal}");
+        assert!(terminal.contains(shown), "{command}: {terminal}");
+        assert!(
+            terminal.contains("left"),
+            "{command}: no time left: {terminal}"
+        );
+        let (code, terminal) = on_a_terminal(&format!("{command} --quiet"));
+        assert_eq!(code, 0, "{command} --quiet: {terminal}");
+        assert!(!terminal.contains(shown), "{command} --quiet: {terminal}");
+        let (code, _, stderr) = run_cli(&common::words(command));
+        assert_eq!(code, 0, "{command}: {stderr}");
+        assert!(
+            !stderr.contains(shown),
+            "{command}, not a terminal: {stderr}"
+        );
+    }
+}
+
+/// Item 4: a topology's run writes no trajectory unless asked, and `analyze` of it says
+/// so and which flag writes one, naming the run directory.
+#[test]
+fn analyze_of_a_run_without_frames_says_which_flag_writes_them() {
+    let out = scratch_dir("ux-no-frames");
+    let dir = out.to_str().unwrap();
+    let top = format!("{ALA2}/ala2.top");
+    let run = format!("run {top} --t-end 20fs --quiet --out {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&run));
+    assert_eq!(code, 0, "{stderr}");
+    assert!(!out.join("run/trajectory.xyz").exists());
+    let analyze = format!("analyze {top} {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&analyze));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains(&format!("{dir}/run")), "{stderr}");
+    assert!(
+        stderr.contains("the run wrote no frames")
+            && stderr.contains("rerun it with --trajectory-every"),
+        "{stderr}"
+    );
+}
+
 // Item 17: guards that stop at sizes a user would not expect.
 
 /// `longstep args`: its exit code and stderr, or `None` when it is still running after
