@@ -249,6 +249,24 @@ fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
     let (code, said) = check(&[top.to_str().unwrap()]);
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("not a whole number"), "{said}");
+    // The same in a prmtop: the first hydrogen's charge (in units of e/18.2223) raised by
+    // half an electron, 9.11115 units.
+    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    let prmtop = std::fs::read_to_string(systems.join("ala2.prmtop")).unwrap();
+    let spoiled = prmtop.replacen(
+        "  2.04636429E+00 -6.67300626E+00",
+        "  1.11575143E+01 -6.67300626E+00",
+        1,
+    );
+    assert_ne!(spoiled, prmtop);
+    std::fs::write(dir.join("charge.prmtop"), spoiled).unwrap();
+    std::fs::copy(systems.join("ala2.inpcrd"), dir.join("charge.inpcrd")).unwrap();
+    let (code, said) = check(&[dir.join("charge.prmtop").to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(
+        said.contains("total charge is 0.500000 e, not a whole number"),
+        "{said}"
+    );
     // Refused, naming the file: a negative bond force constant, a negative mass, a
     // [ moleculetype ] defined twice.
     let refused = [
@@ -281,7 +299,6 @@ fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
         );
     }
     // Flags out of any sense.
-    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
     let vacuum = systems.join("ala2.prmtop");
     let solvated = systems.join("ala2-solvated.prmtop");
     for (scene, flags, what) in [
