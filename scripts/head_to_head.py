@@ -428,7 +428,7 @@ def run_longstep_pme(atoms, h, k, steps, threads, precision):
         res = sh(cmd, cwd=ROOT, env=env)
         if res.returncode != 0:
             raise RuntimeError("longstep failed: %s" % res.stderr[-2000:])
-        m = re.search(r"pme-reciprocal: (PME, alpha = \S+ 1/length, grid \S+, order \d+)",
+        m = re.search(r"pme-reciprocal: (PME, alpha = \S+ 1/\S+, grid \S+, order \d+)",
                       res.stderr)
         pme_note("longstep", atoms, m.group(1) if m else "(not reported)")
         s = json.loads(res.stdout)

@@ -547,7 +547,7 @@ def openmm_worker(spec):
 def longstep_pme(scene):
     """alpha (1/A) and grid that `longstep check` reports for the scene's reciprocal sum."""
     res = h2h.sh([BIN, "check", scene], cwd=ROOT)
-    m = re.search(r"pme-reciprocal: PME, alpha = (\S+) 1/length, grid (\d+)x(\d+)x(\d+), "
+    m = re.search(r"pme-reciprocal: PME, alpha = (\S+) 1/\S+, grid (\d+)x(\d+)x(\d+), "
                   r"order (\d+)", res.stdout + res.stderr)
     if res.returncode != 0 or not m:
         sys.exit("longstep check %s did not report its PME parameters:\n%s" % (

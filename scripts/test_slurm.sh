@@ -20,11 +20,19 @@ die() { echo "test-slurm: $*" >&2; exit 1; }
 [ -x "$BIN" ] || die "no longstep binary at $BIN (cargo build --release)"
 [ "$(id -u)" = 0 ] || die "needs root (it installs packages and starts daemons)"
 
-if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then
-    echo "test-slurm: installing slurm-wlm and munge from Debian" >&2
+missing=()
+for tool in slurmctld slurmd sbatch squeue sinfo munged; do
+    command -v "$tool" >/dev/null || missing+=("$tool")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "test-slurm: ${missing[*]} missing: installing slurm-wlm and munge from Debian" >&2
+    command -v apt-get >/dev/null || die "no apt-get to install slurm-wlm and munge with"
     apt-get update -qq
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
         slurm-wlm munge >/dev/null
+    for tool in "${missing[@]}"; do
+        command -v "$tool" >/dev/null || die "$tool still missing after installing slurm-wlm"
+    done
 fi
 
 WORK=$(mktemp -d /tmp/longstep-slurm.XXXXXX)

@@ -27,6 +27,21 @@ pub const COULOMB_KCAL_ANGSTROM: f64 = 332.06371;
 /// Boltzmann's constant in kcal/mol/K (CODATA: 1.380649e-23 J/K × 6.02214076e23 / 4184).
 pub const BOLTZMANN_KCAL_PER_K: f64 = 1.380649e-23 * 6.02214076e23 / 4184.0;
 
+/// `x` with at most `digits` significant digits, without trailing zeros.
+pub fn significant(x: f64, digits: usize) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let magnitude = x.abs().log10().floor() as i32;
+    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+    let text = format!("{x:.decimals$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Units {
     /// Dimensionless: numbers as written, no unit suffixes.
@@ -100,6 +115,23 @@ impl Units {
         match self {
             Units::None => "",
             Units::Real => "Å",
+        }
+    }
+
+    /// An inverse length (`0.347 1/Å`, the Ewald splitting α) with ten significant digits
+    /// and its unit; a bare number in a dimensionless scene.
+    pub fn inverse_length(self, x: f64) -> String {
+        match self {
+            Units::None => significant(x, 10),
+            Units::Real => format!("{} 1/{}", significant(x, 10), self.length_name()),
+        }
+    }
+
+    /// A length with ten significant digits and its unit (`9 Å`; bare when dimensionless).
+    pub fn length(self, x: f64) -> String {
+        match self {
+            Units::None => significant(x, 10),
+            Units::Real => format!("{} {}", significant(x, 10), self.length_name()),
         }
     }
 

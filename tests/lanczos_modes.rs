@@ -5,8 +5,10 @@
 
 mod common;
 
-use longstep::analysis::lanczos::{ConstrainedHessian, LanczosOptions, lanczos_highest};
-use longstep::analysis::modes::fast_modes;
+use longstep::analysis::lanczos::{
+    ConstrainedHessian, LanczosOptions, lanczos_highest, lanczos_highest_with,
+};
+use longstep::analysis::modes::{fast_modes, fast_modes_with};
 use longstep::io::scene::Scene;
 use longstep::settings::RunSpec;
 use longstep::system::constraints::{Constraints, DistanceConstraint};
@@ -247,4 +249,42 @@ fn a_rigid_bond_bend_has_the_g_matrix_frequency_whatever_the_bond_tension() {
     let result = lanczos_highest(&mut operator, &mut scene.system.forces, &options);
     let top = &result.pairs[0];
     assert!((top.value - bend).abs() <= top.residual + tolerance);
+}
+
+/// Issue 43 item 16, the progress of `modes` alone: the dense path reports each batched
+/// Hessian column once, in order, up to the largest fast component's coordinates (the
+/// dipeptide in vacuum is one component of 22 atoms: 66), and the modes are those without
+/// a progress callback; Lanczos reports each iteration against the most it may take.
+#[test]
+fn modes_report_their_progress_column_by_column() {
+    let mut scene = common::scene_file(DIPEPTIDE, &[]);
+    let mut seen = Vec::new();
+    let modes = fast_modes_with(&mut scene.system, &mut |done, total| {
+        seen.push((done, total))
+    });
+    let expected: Vec<(usize, usize)> = (1..=66).map(|j| (j, 66)).collect();
+    assert_eq!(seen, expected);
+    let plain = fast_modes(&mut scene.system);
+    let frequencies = |m: &[longstep::analysis::modes::Mode]| -> Vec<u64> {
+        m.iter().map(|m| m.frequency.to_bits()).collect()
+    };
+    assert_eq!(frequencies(&modes), frequencies(&plain));
+
+    let mut operator = ConstrainedHessian::new(&mut scene.system, 0).unwrap();
+    let options = LanczosOptions {
+        iterations: 30,
+        wanted: 4,
+        tolerance: 0.0,
+        seed: 3,
+    };
+    let mut steps = Vec::new();
+    let result = lanczos_highest_with(
+        &mut operator,
+        &mut scene.system.forces,
+        &options,
+        &mut |done, most| steps.push((done, most)),
+    );
+    let expected: Vec<(usize, usize)> = (1..=result.iterations).map(|j| (j, 30)).collect();
+    assert_eq!(result.iterations, 30);
+    assert_eq!(steps, expected);
 }

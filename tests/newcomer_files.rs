@@ -249,6 +249,24 @@ fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
     let (code, said) = check(&[top.to_str().unwrap()]);
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("not a whole number"), "{said}");
+    // The same in a prmtop: the first hydrogen's charge (in units of e/18.2223) raised by
+    // half an electron, 9.11115 units.
+    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
+    let prmtop = std::fs::read_to_string(systems.join("ala2.prmtop")).unwrap();
+    let spoiled = prmtop.replacen(
+        "  2.04636429E+00 -6.67300626E+00",
+        "  1.11575143E+01 -6.67300626E+00",
+        1,
+    );
+    assert_ne!(spoiled, prmtop);
+    std::fs::write(dir.join("charge.prmtop"), spoiled).unwrap();
+    std::fs::copy(systems.join("ala2.inpcrd"), dir.join("charge.inpcrd")).unwrap();
+    let (code, said) = check(&[dir.join("charge.prmtop").to_str().unwrap()]);
+    assert_eq!(code, 0, "{said}");
+    assert!(
+        said.contains("total charge is 0.500000 e, not a whole number"),
+        "{said}"
+    );
     // Refused, naming the file: a negative bond force constant, a negative mass, a
     // [ moleculetype ] defined twice.
     let refused = [
@@ -281,7 +299,6 @@ fn nonsense_in_a_topology_or_its_flags_is_refused_or_warned_about() {
         );
     }
     // Flags out of any sense.
-    let systems = Path::new(env!("CARGO_MANIFEST_DIR")).join("systems/alanine-dipeptide-amber");
     let vacuum = systems.join("ala2.prmtop");
     let solvated = systems.join("ala2-solvated.prmtop");
     for (scene, flags, what) in [
@@ -386,6 +403,60 @@ fn check_help_names_topologies_and_boxes_print_short() {
     let (code, said) = check(&[dir.join("box.top").to_str().unwrap()]);
     assert_eq!(code, 0, "{said}");
     assert!(said.contains("box 45.981 × 45.981 × 45.981 Å"), "{said}");
+}
+
+/// Item 3, the rest: `check` gives the Ewald splitting α in 1/Å, the unit of every real
+/// scene and of a topology (GROMACS's nm are read as Å), where it printed `1/length` with 16
+/// digits on one line and 6 on the next; the lengths of the non-bonded term carry their
+/// unit; no float noise (`-0.000000 e`, `× 0.8333333333333334`). Three ways to PME: an
+/// AMBER prmtop scene, a GROMACS top/gro with `--coulomb pme`, a force-field scene. The
+/// help names the coordinates' formats too.
+#[test]
+fn check_gives_alpha_and_lengths_in_the_scenes_units() {
+    let (code, stdout, _) = run(&["check", "--help"]);
+    assert_eq!(code, 0);
+    for format in [".prmtop", ".top", ".inpcrd", ".gro"] {
+        assert!(stdout.contains(format), "{format}: {stdout}");
+    }
+    let cases: [&[&str]; 3] = [
+        &["systems/protein-amber/trpcage-pme.toml"],
+        &[
+            "systems/alanine-dipeptide-amber/ala2-solvated.top",
+            "--coulomb",
+            "pme",
+        ],
+        &["systems/water-box/pme.toml"],
+    ];
+    for args in cases {
+        let (code, said) = check(args);
+        assert_eq!(code, 0, "{said}");
+        for noise in ["1/length", "-0.000000", "0.8333333333333334"] {
+            assert!(!said.contains(noise), "{args:?}: {noise} in {said}");
+        }
+        let alphas: Vec<f64> = said
+            .match_indices("alpha = ")
+            .map(|(at, key)| {
+                let rest = &said[at + key.len()..];
+                let (number, unit) = rest.split_once(' ').unwrap();
+                assert!(unit.starts_with("1/Å"), "{args:?}: {rest}");
+                let digits = number.chars().filter(char::is_ascii_digit).count();
+                assert!(digits <= 11, "{args:?}: {number}");
+                number.trim_end_matches(',').parse().unwrap()
+            })
+            .collect();
+        // The real-space line and the reciprocal line give the same α.
+        assert_eq!(alphas.len(), 2, "{args:?}: {said}");
+        assert_eq!(alphas[0], alphas[1], "{args:?}");
+        // GROMACS's ewald-rtol 1e-5 at the 9 Å cutoff: LAMMPS reports 0.34704592/Å for it,
+        // GROMACS and OpenMM 0.347046 (docs/data/sittings/head-to-head-pme-2026-11-26.txt);
+        // 10 digits shown keep it within 5e-9 of LAMMPS's 8.
+        assert!(
+            (alphas[0] - 0.34704592).abs() < 1e-8,
+            "{args:?}: {}",
+            alphas[0]
+        );
+        assert!(said.contains("cutoff 9 Å, skin "), "{args:?}: {said}");
+    }
 }
 
 /// Item 5: `minimize --save` to a format that rounds positions (PDB: 0.001 Å) warns that

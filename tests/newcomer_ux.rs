@@ -387,6 +387,81 @@ fn progress_shows_on_a_terminal_and_nowhere_else() {
     assert!(!terminal.contains("runs,"), "{terminal}");
 }
 
+/// Item 16 for the other long commands: `modes` (dense Hessian columns, or Lanczos
+/// iterations) and `analyze` (the share of the run analysed) show a bar with the time left
+/// on a terminal, none under `--quiet`, and nothing on a captured stderr; `scan growth`
+/// and `scan stiffness` count their runs.
+#[test]
+fn modes_analyze_and_scans_show_progress_on_a_terminal_only() {
+    let out = scratch_dir("ux-progress-more");
+    let dir = out.to_str().unwrap();
+    let top = format!("{ALA2}/ala2.top");
+    let cases = [
+        (format!("modes {top}"), "Hessian columns"),
+        (
+            format!("modes {top} --lanczos 30"),
+            "Lanczos iterations (at most)",
+        ),
+    ];
+    let run = format!("run {top} --t-end 100fs --trajectory-every 2 --quiet --out {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&run));
+    assert_eq!(code, 0, "{stderr}");
+    let analyze = format!("analyze {top} {dir}/run --blocks 2 --out {dir}/analysis");
+    let growth = format!(
+        "scan growth systems/three-spring.toml --method impulse --h 0.5,0.4 --inner 10 \
+         --t-end 20 --out {dir}/growth"
+    );
+    let stiffness = format!(
+        "scan stiffness systems/two-spring.toml --method impulse --param omega1 --range 0:8 \
+         --n 3 --h 0.5 --t-end 4 --out {dir}/stiffness.csv"
+    );
+    let more = [
+        (analyze, "% of its time span"),
+        (growth, "2/2 runs"),
+        (stiffness, "3/3 runs"),
+    ];
+    for (command, shown) in cases.iter().chain(&more) {
+        let (code, terminal) = on_a_terminal(command);
+        assert_eq!(code, 0, "{command}: {terminal}");
+        assert!(terminal.contains(shown), "{command}: {terminal}");
+        assert!(
+            terminal.contains("left"),
+            "{command}: no time left: {terminal}"
+        );
+        let (code, terminal) = on_a_terminal(&format!("{command} --quiet"));
+        assert_eq!(code, 0, "{command} --quiet: {terminal}");
+        assert!(!terminal.contains(shown), "{command} --quiet: {terminal}");
+        let (code, _, stderr) = run_cli(&common::words(command));
+        assert_eq!(code, 0, "{command}: {stderr}");
+        assert!(
+            !stderr.contains(shown),
+            "{command}, not a terminal: {stderr}"
+        );
+    }
+}
+
+/// Item 4: a topology's run writes no trajectory unless asked, and `analyze` of it says
+/// so and which flag writes one, naming the run directory.
+#[test]
+fn analyze_of_a_run_without_frames_says_which_flag_writes_them() {
+    let out = scratch_dir("ux-no-frames");
+    let dir = out.to_str().unwrap();
+    let top = format!("{ALA2}/ala2.top");
+    let run = format!("run {top} --t-end 20fs --quiet --out {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&run));
+    assert_eq!(code, 0, "{stderr}");
+    assert!(!out.join("run/trajectory.xyz").exists());
+    let analyze = format!("analyze {top} {dir}/run");
+    let (code, _, stderr) = run_cli(&common::words(&analyze));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains(&format!("{dir}/run")), "{stderr}");
+    assert!(
+        stderr.contains("the run wrote no frames")
+            && stderr.contains("rerun it with --trajectory-every"),
+        "{stderr}"
+    );
+}
+
 // Item 17: guards that stop at sizes a user would not expect.
 
 /// `longstep args`: its exit code and stderr, or `None` when it is still running after
@@ -478,39 +553,53 @@ fn the_async_map_writes_under_out_by_default() {
 
 // Item 19: docs quote verdicts as the program prints them.
 
-/// The `drift` line `longstep args` prints.
-fn drift_line(args: &[&str]) -> String {
+/// The `drift` and `warning` lines `longstep args` prints.
+fn drift_lines(args: &[&str]) -> Vec<String> {
     let (code, stdout, stderr) = run_cli(args);
     assert!(code == 0, "{stderr}");
-    stdout
+    let lines: Vec<String> = stdout
         .lines()
-        .find(|l| l.starts_with("drift "))
-        .unwrap_or_else(|| panic!("no drift line in {stdout}"))
-        .to_string()
+        .filter(|l| l.starts_with("drift ") || l.starts_with("warning "))
+        .map(str::to_string)
+        .collect();
+    assert!(
+        lines.iter().any(|l| l.starts_with("drift ")),
+        "no drift line in {stdout}"
+    );
+    lines
 }
 
+/// Item 19: the verdicts README.md and docs/molecules.md quote (the water box at 2 and 4 fs,
+/// the dipeptide under LongAverage, each run as the docs show it) are the lines the program
+/// prints, warning included, character for character.
 #[test]
-fn readme_and_molecules_quote_the_water_box_drift_as_printed() {
+fn readme_and_molecules_quote_the_verdicts_as_printed() {
     let out = scratch_dir("ux-docs-drift");
     let readme = std::fs::read_to_string("README.md").unwrap();
     let molecules = std::fs::read_to_string("docs/molecules.md").unwrap();
-    // The commands README.md and docs/molecules.md show, to the same 10 ps.
-    for (k, steps) in ["--h 2fs --inner 4", "--h 4fs --inner 8"]
-        .iter()
-        .enumerate()
-    {
+    let water = "run systems/water-box/scene.toml --method impulse --t-end 10ps";
+    let dipeptide = "run systems/molecules/alanine-dipeptide.toml --method long-average --h 3fs \
+                     --inner 6 --t-end 10ps --temperature 300K";
+    let cases = [
+        (water, "--h 2fs --inner 4", true),
+        (water, "--h 4fs --inner 8", true),
+        (dipeptide, "", false),
+    ];
+    for (k, (command, steps, in_readme)) in cases.into_iter().enumerate() {
         let dir = out.join(k.to_string());
-        let mut args = common::words(
-            "run systems/water-box/scene.toml --method impulse --t-end 10ps --quiet --out",
-        );
-        args.push(dir.to_str().unwrap());
+        let mut args = common::words(command);
         args.extend(common::words(steps));
-        let line = drift_line(&args);
-        assert!(readme.contains(&line), "README.md does not quote {line:?}");
-        assert!(
-            molecules.contains(&line),
-            "docs/molecules.md does not quote {line:?}"
-        );
+        args.extend(["--quiet", "--out", dir.to_str().unwrap()]);
+        for line in drift_lines(&args) {
+            assert!(
+                !in_readme || readme.contains(&line),
+                "README.md does not quote {line:?}"
+            );
+            assert!(
+                molecules.contains(&line),
+                "docs/molecules.md does not quote {line:?}"
+            );
+        }
     }
 }
 

@@ -415,6 +415,17 @@ pub fn lanczos_highest(
     forces: &mut ForceSplit,
     options: &LanczosOptions,
 ) -> LanczosResult {
+    lanczos_highest_with(operator, forces, options, &mut |_, _| {})
+}
+
+/// [`lanczos_highest`], calling `progress(done, most)` after each iteration (`most`: the
+/// iterations allowed; convergence may stop it sooner).
+pub fn lanczos_highest_with(
+    operator: &mut ConstrainedHessian,
+    forces: &mut ForceSplit,
+    options: &LanczosOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> LanczosResult {
     let n = operator.len();
     let mut rng = StdRng::seed_from_u64(options.seed);
     let mut start: Vec<f64> = (0..n).map(|_| StandardNormal.sample(&mut rng)).collect();
@@ -436,6 +447,7 @@ pub fn lanczos_highest(
         }
         let b = dot(&w, &w).sqrt();
         beta.push(b);
+        progress(basis.len(), options.iterations.min(n));
         let scale = alpha.iter().map(|a| a.abs()).fold(0.0, f64::max);
         let done = basis.len() >= options.iterations.min(n) || b <= 1e-13 * scale;
         if done || (basis.len() % 10 == 0 && converged(&alpha, &beta, options)) {

@@ -32,6 +32,12 @@ pub struct Mode {
 /// The fast modes at the system's current positions, fastest first. Eigenvalues with
 /// |ω²| below `1e-9 × max ω²` count as zero modes.
 pub fn fast_modes(system: &mut System) -> Vec<Mode> {
+    fast_modes_with(system, &mut |_, _| {})
+}
+
+/// [`fast_modes`], calling `progress(done, total)` after each batched Hessian column (one
+/// Hessian-vector product; `total` is the largest component's degrees of freedom).
+pub fn fast_modes_with(system: &mut System, progress: &mut dyn FnMut(usize, usize)) -> Vec<Mode> {
     let n = system.n_dofs();
     let dim = system.dim;
     let components = system.forces.fast_components(system.n_particles());
@@ -63,6 +69,7 @@ pub fn fast_modes(system: &mut System) -> Vec<Mode> {
                 }
             }
         }
+        progress(j + 1, largest);
     }
     let mut modes = Vec::new();
     for (component, (d, mut hessian)) in dofs.iter().zip(hessians).enumerate() {

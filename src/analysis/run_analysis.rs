@@ -242,12 +242,22 @@ impl<'a> Analyzer<'a> {
 
     /// Analyse one run.
     pub fn analyze(&self, files: &RunFiles) -> Result<RunAnalysis> {
+        self.analyze_with(files, &mut |_| {})
+    }
+
+    /// [`Analyzer::analyze`], calling `progress` after each frame with the fraction of
+    /// the analysed span its time has reached (0 to 1; for a progress bar).
+    pub fn analyze_with(
+        &self,
+        files: &RunFiles,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<RunAnalysis> {
         let kinetic = self.options.kinetic_column.as_str();
         let table = EnergyTable::read(&files.energy, &["t", kinetic, "potential"])?;
         let blocks = self.blocks_of(&table)?;
         let mut reader = TrajectoryReader::open(&files.trajectory)?;
         let mut frames = FramePass::new(self, blocks);
-        frames.run(self, &mut reader, None)?;
+        frames.run(self, &mut reader, None, progress)?;
         let energies = self.energy_part(&table, blocks)?;
         frames.finish(self, energies, EnergySource::Table)
     }
@@ -255,10 +265,19 @@ impl<'a> Analyzer<'a> {
     /// Analyse a trajectory file alone (module documentation): the blocks cut the span of
     /// its frames' times from `skip`, and the energies are recomputed from the frames.
     pub fn analyze_trajectory(&self, input: &TrajectoryInput) -> Result<RunAnalysis> {
+        self.analyze_trajectory_with(input, &mut |_| {})
+    }
+
+    /// [`Analyzer::analyze_trajectory`] with `progress` as in [`Analyzer::analyze_with`].
+    pub fn analyze_trajectory_with(
+        &self,
+        input: &TrajectoryInput,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<RunAnalysis> {
         let blocks = self.frame_blocks(input)?;
         let mut reader = TrajectoryReader::open(&input.path)?;
         let mut frames = FramePass::new(self, blocks);
-        frames.run(self, &mut reader, Some(input))?;
+        frames.run(self, &mut reader, Some(input), progress)?;
         let energies = frames.energy_part(self, &input.path)?;
         let source = EnergySource::Frames {
             times: input.has_times(),
@@ -617,12 +636,13 @@ impl FramePass {
     }
 
     /// Read every frame of `reader`: a run directory's trajectory (`input` None) or a
-    /// trajectory file analysed alone.
+    /// trajectory file analysed alone; `progress` gets the share of the span done.
     fn run(
         &mut self,
         analyzer: &Analyzer,
         reader: &mut TrajectoryReader,
         input: Option<&TrajectoryInput>,
+        progress: &mut dyn FnMut(f64),
     ) -> Result<()> {
         let mut q = Vec::new();
         let mut in_span = 0usize;
@@ -652,6 +672,8 @@ impl FramePass {
             let lengths = frame_box(analyzer, reader, &info, foreign)?;
             self.frame(analyzer, &q, lengths, &info, block);
             self.terms.add(analyzer, &q, block, time);
+            let span = self.blocks.end - self.blocks.start;
+            progress(((time - self.blocks.start) / span).clamp(0.0, 1.0));
         }
         if let Some(empty) = self
             .rdf

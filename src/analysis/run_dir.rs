@@ -25,18 +25,22 @@ pub fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
         energy: dir.join("energy.csv"),
         trajectory: dir.join(trajectory),
     };
+    // A run writes frames only when asked (a topology's run, unlike the water box scene,
+    // writes none by default): say how to get them.
     for (path, hint) in [
-        (&files.energy, "energy.csv"),
+        (&files.energy, " (a run directory holds energy.csv)"),
         (
             &files.trajectory,
-            "a trajectory: run with --trajectory-every N",
+            ": the run wrote no frames (only `run --trajectory-every N` or a scene's \
+             [run] trajectory_every writes them); rerun it with --trajectory-every N, for \
+             example 100 for a frame every 100 outer steps",
         ),
     ] {
         if !path.is_file() {
             return Err(Error::Structure {
                 path: dir.to_path_buf(),
                 message: format!(
-                    "has no {} (a run directory holds {hint})",
+                    "has no {}{hint}",
                     path.file_name()
                         .map_or("file".into(), |n| n.to_string_lossy())
                 ),

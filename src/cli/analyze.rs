@@ -107,7 +107,7 @@ pub struct AnalyzeArgs {
     /// Print the summaries as a JSON array on stdout.
     #[arg(long)]
     pub json: bool,
-    /// No progress spinner (there is one only on a terminal).
+    /// No progress bar (there is one only on a terminal).
     #[arg(long)]
     pub quiet: bool,
     /// Set a scene parameter (repeatable).
@@ -230,9 +230,13 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
     let mut results = Vec::new();
     let mut summaries = Vec::new();
     for ((path, label), run) in args.runs.iter().zip(&labels).zip(&runs) {
-        let spinner = super::common::spinner(args.quiet, &format!("analyze {label}"));
-        let result = run.analyze(&analyzer);
-        spinner.finish_and_clear();
+        // The share of the run's span analysed, in percent.
+        let what = format!("analyze {label}");
+        let bar = super::common::counted_bar(100, args.quiet, &what, "% of its time span");
+        let result = run.analyze_with(&analyzer, &mut |share| {
+            bar.set_position((share * 100.0) as u64)
+        });
+        bar.finish_and_clear();
         let result = result?;
         let out_dir = match &args.out {
             Some(out) => out.join(label),
@@ -290,9 +294,18 @@ impl RunInput {
     }
 
     fn analyze(&self, analyzer: &Analyzer) -> Result<RunAnalysis> {
+        self.analyze_with(analyzer, &mut |_| {})
+    }
+
+    /// [`RunInput::analyze`] with `progress` the share of the span done.
+    fn analyze_with(
+        &self,
+        analyzer: &Analyzer,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<RunAnalysis> {
         match self {
-            RunInput::Directory(files) => analyzer.analyze(files),
-            RunInput::File(input) => analyzer.analyze_trajectory(input),
+            RunInput::Directory(files) => analyzer.analyze_with(files, progress),
+            RunInput::File(input) => analyzer.analyze_trajectory_with(input, progress),
         }
     }
 }

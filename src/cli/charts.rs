@@ -38,7 +38,8 @@ pub enum ChartCommand {
     .allow_negative_numbers(false)))]
 pub struct WorkPrecisionArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Methods, comma-separated.
     #[arg(long, alias = "method", value_delimiter = ',', required = true)]

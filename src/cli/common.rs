@@ -184,27 +184,28 @@ pub fn check_out_file(path: &Path, command: &str) -> Result<()> {
     .got_named(path.display().to_string()))
 }
 
-/// A spinner with the time elapsed on a terminal, for work with no count to show (an
-/// analysis of trajectories); nothing otherwise or under `quiet`.
-pub fn spinner(quiet: bool, label: &str) -> ProgressBar {
-    let bar = terminal_bar(0, quiet, "{spinner} {msg}, {elapsed} elapsed", None);
-    if !bar.is_hidden() {
-        bar.set_message(label.to_string());
-        bar.enable_steady_tick(std::time::Duration::from_millis(200));
-    }
-    bar
+/// A bar of `total` `unit`s (`"runs"`, `"outer steps"`) labelled `label`, with the time
+/// elapsed and left, on a terminal's stderr; hidden when quiet or not a terminal. The
+/// one progress display of every command that runs longer than a moment.
+pub fn counted_bar(total: u64, quiet: bool, label: &str, unit: &str) -> ProgressBar {
+    let template =
+        format!("{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit}, {{elapsed}} elapsed, ~{{eta}} left");
+    // The label set before the first draw (a set_message would draw an empty bar).
+    terminal_bar(total, quiet, &template, Some("=> ")).with_message(label.to_string())
 }
 
 /// A progress bar of a study's runs on a terminal, nothing otherwise.
 pub fn progress_bar(total: u64, quiet: bool, label: &str) -> ProgressBar {
-    let bar = terminal_bar(
-        total,
-        quiet,
-        "{msg} [{bar:40}] {pos}/{len} runs, {elapsed} elapsed, ~{eta} left",
-        Some("=> "),
-    );
-    bar.set_message(label.to_string());
-    bar
+    counted_bar(total, quiet, label, "runs")
+}
+
+/// `progress(done, total)` → the bar's position and length (a callback of the analyses,
+/// which know their total only once they start).
+pub fn follow(bar: &ProgressBar) -> impl FnMut(usize, usize) + '_ {
+    |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    }
 }
 
 /// Where the scene comes from, for `run`, `check`, `forces` and `scan steps`: a

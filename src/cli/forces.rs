@@ -21,7 +21,8 @@ use crate::system::System;
 #[derive(Args, Debug)]
 pub struct ForcesArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Write the per-atom forces (index,element,fx,fy,fz) to this CSV file.
     #[arg(long, value_name = "FILE")]

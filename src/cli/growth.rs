@@ -27,7 +27,8 @@ use crate::settings::{MethodSettings, Value};
 #[command(mut_arg("t_end", |a| a.help("Length of each run (whole outer steps up to it)")))]
 pub struct ScanGrowthArgs {
     /// Scene file (TOML), for example systems/three-spring.toml, or a topology in its place
-    /// (AMBER .prmtop/.parm7, GROMACS .top).
+    /// (AMBER .prmtop/.parm7, GROMACS .top) with its coordinates (.inpcrd/.rst7, .gro)
+    /// beside it, same name, or given by --coordinates.
     pub scene: PathBuf,
     #[command(flatten)]
     pub study: MethodSteps,

@@ -13,7 +13,8 @@ use crate::settings::RunSpec;
 #[derive(Args, Debug)]
 pub struct MinimizeArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]

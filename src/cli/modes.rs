@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use crate::analysis::minimize::{MinimizeOptions, minimize};
-use crate::analysis::modes::{Mode, Resonance, fast_modes, predicted_resonances};
+use crate::analysis::modes::{Mode, Resonance, fast_modes_with, predicted_resonances};
 use crate::error::{Error, Result};
 use crate::run::prepare::{self, RunRequest};
 use crate::settings::{RunSpec, Value};
@@ -15,7 +15,8 @@ use crate::units::Units;
 #[derive(Args, Debug)]
 pub struct ModesArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -32,6 +33,9 @@ pub struct ModesArgs {
     /// Print the result as JSON.
     #[arg(long)]
     pub json: bool,
+    /// No progress bar (there is one only on a terminal).
+    #[arg(long)]
+    pub quiet: bool,
     /// Draw the spectrum (periods as sticks) with the predicted resonant outer steps
     /// marked, as PNG.
     #[arg(long, value_name = "FILE")]
@@ -85,7 +89,9 @@ pub fn modes_command(args: &ModesArgs) -> Result<()> {
     } else {
         None
     };
-    let modes = fast_modes(&mut scene.system);
+    let bar = super::common::counted_bar(0, args.quiet, "modes", "Hessian columns");
+    let modes = fast_modes_with(&mut scene.system, &mut super::common::follow(&bar));
+    bar.finish_and_clear();
     let fastest = modes.iter().map(|m| m.frequency).fold(0.0, f64::max);
     let (lo, hi) = match &args.h_range {
         Some(range) => parse_range(range, "--h-range", scene.units)?,
@@ -133,6 +139,7 @@ fn modes_iterative(args: &ModesArgs) -> Result<()> {
         h_range: args.h_range.as_deref(),
         top: args.top,
         json: args.json,
+        quiet: args.quiet,
         pictures: [&args.png, &args.svg]
             .into_iter()
             .flatten()

@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 
 use crate::analysis::dihedrals::scene_topology;
-use crate::analysis::lanczos::{ConstrainedHessian, LanczosOptions, RitzPair, lanczos_highest};
+use crate::analysis::lanczos::{
+    ConstrainedHessian, LanczosOptions, RitzPair, lanczos_highest_with,
+};
 use crate::analysis::modes::{Mode, Resonance, predicted_resonances};
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
@@ -59,6 +61,8 @@ pub struct LanczosRequest<'a> {
     /// How many distinct frequencies enter the predictions (`--top`).
     pub top: usize,
     pub json: bool,
+    /// No progress bar.
+    pub quiet: bool,
     pub pictures: Vec<PathBuf>,
 }
 
@@ -90,7 +94,16 @@ pub fn lanczos_modes(request: &LanczosRequest, parse_range: RangeParser) -> Resu
         ..LanczosOptions::default()
     };
     let mut operator = ConstrainedHessian::new(&mut scene.system, args.level)?;
-    let result = lanczos_highest(&mut operator, &mut scene.system.forces, &options);
+    let most = options.iterations.min(operator.len()) as u64;
+    let bar =
+        super::common::counted_bar(most, request.quiet, "modes", "Lanczos iterations (at most)");
+    let result = lanczos_highest_with(
+        &mut operator,
+        &mut scene.system.forces,
+        &options,
+        &mut super::common::follow(&bar),
+    );
+    bar.finish_and_clear();
     let labels = atom_labels(&scene)?;
     let modes: Vec<LanczosMode> = result
         .pairs

@@ -23,7 +23,8 @@ use crate::units::Units;
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// Scene file (TOML), for example systems/three-spring.toml, or a topology in its place
-    /// (AMBER .prmtop/.parm7, GROMACS .top).
+    /// (AMBER .prmtop/.parm7, GROMACS .top) with its coordinates (.inpcrd/.rst7, .gro)
+    /// beside it, same name, or given by --coordinates.
     pub scene: PathBuf,
     /// Method and step settings; each overrides the scene's [run] table.
     #[command(flatten)]
@@ -95,7 +96,8 @@ pub struct RunArgs {
 #[derive(Args, Debug)]
 pub struct CheckArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Set a scene parameter (repeatable).
     #[arg(long = "set", value_name = "NAME=VALUE")]
@@ -462,14 +464,7 @@ fn report(args: &RunArgs, summary: &RunSummary) -> Result<i32> {
 /// A progress bar with the time left on a terminal (cleared when the run ends; a short run
 /// shows it for a moment only), hidden otherwise and under `--quiet`.
 fn run_progress(steps: f64, quiet: bool) -> indicatif::ProgressBar {
-    let bar = super::common::terminal_bar(
-        steps as u64,
-        quiet,
-        "{msg} [{bar:40}] {pos}/{len} outer steps, {elapsed} elapsed, ~{eta} left",
-        Some("=> "),
-    );
-    bar.set_message("run");
-    bar
+    super::common::counted_bar(steps as u64, quiet, "run", "outer steps")
 }
 
 /// Judge a finished run's energy drift against its bound (pass, fail or undecided,

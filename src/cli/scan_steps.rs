@@ -27,7 +27,8 @@ use crate::studies::{Criterion, StepScanPlan, Watch, scan_steps};
 #[command(mut_arg("method", |a| a.help("One method to scan (added to --methods)")))]
 pub struct ScanStepsArgs {
     /// Scene file (TOML), or a topology in its place (AMBER .prmtop/.parm7, GROMACS .top)
-    /// with its coordinates beside it or given by --coordinates.
+    /// with its coordinates (.inpcrd/.rst7, .gro) beside it, same name, or given by
+    /// --coordinates.
     pub scene: PathBuf,
     /// Methods to scan, comma-separated (--method names one).
     #[arg(long, value_delimiter = ',')]

@@ -29,6 +29,7 @@ mod float;
 pub mod reciprocal;
 mod spline;
 
+use crate::units::Units;
 pub use reciprocal::PmeReciprocal;
 
 /// GROMACS's `ewald-rtol` default.
@@ -62,12 +63,13 @@ pub struct EwaldParameters {
 }
 
 impl EwaldParameters {
-    /// One line for reports.
-    pub fn describe(&self) -> String {
+    /// One line for reports, α in the scene's `units` (1/Å in a real scene).
+    pub fn describe(&self, units: Units) -> String {
         let [nx, ny, nz] = self.grid;
         format!(
-            "PME, alpha = {:.6} 1/length, grid {nx}x{ny}x{nz}, order {}",
-            self.alpha, self.order
+            "PME, alpha = {}, grid {nx}x{ny}x{nz}, order {}",
+            units.inverse_length(self.alpha),
+            self.order
         )
     }
 }

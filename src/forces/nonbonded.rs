@@ -47,6 +47,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use super::distance_split::Switch;
 use super::simd::{ERFC_X_MAX, Isa};
 use super::{ForceTerm, TermClass};
+use crate::units::Units;
 
 mod engine;
 pub(crate) mod kernel;
@@ -77,18 +78,25 @@ pub enum Electrostatics {
 }
 
 impl Electrostatics {
-    pub fn describe(&self) -> String {
+    /// One line for reports, α in the scene's `units` (1/Å in a real scene).
+    pub fn describe(&self, units: Units) -> String {
         match self {
             Electrostatics::None => "none".into(),
             Electrostatics::Plain => "plain 1/r (no cutoff)".into(),
             Electrostatics::DampedShiftedForce { alpha } => {
-                format!("damped shifted force (DSF), alpha = {alpha} 1/length")
+                format!(
+                    "damped shifted force (DSF), alpha = {}",
+                    units.inverse_length(*alpha)
+                )
             }
             Electrostatics::ReactionField { dielectric } => {
                 format!("reaction field, eps_rf = {dielectric}")
             }
             Electrostatics::Ewald { alpha } => {
-                format!("Ewald real space erfc(alpha r)/r, alpha = {alpha} 1/length")
+                format!(
+                    "Ewald real space erfc(alpha r)/r, alpha = {}",
+                    units.inverse_length(*alpha)
+                )
             }
         }
     }

@@ -494,20 +494,7 @@ pub fn format_time(t: f64, units: Units) -> String {
     format!("{} {name}", significant(t / scale, 6))
 }
 
-/// `x` with at most `digits` significant digits, without trailing zeros.
-pub fn significant(x: f64, digits: usize) -> String {
-    if x == 0.0 || !x.is_finite() {
-        return format!("{x}");
-    }
-    let magnitude = x.abs().log10().floor() as i32;
-    let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
-    let text = format!("{x:.decimals$}");
-    if text.contains('.') {
-        text.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        text
-    }
-}
+pub use crate::units::significant;
 
 /// A method's parameter line with units on its times in a real scene: `h = 4, dt = 0.5`
 /// → `h = 4 fs, dt = 0.5 fs` (the names of steps: `h`, `dt`, `h_slow`, `h_fast`, `h_min`,

@@ -13,7 +13,7 @@ use crate::forces::nonbonded::{Electrostatics, LjPair, NonbondedSpec};
 use crate::forces::pair::{Pair, PairTerm};
 use crate::forces::{Site, TermClass};
 use crate::split::Assignment;
-use crate::units::{COULOMB_KCAL_ANGSTROM, Units};
+use crate::units::{COULOMB_KCAL_ANGSTROM, Units, significant};
 
 /// Which pairs the cutoff term leaves out, and the 1-4 pairs computed on their own.
 pub(super) struct Exclusions {
@@ -68,13 +68,23 @@ pub(super) fn exclusions(
     report.push(format!(
         "pairs: {} 1-2 ({}), {} 1-3 ({}), {} 1-4 ({})",
         pairs_12.len(),
-        if scale_12 == 0.0 { "excluded" } else { "ordinary" },
+        if scale_12 == 0.0 {
+            "excluded"
+        } else {
+            "ordinary"
+        },
         pairs_13.len(),
-        if scale_13 == 0.0 { "excluded" } else { "ordinary" },
+        if scale_13 == 0.0 {
+            "excluded"
+        } else {
+            "ordinary"
+        },
         pairs_14.len(),
         if separate_14 {
             format!(
-                "LJ × {scale_14_lj}, Coulomb × {scale_14_coulomb}, no cutoff, terms \"lj-14\" and \"coulomb-14\""
+                "LJ × {}, Coulomb × {}, no cutoff, terms \"lj-14\" and \"coulomb-14\"",
+                significant(scale_14_lj, 10),
+                significant(scale_14_coulomb, 10)
             )
         } else {
             "ordinary".into()
@@ -124,6 +134,8 @@ pub(super) struct Settings {
     pub lj_shift: bool,
     /// With `coulomb = "pme"`: its parameters.
     pub ewald: Option<EwaldParameters>,
+    /// The scene's units, for the report's lengths and α.
+    pub units: Units,
 }
 
 /// Cutoff, skin, Coulomb form and constant, LJ shift.
@@ -165,6 +177,7 @@ pub(super) fn settings(input: &ForcefieldInput, charges: &[f64]) -> Result<Setti
             Units::None => 1.0,
         },
         lj_shift: spec.lj_shift.unwrap_or(true),
+        units: input.units,
     })
 }
 
@@ -243,17 +256,17 @@ pub(super) fn report_line(settings: &Settings) -> String {
     format!(
         "nonbonded: cutoff {}, skin {}, LJ {}Lorentz–Berthelot, Coulomb {}",
         if cutoff.is_finite() {
-            cutoff.to_string()
+            settings.units.length(cutoff)
         } else {
             "none".into()
         },
-        settings.skin,
+        settings.units.length(settings.skin),
         if settings.lj_shift && cutoff.is_finite() {
             "energy-shifted, "
         } else {
             ""
         },
-        settings.electrostatics.describe()
+        settings.electrostatics.describe(settings.units)
     )
 }
 
@@ -431,7 +444,7 @@ pub(super) fn pme_term(
     )?;
     report.push(format!(
         "pme-reciprocal: {}; {} excluded pairs corrected; level {}",
-        params.describe(),
+        params.describe(settings.units),
         exclusions.excluded.len(),
         match input.spec.pme_level {
             Some(level) => level.to_string(),

@@ -88,7 +88,13 @@ impl Builder<'_> {
                     "from the file or perceived by chemfiles"
                 },
                 match periodic_box {
-                    Some(b) => format!("{:?}", b.lengths),
+                    // Ten digits and the unit, as `check`'s particles line: 18.64449108 Å.
+                    Some(b) => b
+                        .lengths
+                        .iter()
+                        .map(|&l| units.length(l))
+                        .collect::<Vec<_>>()
+                        .join(" × "),
                     None => "none".into(),
                 }
             ),

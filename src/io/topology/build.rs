@@ -31,7 +31,7 @@ use crate::forces::{ForceTerm, PeriodicBox, Site, TermClass};
 use crate::io::forcefield::SplitSection;
 use crate::io::forcefield::distance_split::{SplitAtoms, split_terms};
 use crate::split::Assignment;
-use crate::units::COULOMB_KCAL_ANGSTROM;
+use crate::units::{COULOMB_KCAL_ANGSTROM, Units, significant};
 
 /// The pair-list skin when none is given (Å): the list holds pairs within cutoff + skin and
 /// is rebuilt when two atoms may have closed it. With constraints and 4 fs steps a topology's
@@ -176,14 +176,29 @@ pub fn build_terms(
     })
 }
 
+/// A 1-4 scale factor for the report: ten significant digits (0.8333333333, not
+/// 0.8333333333333334), in exponent form when tiny (an AMBER SCNB of 1e10 gives 1e-10).
+fn scale_text(x: f64) -> String {
+    if x != 0.0 && x.abs() < 1e-5 {
+        format!("{:e}", significant(x, 10).parse::<f64>().unwrap_or(x))
+    } else {
+        significant(x, 10)
+    }
+}
+
 fn summary_line(topology: &Topology) -> String {
+    // A sum of rounded charges a few 1e-7 below zero prints 0.000000, not -0.000000.
+    let charge = match topology.total_charge() {
+        q if q.abs() < 5e-7 => 0.0,
+        q => q,
+    };
     format!(
         "topology: {} ({}), {} atoms in {} residues, total charge {:.6} e, box {}",
         topology.source.display(),
         topology.format,
         topology.atoms.len(),
         topology.residues.len(),
-        topology.total_charge(),
+        charge,
         match topology.periodic_box {
             Some(b) => {
                 // To 10 significant digits: 45.981, not the 45.980999999999995 of nm × 10.
@@ -432,13 +447,14 @@ fn nonbonded(
         topology.exclusions.len()
     ));
     report.push(format!(
-        "nonbonded: cutoff {}, skin {skin}, Coulomb {}, term \"nonbonded\"",
+        "nonbonded: cutoff {}, skin {}, Coulomb {}, term \"nonbonded\"",
         if cutoff.is_finite() {
-            format!("{cutoff} Å")
+            Units::Real.length(cutoff)
         } else {
             "none".into()
         },
-        electrostatics.describe()
+        Units::Real.length(skin),
+        electrostatics.describe(Units::Real)
     ));
     cutoff_terms(topology, spec, q, options, terms, report)?;
     if let (Some(params), Some(lengths)) = (ewald, topology.periodic_box) {
@@ -467,7 +483,7 @@ fn pme_reciprocal(
     report.push(format!(
         "pme-reciprocal: {}; {} excluded pairs corrected (1-2, 1-3, 1-4: the 1-4 pairs' \
          scaled Coulomb is in coulomb-14); term \"pme-reciprocal\"",
-        params.describe(),
+        params.describe(Units::Real),
         topology.exclusions.len()
     ));
     terms.push((
@@ -579,11 +595,11 @@ fn pairs_14(
             Some(own) => (own, 1.0, "own LJ".to_string()),
             None => {
                 let (a, b) = (topology.atoms[i].lj_type, topology.atoms[j].lj_type);
-                let key = format!("LJ × {:.6}", pair.lj_scale);
+                let key = format!("LJ × {}", scale_text(pair.lj_scale));
                 (topology.lj.pair(a, b), pair.lj_scale, key)
             }
         };
-        let key = format!("Coulomb × {:.6}, {lj_key}", pair.coulomb_scale);
+        let key = format!("Coulomb × {}, {lj_key}", scale_text(pair.coulomb_scale));
         *scales.entry(key).or_insert(0) += 1;
         if lj_scale != 0.0 && c12 > 0.0 && c6 > 0.0 {
             // ε and σ of the pair: σ⁶ = c12/c6, ε = c6²/(4 c12).
