@@ -550,7 +550,8 @@ impl<S: Simd> Lj<S> for Table<'_, S> {
             return (energy, rinv8, bracket);
         }
         let at = |r: usize| &self.by_type[cj * self.n_types + i[r]];
-        let rows = [at(0), at(1), at(2), at(3)];
+        // Rows past the register's (`r ≥ WIDTH / 4`, not read) repeat its last: one lookup.
+        let rows: [_; 4] = std::array::from_fn(|r| at(r.min(S::WIDTH / 4 - 1)));
         let c12x12 = s.load_rows(rows.map(|p| &p[0]));
         let c6x6 = s.load_rows(rows.map(|p| &p[1]));
         let (rinv8, _, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
@@ -813,7 +814,9 @@ fn group<S: Simd, C: Coulomb, L: Lj<S>, const LJ: bool, const ENERGY: bool>(
         for c in 0..3 {
             sum[c] = s.sub(sum[c], v[c]);
         }
-        scratch[p as usize][g] = v;
+        // Without energies only the three force parts are read in pass 3.
+        let parts = if ENERGY { 5 } else { 3 };
+        scratch[p as usize % BLOCK][g][..parts].copy_from_slice(&v[..parts]);
     };
     let mut pairs = stream.chunks_exact(2);
     for two in &mut pairs {
