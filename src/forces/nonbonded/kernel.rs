@@ -550,7 +550,8 @@ impl<S: Simd> Lj<S> for Table<'_, S> {
             return (energy, rinv8, bracket);
         }
         let at = |r: usize| &self.by_type[cj * self.n_types + i[r]];
-        let rows = [at(0), at(1), at(2), at(3)];
+        // Rows past the register's (`r ≥ WIDTH / 4`, not read) repeat its last: one lookup.
+        let rows: [_; 4] = std::array::from_fn(|r| at(r.min(S::WIDTH / 4 - 1)));
         let c12x12 = s.load_rows(rows.map(|p| &p[0]));
         let c6x6 = s.load_rows(rows.map(|p| &p[1]));
         let (rinv8, _, bracket) = lennard_jones_force(s, c12x12, c6x6, rinv2);
@@ -574,6 +575,8 @@ struct Constants<S: Simd> {
     zero: S::V,
     one: S::V,
     cutoff2: S::V,
+    /// No lane and every lane: a dead and a live group's mask in pass 3.
+    lanes: [S::M; 2],
 }
 
 #[inline(always)]
@@ -709,8 +712,13 @@ fn positions<S: Simd>(s: S, j: &Cluster<S::R>) -> [S::V; 3] {
     [s.load4(&j.x), s.load4(&j.y), s.load4(&j.z)]
 }
 
-/// Pass 1: the live groups of a block (cluster pairs `js` with list masks `masks`). A group
-/// with no pair within the cutoff contributes exact zeros, so leaving it out changes no bit.
+/// Pass 1: the live groups of a block (cluster pairs `js`): those with a pair within the
+/// cutoff, the list's mask not consulted. A group with no pair within the cutoff contributes
+/// exact zeros, so leaving it out changes no bit; a group whose pairs within the cutoff are
+/// all masked (excluded, `j ≤ i` in a self pair) is computed and adds zeros of either sign,
+/// which change no sum that is not zero and leave a zero sum `+0` (every buffer starts at
+/// `+0`): the same bits either way, without the mask's four instructions per group here.
+/// Indices are taken modulo [`BLOCK`] (they are below it): an `and`, not a bounds check.
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // `g` indexes four arrays
 fn live<S: Simd, I>(
@@ -718,23 +726,23 @@ fn live<S: Simd, I>(
     k: &Constants<S>,
     rows: &Rows<S, I>,
     clusters: &[Cluster<S::R>],
-    (js, masks): (&[u32], &[u16]),
+    js: &[u32],
     (every, live): (bool, &mut Live),
 ) {
     // Counters in registers, not through `live`.
     let (mut counts, mut any_count) = ([0; 4], 0);
-    for (p, (&cj, &mask)) in js.iter().zip(masks).enumerate() {
+    for (p, &cj) in js.iter().enumerate() {
         let j = positions(s, &clusters[cj as usize]);
         let mut any = 0u8;
         for g in 0..16 / S::WIDTH {
             let (_, r2) = separation(s, rows, g, j);
-            let alive = every || s.bits(within(s, k, mask, g, r2)) != 0;
-            live.groups[g][counts[g]] = p as u8;
+            let alive = every || s.bits(s.less(r2, k.cutoff2)) != 0;
+            live.groups[g][counts[g] % BLOCK] = p as u8;
             counts[g] += usize::from(alive);
             any |= u8::from(alive) << g;
         }
-        live.bits[p] = any;
-        live.any[any_count] = p as u8;
+        live.bits[p % BLOCK] = any;
+        live.any[any_count % BLOCK] = p as u8;
         any_count += usize::from(any != 0);
     }
     (live.counts, live.any_count) = (counts, any_count);
@@ -806,7 +814,9 @@ fn group<S: Simd, C: Coulomb, L: Lj<S>, const LJ: bool, const ENERGY: bool>(
         for c in 0..3 {
             sum[c] = s.sub(sum[c], v[c]);
         }
-        scratch[p as usize][g] = v;
+        // Without energies only the three force parts are read in pass 3.
+        let parts = if ENERGY { 5 } else { 3 };
+        scratch[p as usize % BLOCK][g][..parts].copy_from_slice(&v[..parts]);
     };
     let mut pairs = stream.chunks_exact(2);
     for two in &mut pairs {
@@ -833,10 +843,10 @@ fn fold_block<S: Simd, const ENERGY: bool>(
     out: &mut Out,
 ) {
     for &p in &live.any[..live.any_count] {
-        let p = p as usize;
+        let p = p as usize % BLOCK;
         let mut acc = [[k.zero; 2]; 5];
         for g in 0..16 / S::WIDTH {
-            let alive = s.mask(all_lanes::<S>() * u32::from(live.bits[p] >> g & 1));
+            let alive = k.lanes[usize::from(live.bits[p] >> g & 1)];
             let parts = if ENERGY { 5 } else { 3 };
             for (c, acc) in acc.iter_mut().enumerate().take(parts) {
                 gather(s, acc, g, s.select(alive, scratch[p][g][c], k.zero));
@@ -872,14 +882,7 @@ fn entry<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
         .chunks(BLOCK)
         .zip(job.list.masks[range].chunks(BLOCK))
     {
-        live(
-            s,
-            k,
-            &rows,
-            job.clusters,
-            (js, masks),
-            (job.every_group, state),
-        );
+        live(s, k, &rows, job.clusters, js, (job.every_group, state));
         for g in 0..16 / S::WIDTH {
             let which = (g, &state.groups[g][..state.counts[g]]);
             let data = (job, js, masks);
@@ -921,6 +924,7 @@ fn entries<S: Simd, C: Coulomb, L: Lj<S>, const ENERGY: bool>(
         zero: s.splat(S::R::of(0.0)),
         one: s.splat(S::R::of(1.0)),
         cutoff2: s.splat(S::R::of(job.cutoff2)),
+        lanes: [s.mask(0), s.mask(all_lanes::<S>())],
     };
     let mut state = Live {
         groups: [[0; BLOCK]; 4],
