@@ -172,6 +172,8 @@ impl Constrained {
 
 /// A constraint failure as a step failure, with the time of the step it happened in.
 fn failure(t: f64, e: ConstraintFailure) -> StepFailure {
+    // Ten digits: a sum of steps reads 123220, not 123220.00000000001.
+    let t = crate::units::significant(t, 10);
     StepFailure(format!("constraints failed (outer step at t = {t}): {e}"))
 }
 

@@ -182,7 +182,7 @@ pub(super) fn shake_pairs(
 fn turned(c: &DistanceConstraint, s2: f64) -> ConstraintFailure {
     ConstraintFailure(format!(
         "SHAKE: bond {}-{} turned by 90° or more in one drift (|r| = {:.6} for \
-         length {}); the step is too long",
+         length {:.6}); the step is too long",
         c.i,
         c.j,
         s2.sqrt(),
