@@ -1,6 +1,7 @@
 //! The layout rules of DEVELOPERS.md that a reader can check by eye, checked here so they
-//! stay true: imports between top-level modules point one way (down the layers), and no
-//! function in `src/` is over 80 lines.
+//! stay true: imports between top-level modules point one way (down the layers), no two
+//! modules of one room (the files and folders of one directory of `src/`) import each
+//! other in a circle, and no function in `src/` is over 80 lines.
 //!
 //! The source is read as text, formatted by `cargo fmt` (which `make test` checks first):
 //! a function ends at the first line that is its closing brace at its own indentation.
@@ -375,4 +376,423 @@ fn the_checks_see_what_they_check() {
     assert!(find_circle(&through_root).is_some());
     assert_eq!(cli_module(Path::new("src/cli/mod.rs")), "cli");
     assert_eq!(cli_module(Path::new("src/cli/scene/terms.rs")), "scene");
+}
+
+/// A module of `src/` by its path from the crate root: `src/forces/distance_split/model.rs`
+/// is `forces::distance_split::model`, `src/forces/mod.rs` is `forces`, `src/lib.rs` the
+/// root (empty); `src/main.rs` is left out (the binary, not the library).
+fn module_path(path: &Path) -> Option<Vec<String>> {
+    let relative = path.strip_prefix("src").ok()?;
+    let mut parts: Vec<String> = relative
+        .components()
+        .map(|c| c.as_os_str().to_str().unwrap().to_string())
+        .collect();
+    let last = parts.pop()?.strip_suffix(".rs")?.to_string();
+    match last.as_str() {
+        "main" if parts.is_empty() => return None,
+        "lib" if parts.is_empty() => {}
+        "mod" => {}
+        _ => parts.push(last),
+    }
+    Some(parts)
+}
+
+/// A line without its `//` comment (a `//` inside a string literal is kept).
+fn without_comment(line: &str) -> &str {
+    let mut in_string = false;
+    let mut previous = ' ';
+    for (at, c) in line.char_indices() {
+        match c {
+            '"' if previous != '\\' && previous != '\'' => in_string = !in_string,
+            '/' if !in_string && line[at + 1..].starts_with('/') => return &line[..at],
+            _ => {}
+        }
+        previous = c;
+    }
+    line
+}
+
+fn is_ident_char(c: char) -> bool {
+    c.is_alphanumeric() || c == '_'
+}
+
+/// The paths of a `use` tree (the text after `use`, without the `;`), each with the name it
+/// brings in (its last segment, or its alias): `a::{b::C, d as e, self}` gives `a::b::C` as
+/// `C`, `a::d` as `e` and `a` as `a`; a glob `a::*` gives `a::*` as `*`.
+fn use_tree_paths(tree: &str) -> Vec<(Vec<String>, String)> {
+    let mut tokens = Vec::new();
+    let mut rest = tree.trim();
+    while !rest.is_empty() {
+        let end = if rest.starts_with("::") {
+            2
+        } else if rest.starts_with(|c: char| "{},*".contains(c)) {
+            1
+        } else {
+            rest.find(|c: char| !is_ident_char(c)).unwrap_or(rest.len())
+        };
+        if end == 0 {
+            rest = &rest[rest.chars().next().unwrap().len_utf8()..]; // whitespace
+        } else {
+            tokens.push(&rest[..end]);
+            rest = &rest[end..];
+        }
+        rest = rest.trim_start();
+    }
+    let mut paths = Vec::new();
+    parse_use_tree(&tokens, &mut 0, &mut Vec::new(), &mut paths);
+    paths
+}
+
+fn parse_use_tree(
+    tokens: &[&str],
+    at: &mut usize,
+    prefix: &mut Vec<String>,
+    out: &mut Vec<(Vec<String>, String)>,
+) {
+    let depth = prefix.len();
+    while *at < tokens.len() {
+        match tokens[*at] {
+            "{" => {
+                *at += 1;
+                while *at < tokens.len() && tokens[*at] != "}" {
+                    parse_use_tree(tokens, at, prefix, out);
+                    if tokens.get(*at) == Some(&",") {
+                        *at += 1;
+                    }
+                }
+                *at += 1; // the closing brace
+                break;
+            }
+            "*" => {
+                *at += 1;
+                let mut path = prefix.clone();
+                path.push("*".into());
+                out.push((path, "*".into()));
+                break;
+            }
+            "::" => *at += 1,
+            segment => {
+                *at += 1;
+                if segment != "self" {
+                    prefix.push(segment.to_string());
+                }
+                if tokens.get(*at) == Some(&"::") {
+                    continue;
+                }
+                let mut name = prefix.last().cloned().unwrap_or_default();
+                if tokens.get(*at) == Some(&"as") {
+                    name = tokens.get(*at + 1).unwrap_or(&"_").to_string();
+                    *at += 2;
+                }
+                out.push((prefix.clone(), name));
+                break;
+            }
+        }
+    }
+    prefix.truncate(depth);
+}
+
+/// What the circle checker reads of `src/`: every module (files and inline `mod x {`), the
+/// names each brings in with `use`, and every path each names (in `use` and in code, from
+/// `crate::`, `super::` or `self::`), as written, with the module it is written in.
+#[derive(Default)]
+struct SourceTree {
+    modules: BTreeSet<Vec<String>>,
+    /// By module and name: the path a `use` brings in under that name.
+    imports: BTreeMap<(Vec<String>, String), Written>,
+    paths: Vec<Written>,
+}
+
+/// A path as written (`super::model::Model`) and the module it is written in.
+type Written = (Vec<String>, Vec<String>);
+
+impl SourceTree {
+    fn read(src: &Path) -> SourceTree {
+        let mut files = Vec::new();
+        rust_files(src, &mut files);
+        let mut tree = SourceTree::default();
+        for path in &files {
+            let relative = Path::new("src").join(path.strip_prefix(src).unwrap());
+            if let Some(module) = module_path(&relative) {
+                tree.add_file(module, &std::fs::read_to_string(path).unwrap());
+            }
+        }
+        tree
+    }
+
+    /// Reads one file of module `module`.
+    fn add_file(&mut self, module: Vec<String>, text: &str) {
+        let mut ancestors = module.clone();
+        while self.modules.insert(ancestors.clone()) && ancestors.pop().is_some() {}
+        // Inline modules open: (the closing line, the module's path).
+        let mut inline: Vec<(String, Vec<String>)> = Vec::new();
+        let mut statement = String::new();
+        for line in text.lines() {
+            let code = without_comment(line);
+            let trimmed = code.trim();
+            let context = inline.last().map_or(&module, |(_, m)| m).clone();
+            if inline.last().is_some_and(|(end, _)| code.trim_end() == end) {
+                inline.pop();
+                continue;
+            }
+            let declaration = trimmed
+                .trim_start_matches("pub ")
+                .trim_start_matches("pub(crate) ");
+            if let Some(name) = declaration
+                .strip_prefix("mod ")
+                .and_then(|r| r.strip_suffix(" {"))
+            {
+                let indent = &code[..code.len() - code.trim_start().len()];
+                let mut child = context.clone();
+                child.push(name.to_string());
+                self.modules.insert(child.clone());
+                inline.push((format!("{indent}}}"), child));
+                continue;
+            }
+            let visibility = ["pub(crate) ", "pub(super) ", "pub "];
+            let unqualified = visibility
+                .iter()
+                .find_map(|v| trimmed.strip_prefix(v))
+                .unwrap_or(trimmed);
+            if statement.is_empty() && unqualified.starts_with("use ") {
+                statement.push_str(&unqualified[4..]);
+            } else if !statement.is_empty() {
+                statement.push(' ');
+                statement.push_str(trimmed);
+            } else {
+                self.code_paths(&context, code);
+                continue;
+            }
+            if let Some(tree) = statement.strip_suffix(';') {
+                for (path, name) in use_tree_paths(tree) {
+                    self.paths.push((context.clone(), path.clone()));
+                    self.imports
+                        .insert((context.clone(), name), (context.clone(), path));
+                }
+                statement.clear();
+            }
+        }
+    }
+
+    /// The paths from `crate::`, `super::` or `self::` on a line of code.
+    fn code_paths(&mut self, context: &[String], line: &str) {
+        for start in ["crate::", "super::", "self::"] {
+            let mut from = 0;
+            while let Some(found) = line[from..].find(start) {
+                let at = from + found;
+                from = at + start.len();
+                if line[..at].chars().next_back().is_some_and(is_ident_char) {
+                    continue;
+                }
+                let rest = &line[at..];
+                let end = rest
+                    .find(|c: char| !(is_ident_char(c) || c == ':'))
+                    .unwrap_or(rest.len());
+                let path: Vec<String> = rest[..end]
+                    .split("::")
+                    .filter(|s| !s.is_empty())
+                    .map(str::to_string)
+                    .collect();
+                self.paths.push((context.to_vec(), path));
+            }
+        }
+    }
+
+    /// The module a path written in `context` refers to (through the names modules bring
+    /// in with `use`, so a re-export leads to the module that defines the item); `None` for
+    /// a path outside the crate.
+    fn target(&self, context: &[String], path: &[String], depth: usize) -> Option<Vec<String>> {
+        if depth > 16 {
+            return None; // a `use` that names itself
+        }
+        let mut absolute = context.to_vec();
+        let mut segments = path.iter().peekable();
+        match segments.peek().map(|s| s.as_str()) {
+            Some("crate") => {
+                absolute.clear();
+                segments.next();
+            }
+            Some("self") => {
+                segments.next();
+            }
+            Some("super") => {
+                while segments.peek().is_some_and(|s| *s == "super") {
+                    absolute.pop()?;
+                    segments.next();
+                }
+            }
+            Some(first) => {
+                let mut child = absolute.clone();
+                child.push(first.to_string());
+                if !self.modules.contains(&child) {
+                    let (from, imported) = self.imports.get(&(context.to_vec(), first.into()))?;
+                    let mut joined = imported.clone();
+                    joined.extend(path[1..].iter().cloned());
+                    return self.target(from, &joined, depth + 1);
+                }
+            }
+            None => return None,
+        }
+        let rest: Vec<String> = segments.cloned().collect();
+        for (k, segment) in rest.iter().enumerate() {
+            let mut child = absolute.clone();
+            child.push(segment.clone());
+            if self.modules.contains(&child) {
+                absolute = child;
+                continue;
+            }
+            // An item of `absolute`, or a name it brings in from elsewhere.
+            if let Some((from, imported)) = self.imports.get(&(absolute.clone(), segment.clone())) {
+                let mut joined = imported.clone();
+                joined.extend(rest[k + 1..].iter().cloned());
+                return self
+                    .target(from, &joined, depth + 1)
+                    .or(Some(absolute.clone()));
+            }
+            break;
+        }
+        Some(absolute)
+    }
+
+    /// Each room's import graph: for every directory of modules (`forces`,
+    /// `forces::distance_split`, the crate root), which of its modules import which,
+    /// a module standing for everything below it. A module naming its parent or its own
+    /// submodules adds no edge (that is the room above or below).
+    fn rooms(&self) -> BTreeMap<Vec<String>, BTreeMap<String, BTreeSet<String>>> {
+        let mut rooms: BTreeMap<Vec<String>, BTreeMap<String, BTreeSet<String>>> = BTreeMap::new();
+        for (context, path) in &self.paths {
+            let Some(target) = self.target(context, path, 0) else {
+                continue;
+            };
+            let common = context
+                .iter()
+                .zip(&target)
+                .take_while(|(a, b)| a == b)
+                .count();
+            if let (Some(from), Some(to)) = (context.get(common), target.get(common)) {
+                rooms
+                    .entry(context[..common].to_vec())
+                    .or_default()
+                    .entry(from.clone())
+                    .or_default()
+                    .insert(to.clone());
+            }
+        }
+        rooms
+    }
+}
+
+/// Every circle of each room: the groups of modules that import each other (strongly
+/// connected components of more than one module), each with one circle through them.
+fn circles(tree: &SourceTree) -> Vec<String> {
+    let mut found = Vec::new();
+    for (room, graph) in tree.rooms() {
+        let mut done = BTreeSet::new();
+        for node in graph.keys() {
+            if done.contains(node) {
+                continue;
+            }
+            let reach = |from: &str| {
+                let mut seen = BTreeSet::from([from.to_string()]);
+                let mut stack = vec![from.to_string()];
+                while let Some(n) = stack.pop() {
+                    for next in graph.get(&n).into_iter().flatten() {
+                        if seen.insert(next.clone()) {
+                            stack.push(next.clone());
+                        }
+                    }
+                }
+                seen
+            };
+            let group: BTreeSet<String> = reach(node)
+                .into_iter()
+                .filter(|other| reach(other).contains(node))
+                .collect();
+            if group.len() > 1 {
+                let sub: BTreeMap<String, BTreeSet<String>> = group
+                    .iter()
+                    .map(|n| (n.clone(), &graph[n] & &group))
+                    .collect();
+                let circle = find_circle(&sub).unwrap_or_default();
+                let room = if room.is_empty() {
+                    "src".to_string()
+                } else {
+                    format!("src/{}", room.join("/"))
+                };
+                found.push(format!("{room}: {}", circle.join(" → ")));
+            }
+            done.extend(group);
+        }
+    }
+    found
+}
+
+#[test]
+fn no_import_circle_in_any_room_of_src() {
+    let tree = SourceTree::read(Path::new("src"));
+    let rooms = tree.rooms();
+    let forces = &rooms[&vec!["forces".to_string()]];
+    assert!(
+        forces.len() > 5 && forces["distance_split"].contains("nonbonded"),
+        "the checker reads the forces room: {forces:?}"
+    );
+    let found = circles(&tree);
+    assert!(
+        found.is_empty(),
+        "modules of one room import each other in a circle (what both need moves into a \
+         module of its own that imports neither):\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn the_circle_checker_follows_uses_paths_and_re_exports() {
+    // forces/a imports b (a grouped `use` over two lines), b names c in code, and c
+    // imports `Y` through the parent's re-export of `a::Y`: a circle a → b → c → a.
+    let tree = |c: &str| {
+        let mut tree = SourceTree::default();
+        let files = [
+            (
+                vec!["forces"],
+                "pub mod a;\npub mod b;\npub mod c;\npub use a::Y;\npub struct Z;",
+            ),
+            (
+                vec!["forces", "a"],
+                "use super::{\n    b::X,\n    Z,\n};\npub struct Y;",
+            ),
+            (
+                vec!["forces", "b"],
+                "pub struct X;\nfn f() {\n    crate::forces::c::g(); // crate::forces::a\n}",
+            ),
+            (vec!["forces", "c"], c),
+            (vec!["io"], "use crate::forces::b::X;"),
+        ];
+        for (module, text) in files {
+            tree.add_file(module.iter().map(|m| m.to_string()).collect(), text);
+        }
+        tree
+    };
+    let circular = tree("use super::Y;\npub fn g() {}");
+    let rooms = circular.rooms();
+    let forces = &rooms[&vec!["forces".to_string()]];
+    let names = |list: &[&str]| list.iter().map(|n| n.to_string()).collect::<BTreeSet<_>>();
+    assert_eq!(forces["a"], names(&["b"]), "`Z` is the parent's own item");
+    assert_eq!(forces["b"], names(&["c"]), "a comment is not a path");
+    assert_eq!(forces["c"], names(&["a"]), "the re-export leads to `a`");
+    assert_eq!(rooms[&Vec::new()]["io"], names(&["forces"]));
+    assert_eq!(circles(&circular), ["src/forces: a → b → c → a"]);
+    // The same through an inline test module (`super` is then the file itself).
+    let in_tests = tree("pub fn g() {}\n\n#[cfg(test)]\nmod tests {\n    use super::super::Y;\n}");
+    assert_eq!(circles(&in_tests).len(), 1);
+    let acyclic = tree("use super::Z;\npub fn g() {}\nmod tests {\n    use super::g;\n}");
+    assert_eq!(circles(&acyclic), Vec::<String>::new());
+    assert_eq!(
+        use_tree_paths("a::{b::{self, C}, d as e, *}"),
+        [
+            (vec!["a".into(), "b".into()], "b".into()),
+            (vec!["a".into(), "b".into(), "C".into()], "C".into()),
+            (vec!["a".into(), "d".into()], "e".into()),
+            (vec!["a".into(), "*".into()], "*".into()),
+        ]
+    );
 }

@@ -9,7 +9,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::forces::TermClass;
+use crate::forces::{TermClass, minimum_image};
 use crate::split::LabelledTerm;
 
 #[derive(Clone, Debug, Default)]
@@ -99,7 +99,7 @@ fn displacement(q: &[f64], lengths: Option<[f64; 3]>, i: usize, j: usize) -> [f6
     std::array::from_fn(|a| {
         let d = q[3 * j + a] - q[3 * i + a];
         match lengths {
-            Some(l) => d - l[a] * (d / l[a]).round(),
+            Some(l) => minimum_image(d, l[a]),
             None => d,
         }
     })

@@ -16,12 +16,17 @@
 //! its neighbourhood `±window` and at least half the global maximum (so a noisy rising flank
 //! or a small shoulder is not taken); its position and height come from a least-squares
 //! parabola through the bins within `±fit_half_width` of it, which removes most of the
-//! upward bias of a maximum of noisy bins. Cost: `O(N_A N_B)` distance evaluations per frame
-//! (rayon over the first element's atoms; counts are integers, so the sum does not depend on
-//! the thread count).
+//! upward bias of a maximum of noisy bins. Cost: `O(N_A + N_B)` per frame for a fixed
+//! `r_max`: the second element's atoms in a cell list of cells no narrower than `r_max`
+//! ([`crate::forces::cell_list`], the distance split's), each atom of the first against
+//! the atoms of its 27 cells (rayon over the first element's atoms; counts are integers,
+//! so the sum does not depend on the thread count or the order of the pairs).
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
+
+use crate::forces::cell_list::CellList;
+use crate::forces::minimum_image;
 
 /// Most bins a g(r) may have (a bound on a user-given size).
 pub const MAX_BINS: usize = 1_000_000;
@@ -164,11 +169,18 @@ impl PairSelection {
     }
 
     /// Add one frame's pair distances to `counts` (`grid.bins` entries). `q` is `n × 3`,
-    /// `lengths` the box edges (minimum image on every axis).
+    /// `lengths` the box edges (minimum image on every axis). The second element's atoms
+    /// go into a cell list, and each atom of the first meets only those in its own and
+    /// the neighbouring cells: O(N) for a fixed `r_max`.
     pub fn histogram(&self, q: &[f64], lengths: [f64; 3], grid: &RdfGrid, counts: &mut [u64]) {
         let r_max2 = grid.r_max() * grid.r_max();
         let inverse_width = 1.0 / grid.bin_width;
         let position = |i: usize| [q[3 * i], q[3 * i + 1], q[3 * i + 2]];
+        let points: Vec<[f64; 3]> = self.second.iter().map(|&j| position(j)).collect();
+        let mut cells = CellList::new(Some(lengths));
+        // Cells a relative 1e-9 wider than r_max: a pair just inside r_max whose cell
+        // indices round (at ~1e-16) across a cell boundary is still in neighbouring cells.
+        cells.build(&points, grid.r_max() * (1.0 + 1e-9));
         let partial = self
             .first
             .par_chunks(64)
@@ -178,22 +190,19 @@ impl PairSelection {
                 |mut local, (chunk_index, chunk)| {
                     for (offset, &i) in chunk.iter().enumerate() {
                         let ri = position(i);
-                        let start = if self.same {
-                            chunk_index * 64 + offset + 1
-                        } else {
-                            0
-                        };
-                        for &j in &self.second[start..] {
-                            if let Some(m) = &self.molecule_of
-                                && m[i] == m[j]
-                            {
-                                continue;
+                        // One element: `first` is `second`, each pair once (k after i).
+                        let own = chunk_index * 64 + offset;
+                        cells.for_each_near(cells.cell_at(ri), |k| {
+                            let j = self.second[k];
+                            let same_molecule =
+                                self.molecule_of.as_ref().is_some_and(|m| m[i] == m[j]);
+                            if (self.same && k <= own) || same_molecule {
+                                return;
                             }
                             let rj = position(j);
                             let mut s = 0.0;
                             for a in 0..3 {
-                                let d = ri[a] - rj[a];
-                                let d = d - lengths[a] * (d / lengths[a]).round();
+                                let d = minimum_image(ri[a] - rj[a], lengths[a]);
                                 s += d * d;
                             }
                             if s < r_max2 {
@@ -202,7 +211,7 @@ impl PairSelection {
                                     local[bin] += 1;
                                 }
                             }
-                        }
+                        });
                     }
                     local
                 },
@@ -295,6 +304,71 @@ pub fn first_peak(grid: &RdfGrid, g: &[f64], window: f64, fit_half_width: f64) -
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::rngs::StdRng;
+    use rand::{RngExt, SeedableRng};
+
+    /// Every pair against every other, as the histogram was before it had a cell list.
+    fn all_pairs(
+        selection: &PairSelection,
+        q: &[f64],
+        lengths: [f64; 3],
+        grid: &RdfGrid,
+    ) -> Vec<u64> {
+        let mut counts = vec![0u64; grid.bins];
+        for (at, &i) in selection.first.iter().enumerate() {
+            let start = if selection.same { at + 1 } else { 0 };
+            for &j in &selection.second[start..] {
+                if selection.molecule_of.as_ref().is_some_and(|m| m[i] == m[j]) {
+                    continue;
+                }
+                let s: f64 = (0..3)
+                    .map(|a| minimum_image(q[3 * i + a] - q[3 * j + a], lengths[a]).powi(2))
+                    .sum();
+                let bin = (s.sqrt() / grid.bin_width) as usize;
+                if s < grid.r_max() * grid.r_max() && bin < grid.bins {
+                    counts[bin] += 1;
+                }
+            }
+        }
+        counts
+    }
+
+    /// The cell list finds every pair within `r_max` once: the counts equal the all-pairs
+    /// loop's exactly (integers), for one element and two, with molecules left out, in
+    /// boxes of 1 to 14 cells per axis (one cell: every pair), `r_max` up to half the
+    /// shortest edge, and positions outside the box (never wrapped).
+    #[test]
+    fn cell_list_counts_are_the_all_pairs_counts() {
+        let mut rng = StdRng::seed_from_u64(42);
+        let elements: Vec<String> = (0..300).map(|i| ["O", "H", "H"][i % 3].into()).collect();
+        let molecule_of: Vec<usize> = (0..300).map(|i| i / 3).collect();
+        for (lengths, r_max) in [
+            ([12.0, 12.0, 12.0], 6.0),
+            ([12.0, 9.0, 15.0], 4.5),
+            ([20.0, 20.0, 20.0], 3.3),
+            ([10.0, 10.0, 30.0], 2.0),
+        ] {
+            let q: Vec<f64> = (0..900)
+                .map(|k| rng.random::<f64>() * 3.0 * lengths[k % 3] - lengths[k % 3])
+                .collect();
+            let grid = RdfGrid::new(r_max, 0.05).unwrap();
+            for (a, b, molecules) in [
+                ("O", "O", None),
+                ("O", "H", Some(&molecule_of[..])),
+                ("H", "H", Some(&molecule_of[..])),
+            ] {
+                let selection = PairSelection::new(&elements, a, b, molecules).unwrap();
+                let mut counts = vec![0u64; grid.bins];
+                selection.histogram(&q, lengths, &grid, &mut counts);
+                let expected = all_pairs(&selection, &q, lengths, &grid);
+                assert!(
+                    expected.iter().sum::<u64>() > 100,
+                    "{a}-{b} in {lengths:?}: too few pairs to test"
+                );
+                assert_eq!(counts, expected, "{a}-{b} in {lengths:?}, r_max {r_max}");
+            }
+        }
+    }
 
     #[test]
     fn parabola_fit_recovers_a_parabolic_peak_between_bins() {

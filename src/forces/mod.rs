@@ -13,6 +13,7 @@
 //! `χ`, `χ′` and `χ″`.
 
 pub mod angle;
+pub mod cell_list;
 pub mod clusters;
 pub mod components;
 pub mod coulomb;
@@ -35,9 +36,11 @@ pub mod scratch;
 pub mod simd;
 pub mod spring;
 pub mod string;
+pub mod switch;
 pub mod torsion;
 
-pub use periodic_box::PeriodicBox;
+pub(crate) use periodic_box::MinimumImage;
+pub use periodic_box::{PeriodicBox, minimum_image};
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]

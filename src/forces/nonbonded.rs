@@ -44,8 +44,8 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::distance_split::Switch;
 use super::simd::{ERFC_X_MAX, Isa};
+use super::switch::Switch;
 use super::{ForceTerm, TermClass};
 use crate::units::Units;
 
@@ -112,6 +112,17 @@ pub struct LjPair {
 }
 
 impl LjPair {
+    /// `(V, −V′/r)` at `1/r² = inv_r2`: `V = r⁻⁶(C₁₂ r⁻⁶ − C₆) − shift`,
+    /// `−V′/r = r⁻² r⁻⁶ (12 C₁₂ r⁻⁶ − 6 C₆)`. The scalar pair of every f64 path (the
+    /// distance split's loops, the brute-force reference); 7 multiplications.
+    #[inline(always)]
+    pub fn energy_force(&self, inv_r2: f64) -> (f64, f64) {
+        let inv_r6 = inv_r2 * inv_r2 * inv_r2;
+        let energy = inv_r6 * (self.c12 * inv_r6 - self.c6) - self.shift;
+        let force = inv_r2 * inv_r6 * (12.0 * self.c12 * inv_r6 - 6.0 * self.c6);
+        (energy, force)
+    }
+
     /// `(V, V′, V″)` at `r` (shifted by [`LjPair::shift`]).
     pub fn derivatives(&self, r: f64) -> (f64, f64, f64) {
         let inv_r = 1.0 / r;

@@ -47,7 +47,7 @@ mod bonded;
 pub(crate) mod distance_split;
 mod nonbonded;
 
-pub use nonbonded::inverse_length;
+pub use nonbonded::{inverse_length, rf_dielectric};
 
 pub use distance_split::SplitSection;
 
@@ -162,37 +162,6 @@ impl ElectrostaticsOverrides {
                 .as_ref()
                 .and_then(|s| toml::Value::try_from(s).ok()),
         );
-    }
-
-    /// Replace the keys of a scene's `[topology]` that are given here (the flags over a
-    /// scene that reads a topology), as [`Self::apply`] does over a `[forcefield]`.
-    pub fn apply_to_topology(&self, spec: &mut crate::io::scene::TopologySpec) {
-        let mut forcefield = ForcefieldSpec {
-            coulomb: spec.coulomb.clone(),
-            dsf_alpha: spec.dsf_alpha,
-            rf_dielectric: spec.epsilon_rf,
-            ewald_tolerance: spec.ewald_tolerance,
-            fourier_spacing: spec.fourier_spacing,
-            ewald_alpha: spec.ewald_alpha.clone(),
-            pme_grid: spec.pme_grid,
-            pme_order: spec.pme_order,
-            pme_level: spec.pme_level,
-            nonbonded_level: spec.nonbonded_level,
-            split: spec.split.clone(),
-            ..ForcefieldSpec::default()
-        };
-        self.apply(&mut forcefield);
-        spec.coulomb = forcefield.coulomb;
-        spec.dsf_alpha = forcefield.dsf_alpha;
-        spec.epsilon_rf = forcefield.rf_dielectric;
-        spec.ewald_tolerance = forcefield.ewald_tolerance;
-        spec.fourier_spacing = forcefield.fourier_spacing;
-        spec.ewald_alpha = forcefield.ewald_alpha;
-        spec.pme_grid = forcefield.pme_grid;
-        spec.pme_order = forcefield.pme_order;
-        spec.pme_level = forcefield.pme_level;
-        spec.nonbonded_level = forcefield.nonbonded_level;
-        spec.split = forcefield.split;
     }
 
     /// Replace the keys of `spec` that are given here. Switching to PME drops the DSF and

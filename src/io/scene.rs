@@ -232,7 +232,9 @@ pub fn load_scene_with(path: &Path, flags: &SceneFlags, overrides: &[String]) ->
         Some(spec) => flags.electrostatics.apply(spec.get_mut()),
         None if file.topology.is_some() => {
             if let Some(topology) = file.topology.as_mut() {
-                flags.electrostatics.apply_to_topology(topology.get_mut());
+                topology
+                    .get_mut()
+                    .apply_electrostatics(&flags.electrostatics);
             }
         }
         None => {

@@ -6,6 +6,7 @@
 
 use super::pairs::{add_pair, dot};
 use super::{Model, ShortRange, Switch};
+use crate::forces::nonbonded::LjPair;
 
 /// Scratch of one chunk for [`whole_molecule_rows`]: the partner molecules of one row
 /// molecule inside `r_out`, and their atoms laid out for a branch-free loop.
@@ -423,10 +424,10 @@ fn pair_block<const LJ: bool>(model: &Model, xi: [f64; 4], n: usize, sc: &mut Sc
         let inside = if r2[t] < rc2 { 1.0 } else { 0.0 };
         let (mut e, mut f) = (e_q[t], f_q[t]);
         if LJ {
-            let inv_r2 = inv_r[t] * inv_r[t];
-            let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-            e += inv_r6 * (c12[t] * inv_r6 - c6[t]) - lj_shift[t];
-            f += inv_r2 * inv_r6 * (12.0 * c12[t] * inv_r6 - 6.0 * c6[t]);
+            let (c12, c6, shift) = (c12[t], c6[t], lj_shift[t]);
+            let (lj_e, lj_f) = LjPair { c12, c6, shift }.energy_force(inv_r[t] * inv_r[t]);
+            e += lj_e;
+            f += lj_f;
         }
         energy[t] = inside * e;
         force[t] = inside * weight[t] * f;

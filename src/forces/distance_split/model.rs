@@ -2,6 +2,7 @@
 //! of [`crate::forces::nonbonded`], the minimum image) and the molecules' atom table.
 
 use super::SplitSpec;
+use crate::forces::MinimumImage;
 use crate::forces::nonbonded::{CoulombPair, Electrostatics, LjPair, NonbondedSpec};
 
 /// The non-bonded model pair by pair, and the minimum image.
@@ -16,28 +17,6 @@ pub(crate) struct Model {
     /// `q_i √k_e`.
     scaled_charges: Vec<f64>,
     pub periodic: MinimumImage,
-}
-
-/// The minimum image in a box periodic along some axes: `d − L round(d/L)` per axis,
-/// `L = 0` along an open axis (`d − 0·round(d·0) = d`).
-#[derive(Clone, Copy)]
-pub(crate) struct MinimumImage {
-    pub period: [f64; 3],
-    pub inverse: [f64; 3],
-}
-
-impl MinimumImage {
-    pub fn new(lengths: Option<[f64; 3]>) -> Self {
-        let period = lengths.unwrap_or([0.0; 3]);
-        let inverse = period.map(|l| if l > 0.0 { 1.0 / l } else { 0.0 });
-        MinimumImage { period, inverse }
-    }
-
-    /// Minimum image of a displacement `d`.
-    #[inline(always)]
-    pub fn of(&self, d: [f64; 3]) -> [f64; 3] {
-        std::array::from_fn(|k| d[k] - self.period[k] * (d[k] * self.inverse[k]).round())
-    }
 }
 
 impl Model {
@@ -91,9 +70,7 @@ impl Model {
         let inv_r2 = 1.0 / s;
         let (mut energy, mut force) = (0.0, 0.0);
         if p.c12 != 0.0 || p.c6 != 0.0 {
-            let inv_r6 = inv_r2 * inv_r2 * inv_r2;
-            energy = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
-            force = inv_r2 * inv_r6 * (12.0 * p.c12 * inv_r6 - 6.0 * p.c6);
+            (energy, force) = p.energy_force(inv_r2);
         }
         if qq != 0.0 {
             let (e, f) = self.coulomb.energy_force(qq, s, inv_r2.sqrt());
@@ -132,8 +109,7 @@ impl Model {
     /// `(V_LJ, V_Coulomb)` of pair `i, j` at `r² = s < r_c²` (for reports).
     pub fn energy_parts(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
         let p = self.lj(i, j);
-        let inv_r6 = (1.0 / s).powi(3);
-        let lj = inv_r6 * (p.c12 * inv_r6 - p.c6) - p.shift;
+        let lj = p.energy_force(1.0 / s).0;
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
         let coulomb = if qq != 0.0 {
             self.coulomb.energy_force(qq, s, 1.0 / s.sqrt()).0

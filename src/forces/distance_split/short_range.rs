@@ -1,4 +1,5 @@
-//! The short-range part by molecule ([`ShortRange`]): its molecule list ([`super::search`]),
+//! The short-range part by molecule ([`ShortRange`], declared in [`super`] so that the
+//! loops below read its fields without importing this file): its molecule list ([`super::search`]),
 //! the pairs inside molecules, the fixed chunks it evaluates (a number that depends only on
 //! the atom count; in parallel for large systems, each into its own buffer, summed in chunk
 //! order: the same bits at any thread count), the gradient cache the remainder reads, and
@@ -11,9 +12,9 @@ use std::sync::{Mutex, MutexGuard};
 
 use rayon::prelude::*;
 
-use super::model::{Model, Molecules, molecule_table};
+use super::model::{Model, molecule_table};
 use super::search::PairSearch;
-use super::{SplitSpec, Switch, SwitchBy, kernels, lanes, pairs};
+use super::{ShortRange, SplitSpec, Switch, SwitchBy, kernels, lanes, pairs};
 use crate::forces::clusters::Cluster;
 use crate::forces::nonbonded::{NonbondedSpec, exclusion_lists};
 use crate::forces::simd::Isa;
@@ -40,7 +41,7 @@ enum Mode<'a> {
     HessianVector(&'a [f64]),
 }
 
-struct Workspace {
+pub(super) struct Workspace {
     search: PairSearch,
     /// By molecule: `[x, y, z, q√k_e]` per atom in molecule order, each atom at the image
     /// nearest its reference atom (molecules made whole).
@@ -56,25 +57,6 @@ struct Workspace {
     cached_q: Vec<f64>,
     cached_gradient: Vec<f64>,
     cached_energy: Option<f64>,
-}
-
-/// The short-range part by molecule.
-pub struct ShortRange {
-    pub(crate) model: Model,
-    pub(crate) switch: Switch,
-    pub(crate) molecules: Molecules,
-    /// Non-excluded pairs inside one molecule (by molecule), switched on their distance.
-    intramolecular: Vec<[u32; 2]>,
-    excluded_start: Vec<u32>,
-    excluded_partners: Vec<u32>,
-    chunks: usize,
-    /// The instruction set the pair loops are compiled for (default the widest there is),
-    /// as its index in [`INSTRUCTION_SETS`].
-    isa: AtomicU8,
-    /// By molecule in a box of one kind of small molecule: the SIMD block loop's constants.
-    lanes: Option<lanes::Lanes>,
-    listed_atom_pairs: AtomicUsize,
-    workspace: Mutex<Workspace>,
 }
 
 /// The instruction sets by index, for [`ShortRange::set_isa`].

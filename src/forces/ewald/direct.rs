@@ -5,6 +5,7 @@
 //! Energies and gradients in f64; `O(N² images + N k_max³)`: never used in a run.
 
 use super::{background_energy, erf_over_r, self_energy};
+use crate::forces::minimum_image;
 
 /// A box of point charges and the parameters of its Ewald sum.
 #[derive(Clone, Debug)]
@@ -78,7 +79,7 @@ impl DirectEwald {
                 // n = 0 is the minimum image.
                 let base: [f64; 3] = std::array::from_fn(|a| {
                     let d = q[3 * j + a] - q[3 * i + a];
-                    d - self.lengths[a] * (d / self.lengths[a]).round()
+                    minimum_image(d, self.lengths[a])
                 });
                 for nx in -reach[0]..=reach[0] {
                     for ny in -reach[1]..=reach[1] {
@@ -164,7 +165,7 @@ impl DirectEwald {
             let qq = self.coulomb_constant * self.charges[i] * self.charges[j];
             let d: [f64; 3] = std::array::from_fn(|a| {
                 let d = q[3 * j + a] - q[3 * i + a];
-                d - self.lengths[a] * (d / self.lengths[a]).round()
+                minimum_image(d, self.lengths[a])
             });
             let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
             let (f, f1, _) = erf_over_r(self.alpha, r);

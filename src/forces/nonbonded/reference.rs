@@ -3,6 +3,7 @@
 //! O(N²): never called in a run.
 
 use super::{CoulombForm, Kernel, Nonbonded};
+use crate::forces::minimum_image;
 
 /// Energy, gradient and the number of pairs within the cutoff of a brute-force sum.
 #[derive(Clone, Debug)]
@@ -34,7 +35,7 @@ impl Nonbonded {
                 let d: [f64; 3] = std::array::from_fn(|a| {
                     let d = q[3 * j + a] - q[3 * i + a];
                     if lengths[a].is_finite() {
-                        d - lengths[a] * (d / lengths[a]).round()
+                        minimum_image(d, lengths[a])
                     } else {
                         d
                     }
@@ -70,9 +71,7 @@ impl Nonbonded {
     fn pair_energy_force(&self, i: usize, j: usize, s: f64) -> (f64, f64) {
         let p = self.lj[self.types[i] as usize * self.n_types + self.types[j] as usize];
         let inv_r = 1.0 / s.sqrt();
-        let inv6 = (inv_r * inv_r).powi(3);
-        let mut e = inv6 * (p.c12 * inv6 - p.c6) - p.shift;
-        let mut f = inv6 * (12.0 * p.c12 * inv6 - 6.0 * p.c6) * inv_r * inv_r;
+        let (mut e, mut f) = p.energy_force(inv_r * inv_r);
         let qq = self.scaled_charges[i] * self.scaled_charges[j];
         if qq != 0.0 {
             let (ec, fc) = match self.kernel {

@@ -200,9 +200,7 @@ fn coulomb(spec: &ForcefieldSpec, charges: &[f64]) -> Result<Electrostatics, Str
             alpha: spec.dsf_alpha.unwrap_or(0.0),
         },
         Some("reaction-field") => Electrostatics::ReactionField {
-            dielectric: crate::io::topology::build::rf_dielectric(
-                spec.rf_dielectric.unwrap_or(78.3),
-            )?,
+            dielectric: rf_dielectric(spec.rf_dielectric.unwrap_or(78.3))?,
         },
         // α is resolved with the box and cutoff (`settings`).
         Some("pme") => Electrostatics::Ewald { alpha: 0.0 },
@@ -464,4 +462,16 @@ pub(super) fn pme_term(
     };
     terms.push(("pme-reciprocal".into(), Box::new(term), assignment));
     Ok(())
+}
+
+/// A reaction field's dielectric ε_rf: at least 1 (the vacuum's) and finite (78.3 for
+/// water), else an error naming it.
+pub fn rf_dielectric(epsilon_rf: f64) -> Result<f64, String> {
+    if epsilon_rf.is_finite() && epsilon_rf >= 1.0 {
+        return Ok(epsilon_rf);
+    }
+    Err(format!(
+        "epsilon_rf = {epsilon_rf}: the reaction field's dielectric constant must be at least \
+         1 (vacuum) and finite (water: 78.3)"
+    ))
 }

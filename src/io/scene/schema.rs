@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::io::forcefield::ForcefieldSpec;
+use crate::io::forcefield::{ElectrostaticsOverrides, ForcefieldSpec};
 use crate::settings::{RunSpec, Value};
 
 /// A particle by 0-based index or by name; a name may also be an anchor's.
@@ -282,6 +282,39 @@ pub enum TermSpec {
     Magnetic(MagneticSpec),
     /// A fixed external potential `e φ(x)` on 3-D particles (CFM25 5.7.3).
     ExternalField(ExternalFieldSpec),
+}
+
+impl TopologySpec {
+    /// Replace the keys given in `overrides` (the flags over a scene that reads a
+    /// topology), as [`ElectrostaticsOverrides::apply`] does over a `[forcefield]`.
+    pub fn apply_electrostatics(&mut self, overrides: &ElectrostaticsOverrides) {
+        let mut forcefield = ForcefieldSpec {
+            coulomb: self.coulomb.clone(),
+            dsf_alpha: self.dsf_alpha,
+            rf_dielectric: self.epsilon_rf,
+            ewald_tolerance: self.ewald_tolerance,
+            fourier_spacing: self.fourier_spacing,
+            ewald_alpha: self.ewald_alpha.clone(),
+            pme_grid: self.pme_grid,
+            pme_order: self.pme_order,
+            pme_level: self.pme_level,
+            nonbonded_level: self.nonbonded_level,
+            split: self.split.clone(),
+            ..ForcefieldSpec::default()
+        };
+        overrides.apply(&mut forcefield);
+        self.coulomb = forcefield.coulomb;
+        self.dsf_alpha = forcefield.dsf_alpha;
+        self.epsilon_rf = forcefield.rf_dielectric;
+        self.ewald_tolerance = forcefield.ewald_tolerance;
+        self.fourier_spacing = forcefield.fourier_spacing;
+        self.ewald_alpha = forcefield.ewald_alpha;
+        self.pme_grid = forcefield.pme_grid;
+        self.pme_order = forcefield.pme_order;
+        self.pme_level = forcefield.pme_level;
+        self.nonbonded_level = forcefield.nonbonded_level;
+        self.split = forcefield.split;
+    }
 }
 
 impl TermSpec {

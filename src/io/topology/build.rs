@@ -28,8 +28,8 @@ use crate::forces::pair::{Pair, PairTerm};
 use crate::forces::spring::HarmonicBond;
 use crate::forces::torsion::{Cosine, Dihedral, Torsions};
 use crate::forces::{ForceTerm, PeriodicBox, Site, TermClass};
-use crate::io::forcefield::SplitSection;
 use crate::io::forcefield::distance_split::{SplitAtoms, split_terms};
+use crate::io::forcefield::{SplitSection, rf_dielectric};
 use crate::split::Assignment;
 use crate::units::{COULOMB_KCAL_ANGSTROM, Units, significant};
 
@@ -564,18 +564,6 @@ fn charge_notices(topology: &Topology, electrostatics: Electrostatics) -> Vec<St
         ));
     }
     notices
-}
-
-/// A reaction field's dielectric ε_rf: at least 1 (the vacuum's) and finite (78.3 for
-/// water), else an error naming it.
-pub fn rf_dielectric(epsilon_rf: f64) -> Result<f64, String> {
-    if epsilon_rf.is_finite() && epsilon_rf >= 1.0 {
-        return Ok(epsilon_rf);
-    }
-    Err(format!(
-        "epsilon_rf = {epsilon_rf}: the reaction field's dielectric constant must be at least \
-         1 (vacuum) and finite (water: 78.3)"
-    ))
 }
 
 /// The scaled 1-4 pairs, without cutoff, plain Coulomb: `lj-14` and `coulomb-14`.

@@ -34,6 +34,7 @@
 //! check it); a failing lane is reported with its water, as one at a time.
 
 use super::{ConstraintFailure, PeriodicBox, RigidWater};
+use crate::forces::minimum_image;
 use crate::forces::simd::Isa;
 
 type V3 = [f64; 3];
@@ -155,7 +156,7 @@ const SINGULAR: u8 = 5;
 /// arithmetic with its branch as a select (both sides computed), so a lane loop vectorises.
 #[inline(always)]
 fn wrap(d: f64, length: f64) -> f64 {
-    let far = d - length * (d / length).round();
+    let far = minimum_image(d, length);
     if d.abs() < 0.5 * length { d } else { far }
 }
 
