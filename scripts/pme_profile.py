@@ -11,12 +11,12 @@ inclusive counts of each part by N2 - N1, so scene loading, set-up and output ca
   FFT x+theta  Fft3::x_lines (x-lines forward, influence function, x-lines inverse)
   FFT inverse  Fft3::inverse_planes (inverse y-lines, inverse real FFTs)
   gather       PmeReciprocal::gather (forces from the potential grid)
-  exclusions   PmeReciprocal::exclusion_derivative (-Q erf(ar)/r on excluded pairs)
+  exclusions   Exclusions::add_gradient (-Q erf(ar)/r on excluded pairs)
   real space   Nonbonded::add_gradient (cluster-pair kernel with erfc, list updates)
   bonded       bonds and angles
   constr pos   Constraints::constrain_positions (SETTLE and SHAKE after a drift)
   constr vel   Constraints::constrain_velocities (SETTLE and RATTLE after a kick)
-  langevin O   Langevin::apply (BAOAB's O step: the normals and the update)
+  normals      StandardNormal::sample (the normals of BAOAB's O step)
   the rest     the integrator and everything else in the step
 
     cargo build --release
@@ -47,14 +47,14 @@ PARTS = [
     ("FFT x+theta", r"Fft3(<\w+>)?::x_lines$"),
     ("FFT inverse", r"Fft3(<\w+>)?::inverse_planes$"),
     ("gather", r"PmeReciprocal::gather$"),
-    ("exclusions", r"PmeReciprocal::exclusion_derivative$"),
+    ("exclusions", r"ewald::exclusions::Exclusions::add_gradient$"),
     ("real space", r"<longstep::forces::nonbonded::Nonbonded as longstep::forces::ForceTerm>"
                    r"::add_gradient$"),
     ("bonded", r"(HarmonicAngles as longstep::forces::ForceTerm>::add_gradient|"
                r"PairTerm<P> as longstep::forces::ForceTerm>::add_gradient)$"),
     ("constr pos", r"constraints::Constraints::constrain_positions$"),
     ("constr vel", r"constraints::Constraints::constrain_velocities$"),
-    ("langevin O", r"langevin::Langevin::apply$"),
+    ("normals", r"StandardNormal as rand::distr::distribution::Distribution<f64>>::sample$"),
 ]
 RECIPROCAL = r"<longstep::forces::ewald::reciprocal::PmeReciprocal as " \
              r"longstep::forces::ForceTerm>::add_gradient$"

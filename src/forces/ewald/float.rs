@@ -1,7 +1,6 @@
 //! The float type the PME mesh computes in: `f64` (double precision) or `f32` (mixed
 //! precision, as GROMACS's mixed build spreads, transforms and gathers). One generic body
-//! serves both; with `f64` every operation is the one the double-only code did, in the same
-//! order, so double precision keeps its bits.
+//! serves both, with the same operations in the same order in either type.
 
 use std::ops::AddAssign;
 

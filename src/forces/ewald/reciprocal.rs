@@ -20,7 +20,9 @@
 //! gradient does; the second sum gathers `φ` with the splines' second derivatives
 //! (`q_i Σ_k φ(k) ∂_a∂_b W_i(k) v_ib`). Two passes of the pipeline.
 //!
-//! **Cost.** Per gradient: `N n³` spreading and gathering, two 3-D FFTs of `K_x K_y K_z`
+//! **Cost.** Per gradient: `N n³` spreading and gathering (along z in `n` lanes, the
+//! stencil's run of a grid row, compiled for the processor's instruction set with plain
+//! arithmetic: the same bits on every set), two 3-D FFTs of `K_x K_y K_z`
 //! points (`O(K³ log K)`), `O(K³)` for the influence function; per Hessian-vector product
 //! twice that. The exclusions are `O(N_excl)`. For large systems every part of the mesh
 //! runs over rayon with the same bits at any thread count: the per-atom splines and the
@@ -53,6 +55,9 @@ use crate::forces::{ForceTerm, Precision, TermClass};
 
 /// Atoms per batch of spline weights ([`PmeReciprocal::place`]).
 const PLACE_BATCH: usize = 16;
+
+/// Atoms per task of the force gathering ([`PmeReciprocal::gather_forces`]).
+const GATHER_BATCH: usize = 64;
 
 /// Parallel spreading tasks per thread (slabs of x-planes).
 const SLABS_PER_THREAD: usize = 2;
@@ -117,6 +122,8 @@ pub struct PmeReciprocal {
     self_energy: f64,
     background: f64,
     workspace: Mutex<Workspace>,
+    /// The instruction set the splines, spreading and gathering are compiled for.
+    isa: Isa,
 }
 
 impl PmeReciprocal {
@@ -156,6 +163,7 @@ impl PmeReciprocal {
             exclusions,
             excluded: pairs,
             workspace: Mutex::new(workspace),
+            isa: Isa::best(),
         })
     }
 
@@ -216,7 +224,7 @@ impl PmeReciprocal {
         stencils: &mut [Stencil<T>],
         second: bool,
     ) {
-        let isa = Isa::best();
+        let isa = self.isa;
         let batch = |(b, stencils): (usize, &mut [Stencil<T>])| {
             isa.run(
                 #[inline(always)]
@@ -313,6 +321,14 @@ impl PmeReciprocal {
         planes: std::ops::Range<usize>,
     ) {
         grid.fill(T::zero());
+        let Some(v) = v else {
+            match self.params.order {
+                4 => self.spread_charges::<T, 4>(stencils, grid, &planes),
+                5 => self.spread_charges::<T, 5>(stencils, grid, &planes),
+                _ => self.spread_charges::<T, 6>(stencils, grid, &planes),
+            }
+            return;
+        };
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
         let scale = self.scale();
@@ -322,18 +338,7 @@ impl PmeReciprocal {
             }
             let q = T::of(self.charges[i]);
             let [wx, wy, wz] = &st.weights;
-            let d: [T; 3] = match v {
-                Some(v) => std::array::from_fn(|a| T::of(scale[a] * v[3 * i + a])),
-                None => [T::zero(); 3],
-            };
-            if v.is_none() {
-                match order {
-                    4 => spread_charge::<T, 4>(q, st, grid, &planes, ny, nz),
-                    5 => spread_charge::<T, 5>(q, st, grid, &planes, ny, nz),
-                    _ => spread_charge::<T, 6>(q, st, grid, &planes, ny, nz),
-                }
-                continue;
-            }
+            let d: [T; 3] = std::array::from_fn(|a| T::of(scale[a] * v[3 * i + a]));
             let iz = &st.index[2][..order];
             for kx in 0..order {
                 let x = st.index[0][kx] as usize;
@@ -354,6 +359,28 @@ impl PmeReciprocal {
                 }
             }
         }
+    }
+
+    /// The charges of every atom, in atom order, onto the planes `planes` of `grid`
+    /// ([`spread_charge`]), compiled for the processor's instruction set ([`Isa::run`]; plain
+    /// arithmetic, so the same bits on every set).
+    fn spread_charges<T: MeshFloat, const N: usize>(
+        &self,
+        stencils: &[Stencil<T>],
+        grid: &mut [T],
+        planes: &std::ops::Range<usize>,
+    ) {
+        let [_, ny, nz] = self.params.grid;
+        self.isa.run(
+            #[inline(always)]
+            || {
+                for (st, &q) in stencils.iter().zip(&self.charges) {
+                    if q != 0.0 {
+                        spread_charge::<T, N>(T::of(q), st, grid, planes, ny, nz);
+                    }
+                }
+            },
+        )
     }
 
     /// The mesh energy of the grid in `ws.grid` and, for [`Output::Potential`], `θ * grid`
@@ -410,28 +437,25 @@ impl PmeReciprocal {
         hv: Option<(&[T], &[f64])>,
         out: &mut [f64],
     ) {
+        let Some((h, v)) = hv else {
+            match self.params.order {
+                4 => self.gather_forces::<T, 4>(stencils, g, out),
+                5 => self.gather_forces::<T, 5>(stencils, g, out),
+                _ => self.gather_forces::<T, 6>(stencils, g, out),
+            }
+            return;
+        };
         let scale = self.scale();
         let one = |i: usize, out: &mut [f64]| {
             let q = self.charges[i];
             if q == 0.0 {
                 return;
             }
-            let [_, ny, nz] = self.params.grid;
-            let zero = [[T::zero(); 3]; 3];
-            let (first, second) = match hv {
-                None => match self.params.order {
-                    4 => (gather_first::<T, 4>(&stencils[i], g, ny, nz), zero),
-                    5 => (gather_first::<T, 5>(&stencils[i], g, ny, nz), zero),
-                    _ => (gather_first::<T, 6>(&stencils[i], g, ny, nz), zero),
-                },
-                Some((h, _)) => self.gather_one(&stencils[i], g, h),
-            };
+            let (first, second) = self.gather_one(&stencils[i], g, h);
             for a in 0..3 {
                 let mut value = scale[a] * first[a].wide();
-                if let Some((_, v)) = hv {
-                    for b in 0..3 {
-                        value += scale[a] * scale[b] * second[a][b].wide() * v[3 * i + b];
-                    }
+                for b in 0..3 {
+                    value += scale[a] * scale[b] * second[a][b].wide() * v[3 * i + b];
                 }
                 out[a] += q * value;
             }
@@ -444,6 +468,47 @@ impl PmeReciprocal {
             for (i, out) in out.chunks_mut(3).enumerate() {
                 one(i, out);
             }
+        }
+    }
+
+    /// The gradient part of [`Self::gather`]: per atom `out_i += q_i K_a/L_a Σ_k g(k) ∂_a
+    /// W_i(k)` ([`gather_first`], widened to `f64` once per atom), in batches of
+    /// [`GATHER_BATCH`] atoms compiled for the processor's instruction set (plain
+    /// arithmetic: the same bits on every set); each atom's result is its own, so the same
+    /// bits at any thread count.
+    fn gather_forces<T: MeshFloat, const N: usize>(
+        &self,
+        stencils: &[Stencil<T>],
+        g: &[T],
+        out: &mut [f64],
+    ) {
+        let scale = self.scale();
+        let [_, ny, nz] = self.params.grid;
+        let isa = self.isa;
+        let batch = |(b, out): (usize, &mut [f64])| {
+            isa.run(
+                #[inline(always)]
+                || {
+                    let first = b * GATHER_BATCH;
+                    for (k, out) in out.chunks_exact_mut(3).enumerate() {
+                        let q = self.charges[first + k];
+                        if q == 0.0 {
+                            continue;
+                        }
+                        let sums = gather_first::<T, N>(&stencils[first + k], g, ny, nz);
+                        for a in 0..3 {
+                            out[a] += q * (scale[a] * sums[a].wide());
+                        }
+                    }
+                },
+            )
+        };
+        if self.parallel() {
+            out.par_chunks_mut(3 * GATHER_BATCH)
+                .enumerate()
+                .for_each(batch);
+        } else {
+            out.chunks_mut(3 * GATHER_BATCH).enumerate().for_each(batch);
         }
     }
 
@@ -620,8 +685,20 @@ impl ForceTerm for PmeReciprocal {
     }
 }
 
+/// The first grid index of an atom's `N` z-points in ascending order (`index[2]` holds
+/// them descending) when they form one run `start … start + N − 1` inside the row, `None`
+/// when the stencil wraps the grid's edge (`N − 1` positions in `K_z`).
+#[inline(always)]
+fn z_run<T, const N: usize>(st: &Stencil<T>, nz: usize) -> Option<usize> {
+    let start = st.index[2][N - 1] as usize;
+    (start + N <= nz).then_some(start)
+}
+
 /// The charge of one atom onto the planes `planes` of `grid` (from plane `planes.start`),
-/// for B-splines of order `N`: `Q(k) += q M_x M_y M_z`.
+/// for B-splines of order `N`: `Q(k) += q M_x M_y M_z`, each point gaining the product
+/// `((q M_x) M_y) M_z` in this order. Along z the `N` points are one run of the row, added
+/// as `N` lanes (an atom touches a point once, so the order of its points is free: the
+/// bits are those of a point-by-point pass); a wrapped stencil goes point by point.
 #[inline(always)]
 fn spread_charge<T: MeshFloat, const N: usize>(
     q: T,
@@ -632,6 +709,8 @@ fn spread_charge<T: MeshFloat, const N: usize>(
     nz: usize,
 ) {
     let [wx, wy, wz] = &st.weights;
+    let run = z_run::<T, N>(st, nz);
+    let ascending: [T; N] = std::array::from_fn(|j| wz.value[N - 1 - j]);
     for kx in 0..N {
         let x = st.index[0][kx] as usize;
         if !planes.contains(&x) {
@@ -642,15 +721,28 @@ fn spread_charge<T: MeshFloat, const N: usize>(
         for ky in 0..N {
             let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
             let qxy = qx * wy.value[ky];
-            for kz in 0..N {
-                row[st.index[2][kz] as usize] += qxy * wz.value[kz];
+            match run {
+                Some(start) => {
+                    for (point, &w) in row[start..][..N].iter_mut().zip(&ascending) {
+                        *point += qxy * w;
+                    }
+                }
+                None => {
+                    for kz in 0..N {
+                        row[st.index[2][kz] as usize] += qxy * wz.value[kz];
+                    }
+                }
             }
         }
     }
 }
 
-/// `Σ_k g(k) ∂_a W(k)` (in `u`) for B-splines of order `N`: per x-y pair of the stencil the
-/// two sums along z, then the x and y weights.
+/// `Σ_k g(k) ∂_a W(k)` (in `u`) for B-splines of order `N`, as GROMACS's SIMD gather: `N`
+/// lanes along z (the row's run, or its points gathered when the stencil wraps)
+/// accumulate over the `N²` x-y pairs `g · (M′_x M_y, M_x M′_y, M_x M_y)`; the lanes are
+/// then weighted by `M_z` (or `M′_z`) and summed in z order. A fixed order of operations
+/// per atom, so the same bits at any thread count and on every instruction set. Cost:
+/// `N²` rows of `3N` multiply-adds and `3N` at the end.
 #[inline(always)]
 fn gather_first<T: MeshFloat, const N: usize>(
     st: &Stencil<T>,
@@ -659,22 +751,86 @@ fn gather_first<T: MeshFloat, const N: usize>(
     nz: usize,
 ) -> [T; 3] {
     let [wx, wy, wz] = &st.weights;
-    let mut first = [T::zero(); 3];
+    let run = z_run::<T, N>(st, nz);
+    let mut lanes = [[T::zero(); N]; 3];
     for kx in 0..N {
         let gx = st.index[0][kx] as usize * ny;
+        let (x, dx) = (wx.value[kx], wx.first[kx]);
         for ky in 0..N {
             let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
-            let (mut value, mut slope) = (T::zero(), T::zero());
-            for kz in 0..N {
-                let p = row[st.index[2][kz] as usize];
-                value += p * wz.value[kz];
-                slope += p * wz.first[kz];
+            let p: [T; N] = match run {
+                Some(start) => {
+                    let run = &row[start..][..N];
+                    std::array::from_fn(|j| run[j])
+                }
+                None => std::array::from_fn(|j| row[st.index[2][N - 1 - j] as usize]),
+            };
+            let (y, dy) = (wy.value[ky], wy.first[ky]);
+            let c = [dx * y, x * dy, x * y];
+            for a in 0..3 {
+                for j in 0..N {
+                    lanes[a][j] += p[j] * c[a];
+                }
             }
-            let (x, y) = (wx.value[kx], wy.value[ky]);
-            first[0] += wx.first[kx] * y * value;
-            first[1] += x * wy.first[ky] * value;
-            first[2] += x * y * slope;
         }
     }
+    let up: [(T, T); N] = std::array::from_fn(|j| (wz.value[N - 1 - j], wz.first[N - 1 - j]));
+    let mut first = [T::zero(); 3];
+    for (j, &(z, dz)) in up.iter().enumerate() {
+        first[0] += lanes[0][j] * z;
+        first[1] += lanes[1][j] * z;
+        first[2] += lanes[2][j] * dz;
+    }
     first
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The splines, spreading and gathering compiled for each instruction set give the
+    /// portable path's bits, in both precisions and every order, with atoms anywhere in the
+    /// box (so stencils that wrap the grid's edge along each axis are among them).
+    #[test]
+    fn every_instruction_set_gives_the_portable_bits() {
+        let lengths = [19.0, 21.0, 23.0];
+        let n = 300;
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let q: Vec<f64> = (0..3 * n).map(|k| lengths[k % 3] * next()).collect();
+        let mut charges: Vec<f64> = (0..n).map(|_| next() - 0.5).collect();
+        charges[7] = 0.0;
+        for order in 4..=MAX_ORDER {
+            let params = EwaldParameters {
+                alpha: 0.35,
+                grid: [20, 22, 24],
+                order,
+            };
+            for precision in [Precision::Double, Precision::Mixed] {
+                let mut reference: Option<Vec<u64>> = None;
+                for isa in Isa::available() {
+                    let mut term =
+                        PmeReciprocal::new(params, lengths, 332.0, charges.clone(), &[]).unwrap();
+                    term.isa = isa;
+                    assert!(term.set_precision(precision));
+                    let mut g = vec![0.0; 3 * n];
+                    term.add_gradient(&q, &mut g);
+                    assert!(g.iter().all(|x| x.is_finite()) && g.iter().any(|&x| x != 0.0));
+                    let bits: Vec<u64> = g.iter().map(|x| x.to_bits()).collect();
+                    match &reference {
+                        None => reference = Some(bits),
+                        Some(first) => assert!(
+                            *first == bits,
+                            "order {order} {precision:?}: {isa:?} differs from the portable path"
+                        ),
+                    }
+                }
+            }
+        }
+    }
 }
