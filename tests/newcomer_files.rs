@@ -483,3 +483,22 @@ fn minimize_warns_of_a_rounding_format_and_takes_json() {
     let report: serde_json::Value = serde_json::from_str(json).expect("a JSON report");
     assert_eq!(report["iterations"], 20, "{stdout}");
 }
+
+/// A reader that stops early (`longstep check SCENE | head -1`) ends the command as it ends
+/// any Unix tool: no panic message about a broken pipe. The read end is closed before the
+/// program writes its first line, so every write after start-up meets a closed pipe.
+#[test]
+fn a_closed_pipe_ends_the_command_without_a_panic() {
+    use std::process::Stdio;
+    let mut child = longstep()
+        .args(["check", "systems/three-spring.toml"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("longstep runs");
+    drop(child.stdout.take());
+    let output = child.wait_with_output().expect("longstep ends");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(output.status.code(), Some(101), "{stderr}");
+}
