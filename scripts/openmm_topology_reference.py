@@ -25,7 +25,7 @@ which in OpenMM is the reaction field (k_rf = (ε_rf − 1)/((2ε_rf + 1) r_c³)
 c_rf = 1/r_c + k_rf r_c², applied to the pairs within the cutoff; exclusions and 1-4
 exceptions get plain Coulomb and no reaction field), ε_rf = 78.3 (OpenMM's default), LJ
 neither shifted nor switched, no long-range dispersion correction — the conventions of
-longstep's forces/nonbonded.rs.
+longstep's forces/nonbonded/mod.rs.
 
 A second tool chain: the shipped systems are ParmEd's writing of OpenMM's ForceField; with
 --other and openmmtools installed, its alanine dipeptide prmtop (made by tleap, AMBER's own

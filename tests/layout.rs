@@ -796,3 +796,34 @@ fn the_circle_checker_follows_uses_paths_and_re_exports() {
         ]
     );
 }
+
+/// Every directory below `src/` (each file included).
+fn directories(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            out.push(path.clone());
+            directories(&path, out);
+        }
+    }
+}
+
+#[test]
+fn a_module_with_submodules_is_a_folder_with_mod_rs() {
+    let mut folders = Vec::new();
+    directories(Path::new("src"), &mut folders);
+    assert!(
+        folders.len() > 5,
+        "the checker reads the folders: {folders:?}"
+    );
+    let mixed: Vec<String> = folders
+        .iter()
+        .filter(|d| d.with_extension("rs").is_file() || !d.join("mod.rs").is_file())
+        .map(|d| d.display().to_string())
+        .collect();
+    assert!(
+        mixed.is_empty(),
+        "one module convention (DEVELOPERS.md): `foo/mod.rs`, never `foo.rs` beside `foo/`; \
+         these folders break it: {mixed:?}"
+    );
+}

@@ -220,7 +220,7 @@ fn minimize_saves_and_run_starts_from_it() {
 
 /// Item 12: a long run's energy picture (2000 rows of a fast oscillation) keeps every drawn
 /// pixel of its series inside the plotting area: none over the title or the tick labels.
-/// The layout (src/plot.rs, 900 × 600): a 14 px margin and the 22 px title above the plot,
+/// The layout (src/plot/mod.rs, 900 × 600): a 14 px margin and the 22 px title above the plot,
 /// the 48 px x-label area and the margin below it, the 72 px y-label area left of it.
 #[test]
 fn a_long_runs_picture_stays_inside_its_axes() {

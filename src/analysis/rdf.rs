@@ -340,15 +340,15 @@ mod tests {
     #[test]
     fn cell_list_counts_are_the_all_pairs_counts() {
         let mut rng = StdRng::seed_from_u64(42);
-        let elements: Vec<String> = (0..300).map(|i| ["O", "H", "H"][i % 3].into()).collect();
-        let molecule_of: Vec<usize> = (0..300).map(|i| i / 3).collect();
+        let elements: Vec<String> = (0..600).map(|i| ["O", "H", "H"][i % 3].into()).collect();
+        let molecule_of: Vec<usize> = (0..600).map(|i| i / 3).collect();
         for (lengths, r_max) in [
             ([12.0, 12.0, 12.0], 6.0),
             ([12.0, 9.0, 15.0], 4.5),
             ([20.0, 20.0, 20.0], 3.3),
             ([10.0, 10.0, 30.0], 2.0),
         ] {
-            let q: Vec<f64> = (0..900)
+            let q: Vec<f64> = (0..1800)
                 .map(|k| rng.random::<f64>() * 3.0 * lengths[k % 3] - lengths[k % 3])
                 .collect();
             let grid = RdfGrid::new(r_max, 0.05).unwrap();

@@ -38,7 +38,7 @@ use labels::{
 };
 
 /// DejaVu Sans 2.37 (assets/fonts/README.md).
-static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 
 /// Register the font with plotters once; every drawing function calls this first.
 fn register_font() -> Result<()> {
