@@ -14,6 +14,7 @@ use serde::Serialize;
 
 use crate::run::verdict;
 
+pub mod basins;
 pub mod drift;
 pub mod reference;
 pub mod sampling;

@@ -22,7 +22,7 @@
 //!   bound is never below [`TERM_FLOOR_KT`]` k_B T`. docs/studies.md derives both.
 //! * **The first-peak height of g(r)** of the analysed pair (O–O), bound
 //!   [`DEFAULT_PEAK_BOUND`]; a run or reference without a first peak fails.
-//! * **Backbone basin populations**, pooled over residues ([`super::sampling::compare_basins`]),
+//! * **Backbone basin populations**, pooled over residues ([`super::basins::compare_basins`]),
 //!   bound [`super::sampling::DEFAULT_BASIN_BOUND`].
 //!
 //! The run's error shrinks with a longer run, the reference's does not (the verdict's
@@ -31,7 +31,7 @@
 
 use serde::Serialize;
 
-use super::sampling::{Bounds, compare_basins};
+use super::basins::{Bounds, compare_basins};
 use crate::analysis::block_average::Estimate;
 use crate::analysis::run_analysis::{EnergySource, RunAnalysis};
 use crate::run::verdict::{self, MEAN_EXPONENT, Measurement, Verdict};

@@ -47,14 +47,15 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+pub use super::basins::{BasinComparison, Bounds, compare_basins};
 use super::reference::{Criterion, CriterionSettings, Kind, judge_runs, overall};
 use crate::analysis::block_average::Estimate;
 pub use crate::analysis::configurational::DEFAULT_PROBES;
-use crate::analysis::dihedrals::{BASINS, BackboneResidue, ResidueBasins, pooled_populations};
+use crate::analysis::dihedrals::BackboneResidue;
 use crate::analysis::run_analysis::{AnalysisOptions, Analyzer, RunAnalysis, RunFiles};
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
-use crate::run::verdict::{self, MEAN_EXPONENT, Measurement};
+use crate::run::verdict;
 use crate::units::Units;
 
 /// What the sampling criterion compares, and its bounds.
@@ -232,81 +233,9 @@ pub struct Comparison {
     pub verdict: verdict::Verdict,
 }
 
-/// One backbone basin's population in a run against the reference's.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct BasinComparison {
-    /// Its name ([`BASINS`]).
-    pub basin: String,
-    /// The run's population and its block error.
-    pub population: f64,
-    pub error: f64,
-    /// Run minus reference, and `√(σ_run² + σ_ref²)`.
-    pub difference: f64,
-    pub combined_error: f64,
-    pub verdict: verdict::Verdict,
-}
-
-/// Each basin's population in `run` against `reference`, pooled over residues, judged
-/// against `bound` with the span of `bounds`; none when either has no backbone.
-pub fn compare_basins(
-    reference: &[ResidueBasins],
-    run: &[ResidueBasins],
-    bounds: &Bounds,
-    bound: f64,
-) -> Vec<BasinComparison> {
-    let (Some(reference), Some(run)) = (pooled_populations(reference), pooled_populations(run))
-    else {
-        return Vec::new();
-    };
-    BASINS
-        .iter()
-        .zip(run.iter().zip(&reference))
-        .map(|(name, (p, r))| {
-            let m = difference(p, r, bounds);
-            // A zero error is no transition seen in any block of either run: not a
-            // measured certainty, so it decides nothing.
-            let verdict = match m.standard_error() > 0.0 {
-                true => verdict::judge(&m, bound),
-                false => verdict::Verdict::Undecided { decide_at: None },
-            };
-            BasinComparison {
-                basin: name.to_string(),
-                population: p.mean,
-                error: p.error,
-                difference: m.value,
-                combined_error: m.standard_error(),
-                verdict,
-            }
-        })
-        .collect()
-}
-
 /// The first-peak height of the analysed pair, `None` when no peak was found.
 pub fn peak_height(analysis: &RunAnalysis) -> Option<Estimate> {
     analysis.rdf.first().and_then(|r| r.peak_height)
-}
-
-/// The bounds of the comparison and the analysed span of the run, `[start, start + span]`
-/// (scene time unit): the span the run's error bars shrink with.
-#[derive(Clone, Copy, Debug)]
-pub struct Bounds {
-    pub potential: f64,
-    pub peak: f64,
-    pub start: f64,
-    pub span: f64,
-}
-
-/// A difference of two estimates as a measurement over the run's analysed span: the run's
-/// error shrinks with a longer run, the reference's does not.
-fn difference(run: &Estimate, reference: &Estimate, bounds: &Bounds) -> Measurement {
-    Measurement {
-        value: run.mean - reference.mean,
-        error: run.error,
-        fixed_error: reference.error,
-        start: bounds.start,
-        span: bounds.span,
-        exponent: MEAN_EXPONENT,
-    }
 }
 
 /// Compare a run's analysis with the reference's by every criterion of
@@ -430,6 +359,7 @@ impl SamplingCriterion {
 mod tests {
     use super::*;
     use crate::analysis::block_average::from_block_means;
+    use crate::analysis::dihedrals::{ResidueBasins, pooled_populations};
 
     /// A residue whose basins have these block means (C7eq/β, αR; αL a constant), seen
     /// changing basin a million times (so the transition floor, 2p(1 − p)/1000 ≤ 5e-4, stays
