@@ -18,6 +18,17 @@ use longstep::units::BOLTZMANN_KCAL_PER_K;
 use serde_json::Value as Json;
 
 const SCENE: &str = "systems/alanine-dipeptide-amber/ala2-solvated-pme.toml";
+
+/// A 16 fs impulse run of the dipeptide into `dir`, energy rows and extended-XYZ frames
+/// every 2 steps (t = 0, 4, …, 16 fs): what the term and format tests analyse.
+fn short_run(dir: &Path) {
+    let (code, _, stderr) = run_cli(&argv(
+        "run {} --method impulse --h 2fs --inner 4 --t-end 16fs --temperature 300K --seed 3 \
+         --energy-every 2 --trajectory-every 2 --out {}",
+        &[SCENE, dir.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+}
 const XTC: &str = "tests/data/peer-trajectories/ala2-gromacs.xtc";
 const DCD: &str = "tests/data/peer-trajectories/ala2-openmm.dcd";
 const OPENMM_TERMS: &str = "tests/data/peer-trajectories/ala2-openmm-terms.json";
@@ -182,12 +193,7 @@ fn terms_recomputed_from_a_longstep_trajectory_equal_the_runs_energies() {
     // pairs: √(5e5)·1.1e-16·7e3 ≈ 5e-10 kcal/mol; 1e-8 kcal/mol bounds it with room.
     let out = scratch_dir("analyze-peers-longstep");
     let dir = out.join("run");
-    let (code, _, stderr) = run_cli(&argv(
-        "run {} --method impulse --h 2fs --inner 4 --t-end 16fs --temperature 300K --seed 3 \
-         --energy-every 2 --trajectory-every 2 --out {}",
-        &[SCENE, dir.to_str().unwrap()],
-    ));
-    assert_eq!(code, 0, "{stderr}");
+    short_run(&dir);
     let scene = scene_file(SCENE, &[]);
     let terms = scene.system.forces.terms();
     let table = EnergyTable::read(
@@ -365,12 +371,7 @@ fn trr_and_nc_frames_give_the_energies_of_the_xyz_they_hold() {
     // kcal/mol, is far below), and its mean over frames by the largest of those.
     let out = scratch_dir("analyze-peers-trr-nc");
     let dir = out.join("run");
-    let (code, _, stderr) = run_cli(&argv(
-        "run {} --method impulse --h 2fs --inner 4 --t-end 16fs --temperature 300K --seed 3 \
-         --energy-every 2 --trajectory-every 2 --out {}",
-        &[SCENE, dir.to_str().unwrap()],
-    ));
-    assert_eq!(code, 0, "{stderr}");
+    short_run(&dir);
     let xyz = dir.join("trajectory.xyz");
     let (trr, nc) = (out.join("run.trr"), out.join("run.nc"));
     assert_eq!(convert(&xyz, &trr, true), 5);
