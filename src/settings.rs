@@ -243,7 +243,8 @@ pub struct RunSpec {
     #[arg(long)]
     pub molly_jacobian: Option<String>,
     /// Constrained bonds: none, h-bonds (bonds to hydrogen) or all-bonds, held at their
-    /// force-field rest lengths by SHAKE/RATTLE (verlet, impulse, langevin-respa).
+    /// force-field rest lengths by SHAKE/RATTLE (verlet, impulse, the mollified methods,
+    /// langevin-respa).
     #[arg(long)]
     pub constraints: Option<String>,
     /// Rigid three-site water (SETTLE), whatever --constraints says; `--rigid-water` alone

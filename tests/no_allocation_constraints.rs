@@ -1,6 +1,8 @@
 //! A constrained step allocates nothing: SETTLE works on the stack, SHAKE/RATTLE use the
 //! buffer of old bond vectors sized when the constraints are built, and the constrained
-//! innermost step sizes its copy of the positions in `setup`. A global counter (this file
+//! innermost step sizes its copy of the positions in `setup`, as the constrained averaging
+//! of the mollified methods sizes its records (and its constraint clusters' scratch)
+//! there. A global counter (this file
 //! holds one test, so nothing else runs meanwhile) counts allocations on every thread.
 
 use std::path::Path;
@@ -30,6 +32,18 @@ fn constrained_steps_allocate_nothing() {
             "impulse",
             "all-bonds",
             false,
+        ),
+        (
+            "systems/molecules/alanine-dipeptide.toml",
+            "long-average",
+            "h-bonds",
+            false,
+        ),
+        (
+            "systems/water-box/scene.toml",
+            "linear-average",
+            "none",
+            true,
         ),
     ];
     for (scene, method, set, rigid_water) in cases {

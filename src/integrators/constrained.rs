@@ -1,7 +1,18 @@
 //! Constrained innermost steps: velocity Verlet with RATTLE (And83) and BAOAB with
 //! constraints (LM13's constrained BAOAB), as the innermost step of the r-RESPA recursion
-//! ([`super::impulse`]), so that `verlet`, `impulse` (endpoint) and `langevin-respa` run
-//! with rigid bonds and rigid water ([`crate::system::constraints`]).
+//! ([`super::impulse`]), so that `verlet`, `impulse` (endpoint), the mollified impulse
+//! methods (`short-average`, `long-average`, `linear-average`, `equilibrium-molly`) and
+//! `langevin-respa` (with or without `--mollifier`) run with rigid bonds and rigid water
+//! ([`crate::system::constraints`]).
+//!
+//! **Mollified slow forces.** The mollified impulse `A_q(q)ᵀ∇U(A(q))` (GSS98 eq. (4)) is a
+//! kick of the slow level like any other, so it is projected onto the constraints' tangent
+//! space with the others (below). The GSS98 averages integrate their auxiliary problem
+//! under the same constraints and differentiate through them
+//! ([`super::mollified`]'s `constrained`); the equilibrium projection (IRS99,
+//! [`super::equilibrium_molly`]) is a function of `q` whose exact Jacobian needs no
+//! change. Either way the kick is the gradient of `U(A(q))` restricted to the manifold,
+//! and the method conserves `K + W(q) + U(A(q))`.
 //!
 //! **Where the constraints act.** A kick of any level ([`InnermostStep::kick`]) only
 //! changes the momenta and leaves the velocity projection onto the constraints' tangent
@@ -36,13 +47,22 @@ use super::impulse::Impulse;
 use super::innermost::InnermostStep;
 use super::integrator::{Integrator, StepFailure, drift, kick};
 use super::langevin::Langevin;
+use super::mollified::SlowMollifier;
 use crate::error::{Error, Result};
 use crate::settings::{ConstraintSet, MethodSettings};
 use crate::system::System;
 use crate::system::constraints::ConstraintFailure;
 
 /// The methods that run with constraints.
-pub const CONSTRAINED_METHODS: [&str; 3] = ["verlet", "impulse", "langevin-respa"];
+pub const CONSTRAINED_METHODS: [&str; 7] = [
+    "verlet",
+    "impulse",
+    "short-average",
+    "long-average",
+    "linear-average",
+    "equilibrium-molly",
+    "langevin-respa",
+];
 
 /// The motion between the two kicks of level 0.
 enum Flight {
@@ -60,9 +80,14 @@ pub struct Constrained {
     owed: bool,
 }
 
-/// Build `method` with constraints: `verlet` and `impulse` with [`Constrained`] velocity
-/// Verlet, `langevin-respa` with constrained BAOAB; every other method refuses.
-pub fn build(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
+/// Build `method` with constraints: `verlet`, `impulse` and the mollified methods with
+/// [`Constrained`] velocity Verlet, `langevin-respa` with constrained BAOAB; every other
+/// method refuses. `mollifier` is the slow-force mollifier the registry built for a
+/// mollified method or `langevin-respa --mollifier`.
+pub fn build(
+    settings: &MethodSettings,
+    mollifier: Option<Box<dyn SlowMollifier>>,
+) -> Result<Box<dyn Integrator>> {
     let name = settings.method.as_str();
     let step = |name, flight| Box::new(Constrained::new(name, flight));
     match name {
@@ -81,23 +106,24 @@ pub fn build(settings: &MethodSettings) -> Result<Box<dyn Integrator>> {
             None,
             step("impulse", Flight::Verlet),
         )?)),
+        "short-average" | "long-average" | "linear-average" | "equilibrium-molly" => {
+            let Some(mollifier) = mollifier else {
+                return Err(Error::input(format!(
+                    "{name} was built without its mollifier"
+                )));
+            };
+            let name = mollifier.name();
+            Ok(Box::new(Impulse::with_innermost(
+                settings,
+                Some(mollifier),
+                step(name, Flight::Verlet),
+            )?))
+        }
         "langevin-respa" => {
-            if let Some(mollifier) = &settings.mollifier {
-                return Err(Error::setting(
-                    "mollifier",
-                    format!(
-                        "langevin-respa with constraints runs without a mollifier (the mollifier \
-                     {mollifier} is not defined on the constraint manifold here); drop \
-                     --mollifier or the constraints"
-                    ),
-                )
-                .expected("no mollifier with constraints")
-                .got_named(mollifier));
-            }
             let langevin = Langevin::from_settings(settings)?;
             Ok(Box::new(Impulse::with_innermost(
                 settings,
-                None,
+                mollifier,
                 step("langevin-respa", Flight::Baoab(langevin)),
             )?))
         }

@@ -166,6 +166,7 @@ impl Impulse {
                     q: &system.state.q,
                     fast_gradient_at_q: Some(&lower[0]),
                     slow_level: level,
+                    constraints: system.constraints.as_mut(),
                 };
                 mollifier.mollified_gradient(at, gradient)
             }

@@ -172,35 +172,19 @@ pub const METHODS: &[MethodInfo] = &[
 /// know, such as a setting the method does not use.
 pub fn build(settings: &MethodSettings, notices: &mut Vec<String>) -> Result<Box<dyn Integrator>> {
     use impulse::Variant;
-    use mollified::Average;
     let info = method_info(settings, notices)?;
+    let mollifier = slow_mollifier(settings, info.name)?;
     if settings.constrained() {
-        return super::constrained::build(settings);
+        return super::constrained::build(settings, mollifier);
     }
-    let mollified = |average: Average| -> Result<Box<dyn Integrator>> {
-        let mollifier = averaging(settings, average)?;
-        Ok(Box::new(Impulse::new(
-            settings,
-            Variant::Endpoint,
-            Some(mollifier),
-        )?))
-    };
     match info.name {
         "verlet" => Ok(Box::new(VelocityVerlet::new(settings.h)?)),
         "impulse" => Ok(Box::new(Impulse::new(settings, Variant::Endpoint, None)?)),
         "impulse-midpoint" => Ok(Box::new(Impulse::new(settings, Variant::Midpoint, None)?)),
-        "short-average" => mollified(Average::Short),
-        "long-average" => mollified(Average::Long),
-        "linear-average" => mollified(Average::Linear),
-        "langevin-respa" | "sinr" => thermostatted(settings, info.name == "sinr"),
-        "equilibrium-molly" => {
-            let mollifier = equilibrium_molly::EquilibriumMolly::from_settings(settings)?;
-            Ok(Box::new(Impulse::new(
-                settings,
-                Variant::Endpoint,
-                Some(Box::new(mollifier)),
-            )?))
-        }
+        "short-average" | "long-average" | "linear-average" | "equilibrium-molly" => Ok(Box::new(
+            Impulse::new(settings, Variant::Endpoint, mollifier)?,
+        )),
+        "langevin-respa" | "sinr" => thermostatted(settings, info.name == "sinr", mollifier),
         "adaptive-verlet" => adaptive(settings),
         "structural-zd" => structural_scheme(settings, StructuralKind::Zd),
         "structural-zds" => structural_scheme(settings, StructuralKind::Zds),
@@ -241,6 +225,28 @@ fn method_info(
     Ok(info)
 }
 
+/// The mollifier of a mollified method or of `langevin-respa`/`sinr --mollifier`, if any.
+fn slow_mollifier(
+    settings: &MethodSettings,
+    method: &str,
+) -> Result<Option<Box<dyn mollified::SlowMollifier>>> {
+    use mollified::Average;
+    let name = match method {
+        "short-average" | "long-average" | "linear-average" | "equilibrium-molly" => method,
+        "langevin-respa" | "sinr" => match settings.mollifier.as_deref() {
+            Some(name) => name,
+            None => return Ok(None),
+        },
+        _ => return Ok(None),
+    };
+    Ok(Some(match name {
+        "equilibrium-molly" => Box::new(equilibrium_molly::EquilibriumMolly::from_settings(
+            settings,
+        )?),
+        other => averaging(settings, Average::parse(other)?)?,
+    }))
+}
+
 /// A GSS98 average for the slow force, over the inner step's Verlet.
 fn averaging(
     settings: &MethodSettings,
@@ -267,14 +273,11 @@ fn averaging(
 
 /// langevin-respa or sinr, with the same slow-force hook as the NVE methods: a GSS98
 /// average or the IRS99 projection.
-fn thermostatted(settings: &MethodSettings, sinr: bool) -> Result<Box<dyn Integrator>> {
-    let mollify: Option<Box<dyn mollified::SlowMollifier>> = match settings.mollifier.as_deref() {
-        Some("equilibrium-molly") => Some(Box::new(
-            equilibrium_molly::EquilibriumMolly::from_settings(settings)?,
-        )),
-        Some(name) => Some(averaging(settings, mollified::Average::parse(name)?)?),
-        None => None,
-    };
+fn thermostatted(
+    settings: &MethodSettings,
+    sinr: bool,
+    mollify: Option<Box<dyn mollified::SlowMollifier>>,
+) -> Result<Box<dyn Integrator>> {
     let step: Box<dyn InnermostStep> = if sinr {
         Box::new(sinr::Sinr::from_settings(settings)?)
     } else {

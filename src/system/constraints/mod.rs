@@ -34,6 +34,7 @@
 //! the H–O–H rest angle) are SETTLE'd when `rigid_water`, else they are ordinary bonds.
 //! Each constraint length is the bond's force-field rest length.
 
+pub mod linear;
 pub mod rattle;
 pub mod settle;
 

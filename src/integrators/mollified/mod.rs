@@ -21,6 +21,11 @@
 //! `N − 1` fast-force gradients (the one at q_n is the main loop's, reused; the one at the
 //! last point would only serve a momentum the average never reads), one slow-force gradient
 //! at `A`, and `N` Hessian-vector products (adjoint) or `N × block size` (forward).
+//!
+//! With constraints (rigid bonds, rigid water) the auxiliary problem is integrated by
+//! RATTLE/SETTLE and the Jacobian is the adjoint through it ([`constrained`]).
+
+mod constrained;
 
 use nalgebra::DMatrix;
 
@@ -28,6 +33,7 @@ use super::integrator::StepFailure;
 use crate::error::{Error, Result};
 use crate::split::ForceSplit;
 use crate::system::System;
+use crate::system::constraints::Constraints;
 
 /// The hook of the mollified impulse methods around the slow-force call: the impulse
 /// `F(q)` of r-RESPA becomes `A_q(q)ᵀ F(A(q))` (GSS98 eq. (4)), where `A` is a time
@@ -45,6 +51,8 @@ pub struct MollifyAt<'a> {
     pub q: &'a [f64],
     pub fast_gradient_at_q: Option<&'a [f64]>,
     pub slow_level: usize,
+    /// The system's constraints, when it has them: the averaging integrates under them.
+    pub constraints: Option<&'a mut Constraints>,
 }
 
 pub trait SlowMollifier: Send {
@@ -290,6 +298,8 @@ pub struct Mollifier {
     largest_block: usize,
     column: Vec<f64>,
     column_out: Vec<f64>,
+    /// The constrained averaging's records, when the system has constraints.
+    constrained: Option<Box<constrained::ConstrainedAverage>>,
 }
 
 impl Mollifier {
@@ -314,6 +324,7 @@ impl Mollifier {
             largest_block: 0,
             column: Vec::new(),
             column_out: Vec::new(),
+            constrained: None,
         }
     }
 
@@ -334,9 +345,50 @@ impl Mollifier {
     /// Size the buffers for a system of `n_particles × dim` coordinates whose fast
     /// components (lists of particles) are `components`.
     pub fn setup(&mut self, dim: usize, components: &[Vec<usize>]) {
+        self.constrained = None;
+        self.size(dim, components, false);
+    }
+
+    /// [`Mollifier::setup`] for a system with `constraints`: the averaging integrates
+    /// under them and the Jacobian is the adjoint through them ([`constrained`]); forward
+    /// mode is refused.
+    pub fn setup_constrained(
+        &mut self,
+        dim: usize,
+        components: &[Vec<usize>],
+        constraints: &Constraints,
+    ) -> Result<()> {
+        if self.choice == JacobianChoice::Fixed(JacobianMode::Forward) {
+            return Err(Error::setting(
+                "jacobian",
+                format!(
+                    "{} with constraints differentiates the constrained averaging in reverse \
+                     mode only; use --jacobian adjoint (or auto), or drop the constraints",
+                    self.average.name()
+                ),
+            )
+            .expected("adjoint or auto with constraints")
+            .got_named("forward"));
+        }
+        self.size(dim, components, true);
+        let n = self.q.len();
+        let steps = self.auxiliary_steps();
+        self.trajectory = vec![0.0; (steps + 1) * n];
+        self.constrained = Some(Box::new(constrained::ConstrainedAverage::new(
+            constraints,
+            n,
+            steps,
+            dim,
+        )));
+        Ok(())
+    }
+
+    /// Size the buffers; `adjoint` forces reverse mode.
+    fn size(&mut self, dim: usize, components: &[Vec<usize>], adjoint: bool) {
         let n: usize = components.iter().map(Vec::len).sum::<usize>() * dim;
         let largest = components.iter().map(Vec::len).max().unwrap_or(0) * dim;
         self.mode = match self.choice {
+            _ if adjoint => JacobianMode::Adjoint,
             JacobianChoice::Fixed(mode) => mode,
             JacobianChoice::Auto if largest <= AUTO_FORWARD_MAX_DOFS => JacobianMode::Forward,
             JacobianChoice::Auto => JacobianMode::Adjoint,
@@ -538,7 +590,8 @@ impl Mollifier {
         }
     }
 
-    /// `out = A_q(h; q)ᵀ g` for the `q` of the last [`Mollifier::compute_average`].
+    /// `out = A_q(h; q)ᵀ g` for the `q` of the last [`Mollifier::compute_average`] (or
+    /// [`Mollifier::compute_constrained_average`]).
     pub fn transpose_product(
         &mut self,
         forces: &mut ForceSplit,
@@ -546,6 +599,9 @@ impl Mollifier {
         g: &[f64],
         out: &mut [f64],
     ) {
+        if self.constrained.is_some() {
+            return self.constrained_adjoint(forces, inverse_mass, g, out);
+        }
         let scale = 2.0 / self.h;
         match self.mode {
             JacobianMode::Forward => {
@@ -633,14 +689,36 @@ impl SlowMollifier for Mollifier {
             .got_named(self.average.name()));
         }
         let components = system.forces.fast_components(system.n_particles());
-        Mollifier::setup(self, system.dim, &components);
-        Ok(())
+        match &system.constraints {
+            Some(constraints) => self.setup_constrained(system.dim, &components, constraints),
+            None => {
+                Mollifier::setup(self, system.dim, &components);
+                Ok(())
+            }
+        }
     }
 
-    /// `A(h; q)`: the auxiliary problem integrated with the fast level.
+    /// `A(h; q)`: the auxiliary problem integrated with the fast level, under the
+    /// constraints when the system has them.
     fn mollify(&mut self, at: &mut MollifyAt<'_>) -> std::result::Result<(), StepFailure> {
-        self.compute_average(at.forces, at.inverse_mass, at.q, at.fast_gradient_at_q);
-        Ok(())
+        if self.constrained.is_none() {
+            self.compute_average(at.forces, at.inverse_mass, at.q, at.fast_gradient_at_q);
+            return Ok(());
+        }
+        let name = self.average.name();
+        let Some(constraints) = at.constraints.as_deref_mut() else {
+            return Err(StepFailure(format!(
+                "{name} was set up with constraints, but none were given to its averaging"
+            )));
+        };
+        self.compute_constrained_average(
+            at.forces,
+            at.inverse_mass,
+            constraints,
+            at.q,
+            at.fast_gradient_at_q,
+        )
+        .map_err(|e| StepFailure(format!("constraints failed in the {name} averaging: {e}")))
     }
 
     fn pull_back(&mut self, at: &mut MollifyAt<'_>, g: &[f64], out: &mut [f64]) {
