@@ -296,3 +296,30 @@ fn langevin_respa_runs_a_mollifier_with_constraints() {
         );
     }
 }
+
+#[test]
+fn forward_mode_with_constraints_is_refused_naming_jacobian() {
+    // The constrained averaging is differentiated in reverse mode only: `--jacobian
+    // forward` with constraints stops at setup with the key, what is expected and the
+    // value, printed once.
+    let overrides = RunSpec {
+        method: Some("long-average".into()),
+        h: Some(Value::Expression("2fs".into())),
+        inner_steps: Some(2),
+        jacobian: Some("forward".into()),
+        constraints: Some("h-bonds".into()),
+        ..Default::default()
+    };
+    let mut run = prepare(&RunRequest::new(Path::new(DIPEPTIDE), &[], &overrides)).unwrap();
+    let Err(error) = run.integrator.setup(&mut run.scene.system) else {
+        panic!("forward mode was set up with constraints");
+    };
+    let problem = error.problem().expect("the error's fields");
+    assert_eq!(problem.location.key.as_deref(), Some("jacobian"));
+    assert_eq!(problem.got.as_deref(), Some("forward"));
+    assert!(
+        problem.expected.as_deref().unwrap().contains("adjoint"),
+        "{problem:?}"
+    );
+    assert_eq!(error.to_string().matches("forward").count(), 1, "{error}");
+}

@@ -368,7 +368,7 @@ impl Mollifier {
                 ),
             )
             .expected("adjoint or auto with constraints")
-            .got_named("forward"));
+            .got("forward"));
         }
         self.size(dim, components, true);
         let n = self.q.len();
