@@ -4,7 +4,7 @@
 //! serial loop, so the same bits at any thread count, and the same bits as below the
 //! threshold.
 
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
 
 use rayon::prelude::*;
 
@@ -74,6 +74,21 @@ impl<T: Copy + Default + Send> Scratch<T> {
         compute: impl Fn(usize, &mut [T]) + Sync,
         mut apply: impl FnMut(usize, &T),
     ) {
+        let buffer = self.computed(n, compute);
+        for (k, result) in buffer[..n].iter().enumerate() {
+            apply(k, result);
+        }
+    }
+
+    /// The first phase alone: `compute(first, slots)` in parallel tasks of [`TASK`]
+    /// interactions (whatever the thread count), and the buffer, held
+    /// locked, whose first `n` entries are the results, for the caller to apply in order
+    /// (when what it applies to is also what the first phase reads).
+    pub fn computed(
+        &self,
+        n: usize,
+        compute: impl Fn(usize, &mut [T]) + Sync,
+    ) -> MutexGuard<'_, Vec<T>> {
         // A panic elsewhere while the lock was held leaves a buffer that is overwritten anyway.
         let mut buffer = self.0.lock().unwrap_or_else(|e| e.into_inner());
         if buffer.len() < n {
@@ -83,8 +98,6 @@ impl<T: Copy + Default + Send> Scratch<T> {
             .par_chunks_mut(TASK)
             .enumerate()
             .for_each(|(task, slots)| compute(task * TASK, slots));
-        for (k, result) in buffer[..n].iter().enumerate() {
-            apply(k, result);
-        }
+        buffer
     }
 }
