@@ -568,6 +568,35 @@ fn constrained_runs_are_the_same_bits_on_one_and_two_threads() {
     }
 }
 
+/// The 1 728-water box has more waters than `forces::scratch::PARALLEL_MIN_INTERACTIONS`
+/// (1 024), so on two and three threads its SETTLE passes (positions and momenta) compute
+/// the waters' changes in parallel blocks and add them in water order: the energies of
+/// every step are the bits of one thread.
+#[test]
+fn parallel_settle_gives_the_same_bits_on_one_two_and_three_threads() {
+    let energy = |threads: usize, method: &str| {
+        let out = common::scratch_dir(&format!("constraints-settle-threads-{method}-{threads}"));
+        let args = argv(
+            "run systems/water-box-1728/scene.toml --method {} --h 4fs --inner 2 \
+             --rigid-water --temperature 300K --seed 3 --t-end 40fs --energy-every 1 --out {}",
+            &[method, out.to_str().unwrap()],
+        );
+        let (code, _, stderr) = longstep_run(&args, Some(threads));
+        assert_eq!(code, 0, "{stderr}");
+        std::fs::read(out.join("energy.csv")).unwrap()
+    };
+    for method in ["impulse", "langevin-respa"] {
+        let one = energy(1, method);
+        assert_eq!(
+            String::from_utf8_lossy(&one).lines().count(),
+            12,
+            "{method}"
+        );
+        assert_eq!(one, energy(2, method), "{method}: 2 threads");
+        assert_eq!(one, energy(3, method), "{method}: 3 threads");
+    }
+}
+
 #[test]
 fn methods_and_scenes_that_cannot_take_constraints_refuse_them() {
     let water = "systems/water-box/scene.toml";

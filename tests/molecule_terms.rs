@@ -306,6 +306,50 @@ fn torsions_match_finite_differences() {
     check(&term, &shifted, &mut rng, "torsions, periodic");
 }
 
+/// From `PARALLEL_MIN_DIHEDRALS` (256) dihedrals on, in a pool of several threads, the
+/// torsion gradient is computed in parallel and added in dihedral order: 600 random
+/// dihedrals on 80 atoms (so every atom gets many additions, whose order the bits would
+/// show) give the bits of one thread on two and three, and of the serial loop outside a pool.
+#[test]
+fn torsions_give_the_same_bits_on_one_two_and_three_threads() {
+    let mut rng = TestRng::new(66);
+    let n = 80;
+    let q: Vec<f64> = (0..3 * n).map(|_| rng.uniform(0.0, 12.0)).collect();
+    let dihedrals: Vec<Dihedral> = (0..600)
+        .map(|_| {
+            let mut atoms = [0; 4];
+            for k in 0..4 {
+                atoms[k] = loop {
+                    let a = (rng.next_u64() % n as u64) as usize;
+                    if !atoms[..k].contains(&a) {
+                        break a;
+                    }
+                };
+            }
+            let series = vec![Cosine {
+                k: rng.uniform(0.1, 2.0),
+                periodicity: (1 + rng.next_u64() % 3) as f64,
+                phase: rng.uniform(0.0, 3.0),
+            }];
+            Dihedral { atoms, series }
+        })
+        .collect();
+    let term = Torsions::new(dihedrals, Some(PeriodicBox { lengths: [12.0; 3] }));
+    let gradient = || {
+        let mut g = vec![0.0; q.len()];
+        term.add_gradient(&q, &mut g);
+        g.iter().map(|x| x.to_bits()).collect::<Vec<u64>>()
+    };
+    let serial = gradient();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        assert_eq!(pool.install(gradient), serial, "{threads} threads");
+    }
+}
+
 #[test]
 fn torsion_angle_follows_the_iupac_sign() {
     use longstep::forces::torsion::dihedral_angle;

@@ -9,7 +9,10 @@
 use std::f64::consts::PI;
 
 use super::dual::{Dual, Scalar};
-use super::torsion::{difference, dihedral_gradient, dihedral_term_methods, scatter};
+use super::scratch::{PARALLEL_MIN_DIHEDRALS, Scratch};
+use super::torsion::{
+    DihedralGradient, difference, dihedral_gradient, dihedral_term_methods, scatter,
+};
 use super::{ForceTerm, PeriodicBox, TermClass};
 
 /// One harmonic dihedral.
@@ -26,6 +29,8 @@ pub struct HarmonicDihedral {
 pub struct HarmonicDihedrals {
     dihedrals: Vec<HarmonicDihedral>,
     periodic_box: Option<PeriodicBox>,
+    /// The first phase of a parallel gradient ([`super::scratch`]).
+    scratch: Scratch<DihedralGradient>,
 }
 
 /// `ξ − ξ₀` brought into (−π, π] by whole turns (a constant shift: the derivative is 1).
@@ -45,6 +50,7 @@ fn wrapped<T: Scalar>(xi: T, xi0: f64) -> T {
 impl HarmonicDihedrals {
     pub fn new(dihedrals: Vec<HarmonicDihedral>, periodic_box: Option<PeriodicBox>) -> Self {
         HarmonicDihedrals {
+            scratch: Scratch::with_len_from(dihedrals.len(), PARALLEL_MIN_DIHEDRALS),
             dihedrals,
             periodic_box,
         }

@@ -13,7 +13,11 @@
 
 use super::PeriodicBox;
 use super::dual::{Dual, Scalar};
+use super::scratch::{PARALLEL_MIN_DIHEDRALS, Scratch};
 use super::{ForceTerm, TermClass};
+
+/// One dihedral's first phase of a parallel gradient: `dV/dξ` and `∂ξ/∂r`, one row per atom.
+pub(crate) type DihedralGradient = (f64, [[f64; 3]; 4]);
 
 /// One cosine `k (1 + cos(n φ − δ))`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,6 +38,8 @@ pub struct Dihedral {
 pub struct Torsions {
     dihedrals: Vec<Dihedral>,
     periodic_box: Option<PeriodicBox>,
+    /// The first phase of a parallel gradient ([`super::scratch`]).
+    scratch: Scratch<DihedralGradient>,
 }
 
 #[inline(always)]
@@ -77,6 +83,7 @@ pub(crate) fn dihedral_gradient<T: Scalar>(
 impl Torsions {
     pub fn new(dihedrals: Vec<Dihedral>, periodic_box: Option<PeriodicBox>) -> Self {
         Torsions {
+            scratch: Scratch::with_len_from(dihedrals.len(), PARALLEL_MIN_DIHEDRALS),
             dihedrals,
             periodic_box,
         }
@@ -153,7 +160,8 @@ pub(crate) fn scatter<T: Scalar>(
 /// The [`ForceTerm`] methods a dihedral term shares, written into its `impl ForceTerm`: the
 /// class (bonded); the energy, the sum of its `energy_of` over `dihedrals`; the gradient and
 /// the Hessian-vector product from its per-dihedral `derivative` (on `f64` and on dual
-/// numbers; `Dual` and [`scatter`] in scope); the couplings and the count.
+/// numbers; `Dual` and [`scatter`] in scope, the gradient in two phases for large terms,
+/// through a `scratch: Scratch<DihedralGradient>` field); the couplings and the count.
 macro_rules! dihedral_term_methods {
     () => {
         fn class(&self) -> TermClass {
@@ -164,7 +172,19 @@ macro_rules! dihedral_term_methods {
             self.dihedrals.iter().map(|d| self.energy_of(d, q)).sum()
         }
 
+        /// From `PARALLEL_MIN_DIHEDRALS` dihedrals on, in a pool of several threads, in two
+        /// phases ([`crate::forces::scratch`]): every dihedral's `derivative` in parallel,
+        /// then the same [`scatter`] in dihedral order: the bits of the serial loop.
         fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
+            use crate::forces::scratch::{PARALLEL_MIN_DIHEDRALS, parallel_from};
+            let n = self.dihedrals.len();
+            if parallel_from(n, PARALLEL_MIN_DIHEDRALS) {
+                let compute = |k: usize| self.derivative::<f64>(&self.dihedrals[k], q, None);
+                self.scratch.two_phase(n, compute, |k, (dv, g)| {
+                    scatter(gradient, self.dihedrals[k].atoms, *dv, g, |x| x)
+                });
+                return;
+            }
             for d in &self.dihedrals {
                 let (dv, g) = self.derivative::<f64>(d, q, None);
                 scatter(gradient, d.atoms, dv, &g, |x| x);

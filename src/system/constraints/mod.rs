@@ -43,6 +43,7 @@ use std::fmt;
 use super::PeriodicBox;
 use super::topology::BondedTopology;
 use crate::error::{Error, Result};
+use crate::forces::scratch::Scratch;
 pub use crate::settings::ConstraintSet;
 
 /// The relative constraint tolerance used when none is given.
@@ -99,6 +100,8 @@ pub struct Constraints {
     settle: Vec<settle::Settle>,
     /// Every pair's SHAKE/RATTLE record, refitted likewise.
     fitted: Vec<rattle::Pair>,
+    /// The waters' changes of a parallel SETTLE pass, sized here.
+    settle_changes: Scratch<settle::Change>,
 }
 
 impl Constraints {
@@ -123,6 +126,7 @@ impl Constraints {
             .iter()
             .map(|w| settle::Settle::with_masses(w, f64::NAN, f64::NAN))
             .collect();
+        let settle_changes = Scratch::with_len(waters.len());
         Ok(Constraints {
             dim,
             periodic_box,
@@ -133,6 +137,7 @@ impl Constraints {
             reference,
             settle,
             fitted,
+            settle_changes,
         })
     }
 
@@ -268,7 +273,8 @@ impl Constraints {
     ) -> Result<(), ConstraintFailure> {
         self.fit_settle(inverse_mass);
         let pbc = self.periodic_box.as_ref();
-        settle::positions_all(&self.settle, pbc, q_old, q_new, p, dt)?;
+        let scratch = &self.settle_changes;
+        settle::positions_all(&self.settle, pbc, q_old, q_new, p, dt, scratch)?;
         if !self.pairs.is_empty() {
             rattle::shake(self, q_old, q_new, p, inverse_mass, dt)?;
         }
@@ -294,7 +300,7 @@ impl Constraints {
     ) -> Result<(), ConstraintFailure> {
         self.fit_settle(inverse_mass);
         let pbc = self.periodic_box.as_ref();
-        settle::velocities_all(&self.settle, pbc, q, p)?;
+        settle::velocities_all(&self.settle, pbc, q, p, &self.settle_changes)?;
         if !self.pairs.is_empty() {
             rattle::rattle(self, q, p, inverse_mass)?;
         }

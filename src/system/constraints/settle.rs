@@ -35,6 +35,7 @@
 
 use super::{ConstraintFailure, PeriodicBox, RigidWater};
 use crate::forces::minimum_image;
+use crate::forces::scratch::{Scratch, parallel};
 use crate::forces::simd::Isa;
 
 type V3 = [f64; 3];
@@ -151,6 +152,12 @@ const OXYGEN_OUT: u8 = 2;
 const HYDROGENS_OUT: u8 = 3;
 const TURNED: u8 = 4;
 const SINGULAR: u8 = 5;
+
+/// One water's result of a pass: the changes of its three atoms (positions or momenta) and
+/// [`OK`] or why it failed.
+pub(super) type Change = ([V3; 3], u8);
+
+const NO_CHANGE: Change = ([[0.0; 3]; 3], OK);
 
 /// The minimum image of a difference `d` along a box edge `length`: [`PeriodicBox::wrap`]'s
 /// arithmetic with its branch as a select (both sides computed), so a lane loop vectorises.
@@ -270,7 +277,10 @@ pub(super) fn positions(
 /// SETTLE every water's positions and momenta ([`positions`] for each, the same bits):
 /// [`LANES`] waters at a time through a lane loop compiled for the widest instruction set
 /// ([`Isa::best`]; plain IEEE arithmetic, no fused multiply-add, so every set gives the
-/// same bits), the rest one by one. Allocates nothing.
+/// same bits), the rest one by one. From [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on, in a pool
+/// of several threads, the changes of fixed blocks of waters are computed in parallel into
+/// `scratch` and added on this thread in water order: each water's arithmetic is its own
+/// (no two waters share an atom), so the same bits at any thread count. Allocates nothing.
 pub(super) fn positions_all(
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
@@ -278,11 +288,32 @@ pub(super) fn positions_all(
     q_new: &mut [f64],
     p: &mut [f64],
     dt: f64,
+    scratch: &Scratch<Change>,
 ) -> Result<(), ConstraintFailure> {
-    positions_on(Isa::best(), waters, pbc, q_old, q_new, p, dt)
+    let isa = Isa::best();
+    if !parallel(waters.len()) {
+        return positions_on(isa, waters, pbc, q_old, q_new, p, dt);
+    }
+    let lengths = pbc.map_or([0.0; 3], |b| b.lengths);
+    let changes = scratch.computed(waters.len(), |first, out| {
+        let waters = &waters[first..first + out.len()];
+        let q_new = &*q_new;
+        isa.run(
+            #[inline(always)]
+            || match pbc {
+                Some(_) => position_changes::<true>(waters, lengths, q_old, q_new, out),
+                None => position_changes::<false>(waters, lengths, q_old, q_new, out),
+            },
+        )
+    });
+    let inverse_dt = 1.0 / dt;
+    apply_changes(waters, &changes[..waters.len()], |water, delta| {
+        apply_positions(water, delta, inverse_dt, q_new, p)
+    })
 }
 
-/// [`positions_all`] on the instruction set `isa` (available on this processor).
+/// [`positions_all`] on the instruction set `isa` (available on this processor), on this
+/// thread.
 fn positions_on(
     isa: Isa,
     waters: &[Settle],
@@ -301,8 +332,7 @@ fn positions_on(
     )
 }
 
-// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
-#[allow(clippy::needless_range_loop)]
+/// The position pass on this thread: [`LANES`] waters' changes at a time, then added.
 #[inline(always)]
 fn positions_lanes<const PERIODIC: bool>(
     waters: &[Settle],
@@ -313,31 +343,63 @@ fn positions_lanes<const PERIODIC: bool>(
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
-    let mut chunks = waters.chunks_exact(LANES);
-    for chunk in &mut chunks {
-        let old: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_old));
-        let new: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_new));
-        let mut delta = [[[0.0; 3]; 3]; LANES];
-        let mut codes = [OK; LANES];
-        for l in 0..LANES {
-            (delta[l], codes[l]) = position_step::<PERIODIC>(&chunk[l], lengths, old[l], new[l]);
-        }
-        if let Some(l) = codes.iter().position(|&c| c != OK) {
-            return Err(failure(&chunk[l], codes[l]));
-        }
-        for (water, delta) in chunk.iter().zip(delta) {
-            apply_positions(water, delta, inverse_dt, q_new, p);
-        }
-    }
-    for water in chunks.remainder() {
-        let (old, new) = (three(water, q_old), three(water, q_new));
-        let (delta, code) = position_step::<PERIODIC>(water, lengths, old, new);
-        if code != OK {
-            return Err(failure(water, code));
-        }
-        apply_positions(water, delta, inverse_dt, q_new, p);
+    for chunk in waters.chunks(LANES) {
+        let mut changes = [NO_CHANGE; LANES];
+        let changes = &mut changes[..chunk.len()];
+        position_changes::<PERIODIC>(chunk, lengths, q_old, q_new, changes);
+        apply_changes(chunk, changes, |water, delta| {
+            apply_positions(water, delta, inverse_dt, q_new, p)
+        })?;
     }
     Ok(())
+}
+
+/// The position step ([`position_step`]) of every water of `waters` into `out`: [`LANES`]
+/// at a time, their coordinates read into arrays first so that the lane loop vectorises,
+/// the rest one by one.
+// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn position_changes<const PERIODIC: bool>(
+    waters: &[Settle],
+    lengths: V3,
+    q_old: &[f64],
+    q_new: &[f64],
+    out: &mut [Change],
+) {
+    let mut chunks = waters.chunks_exact(LANES);
+    let mut outs = out.chunks_exact_mut(LANES);
+    for (chunk, out) in (&mut chunks).zip(&mut outs) {
+        let old: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_old));
+        let new: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_new));
+        for l in 0..LANES {
+            out[l] = position_step::<PERIODIC>(&chunk[l], lengths, old[l], new[l]);
+        }
+    }
+    for (water, out) in chunks.remainder().iter().zip(outs.into_remainder()) {
+        let (old, new) = (three(water, q_old), three(water, q_new));
+        *out = position_step::<PERIODIC>(water, lengths, old, new);
+    }
+}
+
+/// `apply(water, change)` for every water in order, or, at the first that failed, the
+/// failure, with the changes of the [`LANES`] block it is in (counted from the first
+/// water) left out: what the pass on one thread leaves, whatever the thread count.
+#[inline(always)]
+fn apply_changes(
+    waters: &[Settle],
+    changes: &[Change],
+    mut apply: impl FnMut(&Settle, [V3; 3]),
+) -> Result<(), ConstraintFailure> {
+    let failed = changes.iter().position(|c| c.1 != OK);
+    let applied = failed.map_or(waters.len(), |k| k - k % LANES);
+    for (water, change) in waters[..applied].iter().zip(changes) {
+        apply(water, change.0);
+    }
+    match failed {
+        Some(k) => Err(failure(&waters[k], changes[k].1)),
+        None => Ok(()),
+    }
 }
 
 /// The canonical triangle (oxygen at `(0, r_a, 0)`, hydrogens at `(∓r_c, −r_b, 0)` about the
@@ -483,17 +545,38 @@ fn velocities(
 }
 
 /// Project every water's momenta ([`velocities`] for each, the same bits), [`LANES`] at a
-/// time as [`positions_all`]. Allocates nothing.
+/// time and from [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on in parallel, as
+/// [`positions_all`]. Allocates nothing.
 pub(super) fn velocities_all(
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    scratch: &Scratch<Change>,
 ) -> Result<(), ConstraintFailure> {
-    velocities_on(Isa::best(), waters, pbc, q, p)
+    let isa = Isa::best();
+    if !parallel(waters.len()) {
+        return velocities_on(isa, waters, pbc, q, p);
+    }
+    let lengths = pbc.map_or([0.0; 3], |b| b.lengths);
+    let changes = scratch.computed(waters.len(), |first, out| {
+        let waters = &waters[first..first + out.len()];
+        let p = &*p;
+        isa.run(
+            #[inline(always)]
+            || match pbc {
+                Some(_) => velocity_changes::<true>(waters, lengths, q, p, out),
+                None => velocity_changes::<false>(waters, lengths, q, p, out),
+            },
+        )
+    });
+    apply_changes(waters, &changes[..waters.len()], |water, dp| {
+        apply_momenta(water, dp, p)
+    })
 }
 
-/// [`velocities_all`] on the instruction set `isa` (available on this processor).
+/// [`velocities_all`] on the instruction set `isa` (available on this processor), on this
+/// thread.
 fn velocities_on(
     isa: Isa,
     waters: &[Settle],
@@ -510,8 +593,7 @@ fn velocities_on(
     )
 }
 
-// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
-#[allow(clippy::needless_range_loop)]
+/// The velocity pass on this thread: [`LANES`] waters' changes at a time, then added.
 #[inline(always)]
 fn velocities_lanes<const PERIODIC: bool>(
     waters: &[Settle],
@@ -519,31 +601,39 @@ fn velocities_lanes<const PERIODIC: bool>(
     q: &[f64],
     p: &mut [f64],
 ) -> Result<(), ConstraintFailure> {
-    let mut chunks = waters.chunks_exact(LANES);
-    for chunk in &mut chunks {
-        let qw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q));
-        let pw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], p));
-        let mut dp = [[[0.0; 3]; 3]; LANES];
-        let mut codes = [OK; LANES];
-        for l in 0..LANES {
-            (dp[l], codes[l]) = velocity_step::<PERIODIC>(&chunk[l], lengths, qw[l], pw[l]);
-        }
-        if let Some(l) = codes.iter().position(|&c| c != OK) {
-            return Err(failure(&chunk[l], codes[l]));
-        }
-        for (water, dp) in chunk.iter().zip(dp) {
-            apply_momenta(water, dp, p);
-        }
-    }
-    for water in chunks.remainder() {
-        let (dp, code) =
-            velocity_step::<PERIODIC>(water, lengths, three(water, q), three(water, p));
-        if code != OK {
-            return Err(failure(water, code));
-        }
-        apply_momenta(water, dp, p);
+    for chunk in waters.chunks(LANES) {
+        let mut changes = [NO_CHANGE; LANES];
+        let changes = &mut changes[..chunk.len()];
+        velocity_changes::<PERIODIC>(chunk, lengths, q, p, changes);
+        apply_changes(chunk, changes, |water, dp| apply_momenta(water, dp, p))?;
     }
     Ok(())
+}
+
+/// The velocity step ([`velocity_step`]) of every water of `waters` into `out`, [`LANES`]
+/// at a time as [`position_changes`].
+// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn velocity_changes<const PERIODIC: bool>(
+    waters: &[Settle],
+    lengths: V3,
+    q: &[f64],
+    p: &[f64],
+    out: &mut [Change],
+) {
+    let mut chunks = waters.chunks_exact(LANES);
+    let mut outs = out.chunks_exact_mut(LANES);
+    for (chunk, out) in (&mut chunks).zip(&mut outs) {
+        let qw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q));
+        let pw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], p));
+        for l in 0..LANES {
+            out[l] = velocity_step::<PERIODIC>(&chunk[l], lengths, qw[l], pw[l]);
+        }
+    }
+    for (water, out) in chunks.remainder().iter().zip(outs.into_remainder()) {
+        *out = velocity_step::<PERIODIC>(water, lengths, three(water, q), three(water, p));
+    }
 }
 
 fn failure(water: &Settle, code: u8) -> ConstraintFailure {
