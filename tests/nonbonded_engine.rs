@@ -22,7 +22,9 @@ use common::{TestRng, max_abs, max_abs_difference};
 use longstep::forces::nonbonded::{Electrostatics, LjPair, Nonbonded, NonbondedSpec};
 #[cfg(target_arch = "x86_64")]
 use longstep::forces::simd::{Avx2F32, Avx2F64, Avx512F32, Avx512F64};
-use longstep::forces::simd::{ERFC_X_MAX, Isa, Portable, Real, Simd, erfc_exp};
+use longstep::forces::simd::{
+    ERFC_X_MAX, EWALD_Z_MAX, EwaldForce, Isa, Portable, Real, Simd, erfc_exp, ewald_force,
+};
 use longstep::forces::{ForceTerm, Precision};
 use longstep::io::scene::{Scene, load_scene};
 
@@ -224,7 +226,9 @@ fn pair(form: Electrostatics, p: LjPair, qq: f64, r: f64) -> (f64, f64, f64) {
             e += qq * libm::erfc(alpha * r) / r;
             let near = libm::erfc(alpha * r) / (r * r) + g * (-alpha * alpha * r * r).exp() / r;
             de -= qq * near;
-            pieces += qq.abs() * near;
+            // Mixed precision takes the force as `Q/r² − Q r α³F(α²r²)` (`ewald_force`):
+            // two pieces of sizes 1/r² and 1/r² − near (near r² ≤ 1).
+            pieces += qq.abs() * (2.0 / (r * r) - near);
         }
         Electrostatics::Plain => {
             e += qq / r;
@@ -508,5 +512,77 @@ fn the_lanes_erfc_is_the_same_bits_on_every_instruction_set() {
     for isa in Isa::available() {
         assert_eq!(bits(&erfc_on::<f64>(isa, &xs)), double, "{isa:?} double");
         assert_eq!(bits(&erfc_on::<f32>(isa, &xs)), single, "{isa:?} single");
+    }
+}
+
+/// `[α r_c, r_c]` of the rational Ewald force's checks: the engine test's, Trp-cage's
+/// (α from `erfc(α r_c) = 1e-5` at 9 Å, GROMACS's `ewald-rtol`) and the fit's edge.
+const EWALD_CASES: [[f64; 2]; 3] = [[0.45 * 5.0, 5.0], [3.123_413, 9.0], [4.0, 9.0]];
+
+/// `(r², r³(1/r³ − α³F), exact r³ (−V′/(Q r)))` of [`ewald_force`] in single-precision
+/// portable lanes over `r ∈ [0.5, r_c]` (each `r²` an f32, the exact value at it).
+fn ewald_force_grid(alpha: f64, cutoff: f64) -> Vec<(f64, f64, f64)> {
+    let s = Portable::<f32>::new();
+    let fit = EwaldForce::new(alpha);
+    // 200 000 points: four lanes each, r_c the last.
+    let n = 199_999;
+    let r2s: Vec<f32> = (0..=n)
+        .map(|k| {
+            let r = 0.5 + (cutoff - 0.5) * k as f64 / n as f64;
+            (r * r) as f32
+        })
+        .collect();
+    let mut out = Vec::with_capacity(r2s.len());
+    for chunk in r2s.chunks_exact(4) {
+        let r2 = s.load4(chunk.try_into().expect("four lanes"));
+        let rinv = s.rsqrt(r2);
+        let f = ewald_force(s, &fit, r2, rinv, s.mul(rinv, rinv));
+        let mut lanes = [0f32; 16];
+        s.store(f, &mut lanes);
+        for (&r2, &f) in chunk.iter().zip(&lanes) {
+            let r = (r2 as f64).sqrt();
+            let x = alpha * r;
+            let g = 2.0 / std::f64::consts::PI.sqrt() * x * (-x * x).exp();
+            out.push((r2 as f64, f as f64 * r.powi(3), libm::erfc(x) + g));
+        }
+    }
+    out
+}
+
+/// The rational Ewald force of mixed precision against the f64 erfc form, over `r ≤ r_c`.
+///
+/// Its error, in units of `1/r³` (so of the plain Coulomb force `Q/r²`; `u = 2⁻²⁴`): the
+/// fit `P/Q` of `F` (7.59e-8 relative, `scripts/fit_ewald_force.py`); the coefficients
+/// rounded to f32 (`u Σ|c_k| z^k`: 1.68 u in P, 1.0 u in Q by the script's conditions);
+/// Horner's fused steps (one rounding each: 6 · 1.68 u and 5 · 1.0 u); the division (u):
+/// `α³F` within 7.59e-8 + 18.8 u of itself, and `α³F r³ = erf(x) − 2x e^{−x²}/√π < 1`.
+/// `1/r` from Newton (its last step `y (3/2 − (x/2) y y)`: ≤ 2.5 u from three roundings;
+/// 3 u allowed), `1/r²` (2 · 3 + 1 = 7 u), `1/r³` (3 + 7 + 1 = 11 u), the subtraction
+/// (u): 12 u. In all ≤ 30.8 u + 7.59e-8 = 1.91e-6 of `1/r³`. Near the cutoff the force
+/// itself is small (`erfc(x) + 2x e^{−x²}/√π`, 2.2e-4 at `x = 3.12`), so the relative
+/// error there is larger (printed); it is the error GROMACS's mixed kernels accept, and
+/// ~1e-2 of the real-space truncation the cutoff already makes.
+#[test]
+fn the_rational_ewald_force_is_erfc_s_within_its_bound() {
+    let u = f32::EPSILON as f64 / 2.0;
+    let bound = 30.8 * u + 7.59e-8;
+    for [x_c, cutoff] in EWALD_CASES {
+        let alpha = x_c / cutoff;
+        assert!(
+            x_c * x_c <= EWALD_Z_MAX - 0.5,
+            "the kernel takes the rational here"
+        );
+        let (mut worst, mut worst_relative) = (0.0f64, 0.0f64);
+        for (_, lanes, exact) in ewald_force_grid(alpha, cutoff) {
+            worst = worst.max((lanes - exact).abs());
+            worst_relative = worst_relative.max((lanes / exact - 1.0).abs());
+        }
+        eprintln!(
+            "alpha r_c {x_c}: max error {worst:e} of 1/r^3 ({:.1} u), relative {worst_relative:e}",
+            worst / u
+        );
+        assert!(worst <= bound, "alpha r_c {x_c}: {worst:e} > {bound:e}");
+        // The error is the rational's, not zero (else this checks nothing).
+        assert!(worst > u, "alpha r_c {x_c}");
     }
 }

@@ -368,6 +368,66 @@ pub fn erfc_exp<S: Simd>(s: S, x: S::V) -> (S::V, S::V) {
     (s.mul(gauss, s.div(p, q)), gauss)
 }
 
+/// Largest `z = β²r²` of [`ewald_force`]: the range of its fit
+/// (`scripts/fit_ewald_force.py`), `β r_c ≤ 4` with room for the rounding of `r²` in f32.
+pub const EWALD_Z_MAX: f64 = 16.5;
+
+/// `F(z) = (erf(√z) − 2√(z/π) e^{−z}) / z^{3/2} ≈ P(z)/Q(z)` on `[0, 16.5]`, the force of
+/// `erf(βr)/r` over `β³`, coefficients of `z⁰, z¹, …` from
+/// `python3 scripts/fit_ewald_force.py 6 5 16.5` (its output: `docs/data/fit-ewald-force.txt`),
+/// which printed `max |P/Q / F - 1| = 7.59e-8 exact, 3.23e-7 in f32` and the Horner
+/// conditions `Σ|c_k| z^k / |P(z)|` 1.68 (P) and 1.0 (Q).
+const EWALD_FORCE_P: [f64; 7] = [
+    0.7522528351404922,
+    -0.03349818048472594,
+    0.017970736117061136,
+    -0.0001468255242470236,
+    4.957275138109474e-05,
+    -9.820240813769844e-07,
+    1.0127606120122833e-08,
+];
+const EWALD_FORCE_Q: [f64; 6] = [
+    1.0,
+    0.5554719927388765,
+    0.14287317420477572,
+    0.0220842171986286,
+    0.0021617579953696485,
+    0.0001374125476179042,
+];
+
+/// The rational of [`ewald_force`] at one `β`, in `r²`: `P(β²r²) β³` and `Q(β²r²)` with
+/// `β^{2k+3}` and `β^{2k}` folded into the coefficients (no product `β²r²` in the lanes).
+#[derive(Clone, Copy, Debug)]
+pub struct EwaldForce {
+    p: [f64; 7],
+    q: [f64; 6],
+}
+
+impl EwaldForce {
+    pub fn new(beta: f64) -> Self {
+        let b2 = beta * beta;
+        EwaldForce {
+            p: std::array::from_fn(|k| EWALD_FORCE_P[k] * beta * b2.powi(k as i32 + 1)),
+            q: std::array::from_fn(|k| EWALD_FORCE_Q[k] * b2.powi(k as i32)),
+        }
+    }
+}
+
+/// `1/r³ − β³ F(β²r²)`: the Ewald real-space force `−V′/r` of `V = erfc(βr)/r` (per unit
+/// `Q`) without erfc or `e^{−x²}`: `1/r³` from the lanes' `1/r` and `1/r²`, the smooth
+/// part `erf(βr)/r`'s force as the rational [`EwaldForce`] in `r²` (Horner in fused
+/// multiply-adds, one division: 13 operations and a subtraction, against ~40 for
+/// [`erfc_exp`]'s route). Valid for `β²r² ≤` [`EWALD_Z_MAX`]. Only IEEE operations in a
+/// fixed order: the same bits on every instruction set. Error: at most `30.8 u` of `1/r³`
+/// (plus the fit's 7.6e-8), derived and checked in `tests/nonbonded_engine.rs`; as
+/// `β³F ≤ 1/r³`, an absolute error that near the cutoff, where the force is
+/// `erfc`-small, is a larger relative one (GROMACS's mixed-precision kernels do the same).
+#[inline(always)]
+pub fn ewald_force<S: Simd>(s: S, fit: &EwaldForce, r2: S::V, rinv: S::V, rinv2: S::V) -> S::V {
+    let smooth = s.div(horner(s, &fit.p, r2), horner(s, &fit.q, r2));
+    s.sub(s.mul(rinv, rinv2), smooth)
+}
+
 /// The instruction set of the kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Isa {

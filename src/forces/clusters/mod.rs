@@ -527,17 +527,11 @@ impl ClusterList {
             excluded_start: &self.excluded_start,
             excluded: &self.excluded,
         };
-        let (isa, positions, shifts) = (self.isa, &self.positions, &self.geometry.shifts);
+        let isa = self.isa;
+        let work = prune::Reach::new(&self.positions, &self.geometry.shifts, reach);
         let run = |chunk: &mut Chunk| {
             search.chunk(chunk);
-            prune::list(
-                isa,
-                &chunk.inner,
-                &mut chunk.outer,
-                positions,
-                shifts,
-                reach,
-            );
+            prune::list(isa, &chunk.inner, &mut chunk.outer, work);
             chunk.set_window(clusters);
         };
         if self.n >= PARALLEL_MIN_ATOMS {
@@ -551,20 +545,10 @@ impl ClusterList {
 
     /// The inner lists from the outer ones at the current positions.
     fn prune(&mut self) {
-        let reach = self.cutoff + self.inner_buffer;
-        let positions = &self.positions;
-        let shifts = &self.geometry.shifts;
         let isa = self.isa;
-        let run = |chunk: &mut Chunk| {
-            prune::list(
-                isa,
-                &chunk.outer,
-                &mut chunk.inner,
-                positions,
-                shifts,
-                reach,
-            )
-        };
+        let reach = self.cutoff + self.inner_buffer;
+        let work = prune::Reach::new(&self.positions, &self.geometry.shifts, reach);
+        let run = |chunk: &mut Chunk| prune::list(isa, &chunk.outer, &mut chunk.inner, work);
         if self.n >= PARALLEL_MIN_ATOMS {
             self.chunks.par_iter_mut().for_each(run);
         } else {

@@ -9,17 +9,50 @@ use super::{Cluster, Entry, PAD_POSITION, PairList};
 use crate::forces::simd::{Isa, Real, Simd, row_lanes, simd_dispatch};
 
 /// `to` = the pairs of `from` with a marked atom pair within `reach` (and perhaps a few
-/// with none: see the module doc). Cost: one pass over the positions for their largest
-/// coordinate, then per cluster pair of `from` 16 / WIDTH f32 register groups of
-/// `r² = Δx² + Δy² + Δz²` and a compare.
-pub fn list(
-    isa: Isa,
-    from: &PairList,
-    to: &mut PairList,
-    positions: &[Cluster<f64>],
-    shifts: &[[f64; 3]; 27],
-    reach: f64,
-) {
+/// with none: see the module doc), `largest` the size bound of [`largest_coordinate`]
+/// (one scan per build or prune, shared by the chunks). Cost: per cluster pair of `from`
+/// 16 / WIDTH f32 register groups of `r² = Δx² + Δy² + Δz²` and a compare.
+pub fn list(isa: Isa, from: &PairList, to: &mut PairList, work: Reach) {
+    let Reach {
+        positions,
+        shifts,
+        reach,
+        largest,
+    } = work;
+    let work = Work {
+        outer: from,
+        positions,
+        shifts,
+        reach2: f64::from(reach2_f32(reach, largest)),
+    };
+    prune_on(isa, &work, to)
+}
+
+/// What every chunk's [`list`] shares: the positions, image shifts, the reach and the
+/// largest coordinate, shift included ([`largest_coordinate`]).
+#[derive(Clone, Copy)]
+pub struct Reach<'a> {
+    pub positions: &'a [Cluster<f64>],
+    pub shifts: &'a [[f64; 3]; 27],
+    pub reach: f64,
+    pub largest: f64,
+}
+
+impl<'a> Reach<'a> {
+    /// The positions' size scanned once ([`largest_coordinate`]).
+    pub fn new(positions: &'a [Cluster<f64>], shifts: &'a [[f64; 3]; 27], reach: f64) -> Self {
+        Reach {
+            positions,
+            shifts,
+            reach,
+            largest: largest_coordinate(positions, shifts),
+        }
+    }
+}
+
+/// The bound `x` of [`reach2_f32`]: the largest `|coordinate|` of `positions` (padding
+/// apart) plus the largest `|shift|`. One pass over the positions.
+pub fn largest_coordinate(positions: &[Cluster<f64>], shifts: &[[f64; 3]; 27]) -> f64 {
     let mut largest = 0.0f64;
     for cluster in positions {
         for &v in cluster.x.iter().chain(&cluster.y).chain(&cluster.z) {
@@ -28,14 +61,7 @@ pub fn list(
             }
         }
     }
-    let shift = shifts.iter().flatten().fold(0.0f64, |m, s| m.max(s.abs()));
-    let work = Work {
-        outer: from,
-        positions,
-        shifts,
-        reach2: f64::from(reach2_f32(reach, largest + shift)),
-    };
-    prune_on(isa, &work, to)
+    largest + shifts.iter().flatten().fold(0.0f64, |m, s| m.max(s.abs()))
 }
 
 /// The f32 threshold `T` such that `r²₃₂ < T` wherever the f64 test `r²₆₄ < R²` holds, for
@@ -133,7 +159,7 @@ fn prune<S: Simd>(s: S, work: &Work, inner: &mut PairList) {
 
 #[cfg(test)]
 mod tests {
-    use super::{Work, list, prune};
+    use super::{Reach, Work, list, prune};
     use crate::forces::clusters::{ClusterList, PairList};
     use crate::forces::simd::{Isa, Portable};
     use std::collections::BTreeSet;
@@ -219,7 +245,12 @@ mod tests {
                 let near = pairs(&near);
                 for isa in Isa::available() {
                     let mut to = PairList::default();
-                    list(isa, &chunk.outer, &mut to, positions, shifts, reach);
+                    list(
+                        isa,
+                        &chunk.outer,
+                        &mut to,
+                        Reach::new(positions, shifts, reach),
+                    );
                     let to = pairs(&to);
                     assert!(
                         reference.is_subset(&to),

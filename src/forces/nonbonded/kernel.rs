@@ -50,6 +50,19 @@
 //! sum) takes 1.44× the α = 0 run, and 500 PME steps took 5.75 s instead of 26.1 s in double, 2.29 s instead of 18.6 s in
 //! mixed precision (`docs/data/sittings/pme-erfc-2026-11-26.txt`).
 //!
+//! **The Ewald force without erfc in single precision.** `−V′/r = Q (1/r³ − α³F(α²r²))`
+//! with `F` the force of `erf(αr)/r` over `α³`, smooth in `z = α²r²`: [`ewald_force`]
+//! takes it as a rational `P(z)/Q(z)` of degrees 6/5 (fitted by
+//! `scripts/fit_ewald_force.py` on `z ≤ 16.5`, relative error 7.6e-8; the same idea as
+//! GROMACS's `pmecorrF`), about 14 operations against ~40 for erfc and the Gaussian. Its
+//! error is absolute, ≤ 1.9e-6 of `Q/r³` (`tests/nonbonded_engine.rs` derives and checks
+//! it; measured 9.6 u = 5.7e-7 at Trp-cage's `α r_c` = 3.12), where erfc's route was
+//! relative: near the cutoff, where the force is `erfc`-small, the relative error grows (to
+//! 2.1e-3 at `α r_c` = 3.12, of a force of 2.2e-4 `Q/r³` that the truncation drops just
+//! beyond). Energies
+//! (steps that write them, and switched pairs) still take erfc from [`erfc_exp`]. Double
+//! precision keeps erfc's route, and `α r_c > 4` (outside the fit) too.
+//!
 //! **Switched pairs.** The short-range part of a distance split by atom pair
 //! ([`crate::forces::distance_split`]) is this kernel with the Coulomb form wrapped in
 //! [`Switched`]: its list is cut at `r_out`, the pair energy (Lennard-Jones and Coulomb) is
@@ -66,7 +79,7 @@ use super::{
     TWO_OVER_SQRT_PI,
 };
 use crate::forces::clusters::{CLUSTER, Cluster, Entry, PairList};
-use crate::forces::simd::{Real, Simd, erfc_exp, row, row_lanes, simd_dispatch};
+use crate::forces::simd::{Real, Simd, erfc_exp, ewald_force, row, row_lanes, simd_dispatch};
 
 /// Gradient of a cluster's four atoms, in f64.
 #[derive(Clone, Copy, Debug, Default)]
@@ -316,7 +329,9 @@ impl Coulomb for DampedShiftedForce {
 impl Coulomb for EwaldReal {
     /// `V = Q erfc(αr)/r`, `−V′/r = (Q/r²)(erfc(αr)/r + (2α/√π) e^{−α²r²})`, erfc and the
     /// Gaussian from [`erfc_exp`] (module doc); lane by lane through libm where `α r_c` is
-    /// beyond the fit's range.
+    /// beyond the fit's range. In single precision with `α r_c ≤ 4` the force is
+    /// [`ewald_force`]'s rational `Q (1/r³ − α³F(α²r²))` instead, and erfc is computed
+    /// only for the energy (module doc).
     #[inline(always)]
     fn lanes<S: Simd, const ENERGY: bool>(
         &self,
@@ -331,6 +346,15 @@ impl Coulomb for EwaldReal {
             return scalar_lanes(s, form, qq, r2, rinv);
         }
         let r = s.mul(r2, rinv);
+        if std::mem::size_of::<S::R>() == 4 && self.rational {
+            // Single precision: the force without erfc; the energy only when asked.
+            let f = s.mul(qq, ewald_force(s, &self.force, r2, rinv, rinv2));
+            let mut e = f;
+            if ENERGY {
+                e = s.mul(qq, erfc_over_r(s, self.alpha, r, rinv).0);
+            }
+            return (e, f);
+        }
         let (erfc_r, gauss) = erfc_over_r(s, self.alpha, r, rinv);
         let e = s.mul(qq, erfc_r);
         let f = s.mul(s.mul(qq, rinv2), s.add(erfc_r, gauss));

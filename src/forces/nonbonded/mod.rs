@@ -44,7 +44,7 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use super::simd::{ERFC_X_MAX, Isa};
+use super::simd::{ERFC_X_MAX, EWALD_Z_MAX, EwaldForce, Isa};
 use super::switch::Switch;
 use super::{ForceTerm, TermClass};
 use crate::units::Units;
@@ -273,6 +273,10 @@ struct EwaldReal {
     alpha: f64,
     /// As [`DampedShiftedForce`]'s.
     simd: bool,
+    /// `(α r_c)² ≤` [`EWALD_Z_MAX`]: in single precision the kernel's force is the rational
+    /// [`EwaldForce`] (no erfc), in double it stays erfc's.
+    rational: bool,
+    force: EwaldForce,
 }
 
 impl CoulombForm for EwaldReal {
@@ -751,6 +755,9 @@ fn coulomb_kernel(
             Kernel::Ewald(EwaldReal {
                 alpha,
                 simd: alpha * cutoff <= ERFC_X_MAX,
+                // z = α²r² of a pair within the cutoff, its r² rounded to f32, stays in the fit.
+                rational: (alpha * cutoff).powi(2) <= EWALD_Z_MAX - 0.5,
+                force: EwaldForce::new(alpha),
             })
         }
     })
