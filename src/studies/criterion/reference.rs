@@ -251,13 +251,13 @@ fn configurational_criterion(
     let criterion = judge_mean(T_CONF, unit, &a.temperature, &b.temperature, bound, span);
     let note = match settings.temperature {
         Some(t) if (reading - t).abs() > CONFIGURATIONAL_BIAS * t => format!(
-            "configurational temperature estimator, biased under constraints (the reference \
-             reads {reading:.2} at T = {t}); compared with the reference's at the relative \
-             tolerance {}/{t}",
+            "configurational temperature estimator, biased under constraints (or a reference \
+             not at T): the reference reads {reading:.2} at T = {t:.2}; compared with the \
+             reference's at the relative tolerance {}/{t:.2}",
             settings.temperature_bound
         ),
         Some(t) => format!(
-            "bound: the relative tolerance {}/{t} of the reference's reading",
+            "bound: the relative tolerance {}/{t:.2} of the reference's reading",
             settings.temperature_bound
         ),
         None => "bound: ΔT (no temperature given)".into(),
