@@ -854,14 +854,18 @@ def judge_sitting(args):
     return verdicts, shown
 
 
-def timing_medians(path):
-    """{row: median one-thread ns/day} from a sitting's csv (--timings)."""
-    runs = {}
-    with open(path) as f:
-        for r in csv.DictReader(f):
-            if r["threads"] == "1":
-                runs.setdefault(r["row"], []).append(float(r["ns_day"]))
-    return {row: statistics.median(v) for row, v in runs.items()}
+def timing_medians(paths):
+    """{row: median one-thread ns/day} from sittings' csv files (--timings; a row in several
+    takes the last file's)."""
+    medians = {}
+    for path in paths:
+        runs = {}
+        with open(path) as f:
+            for r in csv.DictReader(f):
+                if r["threads"] == "1":
+                    runs.setdefault(r["row"], []).append(float(r["ns_day"]))
+        medians.update({row: statistics.median(v) for row, v in runs.items()})
+    return medians
 
 
 def judged_table(args, verdicts, command):
@@ -874,7 +878,8 @@ def judged_table(args, verdicts, command):
     lines = ["", "verdicts against %s (%g ps per row, %g ps skipped, a frame every %g fs); "
              "ns/day: %s; ratio to %s, the fastest peer row that does not fail" % (
                  args.judge, args.ps, args.skip_ps, args.frame_fs,
-                 args.timings or "the judged run itself (frames written)", anchor or "none"),
+                 " and ".join(args.timings) or "the judged run itself (frames written)",
+                 anchor or "none"),
              "analyze: " + (command or "(not run)")]
     for row in args.rows:
         if row not in verdicts:
@@ -918,8 +923,9 @@ def parse_args(argv):
                     help="with --judge: ps left out of each run (default 4)")
     ap.add_argument("--analyze-args", default="",
                     help="with --judge: more flags for analyze (e.g. '--stride 4')")
-    ap.add_argument("--timings", metavar="CSV", default=None,
-                    help="with --judge: a timing sitting's csv, for ns/day and the ratios")
+    ap.add_argument("--timings", metavar="CSV", action="append", default=[],
+                    help="with --judge: a timing sitting's csv, for ns/day and the ratios "
+                         "(repeatable; a row in several takes the last one's)")
     ap.add_argument("--no-build-native", dest="build_native", action="store_false",
                     help="do not build the native GROMACS when it is missing (its rows are "
                          "then left out)")
@@ -970,8 +976,9 @@ def check_args(ap, args):
             if "--trajectory-every" not in flags:
                 ap.error("--longstep %s: a judged row needs --trajectory-every N (its frames "
                          "every --frame-fs)" % label)
-    if args.timings is not None and not os.path.isfile(args.timings):
-        ap.error("--timings %s: no such file" % args.timings)
+    for path in args.timings:
+        if not os.path.isfile(path):
+            ap.error("--timings %s: no such file" % path)
     if args.out is None:
         args.out = os.path.join(ROOT, "docs", "data", "sittings", "production-%s-%s" % (
             args.system, time.strftime("%Y-%m-%d", time.gmtime())))
