@@ -113,7 +113,8 @@ rows in one call, so the reference is analysed once, with --threads' first count
 criteria and run length as longstep's rows. Output: PREFIX-verdicts.txt (each row's
 verdict, the criteria that fail or are undecided, the analyze command; with --timings CSV, a
 timing sitting's one-thread median ns/day and the ratio to the fastest peer row that does not
-fail, a failing row keeping its ns/day, marked) and PREFIX-verdicts.json (every analysis).
+fail, a failing row keeping its ns/day, marked) and PREFIX-verdicts.json (analyze's JSON
+array, labelled by row: `scripts/verdict_table.py PREFIX-verdicts.json` tabulates it).
 
     python3 scripts/production_peers.py --system trpcage --ps 24 --rows native-hmr-4fs,\
         gmx-hmr-4fs,native-mts-hmr-4fs,openmm-hmr-4fs --judge REF_DIR \
@@ -846,9 +847,10 @@ def judge_sitting(args):
     res = h2h.sh(cmd, cwd=ROOT, env=dict(os.environ, RAYON_NUM_THREADS=str(args.threads[0])))
     if res.returncode != 0:
         sys.exit("analyze failed: %s" % res.stderr[-1500:])
-    analyses = dict(zip(made, json.loads(res.stdout)))
-    with open(args.out + "-verdicts.json", "w") as f:
-        json.dump(analyses, f, indent=1)
+    summaries = json.loads(res.stdout)
+    with open(args.out + "-verdicts.json", "w") as f:  # analyze's array: verdict_table.py
+        json.dump(summaries, f, indent=1)
+    analyses = dict(zip(made, summaries))
     verdicts = {row: (a["verdict"], verdict_text(a), made[row][1])
                 for row, a in analyses.items()}
     return verdicts, shown
