@@ -441,3 +441,93 @@ fn analyze_in_vacuum_skips_the_default_pair_distribution() {
     assert_ne!(code, 0, "g(r) without a box must be refused");
     assert!(stderr.contains("box"), "{stderr}");
 }
+
+/// A 20 fs Langevin run of the water box with rigid water (SETTLE), a row and a frame
+/// every 2 fs step.
+fn rigid_water_run(name: &str) -> std::path::PathBuf {
+    let dir = scratch_dir(name);
+    let (code, _, stderr) = run(&argv(
+        "run systems/water-box/scene.toml --method langevin-respa --inner 1 --h 2fs \
+         --rigid-water --temperature 300K --friction 1/ps --t-end 20fs --energy-every 1 \
+         --trajectory-every 1 --quiet --out {}",
+        &[dir.to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    dir
+}
+
+#[test]
+fn the_kinetic_temperature_counts_the_degrees_of_freedom_as_the_run_did() {
+    // A rigid-water run: 648 atoms, 216 SETTLE waters (648 constraints), the centre-of-mass
+    // momentum removed, so the run counts 3·648 − 648 − 3 = 1293 and writes its temperature
+    // column over them. analyze recovers the count from the run's manifest; its mean kinetic
+    // temperature then equals the mean of that column (both over the same 11 rows, to
+    // round-off), where 3N would read 1293/1944 of it.
+    let dir = rigid_water_run("analyze-rigid-dof");
+    let out = dir.to_str().unwrap();
+    let analyze = |extra: &str| {
+        let line = format!(
+            "analyze systems/water-box/scene.toml {{}} --blocks 2 --no-configurational --json \
+             --quiet{extra}"
+        );
+        let (code, stdout, stderr) = run(&argv(&line, &[out]));
+        assert_eq!(code, 0, "{stderr}");
+        let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        let t = &summary[0]["kinetic_temperature"];
+        (t["dof"].as_f64().unwrap(), t["mean"].as_f64().unwrap())
+    };
+    let text = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let column: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    let column_mean = column.iter().sum::<f64>() / column.len() as f64;
+    let (dof, mean) = analyze("");
+    assert_eq!(dof, 1293.0);
+    assert!(
+        (mean - column_mean).abs() < 1e-9 * column_mean,
+        "{mean} vs the run's {column_mean}"
+    );
+    // --dof overrides the manifest's count.
+    assert_eq!(analyze(" --dof 1944").0, 1944.0);
+    // Without a manifest (a peer's directory) nothing says how the run counted: 3N.
+    std::fs::remove_file(dir.join("manifest.json")).unwrap();
+    assert_eq!(analyze("").0, 1944.0);
+}
+
+#[test]
+fn the_configurational_temperature_of_a_constrained_run_is_judged_relative_to_the_reference() {
+    // Under SETTLE the unconstrained estimator ⟨|∇U|²⟩/⟨∇²U⟩ is biased: the water's bond and
+    // angle terms stay in the model at their rest values, their curvature in ∇²U, their
+    // forces gone from |∇U|², so it reads far below the 300 K the run is at. The criterion
+    // then holds the run to the relative tolerance ΔT/T of the reference's reading: bound
+    // 3 K × T_conf,ref/300 K, and its note says the estimator is biased.
+    let dir = rigid_water_run("analyze-rigid-tconf");
+    let out = dir.to_str().unwrap();
+    let (code, stdout, stderr) = run(&argv(
+        "analyze systems/water-box/scene.toml {} --reference {} --temperature 300K --blocks 2 \
+         --probes 1 --json --quiet --out {}",
+        &[out, out, dir.join("analysis").to_str().unwrap()],
+    ));
+    assert_eq!(code, 0, "{stderr}");
+    let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let criterion = summary[0]["criteria"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["kind"] == "configurational_temperature")
+        .unwrap()
+        .clone();
+    let reading = criterion["reference"].as_f64().unwrap();
+    assert!(reading < 0.95 * 300.0, "estimator reads {reading} K");
+    let bound = criterion["bound"].as_f64().unwrap();
+    assert!(
+        (bound - 3.0 * reading / 300.0).abs() < 1e-12 * bound,
+        "bound {bound} for a reading of {reading}"
+    );
+    let note = criterion["note"].as_str().unwrap();
+    assert!(note.contains("biased under constraints"), "{note}");
+    // The run against itself: difference zero, so it passes (or is undecided) but never fails.
+    assert_ne!(criterion["verdict"], "fail");
+}

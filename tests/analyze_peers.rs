@@ -442,3 +442,44 @@ fn trr_and_nc_frames_give_the_energies_of_the_xyz_they_hold() {
     assert_ne!(code, 0);
     assert!(stderr.contains("--frame-time"), "{stderr}");
 }
+
+#[test]
+fn an_openmm_dcd_is_judged_against_a_longstep_run_directory() {
+    // What scripts/production_peers.py --judge does with a peer's row: a trajectory file
+    // (energies recomputed from its frames) against a longstep run directory (energies from
+    // its energy.csv, kinetic temperature over its manifest's degrees of freedom). The .dcd
+    // carries no times: --frame-time 50fs puts its 8 frames at t = 0, 50, …, 350 fs.
+    let dir = scratch_dir("analyze-peers-dcd-vs-run");
+    let reference = dir.join("reference");
+    short_run(&reference);
+    let out = dir.join("analysis");
+    let args = argv(
+        "analyze {} {} --reference {} --frame-time 50fs --temperature 300K --json --blocks 2 \
+         --probes 1 --quiet --out {}",
+        &[
+            SCENE,
+            DCD,
+            reference.to_str().unwrap(),
+            out.to_str().unwrap(),
+        ],
+    );
+    let run = &analyze_json(&args)[0];
+    assert_eq!(run["frames"], 8);
+    assert_eq!(run["span"]["end"], 350.0);
+    assert_eq!(run["energies_from"], "frames (recomputed)");
+    let criteria = run["criteria"].as_array().unwrap();
+    for name in [
+        "potential energy per molecule",
+        "configurational temperature",
+        "mean bonds energy",
+        "g O-O first-peak height",
+    ] {
+        let c = criteria.iter().find(|c| c["name"] == name).unwrap();
+        assert!(
+            ["pass", "fail", "undecided"].contains(&c["verdict"].as_str().unwrap()),
+            "{c}"
+        );
+        assert!(c["difference"].as_f64().is_some_and(f64::is_finite), "{c}");
+    }
+    assert!(["pass", "fail", "undecided"].contains(&run["verdict"].as_str().unwrap()));
+}

@@ -374,6 +374,7 @@ fn a_run_at_the_wrong_temperature_fails_the_sampling_comparison() {
     let files = |d: &Path| RunFiles {
         energy: d.join("energy.csv"),
         trajectory: d.join("trajectory.xyz"),
+        dof: None,
     };
     let reference = analyzer.analyze(&files(&cool)).unwrap();
     let hot = analyzer.analyze(&files(&warm)).unwrap();

@@ -219,6 +219,7 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
         .analyze(&RunFiles {
             energy: dir.join("energy.csv"),
             trajectory: dir.join("trajectory.xyz"),
+            dof: None,
         })
         .unwrap();
 

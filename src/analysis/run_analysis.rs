@@ -9,9 +9,9 @@
 //!   (connected components of the bonded terms, [`super::geometry`]); the
 //!   Flyvbjerg–Petersen levels of the row series check that the blocks are long enough.
 //! * **Kinetic temperature** `2⟨K⟩/(n_dof k_B)` from the `kinetic` column (or another one
-//!   named in the options), `n_dof = 3N` by
-//!   default (a thermostatted run: every degree of freedom, the centre of mass included, is
-//!   thermalised; an NVE run with zero total momentum has `3N − 3`).
+//!   named in the options), `n_dof` as the run counted it ([`RunFiles::dof`]: `3N − N_c − 3`
+//!   with `N_c` constraints and the centre-of-mass momentum removed), else `3N` (a peer's
+//!   run directory without a manifest; `--dof` says otherwise).
 //! * **Configurational temperature** and **g(r)** and mean **bond lengths and angles** per
 //!   type from the trajectory frames ([`super::configurational`], [`super::rdf`]).
 //! * **Backbone (φ, ψ) basins** per residue, when the analyzer is given a topology's backbone
@@ -78,6 +78,10 @@ pub const MAX_BLOCKS: usize = 10_000;
 pub struct RunFiles {
     pub energy: PathBuf,
     pub trajectory: PathBuf,
+    /// The degrees of freedom the run counted its kinetic temperature over (its constraints
+    /// and removed centre-of-mass momentum, as `longstep analyze` recovers them from its
+    /// manifest); `AnalysisOptions::dof` overrides it, `None` of both: `3N`.
+    pub dof: Option<f64>,
 }
 
 #[derive(Clone, Debug)]
@@ -258,7 +262,7 @@ impl<'a> Analyzer<'a> {
         let mut reader = TrajectoryReader::open(&files.trajectory)?;
         let mut frames = FramePass::new(self, blocks);
         frames.run(self, &mut reader, None, progress)?;
-        let energies = self.energy_part(&table, blocks)?;
+        let energies = self.energy_part(&table, blocks, files.dof)?;
         frames.finish(self, energies, EnergySource::Table)
     }
 
@@ -474,10 +478,15 @@ struct EnergyPart {
 }
 
 impl Analyzer<'_> {
-    fn energy_part(&self, table: &EnergyTable, blocks: Blocks) -> Result<EnergyPart> {
+    fn energy_part(
+        &self,
+        table: &EnergyTable,
+        blocks: Blocks,
+        run_dof: Option<f64>,
+    ) -> Result<EnergyPart> {
         let (times, kinetic, potential) = (table.column(0), table.column(1), table.column(2));
         let n = self.scene.elements.len();
-        let dof = self.options.dof.unwrap_or(3.0 * n as f64);
+        let dof = self.options.dof.or(run_dof).unwrap_or(3.0 * n as f64);
         let k_b = self.scene.units.boltzmann();
         let molecules = self.topology.molecules as f64;
         let mut pe = BlockAccumulator::new(blocks.count, 1);

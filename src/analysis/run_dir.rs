@@ -24,6 +24,7 @@ pub fn run_files(dir: &Path, trajectory: &str) -> Result<RunFiles> {
     let files = RunFiles {
         energy: dir.join("energy.csv"),
         trajectory: dir.join(trajectory),
+        dof: None,
     };
     // A run writes frames only when asked (a topology's run, unlike the water box scene,
     // writes none by default): say how to get them.

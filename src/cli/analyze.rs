@@ -81,8 +81,9 @@ pub struct AnalyzeArgs {
     /// per frame: the costliest part).
     #[arg(long)]
     pub no_configurational: bool,
-    /// Degrees of freedom for the kinetic temperature (default 3N; 3N − 3 for an NVE run
-    /// with zero total momentum).
+    /// Degrees of freedom for the kinetic temperature (default: as each run counted them,
+    /// from its manifest: 3N − constraints − 3 with the centre-of-mass momentum removed;
+    /// 3N for a run directory without a manifest).
     #[arg(long)]
     pub dof: Option<f64>,
     /// The energy.csv column holding the kinetic energy.
@@ -215,15 +216,18 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         Some(text) => Some(time_value(text, "--frame-time", &scene)?),
         None => None,
     };
-    let runs: Vec<RunInput> = args
-        .runs
-        .iter()
-        .map(|path| RunInput::of(path, &trajectory, &scene, frame_time))
-        .collect::<Result<_>>()?;
-    let reference = match &args.verdicts.reference {
-        Some(path) => {
-            Some(RunInput::of(path, &trajectory, &scene, frame_time)?.analyze(&analyzer)?)
+    let input = |path: &PathBuf| -> Result<RunInput> {
+        let mut input = RunInput::of(path, &trajectory, &scene, frame_time)?;
+        if let RunInput::Directory(files) = &mut input
+            && args.dof.is_none()
+        {
+            files.dof = super::run_dof::run_dof(path, &args.scene, &args.source, &args.set)?;
         }
+        Ok(input)
+    };
+    let runs: Vec<RunInput> = args.runs.iter().map(input).collect::<Result<_>>()?;
+    let reference = match &args.verdicts.reference {
+        Some(path) => Some(input(path)?.analyze(&analyzer)?),
         None => None,
     };
     let settings = args.verdicts.settings(&scene, reference.as_ref())?;

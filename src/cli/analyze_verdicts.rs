@@ -13,7 +13,7 @@ use crate::run::verdict::Verdict;
 use crate::settings::Value;
 use crate::studies::criterion::reference::{
     self as criteria, Criterion, CriterionSettings, DEFAULT_PEAK_BOUND, DEFAULT_POTENTIAL_BOUND,
-    DEFAULT_TEMPERATURE_BOUND,
+    DEFAULT_TEMPERATURE_BOUND, Kind,
 };
 use crate::studies::criterion::sampling::DEFAULT_BASIN_BOUND;
 
@@ -23,8 +23,8 @@ pub struct VerdictArgs {
     /// engine, analysed as the runs are.
     #[arg(long, value_name = "REF")]
     pub reference: Option<PathBuf>,
-    /// The temperature of the per-term bounds, e.g. 300K (default: the reference's
-    /// configurational temperature).
+    /// The temperature of the per-term bounds, e.g. 300K (default: the reference's kinetic
+    /// temperature, else, for a trajectory file, its configurational temperature).
     #[arg(long, value_name = "T")]
     pub temperature: Option<String>,
     /// The temperature error ΔT the configurational temperature and each term's mean are
@@ -47,8 +47,9 @@ pub struct VerdictArgs {
 }
 
 impl VerdictArgs {
-    /// The bounds, and the temperature: `--temperature`, else the reference's
-    /// configurational temperature.
+    /// The bounds, and the temperature: `--temperature`, else the reference's kinetic
+    /// temperature (over the degrees of freedom its run counted), else (a trajectory file,
+    /// no velocities) its configurational temperature, biased under constraints.
     pub fn settings(
         &self,
         scene: &Scene,
@@ -68,9 +69,14 @@ impl VerdictArgs {
         }
         let temperature = match &self.temperature {
             Some(text) => Some(temperature_value(text, scene)?),
-            None => reference
-                .and_then(|r| r.configurational.as_ref())
-                .map(|c| c.temperature.mean),
+            None => reference.and_then(|r| {
+                let kinetic = r.kinetic_temperature.mean;
+                if kinetic > 0.0 && kinetic.is_finite() {
+                    Some(kinetic)
+                } else {
+                    r.configurational.as_ref().map(|c| c.temperature.mean)
+                }
+            }),
         };
         Ok(CriterionSettings {
             potential_bound: self.potential_bound,
@@ -139,6 +145,10 @@ impl Verdicts {
                         "    {name:<44} {d:+11.4} ± {e:9.4}  |Δ| ≤ {b:<9.4} {}{decide}",
                         c.verdict
                     );
+                    // The estimator's caveat (biased under constraints) goes with its row.
+                    if let (Kind::ConfigurationalTemperature, Some(note)) = (c.kind, &c.note) {
+                        println!("      ({note})");
+                    }
                 }
                 _ => println!(
                     "    {name:<44} {}: {}",

@@ -18,6 +18,7 @@ mod minimize;
 mod modes;
 mod modes_lanczos;
 mod run;
+mod run_dof;
 mod scan_report;
 mod scan_steps;
 pub mod stability;

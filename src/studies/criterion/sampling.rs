@@ -340,6 +340,7 @@ impl SamplingCriterion {
         let analysis = self.analyzer(scene, dof)?.analyze(&RunFiles {
             energy: dir.join("energy.csv"),
             trajectory: dir.join("trajectory.xyz"),
+            dof: None,
         })?;
         let comparison = compare(
             reference,
