@@ -19,6 +19,8 @@ import sys
 import mpmath as mp
 import numpy as np
 
+from rational_fit import fit_rational, print_rust_array
+
 mp.mp.dps = 60
 
 
@@ -26,30 +28,8 @@ def erfcx(x):
     return mp.exp(x * x) * mp.erfc(x)
 
 
-def fit(m, x_max, nodes=400, rounds=30):
-    n = m + 1
-    xs = [x_max * (1 - mp.cos(mp.pi * (k + 0.5) / nodes)) / 2 for k in range(nodes)]
-    fs = [erfcx(x) for x in xs]
-    q_prev = [mp.mpf(1)] * nodes
-    lawson = [mp.mpf(1)] * nodes
-    for it in range(rounds):
-        rows, rhs = [], []
-        for x, f, qp, w in zip(xs, fs, q_prev, lawson):
-            s = mp.sqrt(w) / (f * qp)
-            # P(x) - f (Q(x) - 1) = f  with Q's constant term fixed at 1.
-            rows.append([s * x**k for k in range(m + 1)] + [-s * f * x**k for k in range(1, n + 1)])
-            rhs.append(s * f)
-        a = mp.matrix(rows)
-        b = mp.matrix(rhs)
-        sol = mp.qr_solve(a, b)[0]
-        p = [sol[k] for k in range(m + 1)]
-        q = [mp.mpf(1)] + [sol[m + 1 + k] for k in range(n)]
-        q_prev = [mp.polyval(q[::-1], x) for x in xs]
-        err = [abs(mp.polyval(p[::-1], x) / qv / f - 1) for x, qv, f in zip(xs, q_prev, fs)]
-        if it >= 5:  # Lawson: weight by the error, towards equal ripples
-            total = sum(w * e for w, e in zip(lawson, err))
-            lawson = [w * e / total * nodes for w, e in zip(lawson, err)]
-    return p, q
+def fit(m, x_max):
+    return fit_rational(erfcx, m, m + 1, x_max, rounds=30)
 
 
 def horner(c, x, dtype):
@@ -76,14 +56,8 @@ def main():
     print(f"// m = {m}, x_max = {x_max}: max |P/Q / erfcx - 1| = {mp.nstr(err_exact, 3)} exact,"
           f" {mp.nstr(err_round, 3)} in {dtype.__name__} Horner")
     name = "32" if dtype is np.float32 else "64"
-    print(f"const ERFCX_P{name}: [f64; {m + 1}] = [")
-    for c in p:
-        print(f"    {float(c)!r},")
-    print("];")
-    print(f"const ERFCX_Q{name}: [f64; {m + 2}] = [")
-    for c in q:
-        print(f"    {float(c)!r},")
-    print("];")
+    print_rust_array(f"ERFCX_P{name}", p)
+    print_rust_array(f"ERFCX_Q{name}", q)
 
 
 if __name__ == "__main__":

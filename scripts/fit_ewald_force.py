@@ -25,6 +25,8 @@ import sys
 import mpmath as mp
 import numpy as np
 
+from rational_fit import fit_rational, print_rust_array
+
 mp.mp.dps = 60
 
 
@@ -33,27 +35,8 @@ def force(z):
     return (mp.erf(x) - 2 * x * mp.exp(-z) / mp.sqrt(mp.pi)) / (z * x)
 
 
-def fit(m, n, z_max, nodes=400, rounds=40):
-    zs = [z_max * (1 - mp.cos(mp.pi * (k + 0.5) / nodes)) / 2 for k in range(nodes)]
-    fs = [force(z) for z in zs]
-    q_prev = [mp.mpf(1)] * nodes
-    lawson = [mp.mpf(1)] * nodes
-    for it in range(rounds):
-        rows, rhs = [], []
-        for z, f, qp, w in zip(zs, fs, q_prev, lawson):
-            s = mp.sqrt(w) / (f * qp)
-            # P(z) - f (Q(z) - 1) = f  with Q's constant term fixed at 1.
-            rows.append([s * z**k for k in range(m + 1)] + [-s * f * z**k for k in range(1, n + 1)])
-            rhs.append(s * f)
-        sol = mp.qr_solve(mp.matrix(rows), mp.matrix(rhs))[0]
-        p = [sol[k] for k in range(m + 1)]
-        q = [mp.mpf(1)] + [sol[m + 1 + k] for k in range(n)]
-        q_prev = [mp.polyval(q[::-1], z) for z in zs]
-        err = [abs(mp.polyval(p[::-1], z) / qv / f - 1) for z, qv, f in zip(zs, q_prev, fs)]
-        if it >= 5:  # Lawson: weight by the error, towards equal ripples
-            total = sum(w * e for w, e in zip(lawson, err))
-            lawson = [w * e / total * nodes for w, e in zip(lawson, err)]
-    return p, q
+def fit(m, n, z_max):
+    return fit_rational(force, m, n, z_max, rounds=40)
 
 
 def fma32(a, b, c):
@@ -89,14 +72,8 @@ def main():
     print(f"// m = {m}, n = {n}, z_max = {z_max}: max |P/Q / F - 1| = {mp.nstr(err_exact, 3)} exact,"
           f" {mp.nstr(err_f32, 3)} in f32 (fused Horner, f32 coefficients, one division)")
     print(f"// Horner condition max sum |c_k| z^k / |P(z)|: P {mp.nstr(cond(p), 3)}, Q {mp.nstr(cond(q), 3)}")
-    print(f"const EWALD_FORCE_P: [f64; {m + 1}] = [")
-    for c in p:
-        print(f"    {float(c)!r},")
-    print("];")
-    print(f"const EWALD_FORCE_Q: [f64; {n + 1}] = [")
-    for c in q:
-        print(f"    {float(c)!r},")
-    print("];")
+    print_rust_array("EWALD_FORCE_P", p)
+    print_rust_array("EWALD_FORCE_Q", q)
 
 
 if __name__ == "__main__":
