@@ -491,6 +491,18 @@ fn the_kinetic_temperature_counts_the_degrees_of_freedom_as_the_run_did() {
     );
     // --dof overrides the manifest's count.
     assert_eq!(analyze(" --dof 1944").0, 1944.0);
+    // The run wrote the count into its manifest; a manifest from before that field is
+    // counted again from its command line, to the same number.
+    let path = dir.join("manifest.json");
+    let mut manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(manifest["degrees_of_freedom"], 1293);
+    manifest
+        .as_object_mut()
+        .unwrap()
+        .remove("degrees_of_freedom");
+    std::fs::write(&path, serde_json::to_string(&manifest).unwrap()).unwrap();
+    assert_eq!(analyze("").0, 1293.0);
     // Without a manifest (a peer's directory) nothing says how the run counted: 3N.
     std::fs::remove_file(dir.join("manifest.json")).unwrap();
     assert_eq!(analyze("").0, 1944.0);

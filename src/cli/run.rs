@@ -187,7 +187,8 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     };
     let steps = prepared.check_size(t_end, &plan)?;
     let out_dir = output_dir(args, &prepared.scene, &prepared.settings.method)?;
-    let mut manifest = start_manifest(args, &prepared.scene, &out_dir, trajectory_every)?;
+    let dof = prepared.degrees_of_freedom.map(|d| d.count);
+    let mut manifest = start_manifest(args, &prepared.scene, &out_dir, trajectory_every, dof)?;
     let checkpoint = checkpoint_every.map(|every| CheckpointPlan {
         path: out_dir.join(CHECKPOINT_FILE),
         every,
@@ -348,12 +349,14 @@ fn output_dir(args: &RunArgs, scene: &Scene, method: &str) -> Result<PathBuf> {
 }
 
 /// Clear `out_dir` of an earlier run's outputs (refused without `--force`), then write the
-/// manifest of this run ([`RunManifest`]) with the files it plans to write.
+/// manifest of this run ([`RunManifest`]) with the files it plans to write and the degrees
+/// of freedom its temperature column counts.
 fn start_manifest(
     args: &RunArgs,
     scene: &Scene,
     out_dir: &std::path::Path,
     trajectory_every: Option<usize>,
+    dof: Option<usize>,
 ) -> Result<RunManifest> {
     let mut planned = vec!["energy.csv".to_string()];
     if trajectory_every.is_some() {
@@ -381,7 +384,8 @@ fn start_manifest(
             out_dir.display()
         );
     }
-    let manifest = RunManifest::start(std::env::args().collect(), &planned);
+    let manifest =
+        RunManifest::start(std::env::args().collect(), &planned).with_degrees_of_freedom(dof);
     manifest.write(out_dir)?;
     Ok(manifest)
 }

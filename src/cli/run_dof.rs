@@ -1,5 +1,6 @@
-//! The degrees of freedom a finished run counted its kinetic temperature over, recovered
-//! for `analyze` from the run's `manifest.json`.
+//! The degrees of freedom a finished run counted its kinetic temperature over, for
+//! `analyze`, from the run's `manifest.json`: its `degrees_of_freedom`, which `run` writes;
+//! for a run written before that field, recovered from the manifest's command as below.
 //!
 //! A run records `T = 2K/(n_dof k_B)` with `n_dof = 3N − N_c − 3` when its forces conserve
 //! momentum (`system::velocities::DegreesOfFreedom`): `N_c` scalar constraints (h-bonds,
@@ -39,6 +40,9 @@ pub fn run_dof(
     let Some(manifest) = RunManifest::read(dir)? else {
         return Ok(None);
     };
+    if let Some(count) = manifest.degrees_of_freedom {
+        return Ok(Some(count as f64));
+    }
     // command[0] is the program, command[1] the subcommand: clap takes the latter as the
     // program name of `RunCommand`.
     if manifest.command.get(1).map(String::as_str) != Some("run") {

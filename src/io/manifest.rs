@@ -70,6 +70,12 @@ pub struct RunManifest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub finished: Option<String>,
     pub files: Vec<ManifestFile>,
+    /// The degrees of freedom the run counted its kinetic temperature over
+    /// (`system::velocities::DegreesOfFreedom`), for `analyze`; absent for a scene without
+    /// a temperature, a scan's record, and runs written before this field (whose count
+    /// `analyze` recovers from `command`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degrees_of_freedom: Option<usize>,
 }
 
 impl RunManifest {
@@ -92,7 +98,14 @@ impl RunManifest {
                     crc32: None,
                 })
                 .collect(),
+            degrees_of_freedom: None,
         }
+    }
+
+    /// This manifest recording the run's degrees of freedom (`None`: none counted).
+    pub fn with_degrees_of_freedom(mut self, count: Option<usize>) -> Self {
+        self.degrees_of_freedom = count;
+        self
     }
 
     /// Read `dir/manifest.json`: `None` when there is none.
