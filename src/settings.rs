@@ -151,6 +151,85 @@ impl ConstraintSet {
     }
 }
 
+/// The method parameters: the settings a method may use, and that a method which does not
+/// use them ignores with a notice. Each is written here once, as `field: kind`: the field
+/// has that name in [`RunSpec`] (its flag and `[run]` key) and in [`MethodSettings`] (its
+/// resolved value, set in [`RunSpec::resolve_with_units`]), and `kind` is the
+/// [`Parameter`] its value is recorded as. What lists the parameters derives from this
+/// table: [`MethodSettings::given`] (the notices of `integrators::build`), a checkpoint's
+/// settings (`io::checkpoint`), a scene's settings for another method (`run::prepare`),
+/// [`RunSpec::given_parameters`] (a study's record) and [`RunSpec::overridden_by`].
+/// `$then!(ARGS; field: kind, …)` is called with the table.
+macro_rules! method_parameters {
+    ($then:ident $(, $arg:tt)*) => {
+        $then!($($arg)*;
+            inner_steps: Count,
+            level_steps: Steps,
+            jacobian: Text,
+            quadrature: Text,
+            h_slow: Time,
+            h_fast: Time,
+            ratio: Count,
+            adaptive: Number,
+            control: Text,
+            h_min: Time,
+            h_max: Time,
+            block: Count,
+            tol: Number,
+            max_iter: Count,
+            friction: PerTime,
+            thermostats: Count,
+            tau: Time,
+            mollifier: Text,
+            molly_constraints: Text,
+            molly_jacobian: Text,
+        )
+    };
+}
+pub(crate) use method_parameters;
+
+/// A method parameter's resolved value and what it is, for records: a count, the steps of
+/// each level, a name, a plain number, a time, an inverse time (in the scene's units).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Parameter {
+    Count(Option<usize>),
+    Steps(Option<Vec<usize>>),
+    Text(Option<String>),
+    Number(Option<f64>),
+    Time(Option<f64>),
+    PerTime(Option<f64>),
+}
+
+/// A `[run]` value as the user wrote it (`4fs`, `2,4`), for records.
+trait Written {
+    fn written(&self) -> String;
+}
+
+impl Written for Value {
+    fn written(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl Written for String {
+    fn written(&self) -> String {
+        self.clone()
+    }
+}
+
+impl Written for usize {
+    fn written(&self) -> String {
+        self.to_string()
+    }
+}
+
+impl Written for Vec<usize> {
+    fn written(&self) -> String {
+        let steps: Vec<String> = self.iter().map(usize::to_string).collect();
+        steps.join(",")
+    }
+}
+
 /// The `[run]` table of a scene, and the same settings as `longstep run` flags.
 /// Everything is optional: the command line overrides the scene, field by field.
 #[derive(Args, Clone, Debug, Default, Deserialize)]
@@ -260,9 +339,14 @@ pub struct RunSpec {
     pub hydrogen_mass: Option<Value>,
 }
 
+/// `RunSpec { field: over.field.or(base.field), … }` for the run-wide fields `[…]` and the
+/// method parameters (called by `method_parameters!`).
 macro_rules! override_fields {
-    ($base:expr, $over:expr; $($field:ident),* $(,)?) => {
-        RunSpec { $($field: $over.$field.or($base.$field)),* }
+    ($base:ident $over:ident [$($run:ident),*]; $($field:ident: $kind:ident),* $(,)?) => {
+        RunSpec {
+            $($run: $over.$run.or($base.$run),)*
+            $($field: $over.$field.or($base.$field)),*
+        }
     };
 }
 
@@ -272,16 +356,43 @@ impl RunSpec {
     pub fn overridden_by(&self, other: &RunSpec) -> RunSpec {
         let base = self.clone();
         let over = other.clone();
-        let mut merged = override_fields!(base, over;
-            method, h, inner_steps, dt, t_end, blowup, level_steps, jacobian, quadrature, h_slow, h_fast,
-            ratio, adaptive, control, h_min, h_max, block, tol, max_iter, temperature, seed,
-            friction, thermostats, tau, mollifier, molly_constraints, molly_jacobian, constraints,
-            rigid_water, constraint_tolerance, hydrogen_mass);
+        let mut merged = method_parameters!(
+            override_fields,
+            base,
+            over,
+            [
+                method,
+                h,
+                dt,
+                t_end,
+                blowup,
+                temperature,
+                seed,
+                constraints,
+                rigid_water,
+                constraint_tolerance,
+                hydrogen_mass
+            ]
+        );
         if other.inner_steps.is_some() || other.dt.is_some() {
             merged.inner_steps = other.inner_steps;
             merged.dt = other.dt.clone();
         }
         merged
+    }
+
+    /// The method parameters given, by name, each as written (`4fs`, `2,4`).
+    pub fn given_parameters(&self) -> Vec<(&'static str, String)> {
+        macro_rules! written {
+            ($s:tt; $($field:ident: $kind:ident),* $(,)?) => {
+                [$((stringify!($field), $s.$field.as_ref().map(Written::written))),*]
+            };
+        }
+        let values = method_parameters!(written, self);
+        values
+            .into_iter()
+            .filter_map(|(name, value)| value.map(|v| (name, v)))
+            .collect()
     }
 
     /// Evaluate into the numbers a method is built from (a dimensionless scene).
@@ -587,39 +698,20 @@ impl MethodSettings {
         self
     }
 
-    /// The names of the settings that are given, for methods that reject what they do not use.
+    /// The names of the method parameters that are given (`method_parameters!`'s order),
+    /// for methods that report what they do not use. Temperature and seed are the run's
+    /// (start velocities) as well as a method's, so they are never "ignored" by a method.
     pub fn given(&self) -> Vec<&'static str> {
-        let mut given = Vec::new();
-        // temperature and seed are the run's (start velocities) as well as a method's, so
-        // they are never "ignored" by a method.
-        let flags: [(&'static str, bool); 20] = [
-            ("inner_steps", self.inner_steps.is_some()),
-            ("level_steps", self.level_steps.is_some()),
-            ("jacobian", self.jacobian.is_some()),
-            ("quadrature", self.quadrature.is_some()),
-            ("h_slow", self.h_slow.is_some()),
-            ("h_fast", self.h_fast.is_some()),
-            ("ratio", self.ratio.is_some()),
-            ("adaptive", self.adaptive.is_some()),
-            ("control", self.control.is_some()),
-            ("h_min", self.h_min.is_some()),
-            ("h_max", self.h_max.is_some()),
-            ("block", self.block.is_some()),
-            ("tol", self.tol.is_some()),
-            ("max_iter", self.max_iter.is_some()),
-            ("friction", self.friction.is_some()),
-            ("thermostats", self.thermostats.is_some()),
-            ("tau", self.tau.is_some()),
-            ("mollifier", self.mollifier.is_some()),
-            ("molly_constraints", self.molly_constraints.is_some()),
-            ("molly_jacobian", self.molly_jacobian.is_some()),
-        ];
-        for (name, is_given) in flags {
-            if is_given {
-                given.push(name);
-            }
+        macro_rules! given {
+            ($s:tt; $($field:ident: $kind:ident),* $(,)?) => {
+                [$((stringify!($field), $s.$field.is_some())),*]
+            };
         }
-        given
+        let flags = method_parameters!(given, self);
+        flags
+            .into_iter()
+            .filter_map(|(name, is_given)| is_given.then_some(name))
+            .collect()
     }
 }
 

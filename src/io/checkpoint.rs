@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::io::number::Num;
 use crate::io::scene::Scene;
-use crate::settings::MethodSettings;
+use crate::settings::{MethodSettings, Parameter};
 
 /// The file name in a run's output directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -147,45 +147,33 @@ impl Fingerprint {
 /// with its unit (`0.001 /fs`, `2013`, `not set`), shortest round-trip decimals for numbers.
 fn settings_fields(s: &MethodSettings) -> BTreeMap<String, String> {
     let s = crate::integrators::registry::with_defaults(s);
-    // Every field named, so that a new setting fails to compile here until it is listed
-    // in one of the two tables below.
-    let MethodSettings {
-        method: _,
-        h: _,
-        inner_steps: _,
-        t_end: _,
-        blowup: _,
-        level_steps: _,
-        jacobian: _,
-        quadrature: _,
-        h_slow: _,
-        h_fast: _,
-        ratio: _,
-        adaptive: _,
-        control: _,
-        h_min: _,
-        h_max: _,
-        block: _,
-        tol: _,
-        max_iter: _,
-        temperature: _,
-        seed: _,
-        friction: _,
-        thermostats: _,
-        tau: _,
-        mollifier: _,
-        molly_constraints: _,
-        molly_jacobian: _,
-        constraints: _,
-        rigid_water: _,
-        constraint_tolerance: _,
-        hydrogen_mass: _,
-        units: _,
-    } = &s;
     let unit = UnitNames::of(s.units);
-    integration_fields(&s, &unit)
+    macro_rules! parameters {
+        ($s:ident; $($field:ident: $kind:ident),* $(,)?) => {{
+            // Every field named: a new one fails to compile here until it is a method
+            // parameter (`settings::method_parameters!`) or a run-wide setting of
+            // `run_fields`.
+            let MethodSettings {
+                method: _,
+                h: _,
+                t_end: _,
+                blowup: _,
+                temperature: _,
+                seed: _,
+                constraints: _,
+                rigid_water: _,
+                constraint_tolerance: _,
+                hydrogen_mass: _,
+                units: _,
+                $($field),*
+            } = &$s;
+            [$((stringify!($field), Parameter::$kind($field.clone()))),*]
+        }};
+    }
+    let parameters = crate::settings::method_parameters!(parameters, s);
+    run_fields(&s, &unit)
         .into_iter()
-        .chain(bath_and_constraint_fields(&s, &unit))
+        .chain(parameters.map(|(name, value)| (name, unit.show(value))))
         .map(|(k, v)| (k.to_string(), v))
         .collect()
 }
@@ -212,66 +200,39 @@ impl UnitNames {
             mass,
         }
     }
+
+    /// A method parameter's value with its unit.
+    fn show(&self, value: Parameter) -> String {
+        match value {
+            Parameter::Count(x) => shown(x, ""),
+            Parameter::Steps(x) => {
+                let steps = x.map(|l| l.iter().map(usize::to_string).collect::<Vec<_>>());
+                shown(steps.map(|l| l.join(",")), "")
+            }
+            Parameter::Text(x) => shown(x, ""),
+            Parameter::Number(x) => number(&x, ""),
+            Parameter::Time(x) => number(&x, &self.time),
+            Parameter::PerTime(x) => number(&x, &self.per_time),
+        }
+    }
 }
 
 fn number(x: &Option<f64>, unit: &str) -> String {
     shown(x.map(Num), unit)
 }
 
-fn count(x: &Option<usize>) -> String {
-    shown(x.as_ref(), "")
-}
-
-fn text(x: &Option<String>) -> String {
-    shown(x.as_ref(), "")
-}
-
-/// The method and its step settings.
-fn integration_fields(s: &MethodSettings, u: &UnitNames) -> Vec<(&'static str, String)> {
-    let time = u.time.as_str();
+/// The settings of the run beyond the method parameters: the method, its step, the bath,
+/// the constraints, the units.
+fn run_fields(s: &MethodSettings, u: &UnitNames) -> Vec<(&'static str, String)> {
     vec![
         ("method", s.method.clone()),
-        ("h", number(&Some(s.h), time)),
-        ("inner_steps", count(&s.inner_steps)),
+        ("h", number(&Some(s.h), &u.time)),
         ("blowup", Num(s.blowup).to_string()),
-        (
-            "level_steps",
-            shown(
-                s.level_steps
-                    .as_ref()
-                    .map(|l| l.iter().map(usize::to_string).collect::<Vec<_>>().join(",")),
-                "",
-            ),
-        ),
-        ("jacobian", text(&s.jacobian)),
-        ("quadrature", text(&s.quadrature)),
-        ("h_slow", number(&s.h_slow, time)),
-        ("h_fast", number(&s.h_fast, time)),
-        ("ratio", count(&s.ratio)),
-        ("adaptive", number(&s.adaptive, "")),
-        ("control", text(&s.control)),
-        ("h_min", number(&s.h_min, time)),
-        ("h_max", number(&s.h_max, time)),
-        ("block", count(&s.block)),
-        ("tol", number(&s.tol, "")),
-        ("max_iter", count(&s.max_iter)),
-    ]
-}
-
-/// The thermostat, mollifier, constraint and unit settings.
-fn bath_and_constraint_fields(s: &MethodSettings, u: &UnitNames) -> Vec<(&'static str, String)> {
-    vec![
         (
             "temperature",
             number(&s.temperature, s.units.temperature_name()),
         ),
         ("seed", shown(s.seed.as_ref(), "")),
-        ("friction", number(&s.friction, &u.per_time)),
-        ("thermostats", count(&s.thermostats)),
-        ("tau", number(&s.tau, &u.time)),
-        ("mollifier", text(&s.mollifier)),
-        ("molly_constraints", text(&s.molly_constraints)),
-        ("molly_jacobian", text(&s.molly_jacobian)),
         ("constraints", format!("{:?}", s.constraints).to_lowercase()),
         ("rigid_water", s.rigid_water.to_string()),
         ("constraint_tolerance", number(&s.constraint_tolerance, "")),

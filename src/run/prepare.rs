@@ -309,38 +309,17 @@ fn scene_run_for(scene_run: &RunSpec, overrides: &RunSpec) -> RunSpec {
     let Some(info) = integrators::METHODS.iter().find(|m| m.name == method) else {
         return base;
     };
-    macro_rules! drop_unused {
-        ($($field:ident),*) => {
-            $(if !info.uses.contains(&stringify!($field)) {
-                base.$field = None;
-            })*
-        };
-    }
     if !info.uses.contains(&"inner_steps") {
         base.dt = None;
     }
-    drop_unused!(
-        inner_steps,
-        level_steps,
-        jacobian,
-        quadrature,
-        h_slow,
-        h_fast,
-        ratio,
-        adaptive,
-        control,
-        h_min,
-        h_max,
-        block,
-        tol,
-        max_iter,
-        friction,
-        thermostats,
-        tau,
-        mollifier,
-        molly_constraints,
-        molly_jacobian
-    );
+    macro_rules! drop_unused {
+        ($base:ident; $($field:ident: $kind:ident),* $(,)?) => {
+            $(if !info.uses.contains(&stringify!($field)) {
+                $base.$field = None;
+            })*
+        };
+    }
+    crate::settings::method_parameters!(drop_unused, base);
     base
 }
 

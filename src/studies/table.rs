@@ -13,7 +13,7 @@ use crate::io::number::Num;
 use crate::io::study_csv::StudyTable;
 use crate::io::study_file::StudyFile;
 use crate::io::summary::REAL_DRIFT_UNIT;
-use crate::settings::{RunSpec, Value};
+use crate::settings::RunSpec;
 use crate::units::Units;
 
 /// `default` for a setting not given, else its value.
@@ -157,55 +157,31 @@ fn sampling_meta(c: &SamplingCriterion, reference: &RunAnalysis) -> Vec<(&'stati
     ]
 }
 
-/// The method settings given on the command line, in the user's terms.
+/// The method settings given on the command line, in the user's terms: the method
+/// parameters (`inner_steps` aside, recorded given or not; the equilibrium mollifier's two
+/// as one `molly`), the temperature and the seed.
 fn given_settings(run: &RunSpec) -> Vec<(&'static str, String)> {
-    let text = |v: &Option<Value>| v.as_ref().map(|v| v.to_string());
-    let string = |v: &Option<String>| v.clone();
-    let number = |v: Option<usize>| v.map(|v| v.to_string());
-    let candidates: [(&'static str, Option<String>); 20] = [
-        (
-            "level_steps",
-            run.level_steps.as_ref().map(|l| {
-                l.iter()
-                    .map(|x| x.to_string())
-                    .collect::<Vec<_>>()
-                    .join(";")
-            }),
-        ),
-        ("jacobian", string(&run.jacobian)),
-        ("quadrature", string(&run.quadrature)),
-        ("h_slow", text(&run.h_slow)),
-        ("h_fast", text(&run.h_fast)),
-        ("ratio", number(run.ratio)),
-        ("adaptive", text(&run.adaptive)),
-        ("control", string(&run.control)),
-        ("h_min", text(&run.h_min)),
-        ("h_max", text(&run.h_max)),
-        ("block", number(run.block)),
-        ("tol", text(&run.tol)),
-        ("max_iter", number(run.max_iter)),
-        ("temperature", text(&run.temperature)),
-        ("seed", run.seed.map(|s| s.to_string())),
-        ("friction", text(&run.friction)),
-        ("thermostats", number(run.thermostats)),
-        ("tau", text(&run.tau)),
-        ("mollifier", string(&run.mollifier)),
-        (
-            "molly",
-            string(&run.molly_constraints).map(|c| {
-                format!(
-                    "{c} {}",
-                    run.molly_jacobian
-                        .clone()
-                        .unwrap_or_else(|| "default".into())
-                )
-            }),
-        ),
-    ];
-    candidates
+    let mut given: Vec<(&'static str, String)> = run
+        .given_parameters()
         .into_iter()
-        .filter_map(|(k, v)| v.map(|v| (k, v)))
-        .collect()
+        .filter(|(name, _)| {
+            !matches!(
+                *name,
+                "inner_steps" | "molly_constraints" | "molly_jacobian"
+            )
+        })
+        .collect();
+    if let Some(t) = &run.temperature {
+        given.push(("temperature", t.to_string()));
+    }
+    if let Some(seed) = run.seed {
+        given.push(("seed", seed.to_string()));
+    }
+    if let Some(c) = &run.molly_constraints {
+        let jacobian = run.molly_jacobian.as_deref().unwrap_or("default");
+        given.push(("molly", format!("{c} {jacobian}")));
+    }
+    given
 }
 
 /// The scan's study table by the drift criterion (see `src/io/study_csv.rs`): one row per

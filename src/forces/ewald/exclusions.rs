@@ -19,6 +19,7 @@
 //! **Cost.** `O(N_excl)` per gradient: one erfc/exp per pair, in lanes.
 
 use super::erf_over_r;
+use crate::forces::minimum_image_baseline;
 use crate::forces::scratch::{Scratch, parallel};
 use crate::forces::simd::{Isa, Simd, erfc_exp, simd_dispatch};
 
@@ -71,7 +72,7 @@ impl Exclusions {
         std::array::from_fn(|a| {
             let d = q[3 * j + a] - q[3 * i + a];
             let l = self.lengths[a];
-            d - l * nearest(d / l)
+            minimum_image_baseline(d, l)
         })
     }
 
@@ -169,23 +170,6 @@ impl Exclusions {
     }
 }
 
-/// `x.round()` (the nearest integer, halves away from zero) without the libm call that
-/// `round` is on the x86-64 baseline: `x ± (½ − 2⁻⁵⁴)` truncated by a cast to an integer and
-/// given `x`'s sign (`round(−0.3) = −0`), as LLVM lowers `round` where the processor has a
-/// truncating instruction. The added constant is the largest double below ½, so `x + c`
-/// reaches the next integer only when `x` is at least halfway to it (for `|x| < 2⁵²`);
-/// larger magnitudes, infinities and NaN go to `round` (they are integers or not numbers
-/// already). The same bits as `round` for every `x` (tested).
-#[inline(always)]
-fn nearest(x: f64) -> f64 {
-    const BELOW_HALF: f64 = 0.499_999_999_999_999_94;
-    if x.abs() < 4_503_599_627_370_496.0 {
-        (((x + BELOW_HALF.copysign(x)) as i64) as f64).copysign(x)
-    } else {
-        x.round()
-    }
-}
-
 simd_dispatch! {
     /// [`coefficients`] on the instruction set `isa`.
     fn coefficients_on[][](
@@ -227,31 +211,6 @@ fn coefficients<S: Simd<R = f64>>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// [`nearest`] is `round` on halves, their neighbours, integers, signed zeros and the
-    /// edges of its fast range.
-    #[test]
-    fn nearest_is_round() {
-        let mut xs = vec![0.0, -0.0, 1e300, -1e300, f64::INFINITY, f64::NEG_INFINITY];
-        for k in -8..=8 {
-            for base in [k as f64, k as f64 + 0.5, 4_503_599_627_370_496.0 + k as f64] {
-                for x in [base, base.next_up(), base.next_down()] {
-                    xs.extend([x, -x]);
-                }
-            }
-        }
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        for _ in 0..10_000 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            xs.push(((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 6.0);
-        }
-        for x in xs {
-            assert_eq!(nearest(x).to_bits(), x.round().to_bits(), "{x:e}");
-        }
-        assert!(nearest(f64::NAN).is_nan());
-    }
 
     /// The lanes' coefficient against libm's `erf` and `exp` over the distances of excluded
     /// pairs (0.5–3 Å) at GROMACS's α, on every instruction set with the same bits.
