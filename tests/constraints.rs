@@ -606,7 +606,7 @@ fn methods_and_scenes_that_cannot_take_constraints_refuse_them() {
                 "run {} --method sinr --rigid-water --temperature 300K",
                 &[water],
             ),
-            "sinr does not run with constraints (rigid_water)",
+            "sinr does not run with constraints (rigid_water): its isokinetic constraint",
         ),
         (
             &["run", water, "--rigid-water", "--constraint-tolerance", "0"],

@@ -127,27 +127,45 @@ pub fn build(
                 step("langevin-respa", Flight::Baoab(langevin)),
             )?))
         }
-        other => {
-            let mut asked = Vec::new();
-            if settings.constraints != ConstraintSet::None {
-                asked.push(format!("constraints = {}", settings.constraints.name()));
-            }
-            if settings.rigid_water {
-                asked.push("rigid_water".to_string());
-            }
-            Err(Error::setting(
-                "method",
-                format!(
-                    "{other} does not run with constraints ({}): constraints act on the innermost \
-                 level of {} only; run one of those, or drop the constraints",
-                    asked.join(", "),
-                    CONSTRAINED_METHODS.join(", ")
-                ),
-            )
-            .expected(CONSTRAINED_METHODS.join(", "))
-            .got_named(other))
-        }
+        other => Err(refusal(settings, other)),
     }
+}
+
+/// Why `method` refuses the constraints `settings` ask for: SIN(R) for its own reason, every
+/// other method because only [`CONSTRAINED_METHODS`] have a constrained innermost step.
+fn refusal(settings: &MethodSettings, method: &str) -> Error {
+    let mut asked = Vec::new();
+    if settings.constraints != ConstraintSet::None {
+        asked.push(format!("constraints = {}", settings.constraints.name()));
+    }
+    if settings.rigid_water {
+        asked.push("rigid_water".to_string());
+    }
+    let why = if method == "sinr" {
+        format!(
+            "its isokinetic constraint holds each Cartesian degree of freedom's kinetic energy \
+             at L kT (docs/thermostats.md), and the velocity projection of bond constraints \
+             mixes the coordinates it joins, breaking that per-coordinate constraint (no \
+             constrained SIN(R) is built); run sinr flexible (LMT13's protocol: flexible \
+             water; --hydrogen-mass is allowed), or {} with the constraints",
+            CONSTRAINED_METHODS.join(", ")
+        )
+    } else {
+        format!(
+            "constraints act on the innermost level of {} only; run one of those, or drop the \
+             constraints",
+            CONSTRAINED_METHODS.join(", ")
+        )
+    };
+    Error::setting(
+        "method",
+        format!(
+            "{method} does not run with constraints ({}): {why}",
+            asked.join(", ")
+        ),
+    )
+    .expected(CONSTRAINED_METHODS.join(", "))
+    .got_named(method)
 }
 
 impl Constrained {
