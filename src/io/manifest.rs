@@ -18,6 +18,7 @@ use std::path::{Component, Path};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::io::summary::PairListSummary;
 
 /// The manifest's file name in a run folder.
 pub const MANIFEST: &str = "manifest.json";
@@ -70,6 +71,10 @@ pub struct RunManifest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub finished: Option<String>,
     pub files: Vec<ManifestFile>,
+    /// How often each non-bonded term's pair list was built and pruned (set when the run
+    /// finishes; GROMACS's `nstlist`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pair_lists: Vec<PairListSummary>,
 }
 
 impl RunManifest {
@@ -92,6 +97,7 @@ impl RunManifest {
                     crc32: None,
                 })
                 .collect(),
+            pair_lists: Vec::new(),
         }
     }
 
