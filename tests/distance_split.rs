@@ -123,6 +123,7 @@ fn water_spec(
     NonbondedSpec {
         cutoff,
         skin: 1.0,
+        inner_buffer: None,
         electrostatics,
         coulomb_constant: K_E,
         box_lengths,

@@ -243,6 +243,7 @@ fn real_space_term(
     let spec = NonbondedSpec {
         cutoff,
         skin: 1.0,
+        inner_buffer: None,
         electrostatics: Electrostatics::Ewald { alpha },
         coulomb_constant: KE,
         box_lengths: Some(lengths),

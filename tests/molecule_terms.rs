@@ -98,6 +98,7 @@ fn spec(
     NonbondedSpec {
         cutoff,
         skin: 1.0,
+        inner_buffer: None,
         electrostatics,
         coulomb_constant: 332.06371,
         box_lengths,

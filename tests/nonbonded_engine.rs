@@ -90,6 +90,7 @@ fn spec(
     NonbondedSpec {
         cutoff: CUTOFF,
         skin: 1.0,
+        inner_buffer: None,
         electrostatics: form,
         coulomb_constant: KE,
         box_lengths: Some([side; 3]),

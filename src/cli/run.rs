@@ -222,6 +222,7 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;
     }
+    manifest.pair_lists = summary.pair_lists.clone();
     manifest.finish(&out_dir)?;
     if let Some(t) = &options.trajectory
         && !args.quiet

@@ -18,6 +18,7 @@ use std::path::{Component, Path};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::io::summary::PairListSummary;
 
 /// The manifest's file name in a run folder.
 pub const MANIFEST: &str = "manifest.json";
@@ -76,6 +77,10 @@ pub struct RunManifest {
     /// `analyze` recovers from `command`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub degrees_of_freedom: Option<usize>,
+    /// How often each non-bonded term's pair list was built and pruned (set when the run
+    /// finishes; GROMACS's `nstlist`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub pair_lists: Vec<PairListSummary>,
 }
 
 impl RunManifest {
@@ -99,6 +104,7 @@ impl RunManifest {
                 })
                 .collect(),
             degrees_of_freedom: None,
+            pair_lists: Vec::new(),
         }
     }
 

@@ -18,7 +18,7 @@
 use crate::io::number::{Num, shorten_numbers};
 use std::collections::BTreeMap;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::split::ForceCounts;
 use crate::units::Units;
@@ -259,6 +259,53 @@ fn signed(x: f64) -> String {
     }
 }
 
+/// How often a non-bonded term's cluster-pair list was built and pruned over a run
+/// (GROMACS's `nstlist` and its dynamic pruning interval): the list holds the pairs within
+/// `cutoff + outer_buffer` and is rebuilt when two atoms may have closed the outer buffer;
+/// the kernel runs over the pairs within `cutoff + inner_buffer`, pruned again when two
+/// atoms may have closed the inner one (`forces::clusters`). Every build prunes too.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct PairListSummary {
+    /// The term's name (`nonbonded`).
+    pub term: String,
+    pub builds: u64,
+    /// Prunings, the one after each build included.
+    pub prunes: u64,
+    pub cutoff: f64,
+    pub outer_buffer: f64,
+    pub inner_buffer: f64,
+    /// Atom pairs of the outer list and of the inner one at the end of the run.
+    pub outer_pairs: usize,
+    pub inner_pairs: usize,
+}
+
+impl PairListSummary {
+    /// The summary's `pair list` line over `steps` outer steps.
+    fn line(&self, steps: u64, units: Units) -> String {
+        let every = |count: u64| {
+            if count == 0 {
+                "none".to_string()
+            } else {
+                significant(steps as f64 / count as f64, 3)
+            }
+        };
+        format!(
+            "pair list  {}: {} builds, {} prunes (one per {} / {} outer steps), buffers outer {} / \
+             inner {} beyond the cutoff {}, {} / {} atom pairs",
+            self.term,
+            self.builds,
+            self.prunes,
+            every(self.builds),
+            every(self.prunes),
+            units.length(self.outer_buffer),
+            units.length(self.inner_buffer),
+            units.length(self.cutoff),
+            self.outer_pairs,
+            self.inner_pairs
+        )
+    }
+}
+
 /// The kinetic temperature `2K / (n_dof k_B)` over the recorded rows.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct TemperatureSummary {
@@ -283,6 +330,9 @@ pub struct RunSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub requested_t_end: Option<f64>,
     pub force_evaluations: ForceEvaluations,
+    /// The non-bonded terms' pair lists over the run (`run::prepare` fills it).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub pair_lists: Vec<PairListSummary>,
     pub energy: EnergySummary,
     pub wall_seconds: f64,
     pub status: Status,
@@ -434,6 +484,7 @@ impl RunSummary {
                 self.energy.max_relative_error
             ),
         ];
+        lines.extend(self.pair_lists.iter().map(|p| p.line(self.steps, units)));
         lines.extend(self.continued_from.as_ref().map(|c| c.line(units)));
         if let Some(t) = &self.temperature {
             let unit = match units {

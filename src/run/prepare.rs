@@ -9,12 +9,13 @@ use std::path::Path;
 
 use crate::error::{Error, Result};
 use crate::forces::Precision;
+use crate::forces::nonbonded::Nonbonded;
 use crate::integrators::{self, Integrator};
 
 use crate::io::checkpoint::{Fingerprint, RequestParts, Restart};
 use crate::io::number::Num;
 use crate::io::scene::{Scene, SceneFlags, load_scene_with};
-use crate::io::summary::RunSummary;
+use crate::io::summary::{PairListSummary, RunSummary};
 use crate::run::{RunOptions, run};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::system::System;
@@ -271,17 +272,49 @@ impl PreparedRun {
         }
     }
 
-    /// Run to `options.t_end`; the summary carries the scene's units.
+    /// Run to `options.t_end`; the summary carries the scene's units and the pair lists'
+    /// builds and prunes during the run.
     pub fn run(&mut self, options: &RunOptions) -> Result<RunSummary> {
+        let before = pair_lists(&self.scene.system);
         let mut summary = run(
             &self.scene.name,
             &mut self.scene.system,
             self.integrator.as_mut(),
             options,
         )?;
+        summary.pair_lists = pair_lists(&self.scene.system);
+        for (list, earlier) in summary.pair_lists.iter_mut().zip(&before) {
+            list.builds -= earlier.builds;
+            list.prunes -= earlier.prunes;
+        }
         summary.set_units(self.scene.units);
         Ok(summary)
     }
+}
+
+/// The list counts so far and the buffers of every non-bonded term of `system`.
+fn pair_lists(system: &System) -> Vec<PairListSummary> {
+    let terms = system.forces.terms().iter();
+    let nonbonded = terms.filter_map(|t| {
+        let term = t.term.as_any()?.downcast_ref::<Nonbonded>()?;
+        Some((t.name.clone(), term))
+    });
+    nonbonded
+        .map(|(name, term)| {
+            let counts = term.list_counts();
+            let (outer_buffer, inner_buffer) = term.list_buffers();
+            PairListSummary {
+                term: name,
+                builds: counts.builds,
+                prunes: counts.prunes,
+                cutoff: term.list_statistics().0,
+                outer_buffer,
+                inner_buffer,
+                outer_pairs: counts.outer_pairs,
+                inner_pairs: counts.inner_pairs,
+            }
+        })
+        .collect()
 }
 
 /// How often a run records, for its size check.

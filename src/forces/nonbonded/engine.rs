@@ -350,7 +350,26 @@ impl Nonbonded {
             Kernel::ShiftedForce(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
             Kernel::Damped(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
             Kernel::ReactionField(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
-            Kernel::Ewald(c) => self.with_switch::<R, _, ENERGY>(isa, job, c, out),
+            Kernel::Ewald(c) => {
+                use kernel::{Ewald, ewald_route as route};
+                match c.route::<R>() {
+                    route::SCALAR => self.with_switch::<R, _, ENERGY>(
+                        isa,
+                        job,
+                        Ewald::<{ route::SCALAR }>(c),
+                        out,
+                    ),
+                    route::RATIONAL => self.with_switch::<R, _, ENERGY>(
+                        isa,
+                        job,
+                        Ewald::<{ route::RATIONAL }>(c),
+                        out,
+                    ),
+                    _ => {
+                        self.with_switch::<R, _, ENERGY>(isa, job, Ewald::<{ route::ERFC }>(c), out)
+                    }
+                }
+            }
         }
     }
 

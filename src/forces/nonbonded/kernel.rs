@@ -326,7 +326,36 @@ impl Coulomb for DampedShiftedForce {
     }
 }
 
-impl Coulomb for EwaldReal {
+/// The route of [`EwaldReal`]'s lanes, chosen once per evaluation ([`EwaldReal::route`])
+/// and fixed in the kernel's type ([`Ewald`]), so that the group loop tests no flag.
+pub(super) mod ewald_route {
+    /// Lane by lane through libm (`α r_c` beyond the fit's range).
+    pub const SCALAR: u8 = 0;
+    /// erfc and the Gaussian from `erfc_exp`, force and energy.
+    pub const ERFC: u8 = 1;
+    /// Single precision within the rational's range: the force from `ewald_force`.
+    pub const RATIONAL: u8 = 2;
+}
+
+impl EwaldReal {
+    /// The route of the lanes in precision `R`: [`ewald_route`].
+    pub(super) fn route<R: Real>(&self) -> u8 {
+        if !self.simd {
+            ewald_route::SCALAR
+        } else if std::mem::size_of::<R>() == 4 && self.rational {
+            ewald_route::RATIONAL
+        } else {
+            ewald_route::ERFC
+        }
+    }
+}
+
+/// [`EwaldReal`] on the route `ROUTE` ([`ewald_route`]); the dispatch builds it only on
+/// the route [`EwaldReal::route`] gives, so the results are those of that route.
+#[derive(Clone, Copy)]
+pub(super) struct Ewald<const ROUTE: u8>(pub(super) EwaldReal);
+
+impl<const ROUTE: u8> Coulomb for Ewald<ROUTE> {
     /// `V = Q erfc(αr)/r`, `−V′/r = (Q/r²)(erfc(αr)/r + (2α/√π) e^{−α²r²})`, erfc and the
     /// Gaussian from [`erfc_exp`] (module doc); lane by lane through libm where `α r_c` is
     /// beyond the fit's range. In single precision with `α r_c ≤ 4` the force is
@@ -341,24 +370,60 @@ impl Coulomb for EwaldReal {
         rinv: S::V,
         rinv2: S::V,
     ) -> (S::V, S::V) {
-        if !self.simd {
-            let form = |qq, s, inv_r| self.energy_force(qq, s, inv_r);
+        let ewald = &self.0;
+        if ROUTE == ewald_route::SCALAR {
+            let form = |qq, s, inv_r| ewald.energy_force(qq, s, inv_r);
             return scalar_lanes(s, form, qq, r2, rinv);
         }
         let r = s.mul(r2, rinv);
-        if std::mem::size_of::<S::R>() == 4 && self.rational {
+        if ROUTE == ewald_route::RATIONAL && std::mem::size_of::<S::R>() == 4 {
             // Single precision: the force without erfc; the energy only when asked.
-            let f = s.mul(qq, ewald_force(s, &self.force, r2, rinv, rinv2));
+            let f = s.mul(qq, ewald_force(s, &ewald.force, r2, rinv, rinv2));
             let mut e = f;
             if ENERGY {
-                e = s.mul(qq, erfc_over_r(s, self.alpha, r, rinv).0);
+                e = s.mul(qq, erfc_over_r(s, ewald.alpha, r, rinv).0);
             }
             return (e, f);
         }
-        let (erfc_r, gauss) = erfc_over_r(s, self.alpha, r, rinv);
+        let (erfc_r, gauss) = erfc_over_r(s, ewald.alpha, r, rinv);
         let e = s.mul(qq, erfc_r);
         let f = s.mul(s.mul(qq, rinv2), s.add(erfc_r, gauss));
         (e, f)
+    }
+}
+
+/// The route chosen per call ([`EwaldReal::route`]): for the distance split's lanes, whose
+/// precision is a type parameter of the call; the engine fixes the route at dispatch.
+impl Coulomb for EwaldReal {
+    #[inline(always)]
+    fn lanes<S: Simd, const ENERGY: bool>(
+        &self,
+        s: S,
+        qq: S::V,
+        r2: S::V,
+        rinv: S::V,
+        rinv2: S::V,
+    ) -> (S::V, S::V) {
+        let args = (s, qq, r2, rinv, rinv2);
+        match self.route::<S::R>() {
+            ewald_route::SCALAR => {
+                Ewald::<{ ewald_route::SCALAR }>(*self).lanes_of::<S, ENERGY>(args)
+            }
+            ewald_route::RATIONAL => {
+                Ewald::<{ ewald_route::RATIONAL }>(*self).lanes_of::<S, ENERGY>(args)
+            }
+            _ => Ewald::<{ ewald_route::ERFC }>(*self).lanes_of::<S, ENERGY>(args),
+        }
+    }
+}
+
+impl<const ROUTE: u8> Ewald<ROUTE> {
+    #[inline(always)]
+    fn lanes_of<S: Simd, const ENERGY: bool>(
+        &self,
+        (s, qq, r2, rinv, rinv2): (S, S::V, S::V, S::V, S::V),
+    ) -> (S::V, S::V) {
+        Coulomb::lanes::<S, ENERGY>(self, s, qq, r2, rinv, rinv2)
     }
 }
 

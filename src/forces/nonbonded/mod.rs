@@ -469,7 +469,10 @@ pub struct Nonbonded {
 pub struct NonbondedSpec {
     /// `f64::INFINITY` for no cutoff.
     pub cutoff: f64,
+    /// The outer list buffer beyond the cutoff ([`crate::forces::clusters`]).
     pub skin: f64,
+    /// The inner (pruned) list buffer, at most `skin`; `None`: `skin / 2`.
+    pub inner_buffer: Option<f64>,
     pub electrostatics: Electrostatics,
     /// Coulomb constant `k_e` in the scene's units.
     pub coulomb_constant: f64,
@@ -546,7 +549,7 @@ impl Nonbonded {
         };
         let (excluded_start, excluded) = exclusion_lists(n, &spec.excluded)?;
         let factored = Factored::find(&spec.lj, n_types, cutoff);
-        let list = super::clusters::ClusterList::new(
+        let mut list = super::clusters::ClusterList::new(
             switch.map_or(cutoff, |s| s.r_out()),
             spec.skin,
             spec.box_lengths,
@@ -554,6 +557,9 @@ impl Nonbonded {
             excluded,
             scaled_charges.clone(),
         );
+        if let Some(inner) = spec.inner_buffer {
+            list.set_buffers(spec.skin, inner);
+        }
         let term = Nonbonded {
             n,
             cutoff: switch.map_or(cutoff, |s| s.r_out()),

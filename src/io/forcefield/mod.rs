@@ -63,6 +63,8 @@ pub struct ForcefieldSpec {
     /// Neighbour-list skin (length), default 2 (rebuilds against list length: fastest of
     /// 1, 1.5, 2, 2.5 Å on 5184 water atoms at 4 fs).
     pub skin: Option<f64>,
+    /// The pruned inner list's buffer (length, at most the skin), default half the skin.
+    pub inner_buffer: Option<f64>,
     /// `"dsf"`, `"reaction-field"`, `"plain"` or `"none"`.
     pub coulomb: Option<String>,
     pub dsf_alpha: Option<f64>,

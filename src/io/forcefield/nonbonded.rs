@@ -129,6 +129,7 @@ pub(super) struct Settings {
     /// Infinite for none.
     pub cutoff: f64,
     pub skin: f64,
+    pub inner_buffer: f64,
     pub electrostatics: Electrostatics,
     pub coulomb_constant: f64,
     pub lj_shift: bool,
@@ -153,6 +154,12 @@ pub(super) fn settings(input: &ForcefieldInput, charges: &[f64]) -> Result<Setti
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("[forcefield] skin must be ≥ 0, got {skin}"));
     }
+    let inner_buffer = spec.inner_buffer.unwrap_or(skin / 2.0);
+    if !(0.0..=skin).contains(&inner_buffer) {
+        return Err(format!(
+            "[forcefield] inner_buffer must be between 0 and the skin {skin}, got {inner_buffer}"
+        ));
+    }
     let mut electrostatics = coulomb(spec, charges)?;
     let ewald = match electrostatics {
         Electrostatics::Ewald { .. } => {
@@ -170,6 +177,7 @@ pub(super) fn settings(input: &ForcefieldInput, charges: &[f64]) -> Result<Setti
     Ok(Settings {
         cutoff,
         skin,
+        inner_buffer,
         electrostatics,
         ewald,
         coulomb_constant: match input.units {
@@ -280,6 +288,7 @@ pub(super) fn cutoff_spec(
     NonbondedSpec {
         cutoff: settings.cutoff,
         skin: settings.skin,
+        inner_buffer: Some(settings.inner_buffer),
         electrostatics: settings.electrostatics,
         coulomb_constant: settings.coulomb_constant,
         box_lengths: input.periodic_box.map(|b| b.lengths),

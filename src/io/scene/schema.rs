@@ -138,6 +138,9 @@ pub struct TopologySpec {
     pub dsf_alpha: Option<f64>,
     /// Neighbour-list skin (Å), default 4 (`io::topology::build::DEFAULT_SKIN`).
     pub skin: Option<f64>,
+    /// The pruned inner list's buffer (Å, at most the skin), default half the skin
+    /// (`io::topology::build::DEFAULT_INNER_FRACTION`).
+    pub inner_buffer: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
     pub lj_shift: Option<bool>,
     /// PME (`coulomb = "pme"`): as the `[forcefield]` keys of the same names.

@@ -143,6 +143,7 @@ impl Builder<'_> {
             epsilon_rf: spec.epsilon_rf,
             dsf_alpha: spec.dsf_alpha,
             skin: spec.skin,
+            inner_buffer: spec.inner_buffer,
             lj_shift: spec.lj_shift,
             ewald: EwaldRequest {
                 tolerance: spec.ewald_tolerance,

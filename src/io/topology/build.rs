@@ -41,6 +41,11 @@ use crate::units::{COULOMB_KCAL_ANGSTROM, Units, significant};
 /// docs/data/sittings/topology-skin-2026-11-26.*).
 pub const DEFAULT_SKIN: f64 = 4.0;
 
+/// The inner (pruned) list's buffer when none is given, as a fraction of the skin: the
+/// kernel runs over the pairs within cutoff + this buffer, pruned again when two atoms may
+/// have closed it.
+pub const DEFAULT_INNER_FRACTION: f64 = 0.5;
+
 /// The cutoff when none is given but one is needed (Å).
 pub const DEFAULT_CUTOFF: f64 = 9.0;
 /// OpenMM's default reaction-field dielectric.
@@ -85,6 +90,8 @@ pub struct NonbondedOptions {
     pub dsf_alpha: Option<f64>,
     /// Neighbour-list skin (Å), default [`DEFAULT_SKIN`].
     pub skin: Option<f64>,
+    /// The inner list's buffer (Å), default [`DEFAULT_INNER_FRACTION`] of the skin.
+    pub inner_buffer: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff (the force is unchanged), so
     /// the energy does not jump as pairs cross it; default false, as OpenMM.
     pub lj_shift: Option<bool>,
@@ -411,6 +418,14 @@ fn nonbonded(
     if !(skin >= 0.0 && skin.is_finite()) {
         return Err(format!("skin must be ≥ 0, got {skin}"));
     }
+    let inner_buffer = options
+        .inner_buffer
+        .unwrap_or(DEFAULT_INNER_FRACTION * skin);
+    if !(0.0..=skin).contains(&inner_buffer) {
+        return Err(format!(
+            "inner_buffer must be between 0 and the skin {skin}, got {inner_buffer}"
+        ));
+    }
     let lj = &topology.lj;
     let shifted = options.lj_shift.unwrap_or(false) && cutoff.is_finite();
     let inv6 = if shifted { cutoff.powi(-6) } else { 0.0 };
@@ -424,6 +439,7 @@ fn nonbonded(
     let spec = NonbondedSpec {
         cutoff,
         skin,
+        inner_buffer: Some(inner_buffer),
         electrostatics,
         coulomb_constant: COULOMB_KCAL_ANGSTROM,
         box_lengths: topology.periodic_box,
@@ -447,13 +463,14 @@ fn nonbonded(
         topology.exclusions.len()
     ));
     report.push(format!(
-        "nonbonded: cutoff {}, skin {}, Coulomb {}, term \"nonbonded\"",
+        "nonbonded: cutoff {}, skin {} (inner list {}), Coulomb {}, term \"nonbonded\"",
         if cutoff.is_finite() {
             Units::Real.length(cutoff)
         } else {
             "none".into()
         },
         Units::Real.length(skin),
+        Units::Real.length(inner_buffer),
         electrostatics.describe(Units::Real)
     ));
     cutoff_terms(topology, spec, q, options, terms, report)?;
