@@ -40,7 +40,7 @@ pub mod switch;
 pub mod torsion;
 
 pub(crate) use periodic_box::MinimumImage;
-pub use periodic_box::{PeriodicBox, minimum_image, minimum_image_baseline};
+pub use periodic_box::{PeriodicBox, minimum_image, minimum_image_baseline, near_image};
 
 /// One end of an interaction: a particle (a degree of freedom) or a fixed point in space.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,11 +2,14 @@
 //! round(d/L)`, by division) for every scalar path, [`minimum_image_baseline`] (the same
 //! bits with the rounding written out, for scalar loops compiled for the x86-64 baseline),
 //! [`PeriodicBox::wrap`] (the same with a branch that skips the rounding for the near
-//! differences of bonded terms), and [`MinimumImage`] (by a multiplication with `1/L`, the
-//! distance split's inner loops).
+//! differences of bonded terms), [`near_image`] (`wrap` in SIMD lanes, by compare and
+//! select, for bonded differences `|d| ≤ L`: SETTLE's lanes) and [`MinimumImage`] (by a
+//! multiplication with `1/L`, the distance split's inner loops).
 //! The division forms and [`MinimumImage`] round `d/L` and `d·(1/L)` and so may pick
 //! different images of a difference within an ulp of `L/2` (equally near, both minimum);
 //! each path keeps its form, so every output keeps its bits.
+
+use super::simd::{Real, Simd};
 
 /// The minimum image `d − L round(d/L)` of a difference `d` along a box edge `L`: the
 /// image in `[−L/2, L/2]`. One division and one rounding.
@@ -39,6 +42,24 @@ fn nearest(x: f64) -> f64 {
     } else {
         x.round()
     }
+}
+
+/// [`PeriodicBox::wrap`] in SIMD lanes, branch-free: `d − L` where `d ≥ L/2`, `d + L`
+/// where `d ≤ −L/2`, `d` elsewhere (lengths `length`, one per lane). For `|d| ≤ L` (the
+/// difference of two coordinates inside the box, or of two atoms less than `L/2` apart
+/// however far they are from it) these are [`minimum_image`]'s and `wrap`'s bits: `d/L`
+/// then lies in `[1/2, 1]` or `[−1, −1/2]` (division is monotone), which round to `±1`,
+/// and `L · (±1)` is exact. Beyond `|d| > L` it is not the minimum image (one period is
+/// taken off at most): for bonded terms only. Two comparisons, two selects and a
+/// subtraction; no division, no rounding, no library call.
+#[inline(always)]
+pub fn near_image<S: Simd>(s: S, d: S::V, length: S::V) -> S::V {
+    let half = s.mul(length, s.splat(S::R::of(0.5)));
+    let minus_half = s.mul(length, s.splat(S::R::of(-0.5)));
+    let zero = s.splat(S::R::of(0.0));
+    let minus_length = s.sub(zero, length);
+    let below = s.select(s.less_equal(d, minus_half), minus_length, zero);
+    s.sub(d, s.select(s.less_equal(half, d), length, below))
 }
 
 /// An orthorhombic periodic box; pair terms use the minimum-image displacement.
@@ -99,6 +120,7 @@ impl MinimumImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::forces::simd::{Isa, Portable};
 
     /// [`nearest`] is `round` on halves, their neighbours, integers, signed zeros and the
     /// edges of its fast range.
@@ -123,5 +145,40 @@ mod tests {
             assert_eq!(nearest(x).to_bits(), x.round().to_bits(), "{x:e}");
         }
         assert!(nearest(f64::NAN).is_nan());
+    }
+
+    /// `near_image` gives `wrap`'s bits for every `|d| ≤ L`: the edges `±L/2`, `±L`, an ulp
+    /// either side of them, zeros of both signs and a grid across `[−L, L]`, in each lane.
+    #[test]
+    fn near_image_is_wrap_bit_for_bit_within_a_box_length() {
+        assert!(Isa::available().contains(&Isa::Portable));
+        let s = Portable::<f64>::new();
+        for length in [10.0, 31.17, 62.5e-3] {
+            let pbc = PeriodicBox {
+                lengths: [length; 3],
+            };
+            let below = |x: f64| f64::from_bits(x.to_bits() - 1);
+            let half = 0.5 * length;
+            let mut ds = vec![0.0, -0.0, half, -half, below(half), -below(half), length];
+            ds.extend([
+                -length,
+                below(length),
+                -below(length),
+                half + half * f64::EPSILON,
+            ]);
+            ds.extend((0..=2000).map(|k| length * (k as f64 / 1000.0 - 1.0)));
+            for chunk in ds.chunks(4) {
+                let mut d = [0.0; 4];
+                d[..chunk.len()].copy_from_slice(chunk);
+                let lanes = near_image(s, d, [length; 4]);
+                for (x, image) in d.iter().zip(lanes) {
+                    assert_eq!(
+                        image.to_bits(),
+                        pbc.wrap(0, *x).to_bits(),
+                        "d {x} L {length}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -52,6 +52,8 @@ pub trait Real:
     fn of(x: f64) -> Self;
     fn to_f64(self) -> f64;
     fn sqrt(self) -> Self;
+    /// `|self|`: the sign bit cleared.
+    fn abs(self) -> Self;
     /// `self · b + c`, rounded once.
     fn mul_add(self, b: Self, c: Self) -> Self;
     /// `1/√x` within 3.5 %: the exponent halved and negated by integer arithmetic on the
@@ -135,6 +137,10 @@ impl Real for f64 {
     fn sqrt(self) -> Self {
         f64::sqrt(self)
     }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
 }
 
 impl Real for f32 {
@@ -167,6 +173,10 @@ impl Real for f32 {
     fn sqrt(self) -> Self {
         f32::sqrt(self)
     }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
 }
 
 /// Lanes of one instruction set and precision (see the module doc).
@@ -191,6 +201,8 @@ pub trait Simd: Copy + Send + Sync {
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
     fn div(self, a: Self::V, b: Self::V) -> Self::V;
     fn sqrt(self, a: Self::V) -> Self::V;
+    /// `|a|`: the sign bit of each lane cleared (exact, as [`Real::abs`]).
+    fn abs(self, a: Self::V) -> Self::V;
     /// `a · b + c`, rounded once.
     fn fma(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// `c − a · b`, rounded once.
@@ -214,8 +226,10 @@ pub trait Simd: Copy + Send + Sync {
         }
         y
     }
-    /// Lanes where `a < b`.
+    /// Lanes where `a < b` (false where either is NaN).
     fn less(self, a: Self::V, b: Self::V) -> Self::M;
+    /// Lanes where `a ≤ b` (false where either is NaN).
+    fn less_equal(self, a: Self::V, b: Self::V) -> Self::M;
     /// Lane `k` set where bit `k` of `bits` is.
     fn mask(self, bits: u32) -> Self::M;
     fn and(self, a: Self::M, b: Self::M) -> Self::M;
@@ -629,6 +643,10 @@ impl<R: Real> Simd for Portable<R> {
         std::array::from_fn(|k| a[k].sqrt())
     }
     #[inline(always)]
+    fn abs(self, a: [R; 4]) -> [R; 4] {
+        std::array::from_fn(|k| a[k].abs())
+    }
+    #[inline(always)]
     fn fma(self, a: [R; 4], b: [R; 4], c: [R; 4]) -> [R; 4] {
         std::array::from_fn(|k| a[k].mul_add(b[k], c[k]))
     }
@@ -651,6 +669,10 @@ impl<R: Real> Simd for Portable<R> {
     #[inline(always)]
     fn less(self, a: [R; 4], b: [R; 4]) -> [bool; 4] {
         std::array::from_fn(|k| a[k] < b[k])
+    }
+    #[inline(always)]
+    fn less_equal(self, a: [R; 4], b: [R; 4]) -> [bool; 4] {
+        std::array::from_fn(|k| a[k] <= b[k])
     }
     #[inline(always)]
     fn mask(self, bits: u32) -> [bool; 4] {
@@ -838,6 +860,16 @@ mod x86 {
             unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(a, b) }
         }
         #[inline(always)]
+        fn less_equal(self, a: __m256d, b: __m256d) -> __m256d {
+            // SAFETY: AVX2.
+            unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn abs(self, a: __m256d) -> __m256d {
+            // SAFETY: AVX2. The sign bit cleared.
+            unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), a) }
+        }
+        #[inline(always)]
         fn mask(self, bits: u32) -> __m256d {
             // SAFETY: AVX2. Lane k tests bit k.
             unsafe {
@@ -916,6 +948,16 @@ mod x86 {
         fn less(self, a: __m256, b: __m256) -> __m256 {
             // SAFETY: AVX2.
             unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn less_equal(self, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: AVX2.
+            unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn abs(self, a: __m256) -> __m256 {
+            // SAFETY: AVX2. The sign bit cleared.
+            unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), a) }
         }
         #[inline(always)]
         fn mask(self, bits: u32) -> __m256 {
@@ -1001,6 +1043,16 @@ mod x86 {
             unsafe { _mm512_cmp_pd_mask::<_CMP_LT_OQ>(a, b) }
         }
         #[inline(always)]
+        fn less_equal(self, a: __m512d, b: __m512d) -> __mmask8 {
+            // SAFETY: AVX-512F.
+            unsafe { _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn abs(self, a: __m512d) -> __m512d {
+            // SAFETY: AVX-512F. The sign bit cleared.
+            unsafe { _mm512_abs_pd(a) }
+        }
+        #[inline(always)]
         fn mask(self, bits: u32) -> __mmask8 {
             bits as __mmask8
         }
@@ -1076,6 +1128,16 @@ mod x86 {
         fn less(self, a: __m512, b: __m512) -> __mmask16 {
             // SAFETY: AVX-512F.
             unsafe { _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn less_equal(self, a: __m512, b: __m512) -> __mmask16 {
+            // SAFETY: AVX-512F.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn abs(self, a: __m512) -> __m512 {
+            // SAFETY: AVX-512F. The sign bit cleared.
+            unsafe { _mm512_abs_ps(a) }
         }
         #[inline(always)]
         fn mask(self, bits: u32) -> __mmask16 {

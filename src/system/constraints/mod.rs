@@ -22,8 +22,8 @@
 //! sweep that has not converged in `max_iterations` sweeps is a [`ConstraintFailure`].
 //!
 //! **Cost.** SETTLE: ~200 flops per water, its constants computed once
-//! ([`settle::Settle`]), eight waters at a time in SIMD lanes (the same bits as one at a
-//! time). SHAKE/RATTLE: `O(iterations × constraints)`;
+//! ([`settle::Settle`]), a register of SIMD lanes of waters at a time (8 with AVX-512; the
+//! same bits as one at a time, on every instruction set). SHAKE/RATTLE: `O(iterations × constraints)`;
 //! bonds to hydrogen are decoupled except around a heavy atom, a handful of sweeps.
 //! Nothing is allocated per call: the old bond vectors live in a buffer sized once. The
 //! loops run on one thread in a fixed order, so the bits do not depend on the thread

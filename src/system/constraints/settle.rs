@@ -24,44 +24,120 @@
 //! is a loop over these flat records with no allocation, the minimum image taken once per
 //! bond (the H–H vector is the difference of the two O–H ones).
 //!
-//! **Lanes.** A pass over all waters ([`positions_all`], [`velocities_all`]) takes
-//! [`LANES`] waters at a time: their coordinates are read into arrays, one branch-free
-//! step per water (the checks become a failure code, the minimum image a select) runs in a
-//! loop the compiler vectorises for the widest instruction set ([`Isa::best`]), and the
-//! displacements are written back once every lane has passed. Plain IEEE arithmetic in
-//! the order of the one-water functions and no fused multiply-add, so every lane and every
-//! instruction set gives the bits of [`positions`] one water at a time (the unit tests
-//! check it); a failing lane is reported with its water, as one at a time.
+//! **Lanes.** A pass over all waters ([`positions_all`], [`velocities_all`]) takes the
+//! waters a register of SIMD lanes at a time (8 with AVX-512, 4 with AVX2 or on the
+//! portable path; [`Isa::best`]): their coordinates and constants are gathered into lanes,
+//! one branch-free step runs in the crate's lane operations ([`Simd`], through the
+//! operators of [`L`]; the checks become bit masks, the minimum image
+//! [`near_image`]'s compare and select), and the changes are scattered back and added
+//! once every water of a block of [`LANES`] has passed. Plain IEEE arithmetic (add,
+//! subtract, multiply, divide, square root; no fused multiply-add) in the order of the
+//! formulas above, so every lane and every instruction set gives the same bits; one
+//! water alone ([`positions`]) is the pass on the portable path with one water, which the
+//! unit tests set against every lane of every set. A failing lane is reported with its
+//! water.
+
+use std::ops::{Add, Div, Mul, Sub};
 
 use super::{ConstraintFailure, PeriodicBox, RigidWater};
-use crate::forces::minimum_image;
+use crate::forces::near_image;
 use crate::forces::scratch::{Scratch, parallel};
-use crate::forces::simd::Isa;
+use crate::forces::simd::{Isa, Simd, simd_dispatch};
 
 type V3 = [f64; 3];
 
+/// A register of SIMD lanes (one water each) with the lanes' IEEE operations as operators,
+/// so that a formula reads, and rounds, as it does for one water.
+struct L<S: Simd<R = f64>> {
+    s: S,
+    v: S::V,
+}
+
+impl<S: Simd<R = f64>> Clone for L<S> {
+    #[inline(always)]
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<S: Simd<R = f64>> Copy for L<S> {}
+
+impl<S: Simd<R = f64>> L<S> {
+    /// `x` in every lane.
+    #[inline(always)]
+    fn splat(s: S, x: f64) -> Self {
+        L { s, v: s.splat(x) }
+    }
+    #[inline(always)]
+    fn with(self, v: S::V) -> Self {
+        L { s: self.s, v }
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        self.with(self.s.sqrt(self.v))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        self.with(self.s.abs(self.v))
+    }
+    /// `−self`, exactly (a multiplication by −1).
+    #[inline(always)]
+    fn neg(self) -> Self {
+        self * L::splat(self.s, -1.0)
+    }
+    /// Bit `l` set where lane `l` of `self < b` (false at NaN).
+    #[inline(always)]
+    fn below(self, b: Self) -> u32 {
+        self.s.bits(self.s.less(self.v, b.v))
+    }
+    /// Bit `l` set where lane `l` of `self ≤ b` (false at NaN).
+    #[inline(always)]
+    fn at_most(self, b: Self) -> u32 {
+        self.s.bits(self.s.less_equal(self.v, b.v))
+    }
+}
+
+/// The operators of [`L`]: one lane operation each.
+macro_rules! lane_operator {
+    ($($trait:ident $method:ident),*) => {$(
+        impl<S: Simd<R = f64>> $trait for L<S> {
+            type Output = Self;
+            #[inline(always)]
+            fn $method(self, b: Self) -> Self {
+                self.with(self.s.$method(self.v, b.v))
+            }
+        }
+    )*};
+}
+lane_operator!(Add add, Sub sub, Mul mul, Div div);
+
+/// Arithmetic of one water's numbers: `f64`, or [`L`]'s lanes.
+trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {}
+impl Arith for f64 {}
+impl<S: Simd<R = f64>> Arith for L<S> {}
+
 #[inline(always)]
-fn sub(a: V3, b: V3) -> V3 {
+fn sub<T: Arith>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
 #[inline(always)]
-fn add(a: V3, b: V3) -> V3 {
+fn add<T: Arith>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
 #[inline(always)]
-fn scale(a: V3, s: f64) -> V3 {
+fn scale<T: Arith>(a: [T; 3], s: T) -> [T; 3] {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 
 #[inline(always)]
-fn dot(a: V3, b: V3) -> f64 {
+fn dot<T: Arith>(a: [T; 3], b: [T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 #[inline(always)]
-fn cross(a: V3, b: V3) -> V3 {
+fn cross<T: Arith>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -69,10 +145,10 @@ fn cross(a: V3, b: V3) -> V3 {
     ]
 }
 
+/// `−a`, exactly (a multiplication by −1 in each lane).
 #[inline(always)]
-fn at(q: &[f64], i: usize) -> V3 {
-    let x = &q[3 * i..3 * i + 3];
-    [x[0], x[1], x[2]]
+fn neg<S: Simd<R = f64>>(a: [L<S>; 3]) -> [L<S>; 3] {
+    [a[0].neg(), a[1].neg(), a[2].neg()]
 }
 
 #[inline(always)]
@@ -141,8 +217,9 @@ impl Settle {
     }
 }
 
-/// Lanes of a SETTLE pass: waters handled together, one per lane of a loop the compiler
-/// vectorises (8 doubles: one AVX-512 register, two AVX2 ones).
+/// Waters per block of a SETTLE pass: a failing water leaves its block unapplied
+/// ([`apply_changes`]). A multiple of every lane width (8 doubles: one AVX-512 register,
+/// two AVX2 ones or two of the portable path).
 const LANES: usize = 8;
 
 /// Why a water could not be SETTLE'd (0: it could).
@@ -159,86 +236,292 @@ pub(super) type Change = ([V3; 3], u8);
 
 const NO_CHANGE: Change = ([[0.0; 3]; 3], OK);
 
-/// The minimum image of a difference `d` along a box edge `length`: [`PeriodicBox::wrap`]'s
-/// arithmetic with its branch as a select (both sides computed), so a lane loop vectorises.
+/// Three atoms' coordinates in lanes: `[atom][axis]`.
+type Atoms<S> = [[L<S>; 3]; 3];
+
+// The lane code below calls no closure and no generic helper of `core` that takes one
+// (`array::from_fn`, `map`): those are compiled apart from the instruction set's
+// `target_feature` copy when not inlined, and each lane operation then becomes a call.
+// Its loops are counted loops over fixed arrays, indexed.
+
+/// The registers of `lanes` (component `c` of lane `l` at `[c][l]`).
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn wrap(d: f64, length: f64) -> f64 {
-    let far = minimum_image(d, length);
-    if d.abs() < 0.5 * length { d } else { far }
+fn load<S: Simd<R = f64>, const N: usize>(s: S, lanes: &[[f64; 16]; N]) -> [L<S>; N] {
+    let mut v = [L::splat(s, 0.0); N];
+    for c in 0..N {
+        v[c] = L {
+            s,
+            v: s.load(&lanes[c]),
+        };
+    }
+    v
 }
 
-/// `a − b` (three atoms' coordinates `x`, atoms `a` and `b`), the minimum image when
-/// `PERIODIC` (box edges `lengths`).
+/// Lane `l`'s water of `group` (at most `S::WIDTH` waters): lanes past it repeat its last.
 #[inline(always)]
-fn image_of<const PERIODIC: bool>(lengths: V3, a: V3, b: V3) -> V3 {
+fn lane_water(group: &[Settle], l: usize) -> &Settle {
+    &group[l.min(group.len() - 1)]
+}
+
+/// A group's three atoms (oxygen, hydrogen 1, hydrogen 2) in `q`, as lanes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn gather_atoms<S: Simd<R = f64>>(s: S, group: &[Settle], q: &[f64]) -> Atoms<S> {
+    let mut lanes = [[0.0; 16]; 9];
+    for l in 0..S::WIDTH {
+        let w = lane_water(group, l);
+        let atoms = [w.oxygen, w.hydrogens[0], w.hydrogens[1]];
+        for a in 0..3 {
+            let x = &q[3 * atoms[a]..3 * atoms[a] + 3];
+            lanes[3 * a][l] = x[0];
+            lanes[3 * a + 1][l] = x[1];
+            lanes[3 * a + 2][l] = x[2];
+        }
+    }
+    let v = load(s, &lanes);
+    [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]]
+}
+
+/// A group's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` (position step) and `[w_O, w_H]` (velocity
+/// step), as lanes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn gather_constants<S: Simd<R = f64>>(s: S, group: &[Settle]) -> ([L<S>; 4], [L<S>; 2]) {
+    let mut lanes = [[0.0; 16]; 6];
+    for l in 0..S::WIDTH {
+        let w = lane_water(group, l);
+        let values = [w.h_share, w.ra, w.rb, w.rc, w.w_o, w.w_h];
+        for c in 0..6 {
+            lanes[c][l] = values[c];
+        }
+    }
+    let v = load(s, &lanes);
+    ([v[0], v[1], v[2], v[3]], [v[4], v[5]])
+}
+
+/// The changes `atoms` of a group's lanes and their failure codes `codes` into `out` (one
+/// per water of the group).
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn scatter<S: Simd<R = f64>>(atoms: Atoms<S>, codes: &[u8; 16], out: &mut [Change]) {
+    let mut lanes = [[[0.0; 16]; 3]; 3];
+    for a in 0..3 {
+        for k in 0..3 {
+            let x = atoms[a][k];
+            x.s.store(x.v, &mut lanes[a][k]);
+        }
+    }
+    for l in 0..out.len() {
+        let mut change = [[0.0; 3]; 3];
+        for a in 0..3 {
+            for k in 0..3 {
+                change[a][k] = lanes[a][k][l];
+            }
+        }
+        out[l] = (change, codes[l]);
+    }
+}
+
+/// The lanes of the box edges `lengths`.
+#[inline(always)]
+fn edges<S: Simd<R = f64>>(s: S, pbc: Option<&PeriodicBox>) -> [L<S>; 3] {
+    let lengths = match pbc {
+        Some(b) => b.lengths,
+        None => [0.0; 3],
+    };
+    [
+        L::splat(s, lengths[0]),
+        L::splat(s, lengths[1]),
+        L::splat(s, lengths[2]),
+    ]
+}
+
+/// `a − b` in lanes, the minimum image ([`near_image`]: a water spans less than half a
+/// box) when `PERIODIC` (box edges `lengths`).
+#[inline(always)]
+fn image_of<S: Simd<R = f64>, const PERIODIC: bool>(
+    lengths: [L<S>; 3],
+    a: [L<S>; 3],
+    b: [L<S>; 3],
+) -> [L<S>; 3] {
     let r = sub(a, b);
     if PERIODIC {
+        let s = r[0].s;
         [
-            wrap(r[0], lengths[0]),
-            wrap(r[1], lengths[1]),
-            wrap(r[2], lengths[2]),
+            r[0].with(near_image(s, r[0].v, lengths[0].v)),
+            r[1].with(near_image(s, r[1].v, lengths[1].v)),
+            r[2].with(near_image(s, r[2].v, lengths[2].v)),
         ]
     } else {
         r
     }
 }
 
-/// One water's coordinates (oxygen, hydrogen 1, hydrogen 2) read from `q`.
-#[inline(always)]
-fn three(water: &Settle, q: &[f64]) -> [V3; 3] {
-    let [h1, h2] = water.hydrogens;
-    [at(q, water.oxygen), at(q, h1), at(q, h2)]
+/// The failures of a group's position step, bit `l` for lane `l`.
+#[derive(Clone, Copy)]
+struct PositionFailures {
+    not_planar: u32,
+    oxygen_out: u32,
+    hydrogens_out: u32,
+    not_turned: u32,
 }
 
-/// The position step of one water (module doc), branch-free: the displacements `Δq` of
-/// its three atoms for old positions `old` and drifted ones `new`, and a failure code
-/// ([`OK`] or the first check that failed; the displacements are then meaningless).
-/// ~200 flops, 7 square roots, 6 divisions.
+impl PositionFailures {
+    /// Each lane's code: the first check that failed, in the order of the step.
+    #[inline(always)]
+    fn codes(self) -> [u8; 16] {
+        let mut codes = [OK; 16];
+        for (l, code) in codes.iter_mut().enumerate() {
+            *code = if self.not_planar >> l & 1 == 1 {
+                COLLINEAR
+            } else if self.oxygen_out >> l & 1 == 1 {
+                OXYGEN_OUT
+            } else if self.hydrogens_out >> l & 1 == 1 {
+                HYDROGENS_OUT
+            } else if self.not_turned >> l & 1 == 1 {
+                TURNED
+            } else {
+                OK
+            };
+        }
+        codes
+    }
+}
+
+/// The position step (module doc) of a group's lanes, branch-free: the displacements `Δq`
+/// of the three atoms for old positions `old` and drifted ones `new`, and the failures
+/// (a failing lane's displacements are meaningless). `shape` holds the lanes'
+/// `[m_H/(m_O + 2m_H), r_a, r_b, r_c]`. ~200 flops, 7 square roots, 6 divisions per lane.
 #[inline(always)]
-fn position_step<const PERIODIC: bool>(
-    water: &Settle,
-    lengths: V3,
-    old: [V3; 3],
-    new: [V3; 3],
-) -> ([V3; 3], u8) {
+fn position_step<S: Simd<R = f64>, const PERIODIC: bool>(
+    shape: [L<S>; 4],
+    lengths: [L<S>; 3],
+    old: Atoms<S>,
+    new: Atoms<S>,
+) -> (Atoms<S>, PositionFailures) {
+    let [h_share, ..] = shape;
+    let (zero, one) = (L::splat(h_share.s, 0.0), L::splat(h_share.s, 1.0));
     // Old bond vectors, and the new positions relative to the new oxygen (unwrapped).
-    let b0 = image_of::<PERIODIC>(lengths, old[1], old[0]);
-    let c0 = image_of::<PERIODIC>(lengths, old[2], old[0]);
-    let b1 = image_of::<PERIODIC>(lengths, new[1], new[0]);
-    let c1 = image_of::<PERIODIC>(lengths, new[2], new[0]);
+    let b0 = image_of::<S, PERIODIC>(lengths, old[1], old[0]);
+    let c0 = image_of::<S, PERIODIC>(lengths, old[2], old[0]);
+    let b1 = image_of::<S, PERIODIC>(lengths, new[1], new[0]);
+    let c1 = image_of::<S, PERIODIC>(lengths, new[2], new[0]);
     // Relative to the new centre of mass.
-    let com = scale(add(b1, c1), water.h_share);
-    let (a1, b1, c1) = (scale(com, -1.0), sub(b1, com), sub(c1, com));
+    let com = scale(add(b1, c1), h_share);
+    let a1 = [com[0].neg(), com[1].neg(), com[2].neg()];
+    let (b1, c1) = (sub(b1, com), sub(c1, com));
     // The frame: z normal to the old plane, x ⟂ (a1, z), y = z × x.
     let z = cross(b0, c0);
     let x = cross(a1, z);
     let y = cross(z, x);
     let (nx, ny, nz) = (dot(x, x).sqrt(), dot(y, y).sqrt(), dot(z, z).sqrt());
-    let planar = nx > 0.0 && ny > 0.0 && nz > 0.0;
-    let (x, y, z) = (scale(x, 1.0 / nx), scale(y, 1.0 / ny), scale(z, 1.0 / nz));
-    let frame = |v: V3| [dot(v, x), dot(v, y), dot(v, z)];
-    let (b0, c0) = (frame(b0), frame(c0));
-    let (a1, b1, c1) = (frame(a1), frame(b1), frame(c1));
-    let ([a2, b2, c2], tilt) = tilted_triangle(water, [a1[2], b1[2], c1[2]]);
-    let (sin_theta, cos_theta, turn) = in_plane_turn([b0, c0], [b1, c1], [b2, c2]);
+    let planar = zero.below(nx) & zero.below(ny) & zero.below(nz);
+    let (x, y, z) = (scale(x, one / nx), scale(y, one / ny), scale(z, one / nz));
+    let frame = [x, y, z];
+    let (b0, c0) = (in_frame(b0, frame), in_frame(c0, frame));
+    let (a1, b1, c1) = (
+        in_frame(a1, frame),
+        in_frame(b1, frame),
+        in_frame(c1, frame),
+    );
+    let ([a2, b2, c2], [oxygen_out, hydrogens_out]) = tilted_triangle(shape, [a1[2], b1[2], c1[2]]);
+    let (sin_theta, cos_theta, turned) = in_plane_turn([b0, c0], [b1, c1], [b2, c2]);
     // Displacements of the three atoms (turned in the plane, back in the lab frame).
-    let moved = |now: V3, moved: V3| {
-        let turned = [
-            moved[0] * cos_theta - moved[1] * sin_theta,
-            moved[0] * sin_theta + moved[1] * cos_theta,
-            moved[2],
-        ];
-        let d = sub(turned, now);
-        add(add(scale(x, d[0]), scale(y, d[1])), scale(z, d[2]))
+    let turn = [cos_theta, sin_theta];
+    let moved = [
+        displacement(a1, a2, turn, frame),
+        displacement(b1, b2, turn, frame),
+        displacement(c1, c2, turn, frame),
+    ];
+    let all = (1u32 << S::WIDTH) - 1;
+    let failures = PositionFailures {
+        not_planar: !planar & all,
+        oxygen_out,
+        hydrogens_out,
+        not_turned: !turned & all,
     };
-    let code = if !planar {
-        COLLINEAR
-    } else if tilt != OK {
-        tilt
-    } else {
-        turn
-    };
-    ([moved(a1, a2), moved(b1, b2), moved(c1, c2)], code)
+    (moved, failures)
+}
+
+/// `v` in the frame of the orthonormal axes `[x, y, z]`.
+#[inline(always)]
+fn in_frame<S: Simd<R = f64>>(v: [L<S>; 3], [x, y, z]: [[L<S>; 3]; 3]) -> [L<S>; 3] {
+    [dot(v, x), dot(v, y), dot(v, z)]
+}
+
+/// The displacement, in the lab frame, of an atom at `now` (in the frame `[x, y, z]`) to
+/// `moved` turned in the plane by `[cos θ, sin θ]`.
+#[inline(always)]
+fn displacement<S: Simd<R = f64>>(
+    now: [L<S>; 3],
+    moved: [L<S>; 3],
+    [cos_theta, sin_theta]: [L<S>; 2],
+    [x, y, z]: [[L<S>; 3]; 3],
+) -> [L<S>; 3] {
+    let turned = [
+        moved[0] * cos_theta - moved[1] * sin_theta,
+        moved[0] * sin_theta + moved[1] * cos_theta,
+        moved[2],
+    ];
+    let d = sub(turned, now);
+    add(add(scale(x, d[0]), scale(y, d[1])), scale(z, d[2]))
+}
+
+/// The canonical triangle (oxygen at `(0, r_a, 0)`, hydrogens at `(∓r_c, −r_b, 0)` about the
+/// centre of mass; `shape` as [`position_step`]'s) tilted by φ about x and ψ about y so that
+/// its out-of-plane coordinates are `z = [z_O, z_H₁, z_H₂]` (MK92 (A1)–(A3)), and the lanes
+/// where it cannot be: `|sin φ| ≥ 1` (the oxygen out of reach), `|sin ψ| ≥ 1` (the
+/// hydrogens).
+#[inline(always)]
+fn tilted_triangle<S: Simd<R = f64>>(
+    [_, ra, rb, rc]: [L<S>; 4],
+    z: [L<S>; 3],
+) -> (Atoms<S>, [u32; 2]) {
+    let s = ra.s;
+    let (zero, one, two) = (L::splat(s, 0.0), L::splat(s, 1.0), L::splat(s, 2.0));
+    let sin_phi = z[0] / ra;
+    let cos_phi = (one - sin_phi * sin_phi).sqrt();
+    let sin_psi = (z[1] - z[2]) / (two * rc * cos_phi);
+    let cos_psi = (one - sin_psi * sin_psi).sqrt();
+    let out = [one.at_most(sin_phi.abs()), one.at_most(sin_psi.abs())];
+    let (minus_rb, minus_rc) = (rb.neg(), rc.neg());
+    let triangle = [
+        [zero, ra * cos_phi, ra * sin_phi],
+        [
+            minus_rc * cos_psi,
+            minus_rb * cos_phi - rc * sin_psi * sin_phi,
+            minus_rb * sin_phi + rc * sin_psi * cos_phi,
+        ],
+        [
+            rc * cos_psi,
+            minus_rb * cos_phi + rc * sin_psi * sin_phi,
+            minus_rb * sin_phi - rc * sin_psi * cos_phi,
+        ],
+    ];
+    (triangle, out)
+}
+
+/// `(sin θ, cos θ)` of the in-plane turn: zero torque of the in-plane constraint
+/// displacements about the old positions, `α sin θ + β cos θ = γ` (MK92 (A8)–(A10)), the
+/// root near `θ = 0`, and the lanes where there is one (the others fail as [`TURNED`]).
+/// `old` are the old hydrogens relative to the old oxygen, `new` the new ones and `tilted`
+/// the tilted triangle's, relative to the new centre of mass.
+#[inline(always)]
+fn in_plane_turn<S: Simd<R = f64>>(
+    [b0, c0]: [[L<S>; 3]; 2],
+    [b1, c1]: [[L<S>; 3]; 2],
+    [b2, c2]: [[L<S>; 3]; 2],
+) -> (L<S>, L<S>, u32) {
+    let (zero, one) = (L::splat(b0[0].s, 0.0), L::splat(b0[0].s, 1.0));
+    let alpha = b2[0] * (b0[0] - c0[0]) + b0[1] * b2[1] + c0[1] * c2[1];
+    let beta = b2[0] * (c0[1] - b0[1]) + b0[0] * b2[1] + c0[0] * c2[1];
+    let gamma = b0[0] * b1[1] - b1[0] * b0[1] + c0[0] * c1[1] - c1[0] * c0[1];
+    let norm2 = alpha * alpha + beta * beta;
+    let discriminant = norm2 - gamma * gamma;
+    let turned = zero.at_most(discriminant) & zero.below(norm2);
+    let sin_theta = (alpha * gamma - beta * discriminant.sqrt()) / norm2;
+    (sin_theta, (one - sin_theta * sin_theta).sqrt(), turned)
 }
 
 /// `Δq` added to one water's positions in `q_new`, and `m Δq / dt` to its momenta.
@@ -253,7 +536,7 @@ fn apply_positions(water: &Settle, delta: [V3; 3], inverse_dt: f64, q: &mut [f64
 }
 
 /// SETTLE one water's positions (`q_old` rigid, `q_new` after a drift of `dt`) and its
-/// momenta.
+/// momenta: the lane pass on the portable path with this water alone.
 pub(super) fn positions(
     water: &Settle,
     pbc: Option<&PeriodicBox>,
@@ -262,22 +545,14 @@ pub(super) fn positions(
     p: &mut [f64],
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
-    let (old, new) = (three(water, q_old), three(water, q_new));
-    let (delta, code) = match pbc {
-        Some(b) => position_step::<true>(water, b.lengths, old, new),
-        None => position_step::<false>(water, [0.0; 3], old, new),
-    };
-    if code != OK {
-        return Err(failure(water, code));
-    }
-    apply_positions(water, delta, 1.0 / dt, q_new, p);
-    Ok(())
+    let one = std::slice::from_ref(water);
+    positions_on(Isa::Portable, one, pbc, q_old, q_new, p, dt)
 }
 
 /// SETTLE every water's positions and momenta ([`positions`] for each, the same bits):
-/// [`LANES`] waters at a time through a lane loop compiled for the widest instruction set
+/// a group of waters at a time in the SIMD lanes of the widest instruction set
 /// ([`Isa::best`]; plain IEEE arithmetic, no fused multiply-add, so every set gives the
-/// same bits), the rest one by one. From [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on, in a pool
+/// same bits). From [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on, in a pool
 /// of several threads, the changes of fixed blocks of waters are computed in parallel into
 /// `scratch` and added on this thread in water order: each water's arithmetic is its own
 /// (no two waters share an atom), so the same bits at any thread count. Allocates nothing.
@@ -294,17 +569,9 @@ pub(super) fn positions_all(
     if !parallel(waters.len()) {
         return positions_on(isa, waters, pbc, q_old, q_new, p, dt);
     }
-    let lengths = pbc.map_or([0.0; 3], |b| b.lengths);
     let changes = scratch.computed(waters.len(), |first, out| {
-        let waters = &waters[first..first + out.len()];
-        let q_new = &*q_new;
-        isa.run(
-            #[inline(always)]
-            || match pbc {
-                Some(_) => position_changes::<true>(waters, lengths, q_old, q_new, out),
-                None => position_changes::<false>(waters, lengths, q_old, q_new, out),
-            },
-        )
+        let (waters, q_new) = (&waters[first..first + out.len()], &*q_new);
+        position_changes_on(isa, waters, pbc, q_old, q_new, out)
     });
     let inverse_dt = 1.0 / dt;
     apply_changes(waters, &changes[..waters.len()], |water, delta| {
@@ -312,31 +579,36 @@ pub(super) fn positions_all(
     })
 }
 
-/// [`positions_all`] on the instruction set `isa` (available on this processor), on this
-/// thread.
-fn positions_on(
-    isa: Isa,
-    waters: &[Settle],
-    pbc: Option<&PeriodicBox>,
-    q_old: &[f64],
-    q_new: &mut [f64],
-    p: &mut [f64],
-    dt: f64,
-) -> Result<(), ConstraintFailure> {
-    isa.run(
-        #[inline(always)]
-        || match pbc {
-            Some(b) => positions_lanes::<true>(waters, b.lengths, q_old, q_new, p, dt),
-            None => positions_lanes::<false>(waters, [0.0; 3], q_old, q_new, p, dt),
-        },
-    )
+simd_dispatch! {
+    /// [`positions_all`] on the instruction set `isa` (available on this processor), on
+    /// this thread.
+    fn positions_on[][](
+        waters: &[Settle],
+        pbc: Option<&PeriodicBox>,
+        q_old: &[f64],
+        q_new: &mut [f64],
+        p: &mut [f64],
+        dt: f64,
+    ) -> Result<(), ConstraintFailure> = positions_lanes, lanes f64;
+}
+
+simd_dispatch! {
+    /// [`position_changes`] on the instruction set `isa` (available on this processor).
+    fn position_changes_on[][](
+        waters: &[Settle],
+        pbc: Option<&PeriodicBox>,
+        q_old: &[f64],
+        q_new: &[f64],
+        out: &mut [Change],
+    ) = position_changes, lanes f64;
 }
 
 /// The position pass on this thread: [`LANES`] waters' changes at a time, then added.
 #[inline(always)]
-fn positions_lanes<const PERIODIC: bool>(
+fn positions_lanes<S: Simd<R = f64>>(
+    s: S,
     waters: &[Settle],
-    lengths: V3,
+    pbc: Option<&PeriodicBox>,
     q_old: &[f64],
     q_new: &mut [f64],
     p: &mut [f64],
@@ -346,7 +618,7 @@ fn positions_lanes<const PERIODIC: bool>(
     for chunk in waters.chunks(LANES) {
         let mut changes = [NO_CHANGE; LANES];
         let changes = &mut changes[..chunk.len()];
-        position_changes::<PERIODIC>(chunk, lengths, q_old, q_new, changes);
+        position_changes(s, chunk, pbc, q_old, q_new, changes);
         apply_changes(chunk, changes, |water, delta| {
             apply_positions(water, delta, inverse_dt, q_new, p)
         })?;
@@ -354,31 +626,27 @@ fn positions_lanes<const PERIODIC: bool>(
     Ok(())
 }
 
-/// The position step ([`position_step`]) of every water of `waters` into `out`: [`LANES`]
-/// at a time, their coordinates read into arrays first so that the lane loop vectorises,
-/// the rest one by one.
-// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
-#[allow(clippy::needless_range_loop)]
+/// The position step ([`position_step`]) of every water of `waters` into `out`,
+/// `S::WIDTH` at a time: their coordinates and constants gathered into lanes, the step,
+/// the changes scattered back.
 #[inline(always)]
-fn position_changes<const PERIODIC: bool>(
+fn position_changes<S: Simd<R = f64>>(
+    s: S,
     waters: &[Settle],
-    lengths: V3,
+    pbc: Option<&PeriodicBox>,
     q_old: &[f64],
     q_new: &[f64],
     out: &mut [Change],
 ) {
-    let mut chunks = waters.chunks_exact(LANES);
-    let mut outs = out.chunks_exact_mut(LANES);
-    for (chunk, out) in (&mut chunks).zip(&mut outs) {
-        let old: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_old));
-        let new: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q_new));
-        for l in 0..LANES {
-            out[l] = position_step::<PERIODIC>(&chunk[l], lengths, old[l], new[l]);
-        }
-    }
-    for (water, out) in chunks.remainder().iter().zip(outs.into_remainder()) {
-        let (old, new) = (three(water, q_old), three(water, q_new));
-        *out = position_step::<PERIODIC>(water, lengths, old, new);
+    let lengths = edges(s, pbc);
+    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
+        let (shape, _) = gather_constants(s, group);
+        let (old, new) = (gather_atoms(s, group, q_old), gather_atoms(s, group, q_new));
+        let (delta, failures) = match pbc {
+            Some(_) => position_step::<S, true>(shape, lengths, old, new),
+            None => position_step::<S, false>(shape, lengths, old, new),
+        };
+        scatter(delta, &failures.codes(), out);
     }
 }
 
@@ -402,73 +670,21 @@ fn apply_changes(
     }
 }
 
-/// The canonical triangle (oxygen at `(0, r_a, 0)`, hydrogens at `(∓r_c, −r_b, 0)` about the
-/// centre of mass) tilted by φ about x and ψ about y so that its out-of-plane coordinates
-/// are `z = [z_O, z_H₁, z_H₂]` (MK92 (A1)–(A3)), and [`OK`] or why it cannot be.
+/// The velocity step of a group's lanes at rigid positions `q` (oxygen, hydrogens) with
+/// momenta `p`, branch-free: the momentum changes of the three atoms, and the lanes whose
+/// constraints are singular (the others fail as [`SINGULAR`]). `w` holds the lanes' inverse
+/// masses `[w_O, w_H]`. ~100 flops and one division per lane.
 #[inline(always)]
-fn tilted_triangle(water: &Settle, z: [f64; 3]) -> ([V3; 3], u8) {
-    let (ra, rb, rc) = (water.ra, water.rb, water.rc);
-    let sin_phi = z[0] / ra;
-    let cos_phi = (1.0 - sin_phi * sin_phi).sqrt();
-    let sin_psi = (z[1] - z[2]) / (2.0 * rc * cos_phi);
-    let cos_psi = (1.0 - sin_psi * sin_psi).sqrt();
-    let code = if sin_phi.abs() >= 1.0 {
-        OXYGEN_OUT
-    } else if sin_psi.abs() >= 1.0 {
-        HYDROGENS_OUT
-    } else {
-        OK
-    };
-    let triangle = [
-        [0.0, ra * cos_phi, ra * sin_phi],
-        [
-            -rc * cos_psi,
-            -rb * cos_phi - rc * sin_psi * sin_phi,
-            -rb * sin_phi + rc * sin_psi * cos_phi,
-        ],
-        [
-            rc * cos_psi,
-            -rb * cos_phi + rc * sin_psi * sin_phi,
-            -rb * sin_phi - rc * sin_psi * cos_phi,
-        ],
-    ];
-    (triangle, code)
-}
-
-/// `(sin θ, cos θ)` of the in-plane turn: zero torque of the in-plane constraint
-/// displacements about the old positions, `α sin θ + β cos θ = γ` (MK92 (A8)–(A10)), the
-/// root near `θ = 0`, and [`OK`] or [`TURNED`] when there is none. `old` are the old
-/// hydrogens relative to the old oxygen, `new` the new ones and `tilted` the tilted
-/// triangle's, relative to the new centre of mass.
-#[inline(always)]
-fn in_plane_turn([b0, c0]: [V3; 2], [b1, c1]: [V3; 2], [b2, c2]: [V3; 2]) -> (f64, f64, u8) {
-    let alpha = b2[0] * (b0[0] - c0[0]) + b0[1] * b2[1] + c0[1] * c2[1];
-    let beta = b2[0] * (c0[1] - b0[1]) + b0[0] * b2[1] + c0[0] * c2[1];
-    let gamma = b0[0] * b1[1] - b1[0] * b0[1] + c0[0] * c1[1] - c1[0] * c0[1];
-    let norm2 = alpha * alpha + beta * beta;
-    let discriminant = norm2 - gamma * gamma;
-    let code = if discriminant >= 0.0 && norm2 > 0.0 {
-        OK
-    } else {
-        TURNED
-    };
-    let sin_theta = (alpha * gamma - beta * discriminant.sqrt()) / norm2;
-    (sin_theta, (1.0 - sin_theta * sin_theta).sqrt(), code)
-}
-
-/// The velocity step of one water at rigid positions `q` (oxygen, hydrogens) with momenta
-/// `p`, branch-free: the momentum changes of its three atoms, and [`OK`] or [`SINGULAR`].
-/// ~100 flops, one division.
-#[inline(always)]
-fn velocity_step<const PERIODIC: bool>(
-    water: &Settle,
-    lengths: V3,
-    q: [V3; 3],
-    p: [V3; 3],
-) -> ([V3; 3], u8) {
-    let (wa, wh) = (water.w_o, water.w_h);
-    let rab = image_of::<PERIODIC>(lengths, q[0], q[1]);
-    let rac = image_of::<PERIODIC>(lengths, q[0], q[2]);
+fn velocity_step<S: Simd<R = f64>, const PERIODIC: bool>(
+    [wa, wh]: [L<S>; 2],
+    lengths: [L<S>; 3],
+    q: Atoms<S>,
+    p: Atoms<S>,
+) -> (Atoms<S>, u32) {
+    let s = wa.s;
+    let (one, two) = (L::splat(s, 1.0), L::splat(s, 2.0));
+    let rab = image_of::<S, PERIODIC>(lengths, q[0], q[1]);
+    let rac = image_of::<S, PERIODIC>(lengths, q[0], q[2]);
     // q_H₁ − q_H₂ of the same (unwrapped) water.
     let rbc = sub(rac, rab);
     let (va, vb, vc) = (scale(p[0], wa), scale(p[1], wh), scale(p[2], wh));
@@ -477,17 +693,17 @@ fn velocity_step<const PERIODIC: bool>(
     let (m11, m12, m13) = (
         (wa + wh) * dot(rab, rab),
         wa * dot(rab, rac),
-        -wh * dot(rab, rbc),
+        wh.neg() * dot(rab, rbc),
     );
     let (m22, m23, m33) = (
         (wa + wh) * dot(rac, rac),
         wh * dot(rac, rbc),
-        2.0 * wh * dot(rbc, rbc),
+        two * wh * dot(rbc, rbc),
     );
     let rhs = [
-        -dot(rab, sub(va, vb)),
-        -dot(rac, sub(va, vc)),
-        -dot(rbc, sub(vb, vc)),
+        dot(rab, sub(va, vb)).neg(),
+        dot(rac, sub(va, vc)).neg(),
+        dot(rbc, sub(vb, vc)).neg(),
     ];
     let (c11, c12, c13) = (
         m22 * m33 - m23 * m23,
@@ -500,18 +716,21 @@ fn velocity_step<const PERIODIC: bool>(
         m11 * m22 - m12 * m12,
     );
     let det = m11 * c11 + m12 * c12 + m13 * c13;
-    // A collinear water makes M singular: det vanishes against the product of its diagonal.
-    let singular = det.abs() <= 1e-12 * (m11 * m22 * m33).abs() || !det.is_finite();
-    let inverse_det = 1.0 / det;
+    // A collinear water makes M singular: det vanishes against the product of its diagonal;
+    // a non-finite det (|det| < ∞ false) is singular too.
+    let tiny = L::splat(s, 1e-12) * (m11 * m22 * m33).abs();
+    let finite = det.abs().below(L::splat(s, f64::INFINITY));
+    let singular = det.abs().at_most(tiny) | !finite & ((1u32 << S::WIDTH) - 1);
+    let inverse_det = one / det;
     let l1 = (c11 * rhs[0] + c12 * rhs[1] + c13 * rhs[2]) * inverse_det;
     let l2 = (c12 * rhs[0] + c22 * rhs[1] + c23 * rhs[2]) * inverse_det;
     let l3 = (c13 * rhs[0] + c23 * rhs[1] + c33 * rhs[2]) * inverse_det;
     let dp = [
         add(scale(rab, l1), scale(rac, l2)),
         sub(scale(rbc, l3), scale(rab, l1)),
-        scale(add(scale(rac, l2), scale(rbc, l3)), -1.0),
+        neg(add(scale(rac, l2), scale(rbc, l3))),
     ];
-    (dp, if singular { SINGULAR } else { OK })
+    (dp, singular)
 }
 
 /// `Δp` added to one water's momenta.
@@ -524,7 +743,8 @@ fn apply_momenta(water: &Settle, dp: [V3; 3], p: &mut [f64]) {
 }
 
 /// Project one water's momenta at rigid positions `q` so no distance in it changes (the
-/// reference of [`velocities_all`]'s lanes in the tests).
+/// reference of [`velocities_all`]'s lanes in the tests): the lane pass on the portable
+/// path with this water alone.
 #[cfg(test)]
 fn velocities(
     water: &Settle,
@@ -532,20 +752,11 @@ fn velocities(
     q: &[f64],
     p: &mut [f64],
 ) -> Result<(), ConstraintFailure> {
-    let (qw, pw) = (three(water, q), three(water, p));
-    let (dp, code) = match pbc {
-        Some(b) => velocity_step::<true>(water, b.lengths, qw, pw),
-        None => velocity_step::<false>(water, [0.0; 3], qw, pw),
-    };
-    if code != OK {
-        return Err(failure(water, code));
-    }
-    apply_momenta(water, dp, p);
-    Ok(())
+    velocities_on(Isa::Portable, std::slice::from_ref(water), pbc, q, p)
 }
 
-/// Project every water's momenta ([`velocities`] for each, the same bits), [`LANES`] at a
-/// time and from [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on in parallel, as
+/// Project every water's momenta ([`velocities`] for each, the same bits), a group at a
+/// time in SIMD lanes and from [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on in parallel, as
 /// [`positions_all`]. Allocates nothing.
 pub(super) fn velocities_all(
     waters: &[Settle],
@@ -558,81 +769,81 @@ pub(super) fn velocities_all(
     if !parallel(waters.len()) {
         return velocities_on(isa, waters, pbc, q, p);
     }
-    let lengths = pbc.map_or([0.0; 3], |b| b.lengths);
     let changes = scratch.computed(waters.len(), |first, out| {
-        let waters = &waters[first..first + out.len()];
-        let p = &*p;
-        isa.run(
-            #[inline(always)]
-            || match pbc {
-                Some(_) => velocity_changes::<true>(waters, lengths, q, p, out),
-                None => velocity_changes::<false>(waters, lengths, q, p, out),
-            },
-        )
+        let (waters, p) = (&waters[first..first + out.len()], &*p);
+        velocity_changes_on(isa, waters, pbc, q, p, out)
     });
     apply_changes(waters, &changes[..waters.len()], |water, dp| {
         apply_momenta(water, dp, p)
     })
 }
 
-/// [`velocities_all`] on the instruction set `isa` (available on this processor), on this
-/// thread.
-fn velocities_on(
-    isa: Isa,
-    waters: &[Settle],
-    pbc: Option<&PeriodicBox>,
-    q: &[f64],
-    p: &mut [f64],
-) -> Result<(), ConstraintFailure> {
-    isa.run(
-        #[inline(always)]
-        || match pbc {
-            Some(b) => velocities_lanes::<true>(waters, b.lengths, q, p),
-            None => velocities_lanes::<false>(waters, [0.0; 3], q, p),
-        },
-    )
+simd_dispatch! {
+    /// [`velocities_all`] on the instruction set `isa` (available on this processor), on
+    /// this thread.
+    fn velocities_on[][](
+        waters: &[Settle],
+        pbc: Option<&PeriodicBox>,
+        q: &[f64],
+        p: &mut [f64],
+    ) -> Result<(), ConstraintFailure> = velocities_lanes, lanes f64;
+}
+
+simd_dispatch! {
+    /// [`velocity_changes`] on the instruction set `isa` (available on this processor).
+    fn velocity_changes_on[][](
+        waters: &[Settle],
+        pbc: Option<&PeriodicBox>,
+        q: &[f64],
+        p: &[f64],
+        out: &mut [Change],
+    ) = velocity_changes, lanes f64;
 }
 
 /// The velocity pass on this thread: [`LANES`] waters' changes at a time, then added.
 #[inline(always)]
-fn velocities_lanes<const PERIODIC: bool>(
+fn velocities_lanes<S: Simd<R = f64>>(
+    s: S,
     waters: &[Settle],
-    lengths: V3,
+    pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
 ) -> Result<(), ConstraintFailure> {
     for chunk in waters.chunks(LANES) {
         let mut changes = [NO_CHANGE; LANES];
         let changes = &mut changes[..chunk.len()];
-        velocity_changes::<PERIODIC>(chunk, lengths, q, p, changes);
+        velocity_changes(s, chunk, pbc, q, p, changes);
         apply_changes(chunk, changes, |water, dp| apply_momenta(water, dp, p))?;
     }
     Ok(())
 }
 
-/// The velocity step ([`velocity_step`]) of every water of `waters` into `out`, [`LANES`]
-/// at a time as [`position_changes`].
-// The lane loop indexes its fixed arrays by `l`: a counted loop the vectoriser takes.
-#[allow(clippy::needless_range_loop)]
+/// The velocity step ([`velocity_step`]) of every water of `waters` into `out`,
+/// `S::WIDTH` at a time as [`position_changes`].
 #[inline(always)]
-fn velocity_changes<const PERIODIC: bool>(
+fn velocity_changes<S: Simd<R = f64>>(
+    s: S,
     waters: &[Settle],
-    lengths: V3,
+    pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &[f64],
     out: &mut [Change],
 ) {
-    let mut chunks = waters.chunks_exact(LANES);
-    let mut outs = out.chunks_exact_mut(LANES);
-    for (chunk, out) in (&mut chunks).zip(&mut outs) {
-        let qw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], q));
-        let pw: [[V3; 3]; LANES] = std::array::from_fn(|l| three(&chunk[l], p));
-        for l in 0..LANES {
-            out[l] = velocity_step::<PERIODIC>(&chunk[l], lengths, qw[l], pw[l]);
+    let lengths = edges(s, pbc);
+    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
+        let (_, masses) = gather_constants(s, group);
+        let (qw, pw) = (gather_atoms(s, group, q), gather_atoms(s, group, p));
+        let (dp, singular) = match pbc {
+            Some(_) => velocity_step::<S, true>(masses, lengths, qw, pw),
+            None => velocity_step::<S, false>(masses, lengths, qw, pw),
+        };
+        let mut codes = [OK; 16];
+        for (l, code) in codes.iter_mut().enumerate() {
+            if singular >> l & 1 == 1 {
+                *code = SINGULAR;
+            }
         }
-    }
-    for (water, out) in chunks.remainder().iter().zip(outs.into_remainder()) {
-        *out = velocity_step::<PERIODIC>(water, lengths, three(water, q), three(water, p));
+        scatter(dp, &codes, out);
     }
 }
 
