@@ -271,7 +271,9 @@ pub struct PairListSummary {
     pub builds: u64,
     /// Prunings, the one after each build included.
     pub prunes: u64,
-    pub cutoff: f64,
+    /// The cutoff; `None` where there is none (every pair is listed; JSON has no infinity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cutoff: Option<f64>,
     pub outer_buffer: f64,
     pub inner_buffer: f64,
     /// Atom pairs of the outer list and of the inner one at the end of the run.
@@ -289,9 +291,13 @@ impl PairListSummary {
                 significant(steps as f64 / count as f64, 3)
             }
         };
+        let cutoff = match self.cutoff {
+            Some(c) => format!("beyond the cutoff {}", units.length(c)),
+            None => "(no cutoff)".to_string(),
+        };
         format!(
             "pair list  {}: {} builds, {} prunes (one per {} / {} outer steps), buffers outer {} / \
-             inner {} beyond the cutoff {}, {} / {} atom pairs",
+             inner {} {cutoff}, {} / {} atom pairs",
             self.term,
             self.builds,
             self.prunes,
@@ -299,7 +305,6 @@ impl PairListSummary {
             every(self.prunes),
             units.length(self.outer_buffer),
             units.length(self.inner_buffer),
-            units.length(self.cutoff),
             self.outer_pairs,
             self.inner_pairs
         )

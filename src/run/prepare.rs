@@ -307,7 +307,7 @@ fn pair_lists(system: &System) -> Vec<PairListSummary> {
                 term: name,
                 builds: counts.builds,
                 prunes: counts.prunes,
-                cutoff: term.list_statistics().0,
+                cutoff: Some(term.list_statistics().0).filter(|c| c.is_finite()),
                 outer_buffer,
                 inner_buffer,
                 outer_pairs: counts.outer_pairs,
