@@ -441,6 +441,14 @@ fn trr_and_nc_frames_give_the_energies_of_the_xyz_they_hold() {
     ));
     assert_ne!(code, 0);
     assert!(stderr.contains("--frame-time"), "{stderr}");
+    // Every input is checked before any is read: with a reference that does not exist, the
+    // refusal is still the .nc's clock (the reference, read first, would fail otherwise).
+    let (code, _, stderr) = run_cli(&argv(
+        "analyze {} {} --skip 4fs --reference {} --no-configurational --json --quiet",
+        &[SCENE, nc.to_str().unwrap(), "no-such-reference-run"],
+    ));
+    assert_ne!(code, 0);
+    assert!(stderr.contains("--frame-time"), "{stderr}");
 }
 
 #[test]

@@ -289,18 +289,26 @@ impl<'a> Analyzer<'a> {
         frames.finish(self, energies, source)
     }
 
-    /// The blocks over the times of `input`'s frames from `skip` to `until` (a first pass
-    /// over the file that reads only the times).
-    fn frame_blocks(&self, input: &TrajectoryInput) -> Result<Blocks> {
-        let path = &input.path;
+    /// An error where `input`'s frames carry no time but `--skip` or `--until` needs one:
+    /// checked for every input before any is read, so that a long analysis does not stop
+    /// at its last file.
+    pub fn check_clock(&self, input: &TrajectoryInput) -> Result<()> {
         if !input.has_times() && (self.options.skip > 0.0 || self.options.until.is_some()) {
             return Err(Error::Structure {
-                path: path.clone(),
+                path: input.path.clone(),
                 message: "its frames carry no time (a .dcd's header time is unreliable, a .nc's \
                           is not read): give --frame-time to use --skip or --until"
                     .into(),
             });
         }
+        Ok(())
+    }
+
+    /// The blocks over the times of `input`'s frames from `skip` to `until` (a first pass
+    /// over the file that reads only the times).
+    fn frame_blocks(&self, input: &TrajectoryInput) -> Result<Blocks> {
+        let path = &input.path;
+        self.check_clock(input)?;
         let mut reader = TrajectoryReader::open(path)?;
         let mut q = Vec::new();
         let until = self.options.until.unwrap_or(f64::INFINITY);

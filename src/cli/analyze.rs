@@ -218,10 +218,12 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
     };
     let input = |path: &PathBuf| -> Result<RunInput> {
         let mut input = RunInput::of(path, &trajectory, &scene, frame_time)?;
-        if let RunInput::Directory(files) = &mut input
-            && args.dof.is_none()
-        {
-            files.dof = super::run_dof::run_dof(path, &args.scene, &args.source, &args.set)?;
+        match &mut input {
+            RunInput::Directory(files) if args.dof.is_none() => {
+                files.dof = super::run_dof::run_dof(path, &args.scene, &args.source, &args.set)?
+            }
+            RunInput::File(file) => analyzer.check_clock(file)?,
+            RunInput::Directory(_) => {}
         }
         Ok(input)
     };
