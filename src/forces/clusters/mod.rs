@@ -211,6 +211,8 @@ pub struct Chunk {
     pub window: (usize, usize),
     /// Search scratch: mask bits of the current i-cluster's excluded pairs, by j-cluster.
     excluded: Vec<u16>,
+    /// Atom pairs marked in `inner` (counted where it is pruned, in parallel).
+    inner_pairs: usize,
 }
 
 impl Chunk {
@@ -218,11 +220,15 @@ impl Chunk {
     /// builds so that they rarely allocate during a run.
     fn set_window(&mut self, n: usize) {
         let first = self.clusters.start;
+        // `(c_j − first) mod n` for `c_j, first < n`, without a division per pair.
         let far = self
             .outer
             .j
             .iter()
-            .map(|&cj| (cj as usize + n - first) % n.max(1))
+            .map(|&cj| {
+                let offset = cj as usize + n - first;
+                if offset >= n { offset - n } else { offset }
+            })
             .max()
             .map_or(0, |offset| offset + 1);
         self.window = (first, far.max(self.clusters.len()));
@@ -270,6 +276,8 @@ pub struct ClusterList {
     at_prune: Vec<f64>,
     /// Wrapped positions of the last update in cluster order, and charges.
     pub positions: Vec<Cluster<f64>>,
+    /// The coordinates of `positions` in f32 at the last build or pruning (their lanes).
+    lanes: Vec<Cluster<f32>>,
     pub chunks: Vec<Chunk>,
     built: bool,
     builds: u64,
@@ -310,6 +318,7 @@ impl ClusterList {
             at_build: vec![0.0; 3 * n],
             at_prune: vec![0.0; 3 * n],
             positions: Vec::new(),
+            lanes: Vec::new(),
             chunks: vec![Chunk::default(); chunk_count(n)],
             built: false,
             builds: 0,
@@ -374,7 +383,7 @@ impl ClusterList {
 
     /// Atom pairs the kernel computes (masked pairs of the inner list).
     pub fn inner_pairs(&self) -> usize {
-        self.chunks.iter().map(|c| c.inner.atom_pairs()).sum()
+        self.chunks.iter().map(|c| c.inner_pairs).sum()
     }
 
     /// Atom pairs of the outer list.
@@ -510,6 +519,7 @@ impl ClusterList {
         self.grid.build(&self.wrapped, &self.geometry);
         let most = self.max_clusters();
         reserve_total(&mut self.positions, most);
+        reserve_total(&mut self.lanes, most);
         for chunk in &mut self.chunks {
             reserve_total(&mut chunk.excluded, most);
         }
@@ -528,7 +538,8 @@ impl ClusterList {
             excluded: &self.excluded,
         };
         let isa = self.isa;
-        let work = prune::Reach::new(&self.positions, &self.geometry.shifts, reach);
+        prune::to_f32(&self.positions, &mut self.lanes);
+        let work = prune::Reach::new(&self.positions, &self.lanes, &self.geometry.shifts, reach);
         let run = |chunk: &mut Chunk| {
             search.chunk(chunk);
             prune::list(isa, &chunk.inner, &mut chunk.outer, work);
@@ -547,8 +558,12 @@ impl ClusterList {
     fn prune(&mut self) {
         let isa = self.isa;
         let reach = self.cutoff + self.inner_buffer;
-        let work = prune::Reach::new(&self.positions, &self.geometry.shifts, reach);
-        let run = |chunk: &mut Chunk| prune::list(isa, &chunk.outer, &mut chunk.inner, work);
+        prune::to_f32(&self.positions, &mut self.lanes);
+        let work = prune::Reach::new(&self.positions, &self.lanes, &self.geometry.shifts, reach);
+        let run = |chunk: &mut Chunk| {
+            prune::list(isa, &chunk.outer, &mut chunk.inner, work);
+            chunk.inner_pairs = chunk.inner.atom_pairs();
+        };
         if self.n >= PARALLEL_MIN_ATOMS {
             self.chunks.par_iter_mut().for_each(run);
         } else {

@@ -15,6 +15,7 @@ use crate::forces::simd::{Isa, Real, Simd, row_lanes, simd_dispatch};
 pub fn list(isa: Isa, from: &PairList, to: &mut PairList, work: Reach) {
     let Reach {
         positions,
+        lanes,
         shifts,
         reach,
         largest,
@@ -22,32 +23,56 @@ pub fn list(isa: Isa, from: &PairList, to: &mut PairList, work: Reach) {
     let work = Work {
         outer: from,
         positions,
+        lanes,
         shifts,
         reach2: f64::from(reach2_f32(reach, largest)),
     };
     prune_on(isa, &work, to)
 }
 
-/// What every chunk's [`list`] shares: the positions, image shifts, the reach and the
-/// largest coordinate, shift included ([`largest_coordinate`]).
+/// What every chunk's [`list`] shares: the positions (and the same rounded to f32 once,
+/// [`to_f32`]), image shifts, the reach and the largest coordinate, shift included
+/// ([`largest_coordinate`]).
 #[derive(Clone, Copy)]
 pub struct Reach<'a> {
     pub positions: &'a [Cluster<f64>],
+    pub lanes: &'a [Cluster<f32>],
     pub shifts: &'a [[f64; 3]; 27],
     pub reach: f64,
     pub largest: f64,
 }
 
 impl<'a> Reach<'a> {
-    /// The positions' size scanned once ([`largest_coordinate`]).
-    pub fn new(positions: &'a [Cluster<f64>], shifts: &'a [[f64; 3]; 27], reach: f64) -> Self {
+    /// The positions' size scanned once ([`largest_coordinate`]); `lanes` is
+    /// [`to_f32`] of `positions`.
+    pub fn new(
+        positions: &'a [Cluster<f64>],
+        lanes: &'a [Cluster<f32>],
+        shifts: &'a [[f64; 3]; 27],
+        reach: f64,
+    ) -> Self {
+        debug_assert_eq!(positions.len(), lanes.len());
         Reach {
             positions,
+            lanes,
             shifts,
             reach,
             largest: largest_coordinate(positions, shifts),
         }
     }
+}
+
+/// `lanes` = the coordinates of `positions` rounded to f32 (`x as f32`, as the lanes of
+/// [`prune`] would round each j-cluster at every pair it meets): once per build or
+/// pruning instead of once per cluster pair. Charges are not needed and left as they are.
+pub fn to_f32(positions: &[Cluster<f64>], lanes: &mut Vec<Cluster<f32>>) {
+    lanes.clear();
+    lanes.extend(positions.iter().map(|c| Cluster {
+        x: c.x.map(|v| v as f32),
+        y: c.y.map(|v| v as f32),
+        z: c.z.map(|v| v as f32),
+        q: [0.0; 4],
+    }));
 }
 
 /// The bound `x` of [`reach2_f32`]: the largest `|coordinate|` of `positions` (padding
@@ -90,9 +115,12 @@ pub fn reach2_f32(reach: f64, x: f64) -> f32 {
     (bound * (1.0 + 2f64.powi(-20))) as f32
 }
 
-struct Work<'a> {
+struct Work<'a, R> {
     outer: &'a PairList,
+    /// The i-clusters' rows are shifted in f64 and then rounded ([`row_lanes`]).
     positions: &'a [Cluster<f64>],
+    /// The j-clusters in the lanes' precision: `R::of` of `positions`.
+    lanes: &'a [Cluster<R>],
     shifts: &'a [[f64; 3]; 27],
     /// The squared reach the lanes compare with (exact in them: [`reach2_f32`] in f32).
     reach2: f64,
@@ -100,20 +128,19 @@ struct Work<'a> {
 
 simd_dispatch! {
     /// [`prune`] on the instruction set `isa`.
-    fn prune_on[][](work: &Work, inner: &mut PairList) = prune, lanes f32;
+    fn prune_on[][](work: &Work<f32>, inner: &mut PairList) = prune, lanes f32;
 }
 
 /// The prune in the lanes of `s` (f32 in a run; f64 too in the tests, as the reference).
 #[inline(always)]
-fn prune<S: Simd>(s: S, work: &Work, inner: &mut PairList) {
+fn prune<S: Simd>(s: S, work: &Work<S::R>, inner: &mut PairList) {
     let reach2 = s.splat(S::R::of(work.reach2));
     let outer = work.outer;
     // `to` is at most as long as `from`: write every pair and advance only past the kept
-    // ones (no branch on the test), then cut.
+    // ones (no branch on the test), then cut. Every slot below `outer`'s length is written
+    // before it is read, so the old contents may stay (no clearing pass).
     inner.entries.clear();
-    inner.j.clear();
     inner.j.resize(outer.j.len(), 0);
-    inner.masks.clear();
     inner.masks.resize(outer.masks.len(), 0);
     let mut kept = 0;
     for entry in &outer.entries {
@@ -130,9 +157,8 @@ fn prune<S: Simd>(s: S, work: &Work, inner: &mut PairList) {
         let start = kept;
         let range = entry.start as usize..entry.end as usize;
         for (&cj, &mask) in outer.j[range.clone()].iter().zip(&outer.masks[range]) {
-            let j = &work.positions[cj as usize];
-            let lanes = |v: &[f64; 4]| s.load4(&v.map(S::R::of));
-            let (xj, yj, zj) = (lanes(&j.x), lanes(&j.y), lanes(&j.z));
+            let j = &work.lanes[cj as usize];
+            let (xj, yj, zj) = (s.load4(&j.x), s.load4(&j.y), s.load4(&j.z));
             let mut hits = 0u32;
             for (g, row) in rows.iter().enumerate().take(16 / S::WIDTH) {
                 let dx = s.sub(row[0], xj);
@@ -159,7 +185,7 @@ fn prune<S: Simd>(s: S, work: &Work, inner: &mut PairList) {
 
 #[cfg(test)]
 mod tests {
-    use super::{Reach, Work, list, prune};
+    use super::{Reach, Work, list, prune, to_f32};
     use crate::forces::clusters::{ClusterList, PairList};
     use crate::forces::simd::{Isa, Portable};
     use std::collections::BTreeSet;
@@ -224,12 +250,15 @@ mod tests {
         clusters.update(&q);
         let shifts = &clusters.geometry.shifts;
         let positions = &clusters.positions;
+        let mut lanes = Vec::new();
+        to_f32(positions, &mut lanes);
         let (mut kept, mut extra) = (0, 0);
         for reach in [9.0, 9.5, 10.0, 10.5] {
             for chunk in &clusters.chunks {
                 let work = Work {
                     outer: &chunk.outer,
                     positions,
+                    lanes: positions,
                     shifts,
                     reach2: reach * reach,
                 };
@@ -249,7 +278,7 @@ mod tests {
                         isa,
                         &chunk.outer,
                         &mut to,
-                        Reach::new(positions, shifts, reach),
+                        Reach::new(positions, &lanes, shifts, reach),
                     );
                     let to = pairs(&to);
                     assert!(
