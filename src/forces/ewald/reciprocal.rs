@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use super::exclusions::Exclusions;
 use super::fft::{Fft3, FftScratch, Output};
 use super::float::MeshFloat;
-use super::spline::{self, Lanes, MAX_ORDER};
+use super::spline::{self, MAX_ORDER, Weights};
 use super::{EwaldParameters, background_energy, self_energy};
 use crate::forces::scratch::parallel;
 use crate::forces::simd::Isa;
@@ -62,68 +62,11 @@ const GATHER_BATCH: usize = 64;
 /// Parallel spreading tasks per thread (slabs of x-planes).
 const SLABS_PER_THREAD: usize = 2;
 
-/// The splines of [`PLACE_BATCH`] atoms on the three axes, lane `b` for atom `first + b`,
-/// as [`spline::weights_batch`] writes them (no transposing): per axis the grid point `i₀`
-/// of `k = 0` (the stencil's points are `i₀ − k mod K`) and the weights `M_n(w + k)`,
-/// `M_n′(w + k)` as `[k][b]`. For `f32` a row of lanes is one cache line, and rows past
-/// the order are never touched.
-#[derive(Clone, Copy)]
-struct StencilBatch<T> {
-    base: [[u32; PLACE_BATCH]; 3],
-    value: [Lanes<T, PLACE_BATCH>; 3],
-    first: [Lanes<T, PLACE_BATCH>; 3],
-}
-
-/// The splines' second derivatives `M_n″(w + k)` of a [`StencilBatch`] (only
-/// Hessian-vector products place them).
-type Curvature<T> = [Lanes<T, PLACE_BATCH>; 3];
-
-impl<T: MeshFloat> StencilBatch<T> {
-    fn new() -> Self {
-        let zero = [[[T::zero(); PLACE_BATCH]; MAX_ORDER]; 3];
-        StencilBatch {
-            base: [[0; PLACE_BATCH]; 3],
-            value: zero,
-            first: zero,
-        }
-    }
-}
-
-/// Atom `i`'s stencil: lane `i % B` of batch `i / B`.
-#[derive(Clone, Copy)]
-struct Stencil<'a, T> {
-    batch: &'a StencilBatch<T>,
-    lane: usize,
-}
-
-impl<'a, T: Copy> Stencil<'a, T> {
-    #[inline(always)]
-    fn of(stencils: &'a [StencilBatch<T>], i: usize) -> Self {
-        Stencil {
-            batch: &stencils[i / PLACE_BATCH],
-            lane: i % PLACE_BATCH,
-        }
-    }
-
-    /// `M_n(w_a + k)`.
-    #[inline(always)]
-    fn value(self, a: usize, k: usize) -> T {
-        self.batch.value[a][k][self.lane]
-    }
-
-    /// `M_n′(w_a + k)`.
-    #[inline(always)]
-    fn first(self, a: usize, k: usize) -> T {
-        self.batch.first[a][k][self.lane]
-    }
-
-    /// The grid index of point `k` on axis `a` of `size` points: `(i₀ − k) mod K` with
-    /// `i₀ < K` and `k < n ≤ K`, one wrap at most.
-    #[inline(always)]
-    fn index(self, a: usize, k: usize, size: usize) -> usize {
-        let index = self.batch.base[a][self.lane] as usize + size - k;
-        if index >= size { index - size } else { index }
-    }
+/// One atom's splines on the three axes: grid indices and weights.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stencil<T> {
+    index: [[u32; MAX_ORDER]; 3],
+    weights: [Weights<T>; 3],
 }
 
 /// The mesh in one float type: the FFT plans, `θ(m)` over the half spectrum (zero at
@@ -131,9 +74,7 @@ impl<'a, T: Copy> Stencil<'a, T> {
 struct Mesh<T> {
     fft: Fft3<T>,
     influence: Vec<T>,
-    stencils: Vec<StencilBatch<T>>,
-    /// Per batch of stencils, the second derivatives (Hessian-vector products only).
-    curvature: Vec<Curvature<T>>,
+    stencils: Vec<Stencil<T>>,
     grid: Vec<T>,
     /// `φ`, the derivative of the energy on the grid.
     potential: Vec<T>,
@@ -145,11 +86,7 @@ impl<T: MeshFloat> Mesh<T> {
         let fft = Fft3::new(params.grid);
         Mesh {
             influence: influence(params, lengths, ke, &fft),
-            stencils: vec![StencilBatch::new(); atoms.div_ceil(PLACE_BATCH)],
-            curvature: vec![
-                [[[T::zero(); PLACE_BATCH]; MAX_ORDER]; 3];
-                atoms.div_ceil(PLACE_BATCH)
-            ],
+            stencils: vec![Stencil::default(); atoms],
             grid: vec![T::zero(); fft.real_len()],
             potential: vec![T::zero(); fft.real_len()],
             scratch: fft.scratch(),
@@ -267,16 +204,13 @@ impl PmeReciprocal {
         parallel(self.charges.len())
     }
 
-    /// Every atom's stencil at `q` (with the splines' second derivatives into `curvature`
-    /// for `second`).
+    /// Every atom's stencil at `q` (with the splines' second derivatives for `second`).
     #[inline(never)]
-    fn place<T: MeshFloat>(&self, q: &[f64], ws: &mut Mesh<T>, second: bool) {
-        let (stencils, curvature) = (&mut ws.stencils[..], &mut ws.curvature[..]);
-        let curvature = second.then_some(curvature);
+    fn place<T: MeshFloat>(&self, q: &[f64], stencils: &mut [Stencil<T>], second: bool) {
         match self.params.order {
-            4 => self.place_order::<T, 4>(q, stencils, curvature),
-            5 => self.place_order::<T, 5>(q, stencils, curvature),
-            _ => self.place_order::<T, 6>(q, stencils, curvature),
+            4 => self.place_order::<T, 4>(q, stencils, second),
+            5 => self.place_order::<T, 5>(q, stencils, second),
+            _ => self.place_order::<T, 6>(q, stencils, second),
         }
     }
 
@@ -287,76 +221,70 @@ impl PmeReciprocal {
     fn place_order<T: MeshFloat, const N: usize>(
         &self,
         q: &[f64],
-        stencils: &mut [StencilBatch<T>],
-        curvature: Option<&mut [Curvature<T>]>,
+        stencils: &mut [Stencil<T>],
+        second: bool,
     ) {
         let isa = self.isa;
-        let batch = |b: usize, stencil: &mut StencilBatch<T>, second: Option<&mut Curvature<T>>| {
+        let batch = |(b, stencils): (usize, &mut [Stencil<T>])| {
             isa.run(
                 #[inline(always)]
-                || self.place_batch::<T, N>(q, b * PLACE_BATCH, stencil, second),
+                || self.place_batch::<T, N>(q, b * PLACE_BATCH, stencils, second),
             )
         };
-        match (curvature, self.parallel()) {
-            (None, true) => stencils
-                .par_iter_mut()
+        if self.parallel() {
+            stencils
+                .par_chunks_mut(PLACE_BATCH)
                 .enumerate()
-                .for_each(|(b, s)| batch(b, s, None)),
-            (None, false) => {
-                for (b, s) in stencils.iter_mut().enumerate() {
-                    batch(b, s, None);
-                }
-            }
-            (Some(c), true) => stencils
-                .par_iter_mut()
-                .zip(c.par_iter_mut())
-                .enumerate()
-                .for_each(|(b, (s, c))| batch(b, s, Some(c))),
-            (Some(c), false) => {
-                for (b, (s, c)) in stencils.iter_mut().zip(c.iter_mut()).enumerate() {
-                    batch(b, s, Some(c));
-                }
-            }
+                .for_each(batch);
+        } else {
+            stencils.chunks_mut(PLACE_BATCH).enumerate().for_each(batch);
         }
     }
 
-    /// The stencils of atoms `first …` (at most [`PLACE_BATCH`]): per axis the grid points
-    /// and offsets of all lanes (the coordinates copied out first so that the lanes
-    /// vectorise), then the weights of all of them, straight into the batch.
+    /// The stencils of atoms `first …` (at most [`PLACE_BATCH`]): per axis the grid
+    /// offsets and indices atom by atom, then the weights of all of them.
     #[inline(always)]
     fn place_batch<T: MeshFloat, const N: usize>(
         &self,
         q: &[f64],
         first: usize,
-        stencil: &mut StencilBatch<T>,
-        mut second: Option<&mut Curvature<T>>,
+        stencils: &mut [Stencil<T>],
+        second: bool,
     ) {
-        let count = PLACE_BATCH.min(self.charges.len() - first);
+        let weights = &mut spline::WeightsBatch::<T, PLACE_BATCH>::new();
         for a in 0..3 {
             let size = self.params.grid[a];
             let (length, top) = (self.lengths[a], (size - 1) as f64);
-            // Lanes past the last atom hold 0: placed, never read.
-            let mut coordinates = [0.0; PLACE_BATCH];
-            for (b, c) in coordinates[..count].iter_mut().enumerate() {
-                *c = q[3 * (first + b) + a];
-            }
             // Lane by lane: u = K (s − ⌊s⌋) ≥ 0 and its grid point ⌊u⌋, at most K − 1 (u
             // may round up to K for s just below 1); `floor` is exact, so these are the
             // values of any other exact floor.
+            let mut bases = [0.0; PLACE_BATCH];
             let mut offsets = [T::zero(); PLACE_BATCH];
-            for b in 0..PLACE_BATCH {
-                let s = coordinates[b] / length;
+            for b in 0..stencils.len() {
+                let s = q[3 * (first + b) + a] / length;
                 let u = (s - s.floor()) * size as f64;
-                let base = u.floor().min(top);
-                stencil.base[a][b] = base as u32;
-                offsets[b] = T::of(u - base);
+                bases[b] = u.floor().min(top);
+                offsets[b] = T::of(u - bases[b]);
             }
-            spline::weights_batch::<T, N, PLACE_BATCH>(
-                &offsets,
-                &mut stencil.value[a],
-                &mut stencil.first[a],
-                second.as_deref_mut().map(|c| &mut c[a]),
-            );
+            for (stencil, &base) in stencils.iter_mut().zip(&bases) {
+                // (base − k) mod K with base < K and k < N ≤ K: one wrap at most.
+                let base = base as usize;
+                for k in 0..N {
+                    let index = base + size - k;
+                    stencil.index[a][k] = (if index >= size { index - size } else { index }) as u32;
+                }
+            }
+            spline::weights_batch::<T, N, PLACE_BATCH>(&offsets, second, weights);
+            for (b, stencil) in stencils.iter_mut().enumerate() {
+                let to = &mut stencil.weights[a];
+                for k in 0..N {
+                    to.value[k] = weights.value[k][b];
+                    to.first[k] = weights.first[k][b];
+                    if second {
+                        to.second[k] = weights.second[k][b];
+                    }
+                }
+            }
         }
     }
 
@@ -367,12 +295,7 @@ impl PmeReciprocal {
     /// same terms in the same order as in the serial pass (an atom touches a point once, as
     /// `K ≥ 2n`), so the same bits at any thread count and any slab size.
     #[inline(never)]
-    fn spread<T: MeshFloat>(
-        &self,
-        stencils: &[StencilBatch<T>],
-        v: Option<&[f64]>,
-        grid: &mut [T],
-    ) {
+    fn spread<T: MeshFloat>(&self, stencils: &[Stencil<T>], v: Option<&[f64]>, grid: &mut [T]) {
         let [nx, ny, nz] = self.params.grid;
         let slabs = SLABS_PER_THREAD * rayon::current_num_threads();
         let slab = nx.div_ceil(slabs);
@@ -392,7 +315,7 @@ impl PmeReciprocal {
     /// `planes.start`).
     fn spread_planes<T: MeshFloat>(
         &self,
-        stencils: &[StencilBatch<T>],
+        stencils: &[Stencil<T>],
         v: Option<&[f64]>,
         grid: &mut [T],
         planes: std::ops::Range<usize>,
@@ -409,29 +332,29 @@ impl PmeReciprocal {
         let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
         let scale = self.scale();
-        let nx = self.params.grid[0];
-        for i in 0..self.charges.len() {
+        for (i, st) in stencils.iter().enumerate() {
             if self.charges[i] == 0.0 {
                 continue;
             }
             let q = T::of(self.charges[i]);
-            let st = Stencil::of(stencils, i);
+            let [wx, wy, wz] = &st.weights;
             let d: [T; 3] = std::array::from_fn(|a| T::of(scale[a] * v[3 * i + a]));
+            let iz = &st.index[2][..order];
             for kx in 0..order {
-                let x = st.index(0, kx, nx);
+                let x = st.index[0][kx] as usize;
                 if !planes.contains(&x) {
                     continue;
                 }
                 let gx = (x - planes.start) * ny;
                 for ky in 0..order {
-                    let row = &mut grid[(gx + st.index(1, ky, ny)) * nz..][..nz];
-                    let (vx, vy) = (st.value(0, kx), st.value(1, ky));
+                    let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
+                    let (vx, vy) = (wx.value[kx], wy.value[ky]);
                     // q (d_x M′_x M_y + d_y M_x M′_y) M_z + q d_z M_x M_y M′_z.
-                    let (fx, fy) = (st.first(0, kx), st.first(1, ky));
+                    let (fx, fy) = (wx.first[kx], wy.first[ky]);
                     let a = q * (d[0] * fx * vy + d[1] * vx * fy);
                     let b = q * d[2] * vx * vy;
                     for k in 0..order {
-                        row[st.index(2, k, nz)] += a * st.value(2, k) + b * st.first(2, k);
+                        row[iz[k] as usize] += a * wz.value[k] + b * wz.first[k];
                     }
                 }
             }
@@ -443,21 +366,17 @@ impl PmeReciprocal {
     /// arithmetic, so the same bits on every set).
     fn spread_charges<T: MeshFloat, const N: usize>(
         &self,
-        stencils: &[StencilBatch<T>],
+        stencils: &[Stencil<T>],
         grid: &mut [T],
         planes: &std::ops::Range<usize>,
     ) {
-        let dims = self.params.grid;
+        let [_, ny, nz] = self.params.grid;
         self.isa.run(
             #[inline(always)]
             || {
-                let batches = stencils.iter().zip(self.charges.chunks(PLACE_BATCH));
-                for (batch, charges) in batches {
-                    for (lane, &q) in charges.iter().enumerate() {
-                        if q != 0.0 {
-                            let st = Stencil { batch, lane };
-                            spread_charge::<T, N>(T::of(q), st, grid, planes, dims);
-                        }
+                for (st, &q) in stencils.iter().zip(&self.charges) {
+                    if q != 0.0 {
+                        spread_charge::<T, N>(T::of(q), st, grid, planes, ny, nz);
                     }
                 }
             },
@@ -493,7 +412,7 @@ impl PmeReciprocal {
     /// The mesh energy at `q`.
     fn mesh_energy(&self, q: &[f64]) -> f64 {
         with_mesh!(&mut *self.lock(), ws => {
-            self.place(q, ws, false);
+            self.place(q, &mut ws.stencils, false);
             self.spread(&ws.stencils, None, &mut ws.grid);
             self.convolve(ws, Output::Energy, false)
         })
@@ -502,7 +421,7 @@ impl PmeReciprocal {
     /// `φ` at `q` into `ws.potential` (stencils placed, with second derivatives for
     /// `second`).
     fn potential<T: MeshFloat>(&self, q: &[f64], ws: &mut Mesh<T>, second: bool) {
-        self.place(q, ws, second);
+        self.place(q, &mut ws.stencils, second);
         self.spread(&ws.stencils, None, &mut ws.grid);
         self.convolve(ws, Output::Potential, true);
     }
@@ -513,8 +432,7 @@ impl PmeReciprocal {
     #[inline(never)]
     fn gather<T: MeshFloat>(
         &self,
-        stencils: &[StencilBatch<T>],
-        curvature: &[Curvature<T>],
+        stencils: &[Stencil<T>],
         g: &[T],
         hv: Option<(&[T], &[f64])>,
         out: &mut [f64],
@@ -533,7 +451,7 @@ impl PmeReciprocal {
             if q == 0.0 {
                 return;
             }
-            let (first, second) = self.gather_one(stencils, curvature, i, g, h);
+            let (first, second) = self.gather_one(&stencils[i], g, h);
             for a in 0..3 {
                 let mut value = scale[a] * first[a].wide();
                 for b in 0..3 {
@@ -560,12 +478,12 @@ impl PmeReciprocal {
     /// bits at any thread count.
     fn gather_forces<T: MeshFloat, const N: usize>(
         &self,
-        stencils: &[StencilBatch<T>],
+        stencils: &[Stencil<T>],
         g: &[T],
         out: &mut [f64],
     ) {
         let scale = self.scale();
-        let dims = self.params.grid;
+        let [_, ny, nz] = self.params.grid;
         let isa = self.isa;
         let batch = |(b, out): (usize, &mut [f64])| {
             isa.run(
@@ -577,8 +495,7 @@ impl PmeReciprocal {
                         if q == 0.0 {
                             continue;
                         }
-                        let st = Stencil::of(stencils, first + k);
-                        let sums = gather_first::<T, N>(st, g, dims);
+                        let sums = gather_first::<T, N>(&stencils[first + k], g, ny, nz);
                         for a in 0..3 {
                             out[a] += q * (scale[a] * sums[a].wide());
                         }
@@ -595,37 +512,28 @@ impl PmeReciprocal {
         }
     }
 
-    /// `Σ_k g(k) ∂_a W(k)` (in `u`) and `Σ_k h(k) ∂_a∂_b W(k)` of atom `i`.
-    fn gather_one<T: MeshFloat>(
-        &self,
-        stencils: &[StencilBatch<T>],
-        curvature: &[Curvature<T>],
-        i: usize,
-        g: &[T],
-        h: &[T],
-    ) -> ([T; 3], [[T; 3]; 3]) {
-        let [nx, ny, nz] = self.params.grid;
+    /// `Σ_k g(k) ∂_a W(k)` (in `u`) and `Σ_k h(k) ∂_a∂_b W(k)`.
+    fn gather_one<T: MeshFloat>(&self, st: &Stencil<T>, g: &[T], h: &[T]) -> ([T; 3], [[T; 3]; 3]) {
+        let [_, ny, nz] = self.params.grid;
         let order = self.params.order;
-        let st = Stencil::of(stencils, i);
-        let (curvature, lane) = (&curvature[i / PLACE_BATCH], st.lane);
-        let second_of = |a: usize, k: usize| curvature[a][k][lane];
+        let [wx, wy, wz] = &st.weights;
         let mut first = [T::zero(); 3];
         let mut second = [[T::zero(); 3]; 3];
         for kx in 0..order {
-            let gx = st.index(0, kx, nx) * ny;
+            let gx = st.index[0][kx] as usize * ny;
             for ky in 0..order {
-                let row = (gx + st.index(1, ky, ny)) * nz;
+                let row = (gx + st.index[1][ky] as usize) * nz;
                 for kz in 0..order {
-                    let at = row + st.index(2, kz, nz);
-                    let (x, y, z) = (st.value(0, kx), st.value(1, ky), st.value(2, kz));
-                    let (dx, dy, dz) = (st.first(0, kx), st.first(1, ky), st.first(2, kz));
+                    let at = row + st.index[2][kz] as usize;
+                    let (x, y, z) = (wx.value[kx], wy.value[ky], wz.value[kz]);
+                    let (dx, dy, dz) = (wx.first[kx], wy.first[ky], wz.first[kz]);
                     let p = g[at];
                     first[0] += p * dx * y * z;
                     first[1] += p * x * dy * z;
                     first[2] += p * x * y * dz;
                     {
                         let p = h[at];
-                        let (sx, sy, sz) = (second_of(0, kx), second_of(1, ky), second_of(2, kz));
+                        let (sx, sy, sz) = (wx.second[kx], wy.second[ky], wz.second[kz]);
                         second[0][0] += p * sx * y * z;
                         second[1][1] += p * x * sy * z;
                         second[2][2] += p * x * y * sz;
@@ -709,7 +617,7 @@ impl ForceTerm for PmeReciprocal {
     fn add_gradient(&self, q: &[f64], gradient: &mut [f64]) {
         with_mesh!(&mut *self.lock(), ws => {
             self.potential(q, ws, false);
-            self.gather(&ws.stencils, &ws.curvature, &ws.potential, None, gradient);
+            self.gather(&ws.stencils, &ws.potential, None, gradient);
         });
         self.exclusions.add_gradient(q, gradient);
     }
@@ -722,12 +630,11 @@ impl ForceTerm for PmeReciprocal {
             self.convolve(ws, Output::Potential, false);
             let Mesh {
                 stencils,
-                curvature,
                 grid,
                 potential,
                 ..
             } = ws;
-            self.gather(stencils, curvature, grid, Some((potential, v)), out);
+            self.gather(stencils, grid, Some((potential, v)), out);
         });
         self.exclusions.add_hessian_vector(q, v, out);
     }
@@ -782,8 +689,8 @@ impl ForceTerm for PmeReciprocal {
 /// them descending) when they form one run `start … start + N − 1` inside the row, `None`
 /// when the stencil wraps the grid's edge (`N − 1` positions in `K_z`).
 #[inline(always)]
-fn z_run<T: Copy, const N: usize>(st: Stencil<'_, T>, nz: usize) -> Option<usize> {
-    let start = st.index(2, N - 1, nz);
+fn z_run<T, const N: usize>(st: &Stencil<T>, nz: usize) -> Option<usize> {
+    let start = st.index[2][N - 1] as usize;
     (start + N <= nz).then_some(start)
 }
 
@@ -795,24 +702,25 @@ fn z_run<T: Copy, const N: usize>(st: Stencil<'_, T>, nz: usize) -> Option<usize
 #[inline(always)]
 fn spread_charge<T: MeshFloat, const N: usize>(
     q: T,
-    st: Stencil<'_, T>,
+    st: &Stencil<T>,
     grid: &mut [T],
     planes: &std::ops::Range<usize>,
-    [nx, ny, nz]: [usize; 3],
+    ny: usize,
+    nz: usize,
 ) {
+    let [wx, wy, wz] = &st.weights;
     let run = z_run::<T, N>(st, nz);
-    let ascending: [T; N] = std::array::from_fn(|j| st.value(2, N - 1 - j));
-    let rows: [usize; N] = std::array::from_fn(|ky| st.index(1, ky, ny));
+    let ascending: [T; N] = std::array::from_fn(|j| wz.value[N - 1 - j]);
     for kx in 0..N {
-        let x = st.index(0, kx, nx);
+        let x = st.index[0][kx] as usize;
         if !planes.contains(&x) {
             continue;
         }
         let gx = (x - planes.start) * ny;
-        let qx = q * st.value(0, kx);
-        for (ky, &y) in rows.iter().enumerate() {
-            let row = &mut grid[(gx + y) * nz..][..nz];
-            let qxy = qx * st.value(1, ky);
+        let qx = q * wx.value[kx];
+        for ky in 0..N {
+            let row = &mut grid[(gx + st.index[1][ky] as usize) * nz..][..nz];
+            let qxy = qx * wy.value[ky];
             match run {
                 Some(start) => {
                     for (point, &w) in row[start..][..N].iter_mut().zip(&ascending) {
@@ -821,7 +729,7 @@ fn spread_charge<T: MeshFloat, const N: usize>(
                 }
                 None => {
                     for kz in 0..N {
-                        row[st.index(2, kz, nz)] += qxy * st.value(2, kz);
+                        row[st.index[2][kz] as usize] += qxy * wz.value[kz];
                     }
                 }
             }
@@ -837,26 +745,27 @@ fn spread_charge<T: MeshFloat, const N: usize>(
 /// `N²` rows of `3N` multiply-adds and `3N` at the end.
 #[inline(always)]
 fn gather_first<T: MeshFloat, const N: usize>(
-    st: Stencil<'_, T>,
+    st: &Stencil<T>,
     g: &[T],
-    [nx, ny, nz]: [usize; 3],
+    ny: usize,
+    nz: usize,
 ) -> [T; 3] {
+    let [wx, wy, wz] = &st.weights;
     let run = z_run::<T, N>(st, nz);
-    let rows: [usize; N] = std::array::from_fn(|ky| st.index(1, ky, ny));
     let mut lanes = [[T::zero(); N]; 3];
     for kx in 0..N {
-        let gx = st.index(0, kx, nx) * ny;
-        let (x, dx) = (st.value(0, kx), st.first(0, kx));
-        for (ky, &y) in rows.iter().enumerate() {
-            let row = &g[(gx + y) * nz..][..nz];
+        let gx = st.index[0][kx] as usize * ny;
+        let (x, dx) = (wx.value[kx], wx.first[kx]);
+        for ky in 0..N {
+            let row = &g[(gx + st.index[1][ky] as usize) * nz..][..nz];
             let p: [T; N] = match run {
                 Some(start) => {
                     let run = &row[start..][..N];
                     std::array::from_fn(|j| run[j])
                 }
-                None => std::array::from_fn(|j| row[st.index(2, N - 1 - j, nz)]),
+                None => std::array::from_fn(|j| row[st.index[2][N - 1 - j] as usize]),
             };
-            let (y, dy) = (st.value(1, ky), st.first(1, ky));
+            let (y, dy) = (wy.value[ky], wy.first[ky]);
             let c = [dx * y, x * dy, x * y];
             for a in 0..3 {
                 for j in 0..N {
@@ -865,7 +774,7 @@ fn gather_first<T: MeshFloat, const N: usize>(
             }
         }
     }
-    let up: [(T, T); N] = std::array::from_fn(|j| (st.value(2, N - 1 - j), st.first(2, N - 1 - j)));
+    let up: [(T, T); N] = std::array::from_fn(|j| (wz.value[N - 1 - j], wz.first[N - 1 - j]));
     let mut first = [T::zero(); 3];
     for (j, &(z, dz)) in up.iter().enumerate() {
         first[0] += lanes[0][j] * z;

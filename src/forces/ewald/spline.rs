@@ -14,11 +14,8 @@ use super::float::MeshFloat;
 /// The largest order the arrays hold.
 pub const MAX_ORDER: usize = 6;
 
-/// Weights `M_n(w + k)`, `M_n′(w + k)` and `M_n″(w + k)` for `k < order`: one offset at a
-/// time, the reference the batches ([`weights_batch`]) are tested against; outside the tests
-/// only the moduli read it (its values).
+/// Weights `M_n(w + k)`, `M_n′(w + k)` and `M_n″(w + k)` for `k < order`.
 #[derive(Clone, Copy, Debug, Default)]
-#[cfg_attr(not(test), allow(dead_code))]
 pub struct Weights<T> {
     pub value: [T; MAX_ORDER],
     pub first: [T; MAX_ORDER],
@@ -94,20 +91,15 @@ pub fn weights_of<T: MeshFloat, const ORDER: usize>(w: T, second: bool) -> Weigh
     }
 }
 
-/// Per order `k`, one value per lane: `[k][b]`.
-pub type Lanes<T, const B: usize> = [[T; B]; MAX_ORDER];
-
 /// [`weights_of`] of `B` offsets side by side: `value[k][b]`, `first[k][b]` and (with
-/// `second`) `second[k][b]` are `M_N(w_b + k)` and its derivatives, written straight into
-/// the caller's lanes (rows `k ≥ N` are left as they are). The same operations in the same
-/// order per lane as [`weights_of`], so the same bits; written lane-innermost so that the
-/// loops vectorise over the offsets.
+/// `second`, else left as they are) `second[k][b]` are `M_N(w_b + k)` and its derivatives.
+/// The same operations in the same order per lane as [`weights_of`], so the same bits;
+/// written lane-innermost so that the loops vectorise over the offsets.
 #[inline(always)]
 pub fn weights_batch<T: MeshFloat, const N: usize, const B: usize>(
     w: &[T; B],
-    value: &mut Lanes<T, B>,
-    first: &mut Lanes<T, B>,
-    second: Option<&mut Lanes<T, B>>,
+    second: bool,
+    out: &mut WeightsBatch<T, B>,
 ) {
     let mut lower2 = [[T::zero(); B]; MAX_ORDER];
     lower2[0] = [T::one(); B];
@@ -120,12 +112,30 @@ pub fn weights_batch<T: MeshFloat, const N: usize, const B: usize>(
         lower1 = m;
         m = raise_batch(&m, p, w);
     }
-    value[..N].copy_from_slice(&m[..N]);
-    difference_batch(&lower1, N, first);
-    if let Some(second) = second {
+    out.value[..N].copy_from_slice(&m[..N]);
+    difference_batch(&lower1, N, &mut out.first);
+    if second {
         let mut d = [[T::zero(); B]; MAX_ORDER];
         difference_batch(&lower2, N - 1, &mut d);
-        difference_batch(&d, N, second);
+        difference_batch(&d, N, &mut out.second);
+    }
+}
+
+/// The weights of [`weights_batch`], `[k][b]`.
+pub struct WeightsBatch<T, const B: usize> {
+    pub value: [[T; B]; MAX_ORDER],
+    pub first: [[T; B]; MAX_ORDER],
+    pub second: [[T; B]; MAX_ORDER],
+}
+
+impl<T: MeshFloat, const B: usize> WeightsBatch<T, B> {
+    pub fn new() -> Self {
+        let zero = [[T::zero(); B]; MAX_ORDER];
+        WeightsBatch {
+            value: zero,
+            first: zero,
+            second: zero,
+        }
     }
 }
 
@@ -225,15 +235,23 @@ mod tests {
     fn batches_give_the_bits_of_single_weights() {
         fn check<T: MeshFloat, const N: usize>() {
             let w: [T; 16] = std::array::from_fn(|b| T::of(b as f64 / 16.0 + 0.013));
-            let zero = [[T::zero(); 16]; MAX_ORDER];
-            let (mut value, mut first, mut second) = (zero, zero, zero);
-            weights_batch::<T, N, 16>(&w, &mut value, &mut first, Some(&mut second));
+            let mut batch = WeightsBatch::<T, 16>::new();
+            weights_batch::<T, N, 16>(&w, true, &mut batch);
             for (b, &w) in w.iter().enumerate() {
                 let one = weights_of::<T, N>(w, true);
                 for k in 0..N {
-                    assert!(value[k][b] == one.value[k], "order {N} lane {b} k {k}");
-                    assert!(first[k][b] == one.first[k], "order {N} lane {b} k {k}");
-                    assert!(second[k][b] == one.second[k], "order {N} lane {b} k {k}");
+                    assert!(
+                        batch.value[k][b] == one.value[k],
+                        "order {N} lane {b} k {k}"
+                    );
+                    assert!(
+                        batch.first[k][b] == one.first[k],
+                        "order {N} lane {b} k {k}"
+                    );
+                    assert!(
+                        batch.second[k][b] == one.second[k],
+                        "order {N} lane {b} k {k}"
+                    );
                 }
             }
         }
