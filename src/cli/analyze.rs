@@ -216,17 +216,8 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         Some(text) => Some(time_value(text, "--frame-time", &scene)?),
         None => None,
     };
-    let input = |path: &PathBuf| -> Result<RunInput> {
-        let mut input = RunInput::of(path, &trajectory, &scene, frame_time)?;
-        match &mut input {
-            RunInput::Directory(files) if args.dof.is_none() => {
-                files.dof = super::run_dof::run_dof(path, &args.scene, &args.source, &args.set)?
-            }
-            RunInput::File(file) => analyzer.check_clock(file)?,
-            RunInput::Directory(_) => {}
-        }
-        Ok(input)
-    };
+    let input =
+        |path: &PathBuf| open_input(args, (&scene, &analyzer), path, (&trajectory, frame_time));
     let runs: Vec<RunInput> = args.runs.iter().map(input).collect::<Result<_>>()?;
     let reference = match &args.verdicts.reference {
         Some(path) => Some(input(path)?.analyze(&analyzer)?),
@@ -281,6 +272,25 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         println!("{text}");
     }
     Ok(())
+}
+
+/// The run at `path`: a run directory (its degrees of freedom from its manifest unless
+/// `--dof` gives them) or a trajectory file, whose clock is checked before anything is read.
+fn open_input(
+    args: &AnalyzeArgs,
+    (scene, analyzer): (&Scene, &Analyzer),
+    path: &Path,
+    (trajectory, frame_time): (&str, Option<f64>),
+) -> Result<RunInput> {
+    let mut input = RunInput::of(path, trajectory, scene, frame_time)?;
+    match &mut input {
+        RunInput::Directory(files) if args.dof.is_none() => {
+            files.dof = super::run_dof::run_dof(path, &args.scene, &args.source, &args.set)?
+        }
+        RunInput::File(file) => analyzer.check_clock(file)?,
+        RunInput::Directory(_) => {}
+    }
+    Ok(input)
 }
 
 /// A run to analyse: a run directory's files, or a trajectory file alone.
