@@ -89,6 +89,20 @@ pub struct Cluster<R> {
     pub q: [R; 4],
 }
 
+impl Cluster<f64> {
+    /// The cluster rounded to f32 (`v as f32`, charges included): the lanes of the
+    /// mixed-precision kernel and of the pruning.
+    pub fn to_f32(&self) -> Cluster<f32> {
+        let round = |a: [f64; 4]| a.map(|v| v as f32);
+        Cluster {
+            x: round(self.x),
+            y: round(self.y),
+            z: round(self.z),
+            q: round(self.q),
+        }
+    }
+}
+
 /// Capacity for `total` elements in `v` (nothing happens when it has it already).
 pub fn reserve_total<T>(v: &mut Vec<T>, total: usize) {
     if v.capacity() < total {

@@ -64,15 +64,10 @@ impl<'a> Reach<'a> {
 
 /// `lanes` = the coordinates of `positions` rounded to f32 (`x as f32`, as the lanes of
 /// [`prune`] would round each j-cluster at every pair it meets): once per build or
-/// pruning instead of once per cluster pair. Charges are not needed and left as they are.
+/// pruning instead of once per cluster pair ([`Cluster::to_f32`]; the charges come along).
 pub fn to_f32(positions: &[Cluster<f64>], lanes: &mut Vec<Cluster<f32>>) {
     lanes.clear();
-    lanes.extend(positions.iter().map(|c| Cluster {
-        x: c.x.map(|v| v as f32),
-        y: c.y.map(|v| v as f32),
-        z: c.z.map(|v| v as f32),
-        q: [0.0; 4],
-    }));
+    lanes.extend(positions.iter().map(Cluster::to_f32));
 }
 
 /// The bound `x` of [`reach2_f32`]: the largest `|coordinate|` of `positions` (padding

@@ -119,12 +119,7 @@ impl Nonbonded {
                 list, clusters32, ..
             } = workspace;
             clusters32.clear();
-            clusters32.extend(list.positions.iter().map(|c| Cluster {
-                x: c.x.map(|v| v as f32),
-                y: c.y.map(|v| v as f32),
-                z: c.z.map(|v| v as f32),
-                q: c.q.map(|v| v as f32),
-            }));
+            clusters32.extend(list.positions.iter().map(Cluster::to_f32));
         }
     }
 
