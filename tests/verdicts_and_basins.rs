@@ -241,8 +241,19 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
         } else {
             0
         };
-        changes += usize::from(previous.is_some_and(|b| b != basin));
-        previous = Some(basin);
+        // A change of basin is counted between cores: the boxes less a 30° band along
+        // every edge (φ = 0, ±180°; ψ = −120°, 50° for φ < 0), angles around the circle.
+        let far = |a: f64, edge: f64| {
+            let d = (a - edge).rem_euclid(360.0);
+            d.min(360.0 - d) >= 30.0
+        };
+        let in_core = far(phi, 0.0)
+            && far(phi, 180.0)
+            && (basin == 2 || (far(psi, -120.0) && far(psi, 50.0)));
+        if in_core {
+            changes += usize::from(previous.is_some_and(|b| b != basin));
+            previous = Some(basin);
+        }
         let block = ((t / 50_000.0).floor() as usize).min(blocks - 1);
         counts[block][basin] += 1.0;
         per_block[block] += 1.0;
@@ -254,7 +265,7 @@ fn backbone_basins_of_a_shipped_trajectory_match_a_count_by_hand() {
         // Every basin is visited: the test checks a partition, not one box.
         assert!(total > 0.0, "basin {k} empty: {counts:?}");
         let fractions: Vec<f64> = (0..blocks).map(|i| counts[i][k] / per_block[i]).collect();
-        // The block error, but never below the floor from the count of basin changes n:
+        // The block error, but never below the floor from the count of core changes n:
         // 2 p̃(1 − p̃)/√(n + 1) with p̃ = (n p + 1/2)/(n + 1) (src/analysis/dihedrals.rs).
         let n = changes as f64;
         let shrunk = (n * total / 21.0 + 0.5) / (n + 1.0);

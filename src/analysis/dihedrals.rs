@@ -25,7 +25,26 @@
 //! rest of the analysis, but never below the error that the count of basin changes allows
 //! ([`transition_error`]): a residue that changes basin less often than the blocks are long
 //! has block means that are not independent, and their scatter understates the error.
-//! Cost: one dihedral pair per backbone residue per frame.
+//!
+//! **A change of basin is counted between cores** ([`core`]: each box shrunk by
+//! [`CORE_MARGIN`] at every edge), as in transition-based assignment (Buchete & Hummer,
+//! J. Phys. Chem. B 112:6057, 2008): the residue changes basin when it reaches the core of a
+//! basin other than the one whose core it was last in. Counting every crossing of a box edge
+//! would count recrossings: on the solvated dipeptide most crossings of ψ = 50° are excursions
+//! of a frame or two (0.2 ps) into the sparse region between αR and β, and counting them
+//! gave 36 changes in a 550 ps run that changed basin 6 to 12 times, and an error bar
+//! 2–3 times too small (`docs/data/verdicts/ala2-2026-11-29-cores.txt`).
+//!
+//! **Means coupled to the basins.** A mean over frames of anything that differs between
+//! basins (a torsion's or a 1-4 term's energy) inherits the populations' error, which block
+//! errors miss when basins change more slowly than blocks are long. [`BasinCounter::coupling_error`]
+//! gives it: each frame is assigned to the basin whose core it was last in, and a series'
+//! mean `Ē = Σ_k p_k Ē_k` moves by `Σ_k |Ē_k − Ē| σ_k` when the populations move by their
+//! errors `σ_k` ([`transition_error`] of the core changes); exact for a residue with two
+//! basins, an upper bound for more, summed over residues (residues of a protein change basin
+//! together, so their errors are not taken as independent). A residue that never changed
+//! basin core adds nothing: no second basin was seen to differ from.
+//! Cost: one dihedral pair per backbone residue per frame, one byte per residue and frame.
 
 use std::path::Path;
 
@@ -44,6 +63,12 @@ pub const HISTOGRAM_BINS: usize = 36;
 
 /// The ψ edges of the αR box (degrees): αR is `[ALPHA_R_PSI.0, ALPHA_R_PSI.1)` at φ < 0.
 pub const ALPHA_R_PSI: (f64, f64) = (-120.0, 50.0);
+
+/// Degrees by which a basin's core lies inside its box at every edge ([`core`]). 30° puts the
+/// edge between the αR and β cores across the sparse region 20° < ψ < 80° that the solvated
+/// dipeptide crosses in a frame or two, and keeps the minima of every basin (module
+/// documentation) inside their cores.
+pub const CORE_MARGIN: f64 = 30.0;
 
 /// The topology a scene was built from: the scene path itself when it is a topology file,
 /// else its `[topology]` file (with its GROMACS defines); `None` for a scene without one.
@@ -142,6 +167,19 @@ pub fn basin(phi: f64, psi: f64) -> usize {
     }
 }
 
+/// The basin whose core holds (φ, ψ) in degrees: its box ([`basin`]) less a band of
+/// [`CORE_MARGIN`] along each edge, angles taken around the circle; `None` in a band.
+pub fn core(phi: f64, psi: f64) -> Option<usize> {
+    let here = basin(phi, psi);
+    let far = |angle: f64, edge: f64| {
+        let d = (angle - edge).rem_euclid(360.0);
+        d.min(360.0 - d) >= CORE_MARGIN
+    };
+    let phi_inside = far(phi, 0.0) && far(phi, 180.0);
+    let psi_inside = here == 2 || (far(psi, ALPHA_R_PSI.0) && far(psi, ALPHA_R_PSI.1));
+    (phi_inside && psi_inside).then_some(here)
+}
+
 /// The histogram bin of an angle in degrees (−180° is bin 0; 180° falls in the last).
 fn bin(angle: f64) -> usize {
     let k = ((angle + 180.0) / (360.0 / HISTOGRAM_BINS as f64)).floor();
@@ -167,7 +205,7 @@ pub fn transition_error(p: f64, transitions: usize) -> f64 {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ResidueBasins {
     pub label: String,
-    /// Changes of basin between consecutive frames.
+    /// Changes of basin core ([`core`]).
     pub transitions: usize,
     /// Fractions of frames in each of [`BASINS`], with block-average errors.
     pub populations: [Estimate; 3],
@@ -184,9 +222,12 @@ pub struct BasinCounter {
     residues: Vec<BackboneResidue>,
     indicators: Vec<BlockAccumulator>,
     histograms: Vec<Vec<u64>>,
-    /// Each residue's basin in the last frame, and its changes of basin so far.
+    /// Each residue's last basin core, and its changes of basin core so far.
     last: Vec<Option<usize>>,
     transitions: Vec<usize>,
+    /// Per frame and residue, the basin of the core it was last in ([`NO_CORE_YET`] before
+    /// it first reached one): frames × residues.
+    assigned: Vec<u8>,
     frames: usize,
 }
 
@@ -199,21 +240,39 @@ impl BasinCounter {
             histograms: vec![vec![0; HISTOGRAM_BINS * HISTOGRAM_BINS]; n],
             last: vec![None; n],
             transitions: vec![0; n],
+            assigned: Vec::new(),
             frames: 0,
         }
     }
 
     /// Count one frame into `block`.
     pub fn add(&mut self, q: &[f64], periodic_box: Option<&PeriodicBox>, block: usize) {
+        let angles: Vec<(f64, f64)> = self
+            .residues
+            .iter()
+            .map(|residue| {
+                (
+                    dihedral_degrees(q, residue.phi, periodic_box),
+                    dihedral_degrees(q, residue.psi, periodic_box),
+                )
+            })
+            .collect();
+        self.add_angles(&angles, block);
+    }
+
+    /// Count one frame, given each residue's (φ, ψ) in degrees, into `block`.
+    pub fn add_angles(&mut self, angles: &[(f64, f64)], block: usize) {
         self.frames += 1;
-        for (r, residue) in self.residues.iter().enumerate() {
-            let phi = dihedral_degrees(q, residue.phi, periodic_box);
-            let psi = dihedral_degrees(q, residue.psi, periodic_box);
+        for (r, &(phi, psi)) in angles.iter().enumerate().take(self.residues.len()) {
             let here = basin(phi, psi);
-            if self.last[r].is_some_and(|before| before != here) {
-                self.transitions[r] += 1;
+            if let Some(now) = core(phi, psi) {
+                if self.last[r].is_some_and(|before| before != now) {
+                    self.transitions[r] += 1;
+                }
+                self.last[r] = Some(now);
             }
-            self.last[r] = Some(here);
+            self.assigned
+                .push(self.last[r].map_or(NO_CORE_YET, |k| k as u8));
             let (indicator, histogram) = (&mut self.indicators[r], &mut self.histograms[r]);
             let mut hit = [0.0; 3];
             hit[here] = 1.0;
@@ -253,6 +312,51 @@ impl BasinCounter {
                 }
             })
             .collect()
+    }
+}
+
+/// A frame before its residue first reached a basin core: it counts in the first core the
+/// residue reaches (a residue that reaches none has one basin and no coupling).
+const NO_CORE_YET: u8 = u8::MAX;
+
+impl BasinCounter {
+    /// The error that a mean over the counted frames of `series` (its value in frame `f`,
+    /// in counting order) takes from the basins' populations (module documentation):
+    /// `Σ_r Σ_k |Ē_rk − Ē| σ_rk`, frames assigned to the basin whose core residue `r` was last
+    /// in, `σ_rk` the [`transition_error`] of that assignment's population. Zero without
+    /// residues or frames.
+    pub fn coupling_error(&self, series: impl Fn(usize) -> f64) -> f64 {
+        let n = self.residues.len();
+        if n == 0 || self.frames == 0 {
+            return 0.0;
+        }
+        let values: Vec<f64> = (0..self.frames).map(&series).collect();
+        let mean = values.iter().sum::<f64>() / self.frames as f64;
+        (0..n)
+            .map(|r| {
+                let first = (0..self.frames)
+                    .map(|f| self.assigned[f * n + r])
+                    .find(|&k| k != NO_CORE_YET)
+                    .unwrap_or(0);
+                let (mut sums, mut counts) = ([0.0; 3], [0usize; 3]);
+                for (f, &v) in values.iter().enumerate() {
+                    let k = match self.assigned[f * n + r] {
+                        NO_CORE_YET => usize::from(first),
+                        k => usize::from(k),
+                    };
+                    sums[k] += v;
+                    counts[k] += 1;
+                }
+                (0..3)
+                    .filter(|&k| counts[k] > 0)
+                    .map(|k| {
+                        let p = counts[k] as f64 / self.frames as f64;
+                        let basin_mean = sums[k] / counts[k] as f64;
+                        (basin_mean - mean).abs() * transition_error(p, self.transitions[r])
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
     }
 }
 
@@ -306,6 +410,69 @@ mod tests {
             (bin(-180.0), bin(-175.0), bin(0.0), bin(180.0)),
             (0, 0, 18, 35)
         );
+    }
+
+    #[test]
+    fn a_core_leaves_out_a_band_along_each_edge() {
+        assert_eq!(core(-65.0, -40.0), Some(1)); // αR minimum
+        assert_eq!(core(-78.0, 90.0), Some(0)); // C7eq
+        assert_eq!(core(-80.0, -170.0), Some(0)); // β across ψ = ±180°
+        assert_eq!(core(60.0, 45.0), Some(2)); // αL
+        assert_eq!(core(-78.0, 60.0), None); // 10° from the αR/β edge ψ = 50°
+        assert_eq!(core(-78.0, 30.0), None);
+        assert_eq!(core(-10.0, -40.0), None); // near φ = 0
+        assert_eq!(core(-165.0, 150.0), None); // near φ = ±180°
+        assert_eq!(core(-78.0, -140.0), None); // near ψ = −120°
+    }
+
+    /// A residue that visits β for `dwell` frames, then αR for `dwell` frames, `cycles`
+    /// times, with a one-frame excursion across ψ = 50° (not reaching a core) in every
+    /// αR dwell; the series is 1 in β and 0 in αR.
+    fn telegraph(dwell: usize, cycles: usize) -> (BasinCounter, Vec<f64>) {
+        let residue = BackboneResidue {
+            label: "ALA2".into(),
+            phi: [0, 1, 2, 3],
+            psi: [1, 2, 3, 4],
+        };
+        let mut counter = BasinCounter::new(vec![residue], 2);
+        let mut series = Vec::new();
+        for c in 0..cycles {
+            for (psi, value) in [(150.0, 1.0), (-40.0, 0.0)] {
+                for f in 0..dwell {
+                    let excursion = value == 0.0 && f == dwell / 2;
+                    let psi = if excursion { 60.0 } else { psi };
+                    counter.add_angles(&[(-70.0, psi)], usize::from(2 * c >= cycles));
+                    series.push(value);
+                }
+            }
+        }
+        (counter, series)
+    }
+
+    #[test]
+    fn excursions_across_an_edge_are_not_changes_of_basin() {
+        let (counter, _) = telegraph(10, 4);
+        let residue = &counter.finish()[0];
+        // 8 dwells: 7 changes between cores; the 4 excursions to ψ = 60° (β by its box,
+        // in no core) are not changes, though they count in β's population.
+        assert_eq!(residue.transitions, 7);
+        assert!((residue.populations[0].mean - 44.0 / 80.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_mean_coupled_to_two_basins_takes_their_population_error() {
+        let (counter, series) = telegraph(10, 4);
+        // Two basins, the series' means 1 (β) and 0 (αR), the excursions counted in αR (the
+        // core last visited): p = 1/2, and Σ_k |Ē_k − Ē| σ_k = σ(1/2, 7), exactly.
+        let coupled = counter.coupling_error(|f| series[f]);
+        let expected = transition_error(0.5, 7);
+        assert!((coupled - expected).abs() < 1e-12, "{coupled} {expected}");
+        // Without a second basin there is nothing to couple to.
+        let (mut one, _) = telegraph(0, 1);
+        for _ in 0..5 {
+            one.add_angles(&[(-70.0, -40.0)], 0);
+        }
+        assert_eq!(one.coupling_error(|f| f as f64), 0.0);
     }
 
     #[test]

@@ -158,8 +158,11 @@ pub struct RunAnalysis {
 pub struct TermResult {
     /// The series' name ([`super::term_energies::series_names`]).
     pub name: String,
-    /// Mean over frames, with the block error.
+    /// Mean over frames; its error the block error or, when larger, `basin_error`.
     pub mean: Estimate,
+    /// The error the mean takes from the backbone basins' populations
+    /// ([`super::dihedrals::BasinCounter::coupling_error`]; zero without a backbone).
+    pub basin_error: f64,
     /// Variance of the per-frame energy over all frames (`⟨E²⟩ − ⟨E⟩²`).
     pub variance: f64,
 }
@@ -570,8 +573,9 @@ impl TermPass {
         self.times.push(time);
     }
 
-    /// Per term: the mean with its block error, and the variance over frames.
-    fn results(&self, blocks: usize) -> Vec<TermResult> {
+    /// Per term: the mean with its error (the block error, or the error coupled to the
+    /// `basins` counted over the same frames when larger), and the variance over frames.
+    fn results(&self, blocks: usize, basins: &BasinCounter) -> Vec<TermResult> {
         let width = self.names.len();
         let frames = self.blocks.len();
         (0..width)
@@ -580,7 +584,9 @@ impl TermPass {
                 for (f, &block) in self.blocks.iter().enumerate() {
                     accumulator.add(block, self.values[f * width + k]);
                 }
-                let mean = accumulator.estimate();
+                let mut mean = accumulator.estimate();
+                let basin_error = basins.coupling_error(|f| self.values[f * width + k]);
+                mean.error = mean.error.max(basin_error);
                 let variance = (0..frames)
                     .map(|f| (self.values[f * width + k] - mean.mean).powi(2))
                     .sum::<f64>()
@@ -588,6 +594,7 @@ impl TermPass {
                 TermResult {
                     name: self.names[k].clone(),
                     mean,
+                    basin_error,
                     variance,
                 }
             })
@@ -933,7 +940,7 @@ impl FramePass {
             rdf,
             geometry,
             basins: self.basins.finish(),
-            terms: self.terms.results(self.blocks.count),
+            terms: self.terms.results(self.blocks.count, &self.basins),
             source,
         })
     }

@@ -419,7 +419,7 @@ fn terms_json(r: &RunAnalysis) -> Json {
         .iter()
         .map(|t| {
             json!({ "term": t.name, "mean": t.mean.mean, "error": t.mean.error,
-                    "variance": t.variance })
+                    "basin_error": t.basin_error, "variance": t.variance })
         })
         .collect()
 }
@@ -434,7 +434,8 @@ fn basins_json(r: &RunAnalysis) -> Json {
                 .zip(&b.populations)
                 .map(|(name, p)| (name.to_string(), estimate_json(p)))
                 .collect();
-            json!({ "residue": b.label, "frames": b.frames, "populations": populations })
+            json!({ "residue": b.label, "frames": b.frames, "changes_of_basin": b.transitions,
+                    "populations": populations })
         })
         .collect()
 }
@@ -506,7 +507,12 @@ fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
             .zip(&b.populations)
             .map(|(name, p)| format!("{name} {}", pm(p, 3)))
             .collect();
-        println!("  basins {:<8} {}", b.label, populations.join(", "));
+        println!(
+            "  basins {:<8} {} ({} changes of basin core)",
+            b.label,
+            populations.join(", "),
+            b.transitions
+        );
     }
     for g in &r.geometry {
         let unit = if g.kind == "bond" { length } else { "degree" };
