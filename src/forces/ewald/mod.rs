@@ -18,10 +18,10 @@
 //! **Parameters.** `ewald_tolerance` has GROMACS's `ewald-rtol` meaning: α solves
 //! `erfc(α r_c) = tolerance` (default 1e-5; OpenMM's `ewaldErrorTolerance` is another
 //! quantity). `fourier_spacing` (default 1.2 in the scene's length unit, GROMACS's 0.12 nm)
-//! gives each grid dimension as GROMACS's `calcFftGrid` does: the smallest of its sizes
-//! (factors 2, 3, 5 and 7, even but 25) ≥ `L/spacing` and ≥ `2 × order` ([`grid_size`]).
-//! The order is 4 to 6 (default 5, as OpenMM; GROMACS uses 4). An explicit `ewald_alpha`
-//! or `pme_grid` overrides the derived value.
+//! gives each grid dimension from GROMACS's `calcFftGrid` sizes less 44 and 52: the
+//! smallest (factors 2, 3, 5 and 7, even but 25) ≥ `L/spacing` and ≥ `2 × order`
+//! ([`grid_size`]). The order is 4 to 6 (default 5, as OpenMM; GROMACS uses 4). An
+//! explicit `ewald_alpha` or `pme_grid` overrides the derived value.
 
 pub mod direct;
 mod exclusions;
