@@ -2,12 +2,15 @@
 //! Phys. Commun. 184, 2641 (2013)) with an exact buffer.
 //!
 //! **Clusters.** At a build, atoms are binned into columns of an x-y grid, sorted along z
-//! and cut into clusters of four ([`grid`]). The list holds pairs of clusters (4 × 4 atom
-//! pairs) whose bounding boxes come closer than the list reach `r_c + b_outer`, and of those
-//! only the ones with an atom pair within reach ([`search`]); a 16-bit mask per cluster pair
-//! marks the atom pairs to compute (no padding, no excluded pair, `j > i` within a cluster).
-//! The kernel then runs SIMD over the 16 pairs of a cluster pair with no branch on a pair,
-//! computing only the register groups that have a pair within the cutoff.
+//! and cut into clusters of four ([`grid`]). The order ignores Lennard-Jones: clusters of
+//! atoms without it (GROMACS's nbnxm flags those) would have to be taller, and cost more
+//! pairs than the kernel's skipped lanes save (module doc of forces/nonbonded/kernel.rs).
+//! The list holds pairs of clusters (4 × 4 atom pairs) whose bounding boxes come closer
+//! than the list reach `r_c + b_outer`, and of those only the ones with an atom pair within
+//! reach ([`search`]); a 16-bit mask per cluster pair marks the atom pairs to compute (no
+//! padding, no excluded pair, `j > i` within a cluster). The kernel then runs SIMD over the
+//! 16 pairs of a cluster pair with no branch on a pair, computing only the register groups
+//! that have a pair within the cutoff.
 //!
 //! **Rare rebuilds, dynamic pruning.** An atom pair's distance changes by at most the sum of
 //! the two atoms' displacements, so a list built with buffer `b` holds every pair within

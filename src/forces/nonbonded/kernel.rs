@@ -26,6 +26,17 @@
 //! `tests/nonbonded_engine.rs` checks both give the same bits), with a fifth to a quarter
 //! fewer floating-point operations.
 //!
+//! Where one group is the whole cluster pair (AVX-512 in single precision), only an
+//! i-cluster without any Lennard-Jones atom skips those lanes, and the grid's z order makes
+//! few (6 % of Trp-cage's clusters). GROMACS's nbnxm (Páll & Hess, Comput. Phys. Commun.
+//! 184, 2641 (2013)) orders the atoms of a cluster with Lennard-Jones first ("half LJ"), which
+//! here helps only the two-group paths (−1 % of the kernel's AVX2 instructions); putting a
+//! column's atoms without Lennard-Jones into clusters of their own (slabs of two clusters,
+//! Lennard-Jones atoms first) makes the clusters taller and the list 14–16 % longer, for
+//! lanes that are 9–20 % of the kernel: Trp-cage's step took 5 % more CPU time, the 5 184-atom
+//! PME water box 9.5 % (`docs/data/sittings/kernel-2026-11-29-f.txt`). So the grid keeps the
+//! z order.
+//!
 //! **erfc in the lanes.** The Ewald real space (`Q erfc(αr)/r`) and DSF with α > 0 take
 //! `erfc(αr)` and `e^{−α²r²}` from [`erfc_exp`] in the lanes, in both precisions:
 //! `erfc(x) = e^{−x²} · P(x)/Q(x)`, `P/Q` a rational fit of the scaled function
