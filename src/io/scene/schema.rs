@@ -136,10 +136,10 @@ pub struct TopologySpec {
     pub epsilon_rf: Option<f64>,
     /// DSF damping α (1/Å), default 0.
     pub dsf_alpha: Option<f64>,
-    /// Neighbour-list skin (Å), default 4 (`io::topology::build::DEFAULT_SKIN`).
+    /// Neighbour-list skin (Å), default 6 (`io::topology::build::DEFAULT_SKIN`).
     pub skin: Option<f64>,
-    /// The pruned inner list's buffer (Å, at most the skin), default half the skin
-    /// (`io::topology::build::DEFAULT_INNER_FRACTION`).
+    /// The pruned inner list's buffer (Å, at most the skin), default a third of the skin,
+    /// 2 Å of the default 6 (`io::topology::build::DEFAULT_INNER_FRACTION`).
     pub inner_buffer: Option<f64>,
     /// Shift the Lennard-Jones energy to zero at the cutoff; default false (OpenMM).
     pub lj_shift: Option<bool>,

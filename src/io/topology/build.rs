@@ -36,15 +36,16 @@ use crate::units::{COULOMB_KCAL_ANGSTROM, Units, significant};
 /// The pair-list skin when none is given (Å): the list holds pairs within cutoff + skin and
 /// is rebuilt when two atoms may have closed it. With constraints and 4 fs steps a topology's
 /// water hydrogens close 2 Å within a few dozen steps; 4 Å was 9–11 % faster than 2 Å with
-/// HMR at 4 fs on the solvated dipeptide and Trp-cage (5 Å within the repeats' spread of it)
-/// and 2–3 % faster at 1 fs flexible (`scripts/skin_sitting.py`,
-/// docs/data/sittings/topology-skin-2026-11-26.*).
-pub const DEFAULT_SKIN: f64 = 4.0;
+/// HMR at 4 fs on the solvated dipeptide and Trp-cage (`scripts/skin_sitting.py`,
+/// docs/data/sittings/topology-skin-2026-11-26.*), and 6 Å with a 2 Å inner buffer took
+/// 3.3 % less process CPU time than 4 / 2 on Trp-cage, in all 5 interleaved pairs (56 list
+/// builds to 22, 207 prunings to 195: docs/data/sittings/lists-2026-11-29-e.txt, part 4).
+pub const DEFAULT_SKIN: f64 = 6.0;
 
-/// The inner (pruned) list's buffer when none is given, as a fraction of the skin: the
-/// kernel runs over the pairs within cutoff + this buffer, pruned again when two atoms may
-/// have closed it.
-pub const DEFAULT_INNER_FRACTION: f64 = 0.5;
+/// The inner (pruned) list's buffer when none is given, as a fraction of the skin (2 Å of
+/// the default 6): the kernel runs over the pairs within cutoff + this buffer, pruned again
+/// when two atoms may have closed it.
+pub const DEFAULT_INNER_FRACTION: f64 = 1.0 / 3.0;
 
 /// The cutoff when none is given but one is needed (Å).
 pub const DEFAULT_CUTOFF: f64 = 9.0;
