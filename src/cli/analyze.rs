@@ -440,6 +440,23 @@ fn basins_json(r: &RunAnalysis) -> Json {
         .collect()
 }
 
+/// Per backbone residue: each basin's population with its error, and the changes of core.
+fn print_basins(r: &RunAnalysis) {
+    for b in &r.basins {
+        let populations: Vec<String> = BASINS
+            .iter()
+            .zip(&b.populations)
+            .map(|(name, p)| format!("{name} {}", pm(p, 3)))
+            .collect();
+        println!(
+            "  basins {:<8} {} ({} changes of basin core)",
+            b.label,
+            populations.join(", "),
+            b.transitions
+        );
+    }
+}
+
 fn pm(e: &Estimate, digits: usize) -> String {
     format!("{:.digits$} ± {:.digits$}", e.mean, e.error)
 }
@@ -501,19 +518,7 @@ fn print_summary(scene: &Scene, label: &str, out_dir: &Path, r: &RunAnalysis) {
             _ => println!("  g {:<6} 1st peak  not found", rdf.name),
         }
     }
-    for b in &r.basins {
-        let populations: Vec<String> = BASINS
-            .iter()
-            .zip(&b.populations)
-            .map(|(name, p)| format!("{name} {}", pm(p, 3)))
-            .collect();
-        println!(
-            "  basins {:<8} {} ({} changes of basin core)",
-            b.label,
-            populations.join(", "),
-            b.transitions
-        );
-    }
+    print_basins(r);
     for g in &r.geometry {
         let unit = if g.kind == "bond" { length } else { "degree" };
         println!(
