@@ -436,20 +436,16 @@ def run_longstep_pme(atoms, h, k, steps, threads, precision):
 
 
 def longstep_grid(atoms):
-    """The grid longstep derives from the spacing (the peers without a spacing rule use it):
-    GROMACS's calcFftGrid sizes without 44 and 52, as src/forces/ewald/mod.rs `grid_size`."""
-    least = max(2 * PME_ORDER, math.ceil(18.644491075500707 * {648: 1, 5184: 2, 41472: 4}[atoms]
-                                         / PME_SPACING))
-    small = [6, 8, 10, 12, 14, 16, 20, 24, 25, 28, 32, 36, 40, 42]
-    fits = [n for n in small if n >= least]
-    if fits:
-        return fits[0]
-    base = [48, 50, 54, 56, 60, 64, 70, 72, 75, 80, 81, 84]
-    power = 1
-    while power * base[-1] < least:
-        power *= 2
-    return min(power * b for b in base if (power * b) % 4 == 0 and power * b != 140
-               and power * b >= least)
+    """The grid `longstep check` reports for the box's PME (the peers without a spacing rule
+    use it): asked of longstep, so the script never keeps a copy of its grid rule."""
+    res = sh([BIN, "check", PME.scenes[atoms], "--coulomb", "pme", "--pme-order",
+              str(PME_ORDER)], cwd=ROOT)
+    m = re.search(r"pme-reciprocal: PME, alpha = \S+ 1/\S+, grid (\d+)x\d+x\d+",
+                  res.stdout + res.stderr)
+    if res.returncode != 0 or not m:
+        sys.exit("longstep check %s did not report its PME grid:\n%s" % (
+            PME.scenes[atoms], (res.stderr or res.stdout)[-1500:]))
+    return int(m.group(1))
 
 
 PME_MDP = (MDP_HEAD + """coulombtype = PME
