@@ -247,38 +247,40 @@ impl BasinCounter {
 
     /// Count one frame into `block`.
     pub fn add(&mut self, q: &[f64], periodic_box: Option<&PeriodicBox>, block: usize) {
-        let angles: Vec<(f64, f64)> = self
-            .residues
-            .iter()
-            .map(|residue| {
-                (
-                    dihedral_degrees(q, residue.phi, periodic_box),
-                    dihedral_degrees(q, residue.psi, periodic_box),
-                )
-            })
-            .collect();
-        self.add_angles(&angles, block);
+        self.frames += 1;
+        for r in 0..self.residues.len() {
+            let residue = &self.residues[r];
+            let phi = dihedral_degrees(q, residue.phi, periodic_box);
+            let psi = dihedral_degrees(q, residue.psi, periodic_box);
+            self.count(r, phi, psi, block);
+        }
     }
 
     /// Count one frame, given each residue's (φ, ψ) in degrees, into `block`.
-    pub fn add_angles(&mut self, angles: &[(f64, f64)], block: usize) {
+    #[cfg(test)]
+    fn add_angles(&mut self, angles: &[(f64, f64)], block: usize) {
+        assert_eq!(angles.len(), self.residues.len());
         self.frames += 1;
-        for (r, &(phi, psi)) in angles.iter().enumerate().take(self.residues.len()) {
-            let here = basin(phi, psi);
-            if let Some(now) = core(phi, psi) {
-                if self.last[r].is_some_and(|before| before != now) {
-                    self.transitions[r] += 1;
-                }
-                self.last[r] = Some(now);
-            }
-            self.assigned
-                .push(self.last[r].map_or(NO_CORE_YET, |k| k as u8));
-            let (indicator, histogram) = (&mut self.indicators[r], &mut self.histograms[r]);
-            let mut hit = [0.0; 3];
-            hit[here] = 1.0;
-            indicator.add_vector(block, &hit);
-            histogram[bin(phi) * HISTOGRAM_BINS + bin(psi)] += 1;
+        for (r, &(phi, psi)) in angles.iter().enumerate() {
+            self.count(r, phi, psi, block);
         }
+    }
+
+    /// Residue `r`'s (φ, ψ) in the current frame: its core change, its assignment, its box's
+    /// indicator and its histogram bin.
+    fn count(&mut self, r: usize, phi: f64, psi: f64, block: usize) {
+        if let Some(now) = core(phi, psi) {
+            if self.last[r].is_some_and(|before| before != now) {
+                self.transitions[r] += 1;
+            }
+            self.last[r] = Some(now);
+        }
+        self.assigned
+            .push(self.last[r].map_or(NO_CORE_YET, |k| k as u8));
+        let mut hit = [0.0; 3];
+        hit[basin(phi, psi)] = 1.0;
+        self.indicators[r].add_vector(block, &hit);
+        self.histograms[r][bin(phi) * HISTOGRAM_BINS + bin(psi)] += 1;
     }
 
     pub fn finish(&self) -> Vec<ResidueBasins> {
