@@ -491,3 +491,97 @@ fn an_openmm_dcd_is_judged_against_a_longstep_run_directory() {
     }
     assert!(["pass", "fail", "undecided"].contains(&run["verdict"].as_str().unwrap()));
 }
+
+#[test]
+fn two_reference_runs_are_pooled_and_each_is_a_control_against_the_other() {
+    // The .xtc and the .dcd (given a clock) as two reference runs of one model: pooled,
+    // each quantity's mean is the length-weighted mean of the two, and with two runs the
+    // between-run error is √(w₁ w₂)·|x₁ − x₂| (docs/studies.md), the error the larger of
+    // it and the within-run √(w₁² σ₁² + w₂² σ₂²). Each reference run is also judged
+    // against the other (the leave-one-out control), which gives both runs' means.
+    let out = scratch_dir("analyze-pooled-reference");
+    let args = argv(
+        "analyze {} {} --reference {} --reference {} --frame-time 50fs --no-configurational \
+         --temperature 300K --blocks 4 --json --quiet --out {}",
+        &[SCENE, XTC, XTC, DCD, out.to_str().unwrap()],
+    );
+    let summaries = analyze_json(&args);
+    let summaries = summaries.as_array().unwrap();
+    assert_eq!(summaries.len(), 3, "the run and two controls");
+    let run = &summaries[0];
+    assert_eq!(run["reference"], serde_json::json!([XTC, DCD]));
+    let pool = &run["reference_pool"];
+    let weights: Vec<f64> = pool["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["weight"].as_f64().unwrap())
+        .collect();
+    assert_eq!(weights.len(), 2);
+    assert!((weights[0] + weights[1] - 1.0).abs() < 1e-12);
+    // Control k is reference run k against the other: `value` is run k's mean.
+    let controls: Vec<&Json> = summaries
+        .iter()
+        .filter(|s| s["role"] == "control")
+        .collect();
+    assert_eq!(controls.len(), 2);
+    let mean_of = |summary: &Json, name: &str| {
+        let c = summary["criteria"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap_or_else(|| panic!("no {name}"))
+            .clone();
+        c["value"].as_f64().unwrap()
+    };
+    for name in ["mean bonds energy", "potential energy per molecule"] {
+        let (x1, x2) = (mean_of(controls[0], name), mean_of(controls[1], name));
+        let part = pool["parts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["quantity"] == name)
+            .unwrap();
+        let mean = part["mean"].as_f64().unwrap();
+        // Sums of a few numbers of size ~|x|: round-off ~1e-15 relative.
+        let scale = x1.abs().max(x2.abs());
+        assert!(
+            (mean - (weights[0] * x1 + weights[1] * x2)).abs() < 1e-12 * scale,
+            "{name}: {mean} from {x1}, {x2}"
+        );
+        let between = part["between_runs"].as_f64().unwrap();
+        let expected = (weights[0] * weights[1]).sqrt() * (x1 - x2).abs();
+        assert!(
+            (between - expected).abs() < 1e-12 * scale,
+            "{between} vs {expected}"
+        );
+        let (error, within) = (
+            part["error"].as_f64().unwrap(),
+            part["within_runs"].as_f64().unwrap(),
+        );
+        assert_eq!(error, within.max(between));
+        // The run's criterion carries the pooled reference and its error.
+        let criterion = run["criteria"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == name)
+            .unwrap();
+        assert!((criterion["reference"].as_f64().unwrap() - mean).abs() < 1e-12 * scale);
+    }
+}
+
+#[test]
+fn a_reference_on_another_clock_is_not_pooled() {
+    // Without --frame-time the .dcd's times are frame numbers, the .xtc's picoseconds: the
+    // two cannot be weighted by length together, and the refusal names the flag and both.
+    let stderr = refused(&argv(
+        "analyze {} {} --reference {} --reference {} --no-configurational --blocks 2 --quiet",
+        &[SCENE, XTC, XTC, DCD],
+    ));
+    assert!(
+        stderr.contains("--reference") && stderr.contains(DCD) && stderr.contains("time unit"),
+        "{stderr}"
+    );
+}

@@ -11,6 +11,8 @@ pub mod growth;
 pub mod lanczos;
 pub mod minimize;
 pub mod modes;
+pub mod pooled;
+pub mod pooling;
 pub mod rdf;
 pub mod run_analysis;
 pub mod run_dir;

@@ -151,6 +151,20 @@ pub struct RunAnalysis {
     /// Where the energies came from: a run's `energy.csv`, or the frames of a trajectory
     /// file (then times are in frames when `times` is false).
     pub source: EnergySource,
+    /// Several runs pooled into this one (`pooling::pool_runs`); `None` for a run.
+    pub pooled: Option<Box<super::pooled::Pooling>>,
+}
+
+impl RunAnalysis {
+    /// Each basin's population pooled over the backbone residues
+    /// ([`super::dihedrals::pooled_populations`]), or over runs too for a pooled analysis;
+    /// `None` without a backbone.
+    pub fn basin_populations(&self) -> Option<[Estimate; 3]> {
+        match &self.pooled {
+            Some(p) => p.basins,
+            None => super::dihedrals::pooled_populations(&self.basins),
+        }
+    }
 }
 
 /// One force-field term's energy over a run's frames.
@@ -942,6 +956,7 @@ impl FramePass {
             basins: self.basins.finish(),
             terms: self.terms.results(self.blocks.count, &self.basins),
             source,
+            pooled: None,
         })
     }
 

@@ -18,6 +18,8 @@
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+
+use super::analyze_verdicts::{Reference, VerdictArgs, pool_reference};
 use serde_json::{Value as Json, json};
 
 use crate::analysis::block_average::Estimate;
@@ -31,6 +33,7 @@ use crate::error::{Error, Result};
 use crate::io::scene::Scene;
 use crate::plot::{AxisSpec, Band, LineChart, PALETTE, Series};
 use crate::settings::Value;
+use crate::studies::criterion::reference::CriterionSettings;
 
 #[derive(Args, Debug)]
 pub struct AnalyzeArgs {
@@ -41,7 +44,7 @@ pub struct AnalyzeArgs {
     #[arg(required = true, value_name = "RUN")]
     pub runs: Vec<PathBuf>,
     #[command(flatten)]
-    pub verdicts: super::analyze_verdicts::VerdictArgs,
+    pub verdicts: VerdictArgs,
     /// Element pairs for g(r), comma-separated, or "none" (default: O-O in a periodic
     /// box, none without one).
     #[arg(long, value_delimiter = ',')]
@@ -219,11 +222,22 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
     let input =
         |path: &PathBuf| open_input(args, (&scene, &analyzer), path, (&trajectory, frame_time));
     let runs: Vec<RunInput> = args.runs.iter().map(input).collect::<Result<_>>()?;
-    let reference = match &args.verdicts.reference {
-        Some(path) => Some(input(path)?.analyze(&analyzer)?),
-        None => None,
+    let references: Vec<RunInput> = args
+        .verdicts
+        .reference
+        .iter()
+        .map(input)
+        .collect::<Result<_>>()?;
+    let reference = analyse_reference(args, &references, &analyzer)?;
+    let settings = args
+        .verdicts
+        .settings(&scene, reference.as_ref().map(|r| &r.pooled))?;
+    let context = Context {
+        args,
+        scene: &scene,
+        analyzer: &analyzer,
+        settings: &settings,
     };
-    let settings = args.verdicts.settings(&scene, reference.as_ref())?;
     let mut results = Vec::new();
     let mut summaries = Vec::new();
     for ((path, label), run) in args.runs.iter().zip(&labels).zip(&runs) {
@@ -235,30 +249,11 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         });
         bar.finish_and_clear();
         let result = result?;
-        let out_dir = match &args.out {
-            Some(out) => out.join(label),
-            None if path.is_dir() => path.join("analysis"),
-            None => path.with_extension("analysis"),
-        };
-        let mut summary = summary_json(&scene, label, path, &result, &analyzer);
-        let (_, energy, temperature, time) = units(&scene);
-        let verdicts = reference
-            .as_ref()
-            .map(|r| super::analyze_verdicts::judge((energy, temperature), r, &result, &settings));
-        if let (Some(v), Json::Object(map)) = (&verdicts, &mut summary) {
-            map.insert("reference".into(), json!(args.verdicts.reference));
-            map.insert("criteria".into(), v.json());
-            map.insert("verdict".into(), json!(v.overall_name()));
-        }
-        super::analyze_output::write_tables(&out_dir, &result, &summary)?;
-        if !args.json {
-            print_summary(&scene, label, &out_dir, &result);
-            if let Some(v) = &verdicts {
-                v.print(time, &result);
-            }
-        }
+        summaries.push(context.report(label, path, &result, reference.as_ref())?);
         results.push(result);
-        summaries.push(summary);
+    }
+    if let Some(reference) = reference.as_ref().filter(|r| r.runs.len() >= 2) {
+        summaries.extend(context.controls(reference)?);
     }
     if results.len() > 1 && !args.json {
         print_differences(&labels, &results);
@@ -272,6 +267,129 @@ pub fn analyze_command(args: &AnalyzeArgs) -> Result<()> {
         println!("{text}");
     }
     Ok(())
+}
+
+/// The reference runs analysed and pooled into one (`None` without `--reference`), and the
+/// notice a pooled one gives.
+fn analyse_reference(
+    args: &AnalyzeArgs,
+    references: &[RunInput],
+    analyzer: &Analyzer,
+) -> Result<Option<Reference>> {
+    if references.is_empty() {
+        return Ok(None);
+    }
+    let analysed = references
+        .iter()
+        .map(|r| r.analyze(analyzer))
+        .collect::<Result<_>>()?;
+    let reference = pool_reference(&args.verdicts.reference, analysed)?;
+    if let Some(notice) = reference.notice() {
+        eprintln!("notice: {notice}");
+    }
+    Ok(Some(reference))
+}
+
+/// What every run's report needs: the flags, the scene, its analyzer, the criteria's bounds.
+struct Context<'a> {
+    args: &'a AnalyzeArgs,
+    scene: &'a Scene,
+    analyzer: &'a Analyzer<'a>,
+    settings: &'a CriterionSettings,
+}
+
+impl Context<'_> {
+    /// A run's summary (JSON) with its verdicts against `reference`, its tables written,
+    /// and, without `--json`, printed.
+    fn report(
+        &self,
+        label: &str,
+        path: &Path,
+        result: &RunAnalysis,
+        reference: Option<&Reference>,
+    ) -> Result<Json> {
+        let args = self.args;
+        let out_dir = match &args.out {
+            Some(out) => out.join(label),
+            None if path.is_dir() => path.join("analysis"),
+            None => path.with_extension("analysis"),
+        };
+        let mut summary = summary_json(self.scene, label, path, result, self.analyzer);
+        let (_, energy, temperature, time) = units(self.scene);
+        let verdicts = reference.map(|r| {
+            super::analyze_verdicts::judge((energy, temperature), &r.pooled, result, self.settings)
+        });
+        if let (Some(v), Some(r), Json::Object(map)) = (&verdicts, reference, &mut summary) {
+            map.insert("reference".into(), r.json_paths());
+            if let Some(pool) = r.pool_json() {
+                map.insert("reference_pool".into(), pool);
+            }
+            map.insert("criteria".into(), v.json());
+            map.insert("verdict".into(), json!(v.overall_name()));
+        }
+        super::analyze_output::write_tables(&out_dir, result, &summary)?;
+        if !args.json {
+            print_summary(self.scene, label, &out_dir, result);
+            if let (Some(v), Some(r)) = (&verdicts, reference) {
+                print_pool(r);
+                v.print(time, result);
+            }
+        }
+        Ok(summary)
+    }
+
+    /// Leave-one-out controls: each reference run judged against the others pooled, as a
+    /// run is (its summary's `role` is `control`, its tables under `control-<label>`).
+    fn controls(&self, reference: &Reference) -> Result<Vec<Json>> {
+        let labels = reference.labels();
+        let mut summaries = Vec::new();
+        for (k, (run, path)) in reference.runs.iter().zip(&reference.paths).enumerate() {
+            let others = reference.others(k)?;
+            let label = format!("control-{}", labels[k]);
+            if !self.args.json {
+                println!(
+                    "control: reference run {} against the others pooled",
+                    labels[k]
+                );
+            }
+            let mut summary =
+                self.report(&label, &control_dir(path, &label), run, Some(&others))?;
+            if let Json::Object(map) = &mut summary {
+                map.insert("role".into(), json!("control"));
+            }
+            summaries.push(summary);
+        }
+        Ok(summaries)
+    }
+}
+
+/// Where a control's tables go without `--out`: beside the reference run, never over its
+/// own analysis.
+fn control_dir(path: &Path, label: &str) -> PathBuf {
+    path.parent()
+        .map_or_else(|| PathBuf::from(label), |p| p.join(label))
+}
+
+/// A pooled reference's runs and each quantity's error parts (nothing for one run).
+fn print_pool(reference: &Reference) {
+    let Some(pooling) = &reference.pooled.pooled else {
+        return;
+    };
+    let weights = crate::analysis::pooled::weights(&pooling.lengths);
+    let runs: Vec<String> = reference
+        .labels()
+        .iter()
+        .zip(weights)
+        .map(|(l, w)| format!("{l} (weight {w:.3})"))
+        .collect();
+    println!("  reference pooled from {}:", runs.join(", "));
+    for (name, p) in &pooling.parts {
+        let between = p.between.map_or("-".into(), |b| format!("{b:.4}"));
+        println!(
+            "    {name:<44} {:+11.4} ± {:9.4} (within runs {:.4}, between {between})",
+            p.mean, p.error, p.within
+        );
+    }
 }
 
 /// The run at `path`: a run directory (its degrees of freedom from its manifest unless

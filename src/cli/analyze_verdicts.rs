@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::{Value as Json, json};
 
+use crate::analysis::pooling::{Mismatch, pool_runs};
 use crate::analysis::run_analysis::RunAnalysis;
 use crate::error::{Error, Result};
 use crate::io::scene::Scene;
@@ -20,9 +21,12 @@ use crate::studies::criterion::sampling::DEFAULT_BASIN_BOUND;
 #[derive(Args, Debug, Default)]
 pub struct VerdictArgs {
     /// Judge every run against this reference: a run directory or a trajectory file of any
-    /// engine, analysed as the runs are.
+    /// engine, analysed as the runs are. Repeated, the references are independent runs
+    /// pooled into one (each quantity's mean weighted by sampled length, its error the
+    /// larger of the runs' own and their scatter), and each is also judged against the
+    /// others pooled (a leave-one-out control).
     #[arg(long, value_name = "REF")]
-    pub reference: Option<PathBuf>,
+    pub reference: Vec<PathBuf>,
     /// The temperature of the per-term bounds, e.g. 300K (default: the reference's kinetic
     /// temperature, else, for a trajectory file, its configurational temperature).
     #[arg(long, value_name = "T")]
@@ -160,3 +164,134 @@ impl Verdicts {
         println!("  verdict: {}", self.overall_name());
     }
 }
+
+/// The reference: one run, or several independent runs pooled into one
+/// ([`crate::analysis::pooling`]).
+pub struct Reference {
+    pub paths: Vec<PathBuf>,
+    pub runs: Vec<RunAnalysis>,
+    pub pooled: RunAnalysis,
+}
+
+/// Pool the analysed reference runs (`runs[i]` from `paths[i]`); runs of different models
+/// or clocks are refused, naming both.
+pub fn pool_reference(paths: &[PathBuf], runs: Vec<RunAnalysis>) -> Result<Reference> {
+    let pooled = pool_runs(&runs).map_err(|m| mismatch(paths, &m))?;
+    Ok(Reference {
+        paths: paths.to_vec(),
+        runs,
+        pooled,
+    })
+}
+
+fn mismatch(paths: &[PathBuf], m: &Mismatch) -> Error {
+    let (first, other) = (paths[0].display(), paths[m.index].display());
+    Error::flag(
+        "--reference",
+        format!(
+            "--reference {other} cannot be pooled with {first}: they differ in {}",
+            m.what
+        ),
+    )
+    .key(m.what)
+    .expected(m.first.clone())
+    .got(m.other.clone())
+}
+
+impl Reference {
+    /// Each run's label: its file or directory name.
+    pub fn labels(&self) -> Vec<String> {
+        self.paths
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into())
+            })
+            .collect()
+    }
+
+    /// The reference as the JSON's `reference`: a path, or the paths of a pooled one.
+    pub fn json_paths(&self) -> Json {
+        match self.paths.as_slice() {
+            [one] => json!(one),
+            many => json!(many),
+        }
+    }
+
+    /// `reference_pool`: the runs, their sampled lengths and weights, every pooled
+    /// quantity's mean and error parts; `None` for one run.
+    pub fn pool_json(&self) -> Option<Json> {
+        let pooling = self.pooled.pooled.as_ref()?;
+        let weights = crate::analysis::pooled::weights(&pooling.lengths);
+        let runs: Vec<Json> = self
+            .paths
+            .iter()
+            .zip(&pooling.lengths)
+            .zip(weights)
+            .map(|((p, t), w)| json!({ "run": p, "sampled_length": t, "weight": w }))
+            .collect();
+        let parts: Vec<Json> = pooling
+            .parts
+            .iter()
+            .map(|(name, p)| {
+                json!({ "quantity": name, "mean": p.mean, "error": p.error,
+                        "within_runs": p.within, "between_runs": p.between })
+            })
+            .collect();
+        Some(json!({
+            "runs": runs,
+            "between_runs_degrees_of_freedom": self.runs.len() - 1,
+            "error": "max(within_runs, between_runs)",
+            "parts": parts,
+        }))
+    }
+
+    /// What a reader of a pooled reference should know of it; `None` for one run.
+    pub fn notice(&self) -> Option<String> {
+        let m = self.runs.len();
+        (m >= 2).then(|| {
+            let caveat = if m < MEANINGFUL_RUNS {
+                format!(
+                    "; with {} degree(s) of freedom the between-run part is a rough estimate \
+                     (a 2σ interval on it covers ~{:.0} %, not 95 %; docs/studies.md)",
+                    m - 1,
+                    100.0 * STUDENT_COVERAGE[m - 2]
+                )
+            } else {
+                String::new()
+            };
+            format!(
+                "reference pooled from {m} runs ({}): each error the larger of the runs' own \
+                 and their scatter{caveat}",
+                self.labels().join(", ")
+            )
+        })
+    }
+
+    /// The reference run `k` against the pool of the others (a leave-one-out control).
+    pub fn others(&self, k: usize) -> Result<Reference> {
+        let keep = |v: &[PathBuf]| -> Vec<PathBuf> {
+            v.iter()
+                .enumerate()
+                .filter(|&(i, _)| i != k)
+                .map(|(_, p)| p.clone())
+                .collect()
+        };
+        let runs = self
+            .runs
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != k)
+            .map(|(_, r)| r.clone())
+            .collect();
+        pool_reference(&keep(&self.paths), runs)
+    }
+}
+
+/// From this many runs the between-run error has 4 degrees of freedom, and a 2σ interval on
+/// it covers 88 % (Student's t); fewer get a caveat in the notice.
+pub const MEANINGFUL_RUNS: usize = 5;
+
+/// `P(|t_ν| < 2)` for ν = 1, 2, 3 degrees of freedom (Student's t): the coverage of a 2σ
+/// interval whose σ is estimated from ν + 1 runs.
+const STUDENT_COVERAGE: [f64; 3] = [0.705, 0.816, 0.861];

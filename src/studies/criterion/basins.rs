@@ -31,8 +31,24 @@ pub fn compare_basins(
     bounds: &Bounds,
     bound: f64,
 ) -> Vec<BasinComparison> {
-    let (Some(reference), Some(run)) = (pooled_populations(reference), pooled_populations(run))
-    else {
+    compare_populations(
+        pooled_populations(reference),
+        pooled_populations(run),
+        bounds,
+        bound,
+    )
+}
+
+/// Each basin's population in a run against the reference's, both already pooled over
+/// residues ([`crate::analysis::run_analysis::RunAnalysis::basin_populations`]: a pooled
+/// reference's are pooled over its runs too); none when either is `None`.
+pub fn compare_populations(
+    reference: Option<[Estimate; 3]>,
+    run: Option<[Estimate; 3]>,
+    bounds: &Bounds,
+    bound: f64,
+) -> Vec<BasinComparison> {
+    let (Some(reference), Some(run)) = (reference, run) else {
         return Vec::new();
     };
     BASINS

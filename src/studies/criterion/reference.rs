@@ -33,7 +33,7 @@
 
 use serde::Serialize;
 
-use super::basins::{Bounds, compare_basins};
+use super::basins::{Bounds, compare_populations};
 use crate::analysis::block_average::Estimate;
 use crate::analysis::run_analysis::{EnergySource, RunAnalysis};
 use crate::run::verdict::{self, MEAN_EXPONENT, Measurement, Verdict};
@@ -359,9 +359,9 @@ fn basin_criteria(
         start: span.0,
         span: span.1,
     };
-    let basins = compare_basins(
-        &reference.basins,
-        &run.basins,
+    let basins = compare_populations(
+        reference.basin_populations(),
+        run.basin_populations(),
         &bounds,
         settings.basin_bound,
     );

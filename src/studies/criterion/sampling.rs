@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-pub use super::basins::{BasinComparison, Bounds, compare_basins};
+pub use super::basins::{BasinComparison, Bounds, compare_basins, compare_populations};
 use super::reference::{Criterion, CriterionSettings, Kind, judge_runs, overall};
 use crate::analysis::block_average::Estimate;
 pub use crate::analysis::configurational::DEFAULT_PROBES;
@@ -275,9 +275,9 @@ pub fn compare(
         peak_combined_error,
         kinetic_temperature: run.kinetic_temperature.mean,
         kinetic_temperature_error: run.kinetic_temperature.error,
-        basins: compare_basins(
-            &reference.basins,
-            &run.basins,
+        basins: compare_populations(
+            reference.basin_populations(),
+            run.basin_populations(),
             &bounds,
             settings.basin_bound,
         ),
