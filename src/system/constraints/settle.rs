@@ -264,11 +264,36 @@ fn lane_water(group: &[Settle], l: usize) -> &Settle {
     &group[l.min(group.len() - 1)]
 }
 
-/// A group's three atoms (oxygen, hydrogen 1, hydrogen 2) in `q`, as lanes.
+/// The memory between a group's numbers and its lanes (`[component][lane]`), made once
+/// per pass and reused by each group, so that no group zeroes its own (a lane is written
+/// before it is read: lanes past a group's last water repeat it, [`lane_water`]).
+struct Stage {
+    atoms: [[f64; 16]; 9],
+    constants: [[f64; 16]; 4],
+    changes: [[[f64; 16]; 3]; 3],
+}
+
+impl Stage {
+    #[inline(always)]
+    fn new() -> Self {
+        Stage {
+            atoms: [[0.0; 16]; 9],
+            constants: [[0.0; 16]; 4],
+            changes: [[[0.0; 16]; 3]; 3],
+        }
+    }
+}
+
+/// A group's three atoms (oxygen, hydrogen 1, hydrogen 2) in `q`, as lanes, through
+/// `lanes`.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn gather_atoms<S: Simd<R = f64>>(s: S, group: &[Settle], q: &[f64]) -> Atoms<S> {
-    let mut lanes = [[0.0; 16]; 9];
+fn gather_atoms<S: Simd<R = f64>>(
+    s: S,
+    group: &[Settle],
+    q: &[f64],
+    lanes: &mut [[f64; 16]; 9],
+) -> Atoms<S> {
     for l in 0..S::WIDTH {
         let w = lane_water(group, l);
         let atoms = [w.oxygen, w.hydrogens[0], w.hydrogens[1]];
@@ -279,33 +304,54 @@ fn gather_atoms<S: Simd<R = f64>>(s: S, group: &[Settle], q: &[f64]) -> Atoms<S>
             lanes[3 * a + 2][l] = x[2];
         }
     }
-    let v = load(s, &lanes);
+    let v = load(s, lanes);
     [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]]
 }
 
-/// A group's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` (position step) and `[w_O, w_H]` (velocity
-/// step), as lanes.
+/// A group's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` (the position step's), as lanes.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn gather_constants<S: Simd<R = f64>>(s: S, group: &[Settle]) -> ([L<S>; 4], [L<S>; 2]) {
-    let mut lanes = [[0.0; 16]; 6];
+fn gather_shape<S: Simd<R = f64>>(s: S, group: &[Settle], lanes: &mut [[f64; 16]; 4]) -> [L<S>; 4] {
     for l in 0..S::WIDTH {
         let w = lane_water(group, l);
-        let values = [w.h_share, w.ra, w.rb, w.rc, w.w_o, w.w_h];
-        for c in 0..6 {
+        let values = [w.h_share, w.ra, w.rb, w.rc];
+        for c in 0..4 {
             lanes[c][l] = values[c];
         }
     }
-    let v = load(s, &lanes);
-    ([v[0], v[1], v[2], v[3]], [v[4], v[5]])
+    load(s, lanes)
+}
+
+/// A group's inverse masses `[w_O, w_H]` (the velocity step's), read from `inverse_mass`
+/// (3 per particle) as [`Settle::new`] reads them, so the velocity pass needs no fitted
+/// record (only the positions' constants depend on the masses through a division).
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn gather_masses<S: Simd<R = f64>>(
+    s: S,
+    group: &[Settle],
+    inverse_mass: &[f64],
+    lanes: &mut [[f64; 16]; 4],
+) -> [L<S>; 2] {
+    for l in 0..S::WIDTH {
+        let w = lane_water(group, l);
+        lanes[0][l] = inverse_mass[3 * w.oxygen];
+        lanes[1][l] = inverse_mass[3 * w.hydrogens[0]];
+    }
+    let (wa, wh) = (s.load(&lanes[0]), s.load(&lanes[1]));
+    [L { s, v: wa }, L { s, v: wh }]
 }
 
 /// The changes `atoms` of a group's lanes and their failure codes `codes` into `out` (one
-/// per water of the group).
+/// per water of the group), through `lanes`.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn scatter<S: Simd<R = f64>>(atoms: Atoms<S>, codes: &[u8; 16], out: &mut [Change]) {
-    let mut lanes = [[[0.0; 16]; 3]; 3];
+fn scatter<S: Simd<R = f64>>(
+    atoms: Atoms<S>,
+    codes: &[u8; 16],
+    out: &mut [Change],
+    lanes: &mut [[[f64; 16]; 3]; 3],
+) {
     for a in 0..3 {
         for k in 0..3 {
             let x = atoms[a][k];
@@ -600,7 +646,7 @@ simd_dispatch! {
         q_old: &[f64],
         q_new: &[f64],
         out: &mut [Change],
-    ) = position_changes, lanes f64;
+    ) = position_changes_alone, lanes f64;
 }
 
 /// The position pass on this thread: [`LANES`] waters' changes at a time, then added.
@@ -615,10 +661,10 @@ fn positions_lanes<S: Simd<R = f64>>(
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
+    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
     for chunk in waters.chunks(LANES) {
-        let mut changes = [NO_CHANGE; LANES];
-        let changes = &mut changes[..chunk.len()];
-        position_changes(s, chunk, pbc, q_old, q_new, changes);
+        let changes = &mut block[..chunk.len()];
+        position_changes(s, chunk, pbc, q_old, q_new, changes, &mut stage);
         apply_changes(chunk, changes, |water, delta| {
             apply_positions(water, delta, inverse_dt, q_new, p)
         })?;
@@ -637,17 +683,32 @@ fn position_changes<S: Simd<R = f64>>(
     q_old: &[f64],
     q_new: &[f64],
     out: &mut [Change],
+    stage: &mut Stage,
 ) {
     let lengths = edges(s, pbc);
     for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let (shape, _) = gather_constants(s, group);
-        let (old, new) = (gather_atoms(s, group, q_old), gather_atoms(s, group, q_new));
+        let shape = gather_shape(s, group, &mut stage.constants);
+        let old = gather_atoms(s, group, q_old, &mut stage.atoms);
+        let new = gather_atoms(s, group, q_new, &mut stage.atoms);
         let (delta, failures) = match pbc {
             Some(_) => position_step::<S, true>(shape, lengths, old, new),
             None => position_step::<S, false>(shape, lengths, old, new),
         };
-        scatter(delta, &failures.codes(), out);
+        scatter(delta, &failures.codes(), out, &mut stage.changes);
     }
+}
+
+/// [`position_changes`] with a stage of its own (a parallel task's).
+#[inline(always)]
+fn position_changes_alone<S: Simd<R = f64>>(
+    s: S,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q_old: &[f64],
+    q_new: &[f64],
+    out: &mut [Change],
+) {
+    position_changes(s, waters, pbc, q_old, q_new, out, &mut Stage::new());
 }
 
 /// `apply(water, change)` for every water in order, or, at the first that failed, the
@@ -751,27 +812,38 @@ fn velocities(
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
-    velocities_on(Isa::Portable, std::slice::from_ref(water), pbc, q, p)
+    velocities_on(
+        Isa::Portable,
+        std::slice::from_ref(water),
+        pbc,
+        q,
+        p,
+        inverse_mass,
+    )
 }
 
 /// Project every water's momenta ([`velocities`] for each, the same bits), a group at a
 /// time in SIMD lanes and from [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on in parallel, as
-/// [`positions_all`]. Allocates nothing.
+/// [`positions_all`]. The inverse masses are read from `inverse_mass` (3 per particle; a
+/// water's hydrogens weigh the same, [`super::Constraints::check_masses`]), so `waters`
+/// need not be fitted to them. Allocates nothing.
 pub(super) fn velocities_all(
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
     scratch: &Scratch<Change>,
 ) -> Result<(), ConstraintFailure> {
     let isa = Isa::best();
     if !parallel(waters.len()) {
-        return velocities_on(isa, waters, pbc, q, p);
+        return velocities_on(isa, waters, pbc, q, p, inverse_mass);
     }
     let changes = scratch.computed(waters.len(), |first, out| {
         let (waters, p) = (&waters[first..first + out.len()], &*p);
-        velocity_changes_on(isa, waters, pbc, q, p, out)
+        velocity_changes_on(isa, waters, pbc, q, p, inverse_mass, out)
     });
     apply_changes(waters, &changes[..waters.len()], |water, dp| {
         apply_momenta(water, dp, p)
@@ -786,6 +858,7 @@ simd_dispatch! {
         pbc: Option<&PeriodicBox>,
         q: &[f64],
         p: &mut [f64],
+        inverse_mass: &[f64],
     ) -> Result<(), ConstraintFailure> = velocities_lanes, lanes f64;
 }
 
@@ -796,8 +869,9 @@ simd_dispatch! {
         pbc: Option<&PeriodicBox>,
         q: &[f64],
         p: &[f64],
+        inverse_mass: &[f64],
         out: &mut [Change],
-    ) = velocity_changes, lanes f64;
+    ) = velocity_changes_alone, lanes f64;
 }
 
 /// The velocity pass on this thread: [`LANES`] waters' changes at a time, then added.
@@ -808,11 +882,12 @@ fn velocities_lanes<S: Simd<R = f64>>(
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
+    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
     for chunk in waters.chunks(LANES) {
-        let mut changes = [NO_CHANGE; LANES];
-        let changes = &mut changes[..chunk.len()];
-        velocity_changes(s, chunk, pbc, q, p, changes);
+        let changes = &mut block[..chunk.len()];
+        velocity_changes(s, chunk, pbc, q, p, inverse_mass, changes, &mut stage);
         apply_changes(chunk, changes, |water, dp| apply_momenta(water, dp, p))?;
     }
     Ok(())
@@ -820,6 +895,7 @@ fn velocities_lanes<S: Simd<R = f64>>(
 
 /// The velocity step ([`velocity_step`]) of every water of `waters` into `out`,
 /// `S::WIDTH` at a time as [`position_changes`].
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn velocity_changes<S: Simd<R = f64>>(
     s: S,
@@ -827,12 +903,15 @@ fn velocity_changes<S: Simd<R = f64>>(
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &[f64],
+    inverse_mass: &[f64],
     out: &mut [Change],
+    stage: &mut Stage,
 ) {
     let lengths = edges(s, pbc);
     for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let (_, masses) = gather_constants(s, group);
-        let (qw, pw) = (gather_atoms(s, group, q), gather_atoms(s, group, p));
+        let masses = gather_masses(s, group, inverse_mass, &mut stage.constants);
+        let qw = gather_atoms(s, group, q, &mut stage.atoms);
+        let pw = gather_atoms(s, group, p, &mut stage.atoms);
         let (dp, singular) = match pbc {
             Some(_) => velocity_step::<S, true>(masses, lengths, qw, pw),
             None => velocity_step::<S, false>(masses, lengths, qw, pw),
@@ -843,8 +922,22 @@ fn velocity_changes<S: Simd<R = f64>>(
                 *code = SINGULAR;
             }
         }
-        scatter(dp, &codes, out);
+        scatter(dp, &codes, out, &mut stage.changes);
     }
+}
+
+/// [`velocity_changes`] with a stage of its own (a parallel task's).
+#[inline(always)]
+fn velocity_changes_alone<S: Simd<R = f64>>(
+    s: S,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q: &[f64],
+    p: &[f64],
+    inverse_mass: &[f64],
+    out: &mut [Change],
+) {
+    velocity_changes(s, waters, pbc, q, p, inverse_mass, out, &mut Stage::new());
 }
 
 fn failure(water: &Settle, code: u8) -> ConstraintFailure {
@@ -908,6 +1001,14 @@ mod tests {
         (waters, q_old, q_new, p)
     }
 
+    /// The inverse masses of [`scene`]'s `n` waters, 3 per particle.
+    fn inverse_masses(n: usize) -> Vec<f64> {
+        let (w_o, w_h) = (1.0 / 15.9994, 1.0 / 3.024);
+        (0..9 * n)
+            .map(|k| if k % 9 < 3 { w_o } else { w_h })
+            .collect()
+    }
+
     fn bits(x: &[f64]) -> Vec<u64> {
         x.iter().map(|v| v.to_bits()).collect()
     }
@@ -920,20 +1021,21 @@ mod tests {
         for (n, periodic) in [(21, true), (21, false), (5, true), (16, true)] {
             let pbc = periodic.then_some(&pbc);
             let (waters, q_old, q_new, p) = scene(n, n as u64);
+            let w = inverse_masses(n);
             let (mut q_one, mut p_one) = (q_new.clone(), p.clone());
             for w in &waters {
                 positions(w, pbc, &q_old, &mut q_one, &mut p_one, 2.0).unwrap();
             }
             let mut p_vel = p_one.clone();
-            for w in &waters {
-                velocities(w, pbc, &q_one, &mut p_vel).unwrap();
+            for water in &waters {
+                velocities(water, pbc, &q_one, &mut p_vel, &w).unwrap();
             }
             for isa in Isa::available() {
                 let (mut q_lanes, mut p_lanes) = (q_new.clone(), p.clone());
                 positions_on(isa, &waters, pbc, &q_old, &mut q_lanes, &mut p_lanes, 2.0).unwrap();
                 assert_eq!(bits(&q_lanes), bits(&q_one), "{isa:?} n {n}");
                 assert_eq!(bits(&p_lanes), bits(&p_one), "{isa:?} n {n}");
-                velocities_on(isa, &waters, pbc, &q_lanes, &mut p_lanes).unwrap();
+                velocities_on(isa, &waters, pbc, &q_lanes, &mut p_lanes, &w).unwrap();
                 assert_eq!(bits(&p_lanes), bits(&p_vel), "{isa:?} n {n}");
             }
         }
