@@ -267,9 +267,18 @@ fn lane_water(group: &[Settle], l: usize) -> &Settle {
 /// The memory between a group's numbers and its lanes (`[component][lane]`), made once
 /// per pass and reused by each group, so that no group zeroes its own (a lane is written
 /// before it is read: lanes past a group's last water repeat it, [`lane_water`]).
+///
+/// The inputs are filled one group ahead: a group's numbers are stored lane by lane
+/// (scalar stores) while the group before it computes, and loaded as registers when its
+/// turn comes. A register load right after the narrow stores that fill it waits for them
+/// to reach the cache (store forwarding fails from several narrow stores to one wide load);
+/// one group's arithmetic later they are there.
 struct Stage {
-    atoms: [[f64; 16]; 9],
-    constants: [[f64; 16]; 4],
+    /// Two groups' inputs: rows 0–8 the three atoms of the first array (`[atom][axis]`),
+    /// 9–17 those of the second, 18–21 the constants ([`fill`]).
+    inputs: [[[f64; 16]; 22]; 2],
+    /// Which of `inputs` holds the group to compute now.
+    current: usize,
     changes: [[[f64; 16]; 3]; 3],
 }
 
@@ -277,69 +286,90 @@ impl Stage {
     #[inline(always)]
     fn new() -> Self {
         Stage {
-            atoms: [[0.0; 16]; 9],
-            constants: [[0.0; 16]; 4],
+            inputs: [[[0.0; 16]; 22]; 2],
+            current: 0,
             changes: [[[0.0; 16]; 3]; 3],
         }
     }
+
+    /// The current group's inputs as lanes: the two arrays' atoms and the constants.
+    #[inline(always)]
+    fn load<S: Simd<R = f64>>(&self, s: S) -> ([Atoms<S>; 2], [L<S>; 4]) {
+        let v: [L<S>; 22] = load(s, &self.inputs[self.current]);
+        let (a, b) = (&v[0..9], &v[9..18]);
+        let atoms = [
+            [[a[0], a[1], a[2]], [a[3], a[4], a[5]], [a[6], a[7], a[8]]],
+            [[b[0], b[1], b[2]], [b[3], b[4], b[5]], [b[6], b[7], b[8]]],
+        ];
+        (atoms, [v[18], v[19], v[20], v[21]])
+    }
+
+    /// Fill the other set with `next` (if any) and make it the current one for the next
+    /// group.
+    #[inline(always)]
+    fn advance<S: Simd<R = f64>>(&mut self, next: &[Settle], sources: Sources) {
+        self.current ^= 1;
+        fill::<S>(next, sources, &mut self.inputs[self.current]);
+    }
 }
 
-/// A group's three atoms (oxygen, hydrogen 1, hydrogen 2) in `q`, as lanes, through
-/// `lanes`.
+/// What a pass reads of its waters: two arrays of coordinates (positions: `q_old`,
+/// `q_new`; velocities: `q`, `p`) and, for the velocity pass, the inverse masses
+/// (`None`: the position pass, whose constants are the fitted records').
+#[derive(Clone, Copy)]
+struct Sources<'a> {
+    first: &'a [f64],
+    second: &'a [f64],
+    inverse_mass: Option<&'a [f64]>,
+}
+
+impl<'a> Sources<'a> {
+    #[inline(always)]
+    fn of(first: &'a [f64], second: &'a [f64], inverse_mass: Option<&'a [f64]>) -> Self {
+        Sources {
+            first,
+            second,
+            inverse_mass,
+        }
+    }
+}
+
+/// Store `group`'s inputs (none if it is empty) into `rows`: the three atoms (oxygen, hydrogen 1, hydrogen 2)
+/// of both arrays, then the position step's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` or the
+/// velocity step's `[w_O, w_H]`, read from the inverse masses as [`Settle::new`] reads
+/// them (so the velocity pass needs no fitted record).
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn gather_atoms<S: Simd<R = f64>>(
-    s: S,
-    group: &[Settle],
-    q: &[f64],
-    lanes: &mut [[f64; 16]; 9],
-) -> Atoms<S> {
+fn fill<S: Simd<R = f64>>(group: &[Settle], sources: Sources, rows: &mut [[f64; 16]; 22]) {
+    if group.is_empty() {
+        return;
+    }
     for l in 0..S::WIDTH {
         let w = lane_water(group, l);
         let atoms = [w.oxygen, w.hydrogens[0], w.hydrogens[1]];
-        for a in 0..3 {
-            let x = &q[3 * atoms[a]..3 * atoms[a] + 3];
-            lanes[3 * a][l] = x[0];
-            lanes[3 * a + 1][l] = x[1];
-            lanes[3 * a + 2][l] = x[2];
+        let arrays = [sources.first, sources.second];
+        for k in 0..2 {
+            for a in 0..3 {
+                let x = &arrays[k][3 * atoms[a]..3 * atoms[a] + 3];
+                for axis in 0..3 {
+                    rows[9 * k + 3 * a + axis][l] = x[axis];
+                }
+            }
         }
-    }
-    let v = load(s, lanes);
-    [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]]
-}
-
-/// A group's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` (the position step's), as lanes.
-#[allow(clippy::needless_range_loop)]
-#[inline(always)]
-fn gather_shape<S: Simd<R = f64>>(s: S, group: &[Settle], lanes: &mut [[f64; 16]; 4]) -> [L<S>; 4] {
-    for l in 0..S::WIDTH {
-        let w = lane_water(group, l);
-        let values = [w.h_share, w.ra, w.rb, w.rc];
+        let constants = match sources.inverse_mass {
+            None => [w.h_share, w.ra, w.rb, w.rc],
+            Some(m) => [m[3 * w.oxygen], m[3 * w.hydrogens[0]], 0.0, 0.0],
+        };
         for c in 0..4 {
-            lanes[c][l] = values[c];
+            rows[18 + c][l] = constants[c];
         }
     }
-    load(s, lanes)
 }
 
-/// A group's inverse masses `[w_O, w_H]` (the velocity step's), read from `inverse_mass`
-/// (3 per particle) as [`Settle::new`] reads them, so the velocity pass needs no fitted
-/// record (only the positions' constants depend on the masses through a division).
-#[allow(clippy::needless_range_loop)]
+/// The first group (at most `width` waters) of `waters`, empty if none.
 #[inline(always)]
-fn gather_masses<S: Simd<R = f64>>(
-    s: S,
-    group: &[Settle],
-    inverse_mass: &[f64],
-    lanes: &mut [[f64; 16]; 4],
-) -> [L<S>; 2] {
-    for l in 0..S::WIDTH {
-        let w = lane_water(group, l);
-        lanes[0][l] = inverse_mass[3 * w.oxygen];
-        lanes[1][l] = inverse_mass[3 * w.hydrogens[0]];
-    }
-    let (wa, wh) = (s.load(&lanes[0]), s.load(&lanes[1]));
-    [L { s, v: wa }, L { s, v: wh }]
+fn first_group(waters: &[Settle], width: usize) -> &[Settle] {
+    &waters[..waters.len().min(width)]
 }
 
 /// The changes `atoms` of a group's lanes and their failure codes `codes` into `out` (one
@@ -662,9 +692,13 @@ fn positions_lanes<S: Simd<R = f64>>(
 ) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
     let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
-    for chunk in waters.chunks(LANES) {
+    let first = first_group(waters, S::WIDTH);
+    fill::<S>(first, Sources::of(q_old, q_new, None), &mut stage.inputs[0]);
+    for (k, chunk) in waters.chunks(LANES).enumerate() {
         let changes = &mut block[..chunk.len()];
-        position_changes(s, chunk, pbc, q_old, q_new, changes, &mut stage);
+        let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
+        let sources = Sources::of(q_old, q_new, None);
+        position_changes(s, chunk, pbc, sources, changes, &mut stage, ahead);
         apply_changes(chunk, changes, |water, delta| {
             apply_positions(water, delta, inverse_dt, q_new, p)
         })?;
@@ -673,23 +707,29 @@ fn positions_lanes<S: Simd<R = f64>>(
 }
 
 /// The position step ([`position_step`]) of every water of `waters` into `out`,
-/// `S::WIDTH` at a time: their coordinates and constants gathered into lanes, the step,
-/// the changes scattered back.
+/// `S::WIDTH` at a time: their coordinates and constants gathered into lanes (`stage`
+/// holds the first group's already; each group fills the next one's, after the last
+/// the group `ahead`, which may be empty), the step, the changes scattered back.
 #[inline(always)]
 fn position_changes<S: Simd<R = f64>>(
     s: S,
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
-    q_old: &[f64],
-    q_new: &[f64],
+    sources: Sources,
     out: &mut [Change],
     stage: &mut Stage,
+    ahead: &[Settle],
 ) {
     let lengths = edges(s, pbc);
-    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let shape = gather_shape(s, group, &mut stage.constants);
-        let old = gather_atoms(s, group, q_old, &mut stage.atoms);
-        let new = gather_atoms(s, group, q_new, &mut stage.atoms);
+    for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
+        let ([old, new], shape) = stage.load(s);
+        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
+        let next = if rest.is_empty() {
+            ahead
+        } else {
+            first_group(rest, S::WIDTH)
+        };
+        stage.advance::<S>(next, sources);
         let (delta, failures) = match pbc {
             Some(_) => position_step::<S, true>(shape, lengths, old, new),
             None => position_step::<S, false>(shape, lengths, old, new),
@@ -708,7 +748,9 @@ fn position_changes_alone<S: Simd<R = f64>>(
     q_new: &[f64],
     out: &mut [Change],
 ) {
-    position_changes(s, waters, pbc, q_old, q_new, out, &mut Stage::new());
+    let (mut stage, sources) = (Stage::new(), Sources::of(q_old, q_new, None));
+    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    position_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
 /// `apply(water, change)` for every water in order, or, at the first that failed, the
@@ -885,33 +927,46 @@ fn velocities_lanes<S: Simd<R = f64>>(
     inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
     let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
-    for chunk in waters.chunks(LANES) {
+    let first = first_group(waters, S::WIDTH);
+    fill::<S>(
+        first,
+        Sources::of(q, p, Some(inverse_mass)),
+        &mut stage.inputs[0],
+    );
+    for (k, chunk) in waters.chunks(LANES).enumerate() {
         let changes = &mut block[..chunk.len()];
-        velocity_changes(s, chunk, pbc, q, p, inverse_mass, changes, &mut stage);
+        let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
+        let sources = Sources::of(q, p, Some(inverse_mass));
+        velocity_changes(s, chunk, pbc, sources, changes, &mut stage, ahead);
         apply_changes(chunk, changes, |water, dp| apply_momenta(water, dp, p))?;
     }
     Ok(())
 }
 
 /// The velocity step ([`velocity_step`]) of every water of `waters` into `out`,
-/// `S::WIDTH` at a time as [`position_changes`].
-#[allow(clippy::too_many_arguments)]
+/// `S::WIDTH` at a time as [`position_changes`] (`sources`: the positions, the momenta
+/// and the inverse masses).
 #[inline(always)]
 fn velocity_changes<S: Simd<R = f64>>(
     s: S,
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
-    q: &[f64],
-    p: &[f64],
-    inverse_mass: &[f64],
+    sources: Sources,
     out: &mut [Change],
     stage: &mut Stage,
+    ahead: &[Settle],
 ) {
     let lengths = edges(s, pbc);
-    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let masses = gather_masses(s, group, inverse_mass, &mut stage.constants);
-        let qw = gather_atoms(s, group, q, &mut stage.atoms);
-        let pw = gather_atoms(s, group, p, &mut stage.atoms);
+    for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
+        let ([qw, pw], [wa, wh, ..]) = stage.load(s);
+        let masses = [wa, wh];
+        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
+        let next = if rest.is_empty() {
+            ahead
+        } else {
+            first_group(rest, S::WIDTH)
+        };
+        stage.advance::<S>(next, sources);
         let (dp, singular) = match pbc {
             Some(_) => velocity_step::<S, true>(masses, lengths, qw, pw),
             None => velocity_step::<S, false>(masses, lengths, qw, pw),
@@ -937,7 +992,9 @@ fn velocity_changes_alone<S: Simd<R = f64>>(
     inverse_mass: &[f64],
     out: &mut [Change],
 ) {
-    velocity_changes(s, waters, pbc, q, p, inverse_mass, out, &mut Stage::new());
+    let (mut stage, sources) = (Stage::new(), Sources::of(q, p, Some(inverse_mass)));
+    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    velocity_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
 fn failure(water: &Settle, code: u8) -> ConstraintFailure {
