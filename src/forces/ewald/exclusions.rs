@@ -65,9 +65,7 @@ impl Exclusions {
         }
     }
 
-    /// Minimum-image `r_j − r_i` of pair `k`. Always inlined: a call per pair cost ~1 % of
-    /// a Trp-cage step where code generation left it out of line.
-    #[inline(always)]
+    /// Minimum-image `r_j − r_i` of pair `k`.
     fn difference(&self, q: &[f64], k: usize) -> [f64; 3] {
         let (i, j, _) = self.pairs[k];
         let (i, j) = (i as usize, j as usize);
