@@ -298,9 +298,10 @@ impl Constraints {
         p: &mut [f64],
         inverse_mass: &[f64],
     ) -> Result<(), ConstraintFailure> {
-        self.fit_settle(inverse_mass);
+        // The velocity pass reads the masses itself: no refit here.
         let pbc = self.periodic_box.as_ref();
-        settle::velocities_all(&self.settle, pbc, q, p, &self.settle_changes)?;
+        let scratch = &self.settle_changes;
+        settle::velocities_all(&self.settle, pbc, q, p, inverse_mass, scratch)?;
         if !self.pairs.is_empty() {
             rattle::rattle(self, q, p, inverse_mass)?;
         }

@@ -264,48 +264,124 @@ fn lane_water(group: &[Settle], l: usize) -> &Settle {
     &group[l.min(group.len() - 1)]
 }
 
-/// A group's three atoms (oxygen, hydrogen 1, hydrogen 2) in `q`, as lanes.
+/// The memory between a group's numbers and its lanes (`[component][lane]`), made once
+/// per pass and reused by each group, so that no group zeroes its own (a lane is written
+/// before it is read: lanes past a group's last water repeat it, [`lane_water`]).
+///
+/// The inputs are filled one group ahead: a group's numbers are stored lane by lane
+/// (scalar stores) while the group before it computes, and loaded as registers when its
+/// turn comes. A register load right after the narrow stores that fill it waits for them
+/// to reach the cache (store forwarding fails from several narrow stores to one wide load);
+/// one group's arithmetic later they are there.
+struct Stage {
+    /// Two groups' inputs: rows 0–8 the three atoms of the first array (`[atom][axis]`),
+    /// 9–17 those of the second, 18–21 the constants ([`fill`]).
+    inputs: [[[f64; 16]; 22]; 2],
+    /// Which of `inputs` holds the group to compute now.
+    current: usize,
+    changes: [[[f64; 16]; 3]; 3],
+}
+
+impl Stage {
+    #[inline(always)]
+    fn new() -> Self {
+        Stage {
+            inputs: [[[0.0; 16]; 22]; 2],
+            current: 0,
+            changes: [[[0.0; 16]; 3]; 3],
+        }
+    }
+
+    /// The current group's inputs as lanes: the two arrays' atoms and the constants.
+    #[inline(always)]
+    fn load<S: Simd<R = f64>>(&self, s: S) -> ([Atoms<S>; 2], [L<S>; 4]) {
+        let v: [L<S>; 22] = load(s, &self.inputs[self.current]);
+        let (a, b) = (&v[0..9], &v[9..18]);
+        let atoms = [
+            [[a[0], a[1], a[2]], [a[3], a[4], a[5]], [a[6], a[7], a[8]]],
+            [[b[0], b[1], b[2]], [b[3], b[4], b[5]], [b[6], b[7], b[8]]],
+        ];
+        (atoms, [v[18], v[19], v[20], v[21]])
+    }
+
+    /// Fill the other set with `next` (if any) and make it the current one for the next
+    /// group.
+    #[inline(always)]
+    fn advance<S: Simd<R = f64>>(&mut self, next: &[Settle], sources: Sources) {
+        self.current ^= 1;
+        fill::<S>(next, sources, &mut self.inputs[self.current]);
+    }
+}
+
+/// What a pass reads of its waters: two arrays of coordinates (positions: `q_old`,
+/// `q_new`; velocities: `q`, `p`) and, for the velocity pass, the inverse masses
+/// (`None`: the position pass, whose constants are the fitted records').
+#[derive(Clone, Copy)]
+struct Sources<'a> {
+    first: &'a [f64],
+    second: &'a [f64],
+    inverse_mass: Option<&'a [f64]>,
+}
+
+impl<'a> Sources<'a> {
+    #[inline(always)]
+    fn of(first: &'a [f64], second: &'a [f64], inverse_mass: Option<&'a [f64]>) -> Self {
+        Sources {
+            first,
+            second,
+            inverse_mass,
+        }
+    }
+}
+
+/// Store `group`'s inputs (none if it is empty) into `rows`: the three atoms (oxygen, hydrogen 1, hydrogen 2)
+/// of both arrays, then the position step's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` or the
+/// velocity step's `[w_O, w_H]`, read from the inverse masses as [`Settle::new`] reads
+/// them (so the velocity pass needs no fitted record).
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn gather_atoms<S: Simd<R = f64>>(s: S, group: &[Settle], q: &[f64]) -> Atoms<S> {
-    let mut lanes = [[0.0; 16]; 9];
+fn fill<S: Simd<R = f64>>(group: &[Settle], sources: Sources, rows: &mut [[f64; 16]; 22]) {
+    if group.is_empty() {
+        return;
+    }
     for l in 0..S::WIDTH {
         let w = lane_water(group, l);
         let atoms = [w.oxygen, w.hydrogens[0], w.hydrogens[1]];
-        for a in 0..3 {
-            let x = &q[3 * atoms[a]..3 * atoms[a] + 3];
-            lanes[3 * a][l] = x[0];
-            lanes[3 * a + 1][l] = x[1];
-            lanes[3 * a + 2][l] = x[2];
+        let arrays = [sources.first, sources.second];
+        for k in 0..2 {
+            for a in 0..3 {
+                let x = &arrays[k][3 * atoms[a]..3 * atoms[a] + 3];
+                for axis in 0..3 {
+                    rows[9 * k + 3 * a + axis][l] = x[axis];
+                }
+            }
+        }
+        let constants = match sources.inverse_mass {
+            None => [w.h_share, w.ra, w.rb, w.rc],
+            Some(m) => [m[3 * w.oxygen], m[3 * w.hydrogens[0]], 0.0, 0.0],
+        };
+        for c in 0..4 {
+            rows[18 + c][l] = constants[c];
         }
     }
-    let v = load(s, &lanes);
-    [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]]
 }
 
-/// A group's `[m_H/(m_O + 2m_H), r_a, r_b, r_c]` (position step) and `[w_O, w_H]` (velocity
-/// step), as lanes.
-#[allow(clippy::needless_range_loop)]
+/// The first group (at most `width` waters) of `waters`, empty if none.
 #[inline(always)]
-fn gather_constants<S: Simd<R = f64>>(s: S, group: &[Settle]) -> ([L<S>; 4], [L<S>; 2]) {
-    let mut lanes = [[0.0; 16]; 6];
-    for l in 0..S::WIDTH {
-        let w = lane_water(group, l);
-        let values = [w.h_share, w.ra, w.rb, w.rc, w.w_o, w.w_h];
-        for c in 0..6 {
-            lanes[c][l] = values[c];
-        }
-    }
-    let v = load(s, &lanes);
-    ([v[0], v[1], v[2], v[3]], [v[4], v[5]])
+fn first_group(waters: &[Settle], width: usize) -> &[Settle] {
+    &waters[..waters.len().min(width)]
 }
 
 /// The changes `atoms` of a group's lanes and their failure codes `codes` into `out` (one
-/// per water of the group).
+/// per water of the group), through `lanes`.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn scatter<S: Simd<R = f64>>(atoms: Atoms<S>, codes: &[u8; 16], out: &mut [Change]) {
-    let mut lanes = [[[0.0; 16]; 3]; 3];
+fn scatter<S: Simd<R = f64>>(
+    atoms: Atoms<S>,
+    codes: &[u8; 16],
+    out: &mut [Change],
+    lanes: &mut [[[f64; 16]; 3]; 3],
+) {
     for a in 0..3 {
         for k in 0..3 {
             let x = atoms[a][k];
@@ -600,7 +676,7 @@ simd_dispatch! {
         q_old: &[f64],
         q_new: &[f64],
         out: &mut [Change],
-    ) = position_changes, lanes f64;
+    ) = position_changes_alone, lanes f64;
 }
 
 /// The position pass on this thread: [`LANES`] waters' changes at a time, then added.
@@ -615,10 +691,14 @@ fn positions_lanes<S: Simd<R = f64>>(
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
-    for chunk in waters.chunks(LANES) {
-        let mut changes = [NO_CHANGE; LANES];
-        let changes = &mut changes[..chunk.len()];
-        position_changes(s, chunk, pbc, q_old, q_new, changes);
+    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
+    let first = first_group(waters, S::WIDTH);
+    fill::<S>(first, Sources::of(q_old, q_new, None), &mut stage.inputs[0]);
+    for (k, chunk) in waters.chunks(LANES).enumerate() {
+        let changes = &mut block[..chunk.len()];
+        let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
+        let sources = Sources::of(q_old, q_new, None);
+        position_changes(s, chunk, pbc, sources, changes, &mut stage, ahead);
         apply_changes(chunk, changes, |water, delta| {
             apply_positions(water, delta, inverse_dt, q_new, p)
         })?;
@@ -627,10 +707,40 @@ fn positions_lanes<S: Simd<R = f64>>(
 }
 
 /// The position step ([`position_step`]) of every water of `waters` into `out`,
-/// `S::WIDTH` at a time: their coordinates and constants gathered into lanes, the step,
-/// the changes scattered back.
+/// `S::WIDTH` at a time: their coordinates and constants gathered into lanes (`stage`
+/// holds the first group's already; each group fills the next one's, after the last
+/// the group `ahead`, which may be empty), the step, the changes scattered back.
 #[inline(always)]
 fn position_changes<S: Simd<R = f64>>(
+    s: S,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    sources: Sources,
+    out: &mut [Change],
+    stage: &mut Stage,
+    ahead: &[Settle],
+) {
+    let lengths = edges(s, pbc);
+    for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
+        let ([old, new], shape) = stage.load(s);
+        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
+        let next = if rest.is_empty() {
+            ahead
+        } else {
+            first_group(rest, S::WIDTH)
+        };
+        stage.advance::<S>(next, sources);
+        let (delta, failures) = match pbc {
+            Some(_) => position_step::<S, true>(shape, lengths, old, new),
+            None => position_step::<S, false>(shape, lengths, old, new),
+        };
+        scatter(delta, &failures.codes(), out, &mut stage.changes);
+    }
+}
+
+/// [`position_changes`] with a stage of its own (a parallel task's).
+#[inline(always)]
+fn position_changes_alone<S: Simd<R = f64>>(
     s: S,
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
@@ -638,16 +748,9 @@ fn position_changes<S: Simd<R = f64>>(
     q_new: &[f64],
     out: &mut [Change],
 ) {
-    let lengths = edges(s, pbc);
-    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let (shape, _) = gather_constants(s, group);
-        let (old, new) = (gather_atoms(s, group, q_old), gather_atoms(s, group, q_new));
-        let (delta, failures) = match pbc {
-            Some(_) => position_step::<S, true>(shape, lengths, old, new),
-            None => position_step::<S, false>(shape, lengths, old, new),
-        };
-        scatter(delta, &failures.codes(), out);
-    }
+    let (mut stage, sources) = (Stage::new(), Sources::of(q_old, q_new, None));
+    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    position_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
 /// `apply(water, change)` for every water in order, or, at the first that failed, the
@@ -751,27 +854,38 @@ fn velocities(
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
-    velocities_on(Isa::Portable, std::slice::from_ref(water), pbc, q, p)
+    velocities_on(
+        Isa::Portable,
+        std::slice::from_ref(water),
+        pbc,
+        q,
+        p,
+        inverse_mass,
+    )
 }
 
 /// Project every water's momenta ([`velocities`] for each, the same bits), a group at a
 /// time in SIMD lanes and from [`PARALLEL_MIN_INTERACTIONS`](crate::forces::scratch::PARALLEL_MIN_INTERACTIONS) waters on in parallel, as
-/// [`positions_all`]. Allocates nothing.
+/// [`positions_all`]. The inverse masses are read from `inverse_mass` (3 per particle; a
+/// water's hydrogens weigh the same, [`super::Constraints::check_masses`]), so `waters`
+/// need not be fitted to them. Allocates nothing.
 pub(super) fn velocities_all(
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
     scratch: &Scratch<Change>,
 ) -> Result<(), ConstraintFailure> {
     let isa = Isa::best();
     if !parallel(waters.len()) {
-        return velocities_on(isa, waters, pbc, q, p);
+        return velocities_on(isa, waters, pbc, q, p, inverse_mass);
     }
     let changes = scratch.computed(waters.len(), |first, out| {
         let (waters, p) = (&waters[first..first + out.len()], &*p);
-        velocity_changes_on(isa, waters, pbc, q, p, out)
+        velocity_changes_on(isa, waters, pbc, q, p, inverse_mass, out)
     });
     apply_changes(waters, &changes[..waters.len()], |water, dp| {
         apply_momenta(water, dp, p)
@@ -786,6 +900,7 @@ simd_dispatch! {
         pbc: Option<&PeriodicBox>,
         q: &[f64],
         p: &mut [f64],
+        inverse_mass: &[f64],
     ) -> Result<(), ConstraintFailure> = velocities_lanes, lanes f64;
 }
 
@@ -796,8 +911,9 @@ simd_dispatch! {
         pbc: Option<&PeriodicBox>,
         q: &[f64],
         p: &[f64],
+        inverse_mass: &[f64],
         out: &mut [Change],
-    ) = velocity_changes, lanes f64;
+    ) = velocity_changes_alone, lanes f64;
 }
 
 /// The velocity pass on this thread: [`LANES`] waters' changes at a time, then added.
@@ -808,31 +924,49 @@ fn velocities_lanes<S: Simd<R = f64>>(
     pbc: Option<&PeriodicBox>,
     q: &[f64],
     p: &mut [f64],
+    inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
-    for chunk in waters.chunks(LANES) {
-        let mut changes = [NO_CHANGE; LANES];
-        let changes = &mut changes[..chunk.len()];
-        velocity_changes(s, chunk, pbc, q, p, changes);
+    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
+    let first = first_group(waters, S::WIDTH);
+    fill::<S>(
+        first,
+        Sources::of(q, p, Some(inverse_mass)),
+        &mut stage.inputs[0],
+    );
+    for (k, chunk) in waters.chunks(LANES).enumerate() {
+        let changes = &mut block[..chunk.len()];
+        let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
+        let sources = Sources::of(q, p, Some(inverse_mass));
+        velocity_changes(s, chunk, pbc, sources, changes, &mut stage, ahead);
         apply_changes(chunk, changes, |water, dp| apply_momenta(water, dp, p))?;
     }
     Ok(())
 }
 
 /// The velocity step ([`velocity_step`]) of every water of `waters` into `out`,
-/// `S::WIDTH` at a time as [`position_changes`].
+/// `S::WIDTH` at a time as [`position_changes`] (`sources`: the positions, the momenta
+/// and the inverse masses).
 #[inline(always)]
 fn velocity_changes<S: Simd<R = f64>>(
     s: S,
     waters: &[Settle],
     pbc: Option<&PeriodicBox>,
-    q: &[f64],
-    p: &[f64],
+    sources: Sources,
     out: &mut [Change],
+    stage: &mut Stage,
+    ahead: &[Settle],
 ) {
     let lengths = edges(s, pbc);
-    for (group, out) in waters.chunks(S::WIDTH).zip(out.chunks_mut(S::WIDTH)) {
-        let (_, masses) = gather_constants(s, group);
-        let (qw, pw) = (gather_atoms(s, group, q), gather_atoms(s, group, p));
+    for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
+        let ([qw, pw], [wa, wh, ..]) = stage.load(s);
+        let masses = [wa, wh];
+        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
+        let next = if rest.is_empty() {
+            ahead
+        } else {
+            first_group(rest, S::WIDTH)
+        };
+        stage.advance::<S>(next, sources);
         let (dp, singular) = match pbc {
             Some(_) => velocity_step::<S, true>(masses, lengths, qw, pw),
             None => velocity_step::<S, false>(masses, lengths, qw, pw),
@@ -843,8 +977,24 @@ fn velocity_changes<S: Simd<R = f64>>(
                 *code = SINGULAR;
             }
         }
-        scatter(dp, &codes, out);
+        scatter(dp, &codes, out, &mut stage.changes);
     }
+}
+
+/// [`velocity_changes`] with a stage of its own (a parallel task's).
+#[inline(always)]
+fn velocity_changes_alone<S: Simd<R = f64>>(
+    s: S,
+    waters: &[Settle],
+    pbc: Option<&PeriodicBox>,
+    q: &[f64],
+    p: &[f64],
+    inverse_mass: &[f64],
+    out: &mut [Change],
+) {
+    let (mut stage, sources) = (Stage::new(), Sources::of(q, p, Some(inverse_mass)));
+    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    velocity_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
 fn failure(water: &Settle, code: u8) -> ConstraintFailure {
@@ -908,6 +1058,14 @@ mod tests {
         (waters, q_old, q_new, p)
     }
 
+    /// The inverse masses of [`scene`]'s `n` waters, 3 per particle.
+    fn inverse_masses(n: usize) -> Vec<f64> {
+        let (w_o, w_h) = (1.0 / 15.9994, 1.0 / 3.024);
+        (0..9 * n)
+            .map(|k| if k % 9 < 3 { w_o } else { w_h })
+            .collect()
+    }
+
     fn bits(x: &[f64]) -> Vec<u64> {
         x.iter().map(|v| v.to_bits()).collect()
     }
@@ -920,20 +1078,21 @@ mod tests {
         for (n, periodic) in [(21, true), (21, false), (5, true), (16, true)] {
             let pbc = periodic.then_some(&pbc);
             let (waters, q_old, q_new, p) = scene(n, n as u64);
+            let w = inverse_masses(n);
             let (mut q_one, mut p_one) = (q_new.clone(), p.clone());
             for w in &waters {
                 positions(w, pbc, &q_old, &mut q_one, &mut p_one, 2.0).unwrap();
             }
             let mut p_vel = p_one.clone();
-            for w in &waters {
-                velocities(w, pbc, &q_one, &mut p_vel).unwrap();
+            for water in &waters {
+                velocities(water, pbc, &q_one, &mut p_vel, &w).unwrap();
             }
             for isa in Isa::available() {
                 let (mut q_lanes, mut p_lanes) = (q_new.clone(), p.clone());
                 positions_on(isa, &waters, pbc, &q_old, &mut q_lanes, &mut p_lanes, 2.0).unwrap();
                 assert_eq!(bits(&q_lanes), bits(&q_one), "{isa:?} n {n}");
                 assert_eq!(bits(&p_lanes), bits(&p_one), "{isa:?} n {n}");
-                velocities_on(isa, &waters, pbc, &q_lanes, &mut p_lanes).unwrap();
+                velocities_on(isa, &waters, pbc, &q_lanes, &mut p_lanes, &w).unwrap();
                 assert_eq!(bits(&p_lanes), bits(&p_vel), "{isa:?} n {n}");
             }
         }
