@@ -36,22 +36,41 @@ GROUPS = [
     ("non-bonded engine (reduce, refresh)", r"nonbonded::engine|Nonbonded"),
     ("integrator, random numbers", r"integrators::|rand|StandardNormal"),
     ("memmove, memset", r"memmove|memset|memcpy"),
+    ("rayon: waiting, stealing, waking", r"rayon_core|crossbeam|futex|sched_yield|__lll"),
 ]
 
 
 def samples(script_text):
-    """The stacks of `perf script -F ip,sym` output, innermost frame first."""
-    stack = []
+    """(thread id, stack) of `perf script -F tid,ip,sym` output, innermost frame first."""
+    tid, stack = None, []
     for line in script_text.splitlines():
         if not line.strip():
             if stack:
-                yield stack
-            stack = []
+                yield tid, stack
+            tid, stack = None, []
+            continue
+        if not line.startswith("\t"):  # a sample's first line: its thread id (padded)
+            tid = line.split()[0]
             continue
         parts = line.strip().split(None, 1)
         stack.append(parts[1] if len(parts) > 1 else "?")
     if stack:
-        yield stack
+        yield tid, stack
+
+
+def print_per_thread(found):
+    """Each group's samples on each thread, the busiest thread (the one that runs the
+    integrator, "main role") first: what only it runs is the serial part."""
+    by_thread = collections.Counter(tid for tid, _ in found)
+    tids = [t for t, _ in by_thread.most_common()]
+    counts = collections.Counter((tid, group_of(s)) for tid, s in found)
+    groups = collections.Counter(group_of(s) for _, s in found)
+    main_total = by_thread[tids[0]]
+    print("per thread, %% of the busiest thread's samples (%d); threads: %s"
+          % (main_total, " ".join("%s=%d" % (t, by_thread[t]) for t in tids)))
+    for name, _ in groups.most_common():
+        cells = "".join("  %7.2f" % (100.0 * counts[(t, name)] / main_total) for t in tids)
+        print("%s  %s" % (cells, name))
 
 
 def group_of(stack):
@@ -66,6 +85,8 @@ def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--delay-ms", type=int, default=0, help="leave the start-up out (perf -D)")
     ap.add_argument("--frequency", type=int, default=1000, help="samples per CPU-second")
+    ap.add_argument("--per-thread", action="store_true",
+                    help="each group's samples per thread (with RAYON_NUM_THREADS > 1)")
     ap.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND ...")
     args = ap.parse_args(argv)
     command = args.command[1:] if args.command[:1] == ["--"] else args.command
@@ -83,14 +104,17 @@ def main(argv):
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         if run.returncode != 0:
             sys.exit("perf record failed (exit %d): %s" % (run.returncode, run.stderr[-1500:]))
-        script = subprocess.run(["perf", "script", "-i", data, "-F", "ip,sym"],
+        script = subprocess.run(["perf", "script", "-i", data, "-F", "tid,ip,sym"],
                                 capture_output=True, text=True, check=True).stdout
-    counts = collections.Counter(group_of(s) for s in samples(script))
+    found = list(samples(script))
+    counts = collections.Counter(group_of(s) for _, s in found)
     total = sum(counts.values())
     print("command: %s" % " ".join(command))
     print("%d samples of the software clock at %d Hz" % (total, args.frequency))
     for name, n in counts.most_common():
         print("  %6.2f %%  %s" % (100.0 * n / total, name))
+    if args.per_thread:
+        print_per_thread(found)
 
 
 if __name__ == "__main__":

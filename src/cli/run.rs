@@ -14,6 +14,7 @@ use crate::io::scene::{Scene, load_scene};
 use crate::io::summary::{RunSummary, Status, format_time};
 use crate::run::drift::judge;
 use crate::run::prepare::{OutputPlan, PreparedRun, RunRequest, check_scene, prepare};
+use crate::run::spin::Spinners;
 use crate::run::{CheckpointPlan, RunOptions, TrajectoryOptions, is_stochastic};
 use crate::settings::{MethodSettings, RunSpec, Value};
 use crate::split::ParticleClass;
@@ -215,9 +216,9 @@ fn run_in_pool(args: &RunArgs) -> Result<i32> {
         checkpoint,
         resume: prepared.restart.clone(),
     };
-    let mut summary = prepared
-        .run(&options)
-        .inspect_err(|_| manifest.withdraw(&out_dir))?;
+    // This run owns its pool: its other workers spin between the step's parallel loops.
+    let ran = Spinners::around(|| prepared.run(&options));
+    let mut summary = ran.inspect_err(|_| manifest.withdraw(&out_dir))?;
     complete_summary(args, &prepared.scene, &mut summary, drift_bound)?;
     if args.plot {
         plot_energies(&out_dir.join("energy.csv"), &summary, &out_dir)?;

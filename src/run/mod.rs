@@ -3,6 +3,7 @@
 pub mod drift;
 pub mod monitor;
 pub mod prepare;
+pub mod spin;
 pub mod verdict;
 
 pub use prepare::{
