@@ -283,13 +283,16 @@ struct Stage {
 }
 
 impl Stage {
+    /// A stage holding the first group of `waters` (read from `sources`) as the current one.
     #[inline(always)]
-    fn new() -> Self {
-        Stage {
+    fn primed<S: Simd<R = f64>>(waters: &[Settle], sources: Sources) -> Self {
+        let mut stage = Stage {
             inputs: [[[0.0; 16]; 22]; 2],
             current: 0,
             changes: [[[0.0; 16]; 3]; 3],
-        }
+        };
+        fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+        stage
     }
 
     /// The current group's inputs as lanes: the two arrays' atoms and the constants.
@@ -304,10 +307,22 @@ impl Stage {
         (atoms, [v[18], v[19], v[20], v[21]])
     }
 
-    /// Fill the other set with `next` (if any) and make it the current one for the next
-    /// group.
+    /// Fill the other set with the group after group `g` of `waters` (after the last,
+    /// `ahead`, which may be empty) and make it the current one for the next group.
     #[inline(always)]
-    fn advance<S: Simd<R = f64>>(&mut self, next: &[Settle], sources: Sources) {
+    fn advance<S: Simd<R = f64>>(
+        &mut self,
+        waters: &[Settle],
+        g: usize,
+        ahead: &[Settle],
+        sources: Sources,
+    ) {
+        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
+        let next = if rest.is_empty() {
+            ahead
+        } else {
+            first_group(rest, S::WIDTH)
+        };
         self.current ^= 1;
         fill::<S>(next, sources, &mut self.inputs[self.current]);
     }
@@ -691,9 +706,8 @@ fn positions_lanes<S: Simd<R = f64>>(
     dt: f64,
 ) -> Result<(), ConstraintFailure> {
     let inverse_dt = 1.0 / dt;
-    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
-    let first = first_group(waters, S::WIDTH);
-    fill::<S>(first, Sources::of(q_old, q_new, None), &mut stage.inputs[0]);
+    let mut block = [NO_CHANGE; LANES];
+    let mut stage = Stage::primed::<S>(waters, Sources::of(q_old, q_new, None));
     for (k, chunk) in waters.chunks(LANES).enumerate() {
         let changes = &mut block[..chunk.len()];
         let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
@@ -723,13 +737,7 @@ fn position_changes<S: Simd<R = f64>>(
     let lengths = edges(s, pbc);
     for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
         let ([old, new], shape) = stage.load(s);
-        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
-        let next = if rest.is_empty() {
-            ahead
-        } else {
-            first_group(rest, S::WIDTH)
-        };
-        stage.advance::<S>(next, sources);
+        stage.advance::<S>(waters, g, ahead, sources);
         let (delta, failures) = match pbc {
             Some(_) => position_step::<S, true>(shape, lengths, old, new),
             None => position_step::<S, false>(shape, lengths, old, new),
@@ -748,8 +756,8 @@ fn position_changes_alone<S: Simd<R = f64>>(
     q_new: &[f64],
     out: &mut [Change],
 ) {
-    let (mut stage, sources) = (Stage::new(), Sources::of(q_old, q_new, None));
-    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    let sources = Sources::of(q_old, q_new, None);
+    let mut stage = Stage::primed::<S>(waters, sources);
     position_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
@@ -926,13 +934,8 @@ fn velocities_lanes<S: Simd<R = f64>>(
     p: &mut [f64],
     inverse_mass: &[f64],
 ) -> Result<(), ConstraintFailure> {
-    let (mut block, mut stage) = ([NO_CHANGE; LANES], Stage::new());
-    let first = first_group(waters, S::WIDTH);
-    fill::<S>(
-        first,
-        Sources::of(q, p, Some(inverse_mass)),
-        &mut stage.inputs[0],
-    );
+    let mut block = [NO_CHANGE; LANES];
+    let mut stage = Stage::primed::<S>(waters, Sources::of(q, p, Some(inverse_mass)));
     for (k, chunk) in waters.chunks(LANES).enumerate() {
         let changes = &mut block[..chunk.len()];
         let ahead = first_group(&waters[k * LANES + chunk.len()..], S::WIDTH);
@@ -960,13 +963,7 @@ fn velocity_changes<S: Simd<R = f64>>(
     for (g, out) in out.chunks_mut(S::WIDTH).enumerate() {
         let ([qw, pw], [wa, wh, ..]) = stage.load(s);
         let masses = [wa, wh];
-        let rest = &waters[((g + 1) * S::WIDTH).min(waters.len())..];
-        let next = if rest.is_empty() {
-            ahead
-        } else {
-            first_group(rest, S::WIDTH)
-        };
-        stage.advance::<S>(next, sources);
+        stage.advance::<S>(waters, g, ahead, sources);
         let (dp, singular) = match pbc {
             Some(_) => velocity_step::<S, true>(masses, lengths, qw, pw),
             None => velocity_step::<S, false>(masses, lengths, qw, pw),
@@ -992,8 +989,8 @@ fn velocity_changes_alone<S: Simd<R = f64>>(
     inverse_mass: &[f64],
     out: &mut [Change],
 ) {
-    let (mut stage, sources) = (Stage::new(), Sources::of(q, p, Some(inverse_mass)));
-    fill::<S>(first_group(waters, S::WIDTH), sources, &mut stage.inputs[0]);
+    let sources = Sources::of(q, p, Some(inverse_mass));
+    let mut stage = Stage::primed::<S>(waters, sources);
     velocity_changes(s, waters, pbc, sources, out, &mut stage, &[]);
 }
 
