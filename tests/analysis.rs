@@ -16,13 +16,6 @@ use longstep::forces::spring::{HarmonicBond, harmonic_springs};
 use longstep::forces::{Site, TermClass};
 use longstep::split::{Assignment, ForceSplit, LabelledTerm};
 
-/// A standard normal deviate (Box–Muller).
-fn normal(rng: &mut TestRng) -> f64 {
-    let u = rng.uniform(f64::MIN_POSITIVE, 1.0);
-    let v = rng.uniform(0.0, 1.0);
-    (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-}
-
 #[test]
 fn ideal_gas_rdf_is_one_within_its_binomial_error() {
     // N uniform points in a periodic box: each pair lands in shell k with probability
@@ -78,7 +71,7 @@ fn simple_cubic_lattice_peaks_at_its_shells_with_their_coordination_numbers() {
     for i in 0..n {
         let site = [i % side, (i / side) % side, i / (side * side)];
         for s in site {
-            q.push(s as f64 * a + sigma * normal(&mut rng));
+            q.push(s as f64 * a + sigma * rng.normal());
         }
     }
     let elements = vec!["Ar".to_string(); n];
@@ -119,12 +112,12 @@ fn intramolecular_pairs_are_left_out_of_counts_and_normalisation() {
 
 /// `x_t = φ x_{t−1} + √(1 − φ²) ε_t`, stationary with unit variance.
 fn ar1(rng: &mut TestRng, phi: f64, n: usize) -> Vec<f64> {
-    let mut x = normal(rng);
+    let mut x = rng.normal();
     let scale = (1.0 - phi * phi).sqrt();
     (0..n)
         .map(|_| {
             let value = x;
-            x = phi * x + scale * normal(rng);
+            x = phi * x + scale * rng.normal();
             value
         })
         .collect()
@@ -276,7 +269,7 @@ fn configurational_temperature_of_an_exactly_sampled_harmonic_network_is_t() {
         let mut probe = ConfigurationalProbe::new(terms, n, 3, 2, 9, exact_bonded);
         let (mut g2, mut lap) = (Vec::new(), Vec::new());
         for m in 0..samples {
-            let xi = nalgebra::DVector::from_fn(dofs, |_, _| normal(&mut rng));
+            let xi = nalgebra::DVector::from_fn(dofs, |_, _| rng.normal());
             let q = cholesky
                 .l()
                 .transpose()

@@ -5,11 +5,10 @@
 //! a trajectory of another model, order or box refused.
 
 mod common;
-use common::{argv, run_cli, scene_file, scratch_dir};
+use common::{argv, estimate, run_cli, scene_file, scratch_dir};
 
 use std::path::Path;
 
-use longstep::analysis::block_average::Estimate;
 use longstep::analysis::term_energies::{evaluate, series_names};
 use longstep::io::energy_table::EnergyTable;
 use longstep::io::trajectory::TrajectoryReader;
@@ -45,6 +44,15 @@ const TERMS: [&str; 9] = [
     "lj-14",
     "coulomb-14",
 ];
+
+/// The entry of the JSON array `list` whose `key` is `name`.
+fn entry<'a>(list: &'a Json, key: &str, name: &str) -> &'a Json {
+    list.as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c[key] == name)
+        .unwrap_or_else(|| panic!("no {key} {name} in {list}"))
+}
 
 fn analyze_json(args: &[&str]) -> Json {
     let (code, stdout, stderr) = run_cli(args);
@@ -229,15 +237,6 @@ fn terms_recomputed_from_a_longstep_trajectory_equal_the_runs_energies() {
         frames += 1;
     }
     assert_eq!(frames, 5, "frames at t = 0, 4, …, 16 fs");
-}
-
-/// An estimate with `blocks` blocks.
-fn estimate(mean: f64, error: f64) -> Estimate {
-    Estimate {
-        mean,
-        error,
-        blocks: 10,
-    }
 }
 
 #[test]
@@ -526,23 +525,13 @@ fn two_reference_runs_are_pooled_and_each_is_a_control_against_the_other() {
         .collect();
     assert_eq!(controls.len(), 2);
     let mean_of = |summary: &Json, name: &str| {
-        let c = summary["criteria"]
-            .as_array()
+        entry(&summary["criteria"], "name", name)["value"]
+            .as_f64()
             .unwrap()
-            .iter()
-            .find(|c| c["name"] == name)
-            .unwrap_or_else(|| panic!("no {name}"))
-            .clone();
-        c["value"].as_f64().unwrap()
     };
     for name in ["mean bonds energy", "potential energy per molecule"] {
         let (x1, x2) = (mean_of(controls[0], name), mean_of(controls[1], name));
-        let part = pool["parts"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p["quantity"] == name)
-            .unwrap();
+        let part = entry(&pool["parts"], "quantity", name);
         let mean = part["mean"].as_f64().unwrap();
         // Sums of a few numbers of size ~|x|: round-off ~1e-15 relative.
         let scale = x1.abs().max(x2.abs());
@@ -562,12 +551,7 @@ fn two_reference_runs_are_pooled_and_each_is_a_control_against_the_other() {
         );
         assert_eq!(error, within.max(between));
         // The run's criterion carries the pooled reference and its error.
-        let criterion = run["criteria"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|c| c["name"] == name)
-            .unwrap();
+        let criterion = entry(&run["criteria"], "name", name);
         assert!((criterion["reference"].as_f64().unwrap() - mean).abs() < 1e-12 * scale);
     }
 }

@@ -4,18 +4,10 @@
 //! unequal lengths (docs/studies.md, "A reference of several runs").
 
 mod common;
-use common::TestRng;
+use common::{TestRng, estimate};
 
 use longstep::analysis::block_average::Estimate;
 use longstep::analysis::pooled::pool;
-
-fn estimate(mean: f64, error: f64) -> Estimate {
-    Estimate {
-        mean,
-        error,
-        blocks: 10,
-    }
-}
 
 #[test]
 fn two_runs_that_agree_keep_their_own_error() {
@@ -51,13 +43,6 @@ fn a_run_without_an_error_bar_leaves_the_pool_without_one() {
     assert!(p.error.is_nan() && p.within.is_nan());
 }
 
-/// A standard normal deviate (Box–Muller).
-fn normal(rng: &mut TestRng) -> f64 {
-    let u = rng.uniform(f64::MIN_POSITIVE, 1.0);
-    let v = rng.uniform(0.0, 1.0);
-    (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
-}
-
 #[test]
 fn the_between_run_error_measures_the_scatter_the_runs_own_bars_miss() {
     // Five runs of lengths 1, 2, 3, 4, 10 of a quantity whose run means scatter with
@@ -80,7 +65,7 @@ fn the_between_run_error_measures_the_scatter_the_runs_own_bars_miss() {
             .iter()
             .map(|t| {
                 let sd = (c / t).sqrt();
-                estimate(truth + sd * normal(&mut rng), sd / understated)
+                estimate(truth + sd * rng.normal(), sd / understated)
             })
             .collect();
         let p = pool(&runs, &lengths);

@@ -25,6 +25,22 @@ impl TestRng {
     pub fn vector(&mut self, n: usize, lo: f64, hi: f64) -> Vec<f64> {
         (0..n).map(|_| self.uniform(lo, hi)).collect()
     }
+
+    /// A standard normal deviate (Box–Muller).
+    pub fn normal(&mut self) -> f64 {
+        let u = self.uniform(f64::MIN_POSITIVE, 1.0);
+        let v = self.uniform(0.0, 1.0);
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
+}
+
+/// A block-average estimate of `mean` and `error` (over 10 blocks).
+pub fn estimate(mean: f64, error: f64) -> longstep::analysis::block_average::Estimate {
+    longstep::analysis::block_average::Estimate {
+        mean,
+        error,
+        blocks: 10,
+    }
 }
 
 pub fn max_abs(x: &[f64]) -> f64 {
