@@ -178,19 +178,16 @@ fn pool_terms_and_peaks(out: &mut RunAnalysis, runs: &[RunAnalysis], parts: &mut
 fn pool_term_spread(out: &mut RunAnalysis, runs: &[RunAnalysis], k: usize, lengths: &[f64]) {
     let w = weights(lengths);
     let mean = out.terms[k].mean.mean;
-    let term = |r: &RunAnalysis| r.terms[k].clone();
+    let terms = runs.iter().map(|r| &r.terms[k]);
     out.terms[k].basin_error = w
         .iter()
-        .zip(runs)
-        .map(|(w, r)| (w * term(r).basin_error).powi(2))
+        .zip(terms.clone())
+        .map(|(w, t)| (w * t.basin_error).powi(2))
         .sum::<f64>()
         .sqrt();
     out.terms[k].variance = w
         .iter()
-        .zip(runs)
-        .map(|(w, r)| {
-            let t = term(r);
-            w * (t.variance + (t.mean.mean - mean).powi(2))
-        })
+        .zip(terms)
+        .map(|(w, t)| w * (t.variance + (t.mean.mean - mean).powi(2)))
         .sum();
 }
